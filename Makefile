@@ -1,0 +1,31 @@
+# The two commands of this project: `make demo` and `make test`.
+# Each first installs what is missing into .venv (pinned, see requirements.txt) and builds the
+# ROS 2 package with colcon into it; a second run finds the stamps and installs nothing.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+DEPS_STAMP := $(VENV)/.tactex-deps.stamp
+BUILD_STAMP := $(VENV)/.tactex-build.stamp
+BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.srv action/*.action) \
+	$(shell find tactex_ros launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)
+
+.PHONY: demo test setup clean
+
+setup: $(BUILD_STAMP)
+
+$(DEPS_STAMP): requirements.txt scripts/setup_env.sh
+	bash scripts/setup_env.sh deps
+	touch $@
+
+$(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
+	bash scripts/setup_env.sh build
+	touch $@
+
+demo: $(BUILD_STAMP)
+	bash scripts/demo.sh
+
+test: $(BUILD_STAMP)
+	$(PY) -m pytest -q -ra test
+
+clean:
+	rm -rf $(VENV) .colcon

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Installs what the project needs into .venv (repository root) and builds the package into it.
+#   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels (requirements.txt)
+#   scripts/setup_env.sh build  - colcon build of the ROS package `tactex` (interfaces, Python
+#                                 package, launch/config, node executables) merged into .venv
+# The Makefile calls these only when their inputs changed, so a second run installs nothing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=$ROOT/.venv
+PYTHON=${PYTHON:-python3}
+
+deps() {
+  if [ ! -x "$VENV/bin/python" ]; then
+    "$PYTHON" -m venv "$VENV"
+  fi
+  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements.txt
+  # The ROS wheels' exported CMake files name the wheel builder's include dirs; point them at ours.
+  local py_inc np_inc
+  py_inc=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
+  np_inc=$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')
+  { grep -l '/opt/python/cp311-cp311' "$VENV"/share/*/cmake/*.cmake 2>/dev/null || true; } | while read -r f; do
+    sed -i \
+      -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#${np_inc}#g" \
+      -e "s#/opt/python/cp311-cp311/include/python3.11#${py_inc}#g" "$f"
+  done
+}
+
+build() {
+  export PATH="$VENV/bin:$PATH"
+  export CMAKE_PREFIX_PATH="$VENV"
+  export AMENT_PREFIX_PATH="$VENV"
+  "$VENV/bin/colcon" --log-base "$ROOT/.colcon/log" build \
+    --base-paths "$ROOT" \
+    --build-base "$ROOT/.colcon/build" \
+    --install-base "$VENV" \
+    --merge-install --symlink-install \
+    --event-handlers console_cohesion- status- summary+ \
+    --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF
+  ln -sf ../lib/tactex/tactex "$VENV/bin/tactex"
+}
+
+case "${1:-all}" in
+  deps) deps ;;
+  build) build ;;
+  all) deps; build ;;
+  *) echo "usage: $0 [deps|build|all]" >&2; exit 2 ;;
+esac
