@@ -1,2 +1,171 @@
-def main():
-    print("tactex")
+"""``tactex`` command line: trials, weights, benchmarks, simulator, experiments.
+
+Exit status: 0 success, 1 a check failed (e.g. weights mismatch), 2 bad input (named).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .core.errors import TactexError
+
+
+def _write_json(path: str | None, obj: dict) -> None:
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(json.dumps(obj, indent=2))
+
+
+def _learner_config(args: argparse.Namespace):
+    from .core.config import preset
+    over = {}
+    if getattr(args, "model", None):
+        over["model"] = args.model
+    if getattr(args, "weights", None):
+        over["weights"] = args.weights
+    return preset(args.config, **over)
+
+
+def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,
+                     reference: str | None, seed: int) -> tuple[list[str], int]:
+    """Classes of [reference, comparison 1..N] and the index (1..N) of the true match."""
+    rng = np.random.default_rng([seed, 5])
+    if chosen:
+        unknown = [c for c in chosen if c not in classes]
+        if unknown:
+            raise TactexError(f"--classes: unknown class(es) {unknown}; available: "
+                              f"{', '.join(classes)}")
+        comps = list(chosen)
+    else:
+        if len(classes) < comparisons:
+            raise TactexError(f"--comparisons {comparisons}: the source has only "
+                              f"{len(classes)} classes")
+        comps = [str(c) for c in rng.choice(classes, comparisons, replace=False)]
+    if len(comps) < 2:
+        raise TactexError("--classes: a trial needs at least 2 comparison platforms")
+    if reference is None:
+        reference = comps[int(rng.integers(len(comps)))]
+    if reference not in comps:
+        raise TactexError(f"--reference {reference!r} is not one of the comparison classes "
+                          f"{comps}")
+    return [reference] + comps, comps.index(reference) + 1
+
+
+def cmd_trial(args: argparse.Namespace) -> int:
+    from .core.engine import TrialConfig, TrialEngine
+    from .sources import open_source
+    src = open_source(args.source)
+    cfg = _learner_config(args)
+    chosen = args.classes.split(",") if args.classes else None
+    if chosen is None and args.comparisons < 2:
+        raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
+    platform_classes, truth = assign_platforms(src.classes, args.comparisons, chosen,
+                                               args.reference, args.seed)
+    tcfg = TrialConfig(strategy=args.strategy, rounds=args.rounds,
+                       stop_confidence=args.stop_confidence)
+    n = len(platform_classes) - 1
+    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
+    engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
+    touch = src.trial(platform_classes, args.seed)
+
+    def progress(rec) -> None:
+        if not args.quiet:
+            nxt = ids[rec.platform] if rec.platform else "-"
+            print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
+                  f"decision {rec.decision_s:.2f}s", file=sys.stderr)
+
+    res = engine.run(touch, truth=truth, on_round=progress)
+    out = res.to_dict()
+    out.update(classes={i: c for i, c in zip(ids, platform_classes)},
+               prediction_class=platform_classes[res.prediction],
+               truth_class=platform_classes[truth], strategy=args.strategy,
+               model=cfg.model, config=args.config, seed=args.seed, source=args.source)
+    _write_json(args.json, out)
+    verdict = "correct" if res.correct else "wrong"
+    print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
+          f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
+          f"{res.touches} touches")
+    return 0
+
+
+def cmd_weights_inspect(args: argparse.Namespace) -> int:
+    from .core.models import build_model, load_weights, read_checkpoint
+    state = read_checkpoint(args.path)
+    model, _ = build_model(args.model, args.classes)
+    report = load_weights(model, state)
+    print(report.summary())
+    _write_json(args.json, report.to_dict())
+    return 0 if report.ok else 1
+
+
+def cmd_bench_latency(args: argparse.Namespace) -> int:
+    from .bench import latency
+    out = latency.run(touch_counts=args.touches, repeats=args.repeats,
+                      seed_epochs_timed=args.seed_epochs)
+    _write_json(args.json, out)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .core.config import PRESETS
+    from .core.models import MODEL_NAMES
+    from .core.strategies import STRATEGIES
+    p = argparse.ArgumentParser(prog="tactex", description=__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    t = sub.add_parser("trial", help="run one active-exploration trial")
+    t.add_argument("--source", required=True, help="replay:DIR or sim[:difficulty]")
+    t.add_argument("--comparisons", type=int, default=4)
+    t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
+    t.add_argument("--reference", help="class of the reference platform")
+    t.add_argument("--strategy", default="variance",
+                   help=f"one of {', '.join(STRATEGIES)}")
+    t.add_argument("--model", help=f"one of {', '.join(MODEL_NAMES + ('auto',))}")
+    t.add_argument("--config", default="default", help=f"one of {', '.join(PRESETS)}")
+    t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
+    t.add_argument("--rounds", type=int, default=20)
+    t.add_argument("--stop-confidence", type=float, default=0.0)
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--json")
+    t.add_argument("--quiet", action="store_true")
+    t.set_defaults(func=cmd_trial)
+
+    w = sub.add_parser("weights", help="checkpoint tools")
+    wsub = w.add_subparsers(dest="wcmd", required=True)
+    wi = wsub.add_parser("inspect", help="what a checkpoint loads into a model")
+    wi.add_argument("path")
+    wi.add_argument("--model", default="inception_v3")
+    wi.add_argument("--classes", type=int, default=4, help="platforms (classifier size)")
+    wi.add_argument("--json")
+    wi.set_defaults(func=cmd_weights_inspect)
+
+    b = sub.add_parser("bench", help="benchmarks (print figures)")
+    bsub = b.add_subparsers(dest="bcmd", required=True)
+    bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
+    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
+    bl.add_argument("--repeats", type=int, default=5)
+    bl.add_argument("--seed-epochs", type=int, default=1,
+                    help="epochs actually timed for the seed-faithful config (scaled to 10)")
+    bl.add_argument("--json")
+    bl.set_defaults(func=cmd_bench_latency)
+
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except TactexError as exc:
+        print(f"tactex: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""Learner and trial settings: one declarative schema per parameter, named presets.
+
+Each field carries ``type``, default, allowed range or choices and a description in its metadata
+(the idea of generate_parameter_library). ``validate`` checks a config against it and the ROS nodes
+declare their parameters from the same schema.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import TactexError
+from .models import MODEL_NAMES
+
+
+def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,
+          choices: tuple | None = None) -> Any:
+    """A dataclass field with its schema (range [lo, hi] or choices, description)."""
+    return field(default=default, metadata={"description": description, "lo": lo, "hi": hi,
+                                            "choices": choices})
+
+
+@dataclass
+class LearnerConfig:
+    """How the online learner trains and scores (units in the descriptions)."""
+
+    model: str = param("small_inception", "model variant (or 'auto' for the escalating chooser)",
+                       choices=MODEL_NAMES + ("auto",))
+    input_size: int = param(299, "model input side [px]", 32, 512)
+    augment: int = param(10, "random-rotation views stored per touch", 1, 64)
+    epochs: int = param(10, "full passes over all stored views per round (when steps == 0)",
+                        0, 100)
+    steps: int = param(0, "if > 0: minibatch steps per round instead of epochs (constant cost)",
+                       0, 10000)
+    batch_size: int = param(32, "training minibatch size", 2, 1024)
+    lr: float = param(1e-3, "Adam learning rate", 1e-6, 1.0)
+    weight_decay: float = param(0.0, "Adam weight decay", 0.0, 1.0)
+    dropout: float = param(0.5, "dropout rate before the classifier", 0.0, 0.95)
+    block_dropout: float = param(0.0, "dropout rate after stem and Inception blocks (0 = off)",
+                                 0.0, 0.95)
+    mc_passes: int = param(20, "Monte-Carlo dropout passes per decision", 1, 1000)
+    test_views: int = param(1, "views of the reference averaged when scoring (1 = unrotated)",
+                            1, 64)
+    aux_logits: bool = param(False, "train Inception v3's auxiliary classifier too")
+    fourier: bool = param(False, "train on log-magnitude Fourier spectra of the views")
+    weights: str = param("", "torchvision-format checkpoint for inception_v3 ('' = none)")
+    threads: int = param(0, "torch intra-op threads (0 = leave torch's default)", 0, 256)
+
+    def replace(self, **kw: Any) -> "LearnerConfig":
+        return validate(dataclasses.replace(self, **kw))
+
+
+# The thesis's setting, kept by name for reproductions; and our default, chosen by
+# `tactex bench latency` / `tactex experiment pareto` (see README, "Speed").
+PRESETS: dict[str, dict[str, Any]] = {
+    "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
+                          batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20),
+    "default": dict(model="small_inception", input_size=64, epochs=0, steps=12,
+                    batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
+}
+
+
+def preset(name: str, **overrides: Any) -> LearnerConfig:
+    """A named configuration with optional overrides, validated."""
+    if name not in PRESETS:
+        raise TactexError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
+    return validate(LearnerConfig(**{**PRESETS[name], **overrides}))
+
+
+def validate(cfg: Any) -> Any:
+    """Check every field of a schema dataclass: type, range, choices. Returns ``cfg``."""
+    for f in dataclasses.fields(cfg):
+        v = getattr(cfg, f.name)
+        want = f.type if isinstance(f.type, type) else {"int": int, "float": float, "str": str,
+                                                         "bool": bool}.get(str(f.type), object)
+        if want is float and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+            setattr(cfg, f.name, v)
+        if want is not object and (not isinstance(v, want) or
+                                   (want is int and isinstance(v, bool))):
+            raise TactexError(f"{type(cfg).__name__}.{f.name}: expected {want.__name__}, "
+                              f"got {v!r}")
+        md = f.metadata
+        if md.get("choices") and v not in md["choices"]:
+            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is not one of "
+                              f"{', '.join(map(str, md['choices']))}")
+        if md.get("lo") is not None and v < md["lo"]:
+            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is below {md['lo']}")
+        if md.get("hi") is not None and v > md["hi"]:
+            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is above {md['hi']}")
+    return cfg
+
+
+def schema(cls: type) -> list[dict[str, Any]]:
+    """The declarative schema of a config dataclass, one dict per parameter."""
+    out = []
+    for f in dataclasses.fields(cls):
+        out.append({"name": f.name, "type": f.type if isinstance(f.type, str) else f.type.__name__,
+                    "default": f.default, **f.metadata})
+    return out

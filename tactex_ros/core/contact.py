@@ -1,0 +1,66 @@
+"""Contact detection on GelSight frames: which frame of a press shows the strongest contact.
+
+Contact changes a GelSight Mini frame by only a few grey levels on average, so the score is
+computed on blurred frames (sensor noise averages out) against a no-contact reference frame:
+score = mean |blur(frame) - blur(reference)| over pixels and channels, in grey levels.
+Used by the replay source (per recorded press) and by the GelSight node (ring buffer).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .preprocess import FRAME_H, FRAME_W
+
+_BLUR = (5, 5)
+
+
+def blur(frame: np.ndarray) -> np.ndarray:
+    """float32 Gaussian-blurred copy of a uint8 frame."""
+    return cv2.GaussianBlur(frame, _BLUR, 0).astype(np.float32)
+
+
+def contact_score(frame: np.ndarray, reference_blurred: np.ndarray) -> float:
+    """Mean absolute difference (grey levels) of a blurred frame to a blurred reference."""
+    return float(np.abs(blur(frame) - reference_blurred).mean())
+
+
+def contact_scores(frames: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """(F, H, W, 3) frames -> (F,) contact scores. Reference: median of the first 3 frames."""
+    if reference is None:
+        reference = np.median(frames[:3], axis=0).astype(np.uint8)
+    ref = blur(reference)
+    return np.array([contact_score(f, ref) for f in frames])
+
+
+def strongest_contact(frames: np.ndarray, reference: np.ndarray | None = None,
+                      smooth: int = 3) -> tuple[int, np.ndarray]:
+    """Index of the strongest-contact frame and the (F,) scores.
+
+    Scores are smoothed over ``smooth`` consecutive frames before the argmax so a single noisy
+    frame cannot win; the returned index is the best raw frame inside the best window.
+    """
+    s = contact_scores(frames, reference)
+    if smooth > 1 and len(s) >= smooth:
+        k = np.ones(smooth) / smooth
+        sm = np.convolve(s, k, mode="same")
+        c = int(np.argmax(sm))
+        lo, hi = max(0, c - smooth // 2), min(len(s), c + smooth // 2 + 1)
+        return lo + int(np.argmax(s[lo:hi])), s
+    return int(np.argmax(s)), s
+
+
+def to_sensor_frame(img: np.ndarray) -> np.ndarray:
+    """Any (H, W, 3) uint8 frame -> (240, 320, 3): centre-crop to 4:3, then resize."""
+    h, w = img.shape[:2]
+    if (h, w) == (FRAME_H, FRAME_W):
+        return img
+    target = FRAME_W / FRAME_H
+    if w / h > target:
+        nw = int(round(h * target))
+        img = img[:, (w - nw) // 2:(w - nw) // 2 + nw]
+    elif w / h < target:
+        nh = int(round(w / target))
+        img = img[(h - nh) // 2:(h - nh) // 2 + nh]
+    return cv2.resize(img, (FRAME_W, FRAME_H), interpolation=cv2.INTER_AREA)

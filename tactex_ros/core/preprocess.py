@@ -1,0 +1,85 @@
+"""Frames to model input: validation, rotation augmentation without black corners, normalisation.
+
+A GelSight frame is uint8 RGB (240, 320, 3). Every view the model sees is the centre square that
+stays inside the frame under *any* rotation: side = frame height / sqrt(2) (169.7 px of 240), so a
+rotated view never contains the black corners that rotating the whole frame would create. The
+rotation, the crop and the resize to the model input (``size`` x ``size``) are one affine warp.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import torch
+
+from .errors import TactexError
+
+FRAME_H, FRAME_W = 240, 320
+IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
+IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
+
+
+def validate_frame(img: np.ndarray, what: str = "image") -> np.ndarray:
+    """Check a frame is uint8 RGB 240x320 with some content; return it C-contiguous.
+
+    Raises TactexError naming ``what`` when the shape, dtype or content is wrong (a constant
+    frame, e.g. a blank or corrupt capture, is rejected: it carries no texture).
+    """
+    if not isinstance(img, np.ndarray):
+        raise TactexError(f"{what}: expected a numpy array, got {type(img).__name__}")
+    if img.dtype != np.uint8:
+        raise TactexError(f"{what}: expected dtype uint8, got {img.dtype}")
+    if img.shape != (FRAME_H, FRAME_W, 3):
+        raise TactexError(f"{what}: expected shape ({FRAME_H}, {FRAME_W}, 3), got {img.shape}")
+    if int(img.max()) == int(img.min()):
+        raise TactexError(f"{what}: constant frame (every pixel {int(img.max())}), no texture")
+    return np.ascontiguousarray(img)
+
+
+def safe_crop_side(h: int = FRAME_H, w: int = FRAME_W) -> float:
+    """Side (px) of the centre square inside an (h, w) frame under every rotation."""
+    return min(h, w) / math.sqrt(2.0)
+
+
+def view(img: np.ndarray, angle_deg: float, size: int) -> np.ndarray:
+    """One rotated, cropped, resized view: (240, 320, 3) uint8 -> (size, size, 3) uint8."""
+    h, w = img.shape[:2]
+    side = safe_crop_side(h, w)
+    scale = size / side
+    # Map the output square (centred at size/2) to the frame centre, rotated by angle.
+    m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), angle_deg, scale)
+    m[0, 2] += size / 2.0 - w / 2.0
+    m[1, 2] += size / 2.0 - h / 2.0
+    interp = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_LINEAR
+    return cv2.warpAffine(img, m, (size, size), flags=interp, borderMode=cv2.BORDER_REFLECT)
+
+
+def augment(img: np.ndarray, n: int, size: int, rng: np.random.Generator,
+            include_identity: bool = False) -> np.ndarray:
+    """``n`` views at uniformly random angles in [0, 360): (n, size, size, 3) uint8.
+
+    With ``include_identity`` the first view is unrotated (angle 0).
+    """
+    angles = rng.uniform(0.0, 360.0, size=n)
+    if include_identity and n > 0:
+        angles[0] = 0.0
+    return np.stack([view(img, float(a), size) for a in angles])
+
+
+def to_tensor(views: np.ndarray, fourier: bool = False) -> torch.Tensor:
+    """(N, S, S, 3) uint8 RGB -> (N, 3, S, S) float32, ImageNet-normalised.
+
+    With ``fourier`` each channel is replaced by its centred log-magnitude spectrum,
+    standardised per image (thesis appendix A.2: training on Fourier-transformed inputs).
+    """
+    x = views.astype(np.float32) / 255.0
+    if fourier:
+        spec = np.fft.fftshift(np.fft.fft2(x - x.mean(axis=(1, 2), keepdims=True), axes=(1, 2)),
+                               axes=(1, 2))
+        x = np.log1p(np.abs(spec)).astype(np.float32)
+        x = (x - x.mean(axis=(1, 2), keepdims=True)) / (x.std(axis=(1, 2), keepdims=True) + 1e-6)
+    else:
+        x = (x - IMAGENET_MEAN) / IMAGENET_STD
+    return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 3, 1, 2)))

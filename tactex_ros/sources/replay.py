@@ -1,0 +1,140 @@
+"""Touch source that replays real GelSight press recordings.
+
+Folder layout: ``<root>/<class>/<file>``; each file is one press, a video readable by OpenCV
+(``.mov .mp4 .avi .mkv``) or a single image (``.png .jpg .jpeg .bmp``). For a video the contact
+frame is chosen deliberately: the strongest contact against the press's own no-contact frames
+(see ``core.contact``). Frames are returned as RGB uint8 (240, 320, 3).
+
+A trial assigns a class to the reference and to every comparison platform. Touching a platform
+draws a press of its class not used yet in this trial, in a seeded random order, cycling when
+the class is exhausted. Presses used for the reference are never handed to a comparison platform
+while unused presses of the class remain (no test press leaks into training).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..core.contact import strongest_contact, to_sensor_frame
+from ..core.engine import TouchFailed  # noqa: F401  (re-exported for sources' users)
+from ..core.errors import TactexError
+
+VIDEO_EXT = {".mov", ".mp4", ".avi", ".mkv"}
+IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
+
+
+@lru_cache(maxsize=1024)
+def load_press(path: str) -> tuple[np.ndarray, float]:
+    """(contact frame RGB uint8 (240, 320, 3), contact score in grey levels) of one press file."""
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext in IMAGE_EXT:
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        if img is None:
+            raise TactexError(f"unreadable image file: {p}")
+        return cv2.cvtColor(to_sensor_frame(img), cv2.COLOR_BGR2RGB), float("nan")
+    cap = cv2.VideoCapture(str(p))
+    frames = []
+    try:
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            frames.append(to_sensor_frame(frame))
+    finally:
+        cap.release()
+    if len(frames) < 2:
+        raise TactexError(f"unreadable video (no frames decoded): {p}")
+    arr = np.stack(frames)
+    idx, scores = strongest_contact(arr)
+    return cv2.cvtColor(arr[idx], cv2.COLOR_BGR2RGB), float(scores[idx])
+
+
+class ReplaySource:
+    """A folder of recorded presses, one subfolder per class."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise TactexError(f"replay folder does not exist: {self.root}")
+        self.files: dict[str, list[Path]] = {}
+        for d in sorted(self.root.iterdir()):
+            if not d.is_dir():
+                continue
+            files = sorted(f for f in d.iterdir()
+                           if f.is_file() and f.suffix.lower() in VIDEO_EXT | IMAGE_EXT)
+            self.files[d.name] = files
+        if not any(self.files.values()):
+            raise TactexError(f"replay folder {self.root} has no <class>/<press file> entries "
+                              f"(videos {sorted(VIDEO_EXT)} or images {sorted(IMAGE_EXT)})")
+
+    @property
+    def classes(self) -> list[str]:
+        """Classes with at least one press file."""
+        return [c for c, f in self.files.items() if f]
+
+    def presses(self, cls: str) -> list[Path]:
+        if cls not in self.files:
+            raise TactexError(f"class {cls!r} not in replay folder {self.root}; "
+                              f"available: {', '.join(self.classes)}")
+        if not self.files[cls]:
+            raise TactexError(f"class {cls!r} in {self.root} has no readable press file")
+        return self.files[cls]
+
+    def frame(self, path: Path) -> np.ndarray:
+        return load_press(str(path))[0]
+
+    def check_class(self, cls: str) -> None:
+        """Raise TactexError unless at least one press of ``cls`` decodes."""
+        errors = []
+        for f in self.presses(cls):
+            try:
+                self.frame(f)
+                return
+            except TactexError as exc:
+                errors.append(str(exc))
+        raise TactexError(f"class {cls!r} has no readable press: {'; '.join(errors)}")
+
+    def trial(self, platform_classes: list[str], seed: int) -> "ReplayTrial":
+        return ReplayTrial(self, platform_classes, seed)
+
+
+class ReplayTrial:
+    """Touch function of one trial: ``touch(platform) -> RGB frame``; platform 0 = reference."""
+
+    def __init__(self, source: ReplaySource, platform_classes: list[str], seed: int) -> None:
+        for c in set(platform_classes):
+            source.check_class(c)
+        self.source = source
+        self.platform_classes = list(platform_classes)
+        rng = np.random.default_rng([seed, 11])
+        self._order = {c: list(rng.permutation(len(source.presses(c))))
+                       for c in set(platform_classes)}
+        self._used: dict[str, list[int]] = {c: [] for c in set(platform_classes)}
+        self._reference_used: set[int] = set()
+        self.log: list[tuple[int, str]] = []   # (platform, file) per touch
+
+    def _draw(self, cls: str, for_reference: bool) -> int:
+        order, used = self._order[cls], self._used[cls]
+        fresh = [i for i in order if i not in used]
+        if not for_reference:
+            fresh = [i for i in fresh if i not in self._reference_used]
+        if not fresh:  # exhausted: cycle, still avoiding the reference's presses if possible
+            pool = [i for i in order if i not in self._reference_used] or order
+            fresh = sorted(pool, key=lambda i: used.count(i))[:1]
+        i = fresh[0]
+        used.append(i)
+        if for_reference:
+            self._reference_used.add(i)
+        return i
+
+    def __call__(self, platform: int) -> np.ndarray:
+        cls = self.platform_classes[platform]
+        i = self._draw(cls, platform == 0)
+        path = self.source.presses(cls)[i]
+        self.log.append((platform, str(path)))
+        return self.source.frame(path)
