@@ -46,6 +46,9 @@ class LearnerConfig:
     aux_logits: bool = param(False, "train Inception v3's auxiliary classifier too")
     fourier: bool = param(False, "train on log-magnitude Fourier spectra of the views")
     weights: str = param("", "torchvision-format checkpoint for inception_v3 ('' = none)")
+    bn_recalibrate: int = param(64, "after each round, re-estimate batch-norm statistics on up to "
+                                    "this many stored views (0 = keep running averages)",
+                                0, 100000)
     threads: int = param(0, "torch intra-op threads (0 = leave torch's default)", 0, 256)
 
     def replace(self, **kw: Any) -> "LearnerConfig":
@@ -56,7 +59,8 @@ class LearnerConfig:
 # `tactex bench latency` / `tactex experiment pareto` (see README, "Speed").
 PRESETS: dict[str, dict[str, Any]] = {
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
-                          batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20),
+                          batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
+                          bn_recalibrate=0),
     "default": dict(model="small_inception", input_size=64, epochs=0, steps=12,
                     batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
 }

@@ -146,9 +146,36 @@ class OnlineLearner:
                 loss.backward()
                 self.opt.step()
                 losses.append(float(loss.detach()))
+        if self.cfg.bn_recalibrate:
+            self._recalibrate_bn(x)
         self.rounds_trained += 1
         return TrainStats(time.perf_counter() - t0, len(losses),
                           float(np.mean(losses)) if losses else float("nan"))
+
+    @torch.no_grad()
+    def _recalibrate_bn(self, x: torch.Tensor) -> None:
+        """Re-estimate batch-norm running statistics on a random subset of the stored views.
+
+        After a few optimiser steps the exponential running averages still lag far behind the
+        weights, and every eval-mode pass (MC scoring, prediction) would use stale statistics.
+        A cumulative average over up to ``bn_recalibrate`` views under the current weights fixes
+        that at the cost of one forward pass, without touching the weights.
+        """
+        n = min(x.shape[0], self.cfg.bn_recalibrate)
+        idx = torch.randperm(x.shape[0], generator=self._gen)[:n]
+        bns = [m for m in self.model.modules() if isinstance(m, torch.nn.BatchNorm2d)]
+        saved = [m.momentum for m in bns]
+        for m in bns:
+            m.reset_running_stats()
+            m.momentum = None  # cumulative moving average
+        self.model.train()
+        bs = max(2, self.cfg.batch_size)
+        for i in range(0, n, bs):
+            chunk = idx[i:i + bs]
+            if chunk.numel() >= 2:
+                self.model(x[chunk])
+        for m, mom in zip(bns, saved):
+            m.momentum = mom
 
     # ------------------------------------------------------------------ scoring
     def mc_probs(self, x_test: torch.Tensor, passes: int | None = None) -> np.ndarray:

@@ -48,10 +48,11 @@ def view(img: np.ndarray, angle_deg: float, size: int) -> np.ndarray:
     h, w = img.shape[:2]
     side = safe_crop_side(h, w)
     scale = size / side
-    # Map the output square (centred at size/2) to the frame centre, rotated by angle.
-    m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), angle_deg, scale)
-    m[0, 2] += size / 2.0 - w / 2.0
-    m[1, 2] += size / 2.0 - h / 2.0
+    # Map the output square's centre to the frame centre (pixel-centre convention), rotated.
+    cx, cy, co = (w - 1) / 2.0, (h - 1) / 2.0, (size - 1) / 2.0
+    m = cv2.getRotationMatrix2D((cx, cy), angle_deg, scale)
+    m[0, 2] += co - cx
+    m[1, 2] += co - cy
     interp = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_LINEAR
     return cv2.warpAffine(img, m, (size, size), flags=interp, borderMode=cv2.BORDER_REFLECT)
 

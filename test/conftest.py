@@ -1,0 +1,35 @@
+"""Shared test helpers: where the shared fixtures and recordings live (never copied in-repo)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _shared(rel: str) -> Path | None:
+    """First existing of $TACTEX_SHARED/rel, <repo>/../shared/rel, /work/shared/rel."""
+    roots = [os.environ.get("TACTEX_SHARED"), REPO.parent / "shared", "/work/shared"]
+    for r in roots:
+        if r and (Path(r) / rel).exists():
+            return Path(r) / rel
+    return None
+
+
+@pytest.fixture(scope="session")
+def octopi_dir() -> Path:
+    p = _shared("datasets/octopi-dev")
+    if p is None:
+        pytest.skip("octopi-dev recordings not found (set TACTEX_SHARED)")
+    return p
+
+
+@pytest.fixture(scope="session")
+def keys_fixture() -> Path:
+    p = _shared("fixtures/inception_v3_torchvision_keys.json")
+    if p is None:
+        pytest.skip("inception_v3_torchvision_keys.json not found (set TACTEX_SHARED)")
+    return p
