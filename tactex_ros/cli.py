@@ -64,8 +64,11 @@ def cmd_trial(args: argparse.Namespace) -> int:
     chosen = args.classes.split(",") if args.classes else None
     if chosen is None and args.comparisons < 2:
         raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
-    platform_classes, truth = assign_platforms(src.classes, args.comparisons, chosen,
-                                               args.reference, args.seed)
+    if chosen is None and hasattr(src, "draw_scene"):
+        chosen = src.draw_scene(args.comparisons, args.seed)
+    platform_classes, truth = assign_platforms(list(getattr(src, "fabrics", src.classes)),
+                                               args.comparisons, chosen, args.reference,
+                                               args.seed)
     tcfg = TrialConfig(strategy=args.strategy, rounds=args.rounds,
                        stop_confidence=args.stop_confidence)
     n = len(platform_classes) - 1
@@ -153,6 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
+
+    from . import cli_sim
+    cli_sim.add_commands(sub, bsub)
 
     return p
 
