@@ -84,8 +84,105 @@ def add_commands(sub, bench_sub) -> None:
     r.add_argument("--no-contact", action="store_true")
     r.add_argument("--out", required=True)
     r.set_defaults(func=cmd_render)
+    add_compare(ssub)
     b = bench_sub.add_parser("sim", help="simulator frames per second")
     b.add_argument("--frames", type=int, default=400)
     b.add_argument("--repeats", type=int, default=5)
     b.add_argument("--json")
     b.set_defaults(func=cmd_bench_sim)
+
+
+def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -> dict:
+    """Statistics of simulated vs real GelSight frames, and a side-by-side picture.
+
+    Per set: mean RGB of no-contact frames, mean |contact - no-contact| (grey levels), and the
+    share of spectral power above 0.1 cycles/px in the contact-minus-no-contact image (how much
+    fine detail the contact adds). Real frames: first frame and strongest-contact frame of each
+    press of the first ``n`` classes of ``real_dir``.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .core.contact import strongest_contact, to_sensor_frame
+    from .sim.source import SimSource
+    from .sources.replay import ReplaySource
+
+    def hf_share(diff: np.ndarray) -> float:
+        g = diff.astype(np.float64).mean(axis=2)
+        p = np.abs(np.fft.fftshift(np.fft.fft2(g - g.mean()))) ** 2
+        fy = np.fft.fftshift(np.fft.fftfreq(g.shape[0]))[:, None]
+        fx = np.fft.fftshift(np.fft.fftfreq(g.shape[1]))[None, :]
+        return float(p[np.hypot(fx, fy) > 0.1].sum() / p.sum())
+
+    rep = ReplaySource(real_dir)
+    real_pairs = []
+    for cls in rep.classes[:n]:
+        path = rep.presses(cls)[0]
+        cap = cv2.VideoCapture(str(path))
+        frames = []
+        while True:
+            ok, f = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(to_sensor_frame(f), cv2.COLOR_BGR2RGB))
+        if len(frames) < 2:
+            continue
+        arr = np.stack(frames)
+        idx, _ = strongest_contact(arr)
+        real_pairs.append((cls, arr[0], arr[idx]))
+    sim = SimSource()
+    rng = np.random.default_rng(seed)
+    sim_pairs = [(name, sim.renderer.no_contact(rng), sim.press(name, rng))
+                 for name in sim.classes[:: max(1, len(sim.classes) // n)][:n]]
+
+    def stats(pairs):
+        return {
+            "no_contact_mean_rgb": np.mean([p[1].reshape(-1, 3).mean(0) for p in pairs],
+                                           0).round(1).tolist(),
+            "no_contact_std_rgb": np.mean([p[1].reshape(-1, 3).std(0) for p in pairs],
+                                          0).round(1).tolist(),
+            "contact_minus_no_contact_mean_abs": float(np.mean(
+                [np.abs(p[2].astype(float) - p[1]).mean() for p in pairs])),
+            "high_frequency_share_of_difference": float(np.mean(
+                [hf_share(p[2].astype(float) - p[1]) for p in pairs])),
+        }
+
+    result = {"real": stats(real_pairs), "sim": stats(sim_pairs),
+              "real_classes": [p[0] for p in real_pairs], "sim_fabrics": [p[0] for p in sim_pairs]}
+    k = min(4, len(real_pairs), len(sim_pairs))
+    fig, axes = plt.subplots(2, 2 * k, figsize=(4 * k, 3.2))
+    for i in range(k):
+        for row, (pairs, label) in enumerate(((real_pairs, "real"), (sim_pairs, "sim"))):
+            name, nc, c = pairs[i]
+            axes[row, 2 * i].imshow(c)
+            axes[row, 2 * i].set_title(f"{label}: {name}", fontsize=7)
+            d = np.clip(np.abs(c.astype(float) - nc) * 8, 0, 255).astype(np.uint8)
+            axes[row, 2 * i + 1].imshow(d)
+            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=7)
+    for a in axes.ravel():
+        a.axis("off")
+    fig.tight_layout()
+    Path(out_png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+    return result
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    res = compare_with_real(args.real, args.out, args.seed)
+    for k in ("real", "sim"):
+        print(k, json.dumps(res[k]))
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=2))
+    print(f"wrote {args.out}")
+    return 0
+
+
+def add_compare(ssub) -> None:
+    c = ssub.add_parser("compare", help="simulated vs real frames: statistics and a picture")
+    c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
+    c.add_argument("--out", required=True, help="side-by-side PNG")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--json")
+    c.set_defaults(func=cmd_compare)

@@ -34,16 +34,16 @@ class SensorModel:
     no-contact / contact frames of octopi-dev (see README, "Simulator vs real frames")."""
 
     mm_per_px: float = MM_PER_PX
-    base_rgb: tuple[float, float, float] = (58.0, 96.0, 104.0)
-    center_tint_rgb: tuple[float, float, float] = (22.0, 4.0, 14.0)   # added at the centre
-    vignette: float = 0.35           # relative darkening at the corners
+    base_rgb: tuple[float, float, float] = (30.0, 112.0, 104.0)
+    center_tint_rgb: tuple[float, float, float] = (70.0, 8.0, 40.0)   # added at the centre
+    vignette: float = 0.55           # relative darkening at the corners
     dome_per_mm2: float = 0.004      # gel dome curvature [mm / mm^2]
     gel_sigma_mm: float = 0.08       # gel smoothing [mm]
     # three lights: azimuth [deg], elevation [deg], RGB weight of the light's colour
     lights: tuple = ((90.0, 35.0, (1.0, 0.15, 0.25)),
                      (210.0, 35.0, (0.15, 1.0, 0.3)),
                      (330.0, 35.0, (0.2, 0.35, 1.0)))
-    gain: float = 160.0              # grey levels per unit of shading change
+    gain: float = 60.0               # grey levels per unit of shading change
     noise_std: float = 1.6           # grey levels
     drift: float = 0.04              # relative light gain drift per touch (std)
     depth_mm: tuple[float, float] = (0.25, 0.6)   # uniform press depth range [mm]
