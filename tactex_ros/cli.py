@@ -109,7 +109,7 @@ def cmd_weights_inspect(args: argparse.Namespace) -> int:
 def cmd_bench_latency(args: argparse.Namespace) -> int:
     from .bench import latency
     out = latency.run(touch_counts=args.touches, repeats=args.repeats,
-                      seed_epochs_timed=args.seed_epochs)
+                      seed_epochs=args.seed_epochs)
     _write_json(args.json, out)
     return 0
 

@@ -53,7 +53,7 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
             "score_median_s": statistics.median(score), "repeats": repeats, "scaled": scale}
 
 
-def run(touch_counts: tuple[int, ...] = (5, 15, 25), repeats: int = 5,
+def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 5,
         seed_epochs: int = 1, configs: tuple[str, ...] = ("seed_faithful", "default")) -> dict:
     """Measure, print a table, return ``{config: {str(n): median seconds}}`` plus details."""
     frames = _frames(8)
