@@ -104,9 +104,9 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .core.contact import strongest_contact, to_sensor_frame
+    from .core.contact import strongest_contact
     from .sim.source import SimSource
-    from .sources.replay import ReplaySource
+    from .sources.replay import ReplaySource, read_video
 
     def hf_share(diff: np.ndarray) -> float:
         g = diff.astype(np.float64).mean(axis=2)
@@ -118,17 +118,10 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -
     rep = ReplaySource(real_dir)
     real_pairs = []
     for cls in rep.classes[:n]:
-        path = rep.presses(cls)[0]
-        cap = cv2.VideoCapture(str(path))
-        frames = []
-        while True:
-            ok, f = cap.read()
-            if not ok:
-                break
-            frames.append(cv2.cvtColor(to_sensor_frame(f), cv2.COLOR_BGR2RGB))
-        if len(frames) < 2:
+        try:
+            arr = read_video(rep.presses(cls)[0])[..., ::-1]  # BGR -> RGB
+        except TactexError:
             continue
-        arr = np.stack(frames)
         idx, _ = strongest_contact(arr)
         real_pairs.append((cls, arr[0], arr[idx]))
     sim = SimSource()

@@ -7,7 +7,7 @@ interleaved per touch count so both see the same machine state.
 
 The seed-faithful configuration (299 px, 10 epochs per round) trains for ``seed_epochs`` epochs
 and its training time is scaled by 10 / seed_epochs (training cost is linear in epochs); the
-output says so. Frames come from the fabric simulator when available (content does not change
+output says so. Frames come from the fabric simulator (content does not change
 the cost of a CNN; the frames only have to be valid).
 """
 
@@ -21,17 +21,13 @@ import torch
 
 from ..core.config import preset
 from ..core.engine import TrialConfig, TrialEngine
+from ..sim.source import SimSource
 
 
 def _frames(n: int, seed: int = 0) -> list[np.ndarray]:
-    try:
-        from ..sim.source import SimSource
-        src = SimSource("medium")
-        touch = src.trial(src.classes[:5], seed)
-        return [touch(i % 5) for i in range(n)]
-    except ImportError:
-        rng = np.random.default_rng(seed)
-        return [rng.integers(0, 256, (240, 320, 3), dtype=np.uint8) for _ in range(n)]
+    src = SimSource("medium")
+    touch = src.trial(src.classes[:5], seed)
+    return [touch(i % 5) for i in range(n)]
 
 
 def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],

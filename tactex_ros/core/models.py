@@ -23,8 +23,6 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from pathlib import Path
-from typing import Callable
-
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -427,5 +425,3 @@ def build_model(name: str, num_classes: int, dropout: float = 0.5, block_dropout
             raise TactexError(f"weights file {weights} does not fit {name}:\n{report.summary()}")
     return model, report
 
-
-ModelFactory = Callable[[int], TactileInception]

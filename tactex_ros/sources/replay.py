@@ -20,11 +20,27 @@ import cv2
 import numpy as np
 
 from ..core.contact import strongest_contact, to_sensor_frame
-from ..core.engine import TouchFailed  # noqa: F401  (re-exported for sources' users)
 from ..core.errors import TactexError
 
 VIDEO_EXT = {".mov", ".mp4", ".avi", ".mkv"}
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
+
+
+def read_video(path: str | Path) -> np.ndarray:
+    """All frames of a video as sensor-sized BGR uint8 (F, 240, 320, 3); TactexError if < 2."""
+    cap = cv2.VideoCapture(str(path))
+    frames = []
+    try:
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            frames.append(to_sensor_frame(frame))
+    finally:
+        cap.release()
+    if len(frames) < 2:
+        raise TactexError(f"unreadable video (no frames decoded): {path}")
+    return np.stack(frames)
 
 
 @lru_cache(maxsize=1024)
@@ -37,19 +53,7 @@ def load_press(path: str) -> tuple[np.ndarray, float]:
         if img is None:
             raise TactexError(f"unreadable image file: {p}")
         return cv2.cvtColor(to_sensor_frame(img), cv2.COLOR_BGR2RGB), float("nan")
-    cap = cv2.VideoCapture(str(p))
-    frames = []
-    try:
-        while True:
-            ok, frame = cap.read()
-            if not ok:
-                break
-            frames.append(to_sensor_frame(frame))
-    finally:
-        cap.release()
-    if len(frames) < 2:
-        raise TactexError(f"unreadable video (no frames decoded): {p}")
-    arr = np.stack(frames)
+    arr = read_video(p)
     idx, scores = strongest_contact(arr)
     return cv2.cvtColor(arr[idx], cv2.COLOR_BGR2RGB), float(scores[idx])
 
