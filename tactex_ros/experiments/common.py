@@ -1,0 +1,72 @@
+"""Shared experiment plumbing: results folder, reproducibility record, progress bars."""
+
+from __future__ import annotations
+
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any, Iterable, Iterator, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+
+def versions() -> dict[str, str]:
+    """Versions of the libraries that change results."""
+    import scipy
+    import sklearn
+    import torch
+    return {"python": platform.python_version(), "torch": torch.__version__,
+            "numpy": np.__version__, "scipy": scipy.__version__, "sklearn": sklearn.__version__,
+            "machine": platform.machine()}
+
+
+def _jsonable(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def write_json(path: Path, obj: Any) -> Path:
+    """Write ``obj`` as indented JSON (numpy values converted); returns ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(obj, indent=2, default=_jsonable))
+    return path
+
+
+def results_dir(out: str | None, name: str, config: dict) -> Path:
+    """Create the results folder and record the run's configuration and library versions."""
+    d = Path(out) if out else Path("results") / name
+    d.mkdir(parents=True, exist_ok=True)
+    write_json(d / "config.json", {"experiment": name, "argv": sys.argv, "config": config,
+                                   "versions": versions(),
+                                   "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
+    return d
+
+
+def progress(items: Iterable[T], description: str, total: int | None = None,
+             quiet: bool = False) -> Iterator[T]:
+    """Iterate with a rich progress bar on stderr (plain iteration when ``quiet``)."""
+    if quiet:
+        yield from items
+        return
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                               TimeElapsedColumn, TimeRemainingColumn)
+    cols = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+            TimeElapsedColumn(), TimeRemainingColumn())
+    with Progress(*cols, console=Console(stderr=True), transient=False) as bar:
+        task = bar.add_task(description, total=total if total is not None else
+                            (len(items) if hasattr(items, "__len__") else None))
+        for it in items:
+            yield it
+            bar.advance(task)
