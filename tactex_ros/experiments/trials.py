@@ -1,0 +1,89 @@
+"""Trial files: fixed scenes of reference + comparison platforms (e.g. the thesis's human study).
+
+Format (YAML)::
+
+    name: human_study
+    trials:
+      - {id: 1, reference: 23, comparisons: [4, 8, 23, 7]}
+      - {id: 2, reference: wool_jersey, comparisons: [wool_jersey, polar_fleece, ...]}
+
+``id`` any scalar, unique (kept as a string); ``reference`` and every comparison are either an
+integer, the fabric number of the simulator's catalogue (``config/fabrics.yaml``, resolved with
+``SimSource.by_number``), or a class name of the source (a fabric name, or a class folder of a
+replay source). The reference must be one of the comparisons: that platform is the true match.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..core.errors import TactexError
+from ..paths import config_dir
+
+
+def find_trial_file(spec: str | None) -> Path:
+    """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
+    spec = spec or "human_study"
+    p = Path(spec)
+    if p.is_file():
+        return p
+    for cand in (config_dir() / "trials" / spec, config_dir() / "trials" / f"{spec}.yaml"):
+        if cand.is_file():
+            return cand
+    raise TactexError(f"trial file {spec!r} not found (a path, or a name in "
+                      f"{config_dir() / 'trials'})")
+
+
+def load_trials(path: str | Path) -> dict[str, Any]:
+    """{"name", "path", "trials": [{"id": str, "reference", "comparisons": [...]}, ...]}."""
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise TactexError(f"trial file {path}: {exc}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
+        raise TactexError(f"trial file {path}: needs a non-empty list 'trials'")
+    seen: set[str] = set()
+    trials = []
+    for i, t in enumerate(doc["trials"]):
+        where = f"trial file {path}, entry {i + 1}"
+        if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
+            raise TactexError(f"{where}: needs id, reference and comparisons")
+        tid = str(t["id"])
+        if tid in seen:
+            raise TactexError(f"{where}: duplicate id {tid!r}")
+        seen.add(tid)
+        comps = t["comparisons"]
+        if not isinstance(comps, list) or len(comps) < 2:
+            raise TactexError(f"{where} (id {tid}): comparisons must list >= 2 classes")
+        if t["reference"] not in comps:
+            raise TactexError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
+                              f"the comparisons {comps}")
+        trials.append({"id": tid, "reference": t["reference"], "comparisons": list(comps)})
+    return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}
+
+
+def class_name(source: Any, item: Any) -> str:
+    """A trial-file entry -> the source's class name (int = catalogue fabric number)."""
+    if isinstance(item, bool):
+        raise TactexError(f"trial entry {item!r}: expected a fabric number or a class name")
+    if isinstance(item, int):
+        if not hasattr(source, "by_number"):
+            raise TactexError(f"trial entry {item}: fabric numbers need the simulator source "
+                              "(sim); name the classes of this source instead")
+        return source.by_number(item)
+    name = str(item)
+    known = list(getattr(source, "fabrics", None) or source.classes)
+    if name not in known:
+        raise TactexError(f"trial entry {name!r}: not a class of the source; available: "
+                          f"{', '.join(known)}")
+    return name
+
+
+def platform_classes(source: Any, trial: dict) -> list[str]:
+    """[reference, comparison 1..C] class names of one trial."""
+    return [class_name(source, trial["reference"])] + [class_name(source, c)
+                                                       for c in trial["comparisons"]]
