@@ -157,8 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 
-    from . import cli_experiment, cli_sim
+    from . import cli_experiment, cli_graph, cli_sim
     cli_sim.add_commands(sub, bsub)
+    cli_graph.add_commands(sub)
     cli_experiment.add_commands(sub)
 
     return p

@@ -1,0 +1,77 @@
+"""``tactex graph describe|run``: the ROS 2 node graph without ``launch``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+
+def _nodes(args: argparse.Namespace):
+    from .graph import describe
+    ex = {}
+    for k in ("strategy", "model", "rounds", "seed", "config", "record_dir", "trial_id"):
+        v = getattr(args, k, None)
+        if v is not None:
+            ex[k] = v
+    img = {"source": args.source} if getattr(args, "source", None) else {}
+    return describe(args.sim, args.scene, explorer=ex, mock_image=img,
+                    gelsight={"device": args.device} if args.device else None)
+
+
+def cmd_describe(args: argparse.Namespace) -> int:
+    nodes = _nodes(args)
+    print(json.dumps([{"executable": n.executable, "name": n.name,
+                       "parameters": n.parameters, "remappings": n.remappings}
+                      for n in nodes], indent=2))
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .runner import run_trial
+    nodes = _nodes(args)
+    logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
+    run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id)
+    if run.timed_out:
+        print(f"tactex: trial not finished within {args.timeout} s; logs in {logs}",
+              file=sys.stderr)
+        return 1
+    if run.result is None or "error" in run.result:
+        why = run.result.get("error") if run.result else f"explorer exit {run.exit_code}"
+        print(f"tactex: trial failed: {why}; logs in {logs}", file=sys.stderr)
+        return 1
+    r = run.result
+    print(f"reference matches {r['prediction']} after {r['touches']} touches "
+          f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
+          f"failed touches {len(r['failed_touches'])}")
+    print(f"trial record: {run.record}")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
+    gsub = g.add_subparsers(dest="gcmd", required=True)
+    for name, fn, hlp in (("describe", cmd_describe, "print the nodes and parameters"),
+                          ("run", cmd_run, "start the graph, run one trial, stop")):
+        p = gsub.add_parser(name, help=hlp)
+        p.add_argument("--sim", action="store_true", help="mock arm + mock image replace "
+                                                          "the hardware")
+        p.add_argument("--scene", help="scene YAML (default config/scene_sim.yaml or "
+                                       "config/scene.yaml)")
+        p.add_argument("--source", help="mock image source: sim[:q] or replay:DIR")
+        p.add_argument("--device", help="GelSight device (hardware graph)")
+        p.add_argument("--strategy")
+        p.add_argument("--model")
+        p.add_argument("--config")
+        p.add_argument("--rounds", type=int)
+        p.add_argument("--seed", type=int)
+        p.add_argument("--record-dir", dest="record_dir")
+        p.add_argument("--trial-id", dest="trial_id")
+        if name == "run":
+            p.add_argument("--timeout", type=float, default=600.0, help="deadline [s]")
+            p.add_argument("--log-dir")
+            p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for the nodes")
+        p.set_defaults(func=fn)

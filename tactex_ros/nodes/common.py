@@ -1,0 +1,123 @@
+"""Shared node plumbing: parameters declared from a settings schema, lifecycle start-up.
+
+Every tactex node is a ``rclpy.lifecycle.LifecycleNode``: ``on_configure`` reads and validates
+its parameters and allocates (scene, buffers, publishers, servers), ``on_activate`` goes live
+(timers, trial). With the parameter ``autostart`` (default true) the node configures and
+activates itself, so it runs without a lifecycle manager; a configure failure (bad parameter,
+missing or invalid scene) ends the process with exit status 2 and the reason in the log.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import threading
+from typing import Any, Callable
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.task import Future
+
+from ..core.config import validate
+from ..core.errors import TactexError
+
+
+def declare_settings(node: LifecycleNode, cls: type) -> None:
+    """Declare one ROS parameter per field of a settings dataclass (type, range, text)."""
+    for f in dataclasses.fields(cls):
+        md = f.metadata
+        desc = ParameterDescriptor(name=f.name, description=md.get("description", ""))
+        if md.get("choices"):
+            desc.additional_constraints = "one of: " + ", ".join(map(str, md["choices"]))
+        lo, hi = md.get("lo"), md.get("hi")
+        if lo is not None and hi is not None:
+            if isinstance(f.default, bool):
+                pass
+            elif isinstance(f.default, int):
+                desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=0)]
+            elif isinstance(f.default, float):
+                desc.floating_point_range = [FloatingPointRange(from_value=float(lo),
+                                                                to_value=float(hi), step=0.0)]
+        if not node.has_parameter(f.name):
+            node.declare_parameter(f.name, f.default, desc)
+
+
+def read_settings(node: LifecycleNode, cls: type) -> Any:
+    """Current parameter values as a validated settings dataclass (TactexError names a field)."""
+    kw = {f.name: node.get_parameter(f.name).value for f in dataclasses.fields(cls)}
+    return validate(cls(**kw))
+
+
+class TactexNode(LifecycleNode):
+    """Lifecycle node base: ``settings_cls`` parameters, ``configure``/``activate`` hooks."""
+
+    settings_cls: type
+
+    def __init__(self, name: str, **kw: Any) -> None:
+        super().__init__(name, **kw)
+        declare_settings(self, self.settings_cls)
+        self.declare_parameter("autostart", True, ParameterDescriptor(
+            description="configure and activate at start-up (no lifecycle manager needed)"))
+        self.settings = None
+        self.finished = threading.Event()   # set when the node's work is over (exit_when_done)
+        self.exit_code = 0
+
+    # subclasses implement these two
+    def configure(self) -> None:
+        raise NotImplementedError
+
+    def activate(self) -> None:
+        raise NotImplementedError
+
+    def deactivate(self) -> None:
+        pass
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        try:
+            self.settings = read_settings(self, self.settings_cls)
+            self.configure()
+        except (TactexError, OSError) as exc:
+            self.get_logger().error(f"configuration refused: {exc}")
+            self.exit_code = 2
+            return TransitionCallbackReturn.FAILURE
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self.activate()
+        return super().on_activate(state)
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self.deactivate()
+        return super().on_deactivate(state)
+
+
+def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None,
+        threads: int = 4) -> int:
+    """Create, auto-start and spin a node until shutdown or ``node.finished``; exit status."""
+    rclpy.init(args=args if args is not None else sys.argv)
+    node = node_factory()
+    code = 0
+    try:
+        if node.get_parameter("autostart").value:
+            node.trigger_configure()
+            if node.exit_code:
+                return node.exit_code
+            node.trigger_activate()
+        ex = MultiThreadedExecutor(num_threads=threads)
+        ex.add_node(node)
+        done = Future()
+        threading.Thread(target=lambda: (node.finished.wait(), done.set_result(True)),
+                         daemon=True).start()
+        ex.spin_until_future_complete(done)
+        code = node.exit_code
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 0
+    finally:
+        try:
+            node.destroy_node()
+        finally:
+            if rclpy.ok():
+                rclpy.shutdown()
+    return code

@@ -1,0 +1,205 @@
+"""explorer_node: runs the core trial engine over the ROS graph.
+
+press (action to the motion node) -> record the touch on disk -> validate -> learn -> choose.
+The trial runs in a worker thread, so the executor stays free for action feedback, results
+and publishing; every wait has a deadline. Publishes ``tactex/ExplorationState`` on
+``/tactex/state`` after each decision, rviz markers on ``/tactex/markers`` and the latest touch
+image on ``/tactex/touch_image``. The record (``record.TrialRecord``) receives each touch
+before it is used; a corrupt or wrongly sized image is recorded as rejected and never trained
+on; a failed press is recorded with its reason and the trial goes on.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+from rclpy.action import ActionClient
+from rclpy.callback_groups import ReentrantCallbackGroup
+from sensor_msgs.msg import Image
+from visualization_msgs.msg import MarkerArray
+
+from .. import adapter
+from ..core.config import preset
+from ..core.engine import TrialConfig, TrialEngine
+from ..core.errors import TactexError
+from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
+from ..record import TrialRecord
+from ..scene import load_scene
+from .common import TactexNode, run
+
+
+class ExplorerNode(TactexNode):
+    settings_cls = ExplorerSettings
+
+    def __init__(self) -> None:
+        super().__init__("explorer")
+
+    # ------------------------------------------------------------------ lifecycle
+    def configure(self) -> None:
+        from tactex.action import Press
+        from tactex.msg import ExplorationState
+        s = self.settings
+        if s.nice:
+            os.nice(s.nice)  # before torch starts its worker threads, which inherit it
+        self.scene = load_scene(s.scene_file)
+        self.ids = [p.id for p in self.scene.ordered]
+        over = {"threads": s.threads}
+        if s.model:
+            over["model"] = s.model
+        if s.weights:
+            over["weights"] = s.weights
+        cfg = preset(s.config, **over)
+        tcfg = TrialConfig(strategy=s.strategy, rounds=s.rounds,
+                           stop_confidence=s.stop_confidence)
+        self.engine = TrialEngine(len(self.ids) - 1, cfg, tcfg, seed=s.seed,
+                                  platform_ids=self.ids)
+        self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
+        self.record = TrialRecord(s.record_dir, self.trial_id)
+        self.record.save_inputs(s.scene_file, {"explorer": s.__dict__,
+                                               "learner": cfg.__dict__,
+                                               "trial": tcfg.__dict__})
+        cb = ReentrantCallbackGroup()
+        self.press = ActionClient(self, Press, s.press_action, callback_group=cb)
+        self.state_pub = self.create_publisher(ExplorationState, STATE_TOPIC, 10)
+        self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, 10)
+        self.image_pub = self.create_publisher(Image, TOUCH_IMAGE_TOPIC, 10)
+        self.last_state = None
+        self.result: dict | None = None
+
+    def activate(self) -> None:
+        self.create_timer(1.0, self._publish_markers)
+        self.worker = threading.Thread(target=self._trial, name="trial", daemon=True)
+        self.worker.start()
+
+    # ------------------------------------------------------------------ publishing
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _publish_markers(self) -> None:
+        self.marker_pub.publish(adapter.markers(self.scene, self.last_state, self._now()))
+
+    def _publish_state(self, rec, done: bool, prediction: str) -> None:
+        msg = adapter.state_msg(rec, trial_id=self.trial_id, strategy=self.settings.strategy,
+                                platform_ids=self.ids[1:],
+                                reference_touches=self.engine.reference_touches, done=done,
+                                prediction=prediction, t=self._now(),
+                                frame_id=self.scene.frame_id)
+        self.last_state = msg
+        self.state_pub.publish(msg)
+        self._publish_markers()
+        self.record.add_decision({"round": rec.round, "next": msg.next_platform,
+                                  "belief": list(msg.belief),
+                                  "uncertainty": list(msg.uncertainty),
+                                  "touches": list(msg.touches), "model": rec.model,
+                                  "decision_s": rec.decision_s, "done": done,
+                                  "prediction": prediction})
+
+    # ------------------------------------------------------------------ the trial
+    def _wait(self, fut, deadline: float) -> bool:
+        while not fut.done():
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
+
+    def _touch(self, platform: int) -> bool:
+        """Press ``platform`` (index), record, validate, store. False if it failed."""
+        from tactex.action import Press
+        pid = self.ids[platform]
+        deadline = time.monotonic() + self.settings.press_timeout_s
+        meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
+        fut = self.press.send_goal_async(Press.Goal(platform_id=pid))
+        if not self._wait(fut, deadline):
+            return self._failed(platform, meta, "press goal not answered before the deadline")
+        handle = fut.result()
+        if not handle.accepted:
+            return self._failed(platform, meta, "press goal rejected by the motion node")
+        rfut = handle.get_result_async()
+        if not self._wait(rfut, deadline):
+            handle.cancel_goal_async()
+            return self._failed(platform, meta, f"press not finished within press_timeout_s "
+                                                f"({self.settings.press_timeout_s} s)")
+        res = rfut.result().result
+        if not res.success:
+            return self._failed(platform, meta, res.reason or "press failed", res.attempts)
+        touch = res.touch
+        meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
+                    depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
+                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
+        try:
+            img = adapter.image_to_array(touch.image, f"touch of {pid}")
+        except TactexError as exc:
+            meta.update(accepted=False, reason=str(exc), encoding=touch.image.encoding,
+                        width=touch.image.width, height=touch.image.height)
+            self.record.add_touch(None, meta)
+            self.engine.record_failure(platform, str(exc))
+            self.get_logger().warning(f"touch rejected: {exc}")
+            return False
+        self.record.add_touch(img, dict(meta, accepted=True))   # on disk before it is used
+        self.image_pub.publish(touch.image)
+        try:
+            self.engine.add_touch(platform, img)
+        except TactexError as exc:
+            self.engine.record_failure(platform, str(exc))
+            return False
+        return True
+
+    def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> bool:
+        self.record.add_touch(None, dict(meta, accepted=False, reason=reason,
+                                         attempts=attempts))
+        self.engine.record_failure(platform, reason)
+        self.get_logger().warning(f"touch of {self.ids[platform]} failed: {reason}")
+        return False
+
+    def _trial(self) -> None:
+        try:
+            self._run_trial()
+        except Exception as exc:  # the trial must end in an explicit result
+            self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
+            self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
+            self.record.finish(self.result)
+            self.exit_code = 1
+        finally:
+            if self.settings.exit_when_done:
+                self.finished.set()
+
+    def _run_trial(self) -> None:
+        s = self.settings
+        if not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
+            raise TactexError(f"press action {s.press_action!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
+        eng = self.engine
+        for _ in range(3):
+            for p in eng.baseline_platforms():
+                self._touch(p)
+            if not eng.baseline_platforms():
+                break
+        else:
+            raise TactexError("baseline touches failed three times for "
+                              f"{[self.ids[p] for p in eng.baseline_platforms()]}")
+        while not eng.done:
+            rec = eng.decide()
+            pred = "" if not eng.done else self.ids[int(max(range(len(rec.probs)),
+                                                             key=rec.probs.__getitem__)) + 1]
+            self._publish_state(rec, eng.done, pred)
+            if rec.platform is not None:
+                self._touch(rec.platform)
+        res = eng.result()
+        out = res.to_dict()
+        out.update(trial_id=self.trial_id, record=str(self.record.dir),
+                   strategy=s.strategy, model=eng.learner.model_name, seed=s.seed)
+        self.result = out
+        path = self.record.finish(out)
+        self.get_logger().info(f"trial {self.trial_id}: reference matches "
+                               f"{out['prediction']} after {out['touches']} touches; "
+                               f"record {path.parent}")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(ExplorerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
