@@ -50,6 +50,36 @@ class LearnerConfig:
                                     "this many stored views (0 = keep running averages)",
                                 0, 100000)
     threads: int = param(0, "torch intra-op threads (0 = leave torch's default)", 0, 256)
+    channels_last: bool = param(True, "channels-last memory format for the model and stored "
+                                      "views (same results, faster CPU convolutions)")
+    # Guards against the failure modes of `tactex experiment stability` (core/guards.py).
+    guards: bool = param(True, "failure-mode guards on: reject blank / no-contact touches, "
+                               "clip gradients and skip non-finite steps, tie-break degenerate "
+                               "scores (False = the unguarded behaviour, for before/after runs)")
+    contact_flat_min: float = param(0.35, "reject a touch whose texture (blur5 - blur_sigma8, "
+                                          "grey levels) is below this: a flat frame (0 = off)",
+                                    0.0, 50.0)
+    contact_min: float = param(0.8, "reject a touch whose contact score against the session's "
+                                    "no-contact reference is below this [grey levels] (0 = off; "
+                                    "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
+    grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
+    # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto").
+    auto_ladder: str = param("small_inception@32,small_inception@64",
+                             "model 'auto': stages cheapest first, 'model@input_px' separated by "
+                             "commas ('model' alone = input_size)")
+    auto_patience: int = param(3, "model 'auto': rounds on a stage before the entropy test",
+                               1, 1000)
+    auto_min_drop: float = param(0.1, "model 'auto': escalate when predictive entropy fell by "
+                                      "less than this fraction over the last auto_patience rounds",
+                                 0.0, 1.0)
+    auto_entropy: float = param(0.35, "model 'auto': ... and is still above this fraction of "
+                                      "log(C)", 0.0, 1.0)
+    auto_window: int = param(4, "model 'auto': held-back touches judged together", 1, 1000)
+    auto_heldout_acc: float = param(0.5, "model 'auto': escalate when fewer than this share of "
+                                         "the last auto_window touches were classified right "
+                                         "before being trained on", 0.0, 1.0)
+    auto_catchup: int = param(3, "model 'auto': extra training rounds given at once to an "
+                                 "escalated model (at most the rounds trained so far)", 0, 100)
 
     def replace(self, **kw: Any) -> "LearnerConfig":
         return validate(dataclasses.replace(self, **kw))

@@ -14,10 +14,34 @@ A round (``decide``): train one round, T Monte-Carlo passes on the reference, th
 per-platform scores, the choice of the next platform (or none). Fixed ``rounds`` decisions that
 request a touch, then a final decision whose mean softmax gives the prediction; an optional stop
 rule ends earlier when the mean probability of the best platform reaches ``stop_confidence``.
+
+Model ``auto`` (``LearnerConfig.auto_*``): the trial starts on the first, cheapest stage of
+``auto_ladder`` (e.g. ``small_inception`` at 32 px) and moves one stage up only on evidence from
+the trial itself, checked at the start of every decision:
+
+- *held-back touches*: every comparison touch added after the first round is classified by the
+  current model before it is trained on; if fewer than ``auto_heldout_acc`` of the last
+  ``auto_window`` such touches were right, the model is not enough;
+- *uncertainty that does not fall*: after ``auto_patience`` rounds on a stage, the predictive
+  entropy of the reference fell by less than ``auto_min_drop`` (relative) over the last
+  ``auto_patience`` rounds and is still above ``auto_entropy`` x log C.
+
+On escalation the engine builds the next stage's learner, starts it from the old weights where
+they fit (same variant: all; small -> full Inception: the stem), re-adds every stored touch from
+the raw frames it keeps, and trains ``auto_catchup`` extra rounds at once. Each round records the
+model and input size it used (``RoundRecord.model``, ``input_size``) and why it escalated
+(``escalation``).
+
+Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
+``TouchRejected`` (a TactexError) for a blank or no-contact frame, which ``run`` records as a
+failed touch; rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
+then falls to the least-touched platform, ``strategies.break_ties``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Callable
@@ -26,13 +50,44 @@ import numpy as np
 
 from .config import LearnerConfig, param, validate
 from .errors import TactexError
+from .guards import ContactGuard
 from .learner import OnlineLearner
+from .models import MODEL_NAMES
+from .preprocess import validate_frame
 from .strategies import STRATEGIES, make_strategy
 from .uncertainty import predictive_entropy
 
 
 class TouchFailed(RuntimeError):
     """A touch could not be made (no contact, no image, arm fault); the trial goes on."""
+
+
+class TouchRejected(TactexError):
+    """A touch frame was refused by the contact guard (blank or no contact); not stored."""
+
+
+def parse_ladder(text: str, default_size: int) -> list[tuple[str, int]]:
+    """``'small_inception@32,inception_v3_random@96'`` -> [(model, input px), ...]."""
+    out = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        name, _, size = part.partition("@")
+        if name not in MODEL_NAMES:
+            raise TactexError(f"auto_ladder: unknown model {name!r}; choose from "
+                              f"{', '.join(MODEL_NAMES)}")
+        try:
+            px = int(size) if size else default_size
+        except ValueError:
+            raise TactexError(f"auto_ladder: bad input size {size!r} in {part!r}") from None
+        if not 32 <= px <= 512:
+            raise TactexError(f"auto_ladder: input size {px} outside 32..512")
+        if name != "small_inception" and px < 75:
+            raise TactexError(f"auto_ladder: {name} needs an input of at least 75 px, got {px}")
+        out.append((name, px))
+    if not out:
+        raise TactexError("auto_ladder is empty")
+    return out
 
 
 @dataclass
@@ -44,6 +99,8 @@ class TrialConfig:
     stop_confidence: float = param(0.0, "stop early when max mean probability >= this "
                                         "(0 = fixed rounds)", 0.0, 1.0)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
+    baseline_passes: int = param(3, "passes over platforms whose baseline touch failed before "
+                                    "the trial gives up", 1, 100)
 
 
 @dataclass
@@ -59,6 +116,14 @@ class RoundRecord:
     train_loss: float
     touches: list[int]            # touches per comparison platform when deciding
     model: str
+    input_size: int = 0           # model input side [px] used this round
+    escalation: str | None = None  # model 'auto': why the model was escalated before this round
+    heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
+    #                               right before being trained on (empty before round 1)
+    degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
+    skipped_steps: int = 0        # training steps skipped (non-finite loss/gradient, guards)
+    restored: bool = False        # training round rolled back, learning rate halved (guards)
+    grad_norm: float = float("nan")  # median gradient norm this round
 
     @property
     def decision_s(self) -> float:
@@ -96,6 +161,10 @@ class TrialResult:
             "truth": name(self.truth), "touches": self.touches,
             "rounds": rounds[:-1], "final": rounds[-1],
             "failed_touches": self.failed_touches,
+            "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
+            "escalations": [{"round": r.round, "reason": r.escalation,
+                             "model": f"{r.model}@{r.input_size}"}
+                            for r in self.rounds + [self.final] if r.escalation],
         }
 
 
@@ -117,6 +186,10 @@ class TrialEngine:
         if len(self.platform_ids) != n_comparisons + 1:
             raise TactexError(f"platform_ids needs {n_comparisons + 1} names, "
                               f"got {len(self.platform_ids)}")
+        self.ladder = (parse_ladder(self.learner_cfg.auto_ladder, self.learner_cfg.input_size)
+                       if self.learner_cfg.model == "auto"
+                       else [(self.learner_cfg.model, self.learner_cfg.input_size)])
+        self.stage = 0
         self.learner = self._make_learner(self.learner_cfg.model)
         self.rng = np.random.default_rng([seed, 7])
         self.touches = np.zeros(n_comparisons, dtype=np.int64)
@@ -126,11 +199,34 @@ class TrialEngine:
         self.final: RoundRecord | None = None
         self.failed: list[dict] = []
         self.next_platform: int | None = None
+        g = self.learner_cfg
+        self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
+        self._ref_frame: np.ndarray | None = None          # raw frames, for re-adding on
+        self._frames: list[tuple[int, np.ndarray]] = []    # escalation: (class, frame)
+        self._heldout: list[bool] = []                     # this stage's held-back outcomes
+        self._pending_heldout: list[bool] = []             # since the last decision
+        self._stage_round0 = 0                             # first round index of this stage
+
+    @property
+    def is_auto(self) -> bool:
+        return self.learner_cfg.model == "auto"
+
+    def _stage_cfg(self, stage: int) -> LearnerConfig:
+        name, size = self.ladder[stage]
+        return dataclasses.replace(self.learner_cfg, model=name, input_size=size)
 
     def _make_learner(self, model: str) -> OnlineLearner:
+        """The learner of the current stage (model 'auto') or of ``model``."""
         if model == "auto":
-            model = "small_inception"
+            cfg = self._stage_cfg(self.stage)
+            return OnlineLearner(self.C, cfg, seed=self.seed, model_name=cfg.model)
         return OnlineLearner(self.C, self.learner_cfg, seed=self.seed, model_name=model)
+
+    def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
+        """A no-contact frame of this sensor session: enables the guard's contact test."""
+        if self.guard is not None:
+            self.guard.set_reference(None if frame is None else validate_frame(frame, "no-contact "
+                                                                                     "reference"))
 
     # ------------------------------------------------------------------ state
     @property
@@ -147,16 +243,32 @@ class TrialEngine:
         return self.final is not None
 
     def add_touch(self, platform: int, img: np.ndarray) -> None:
-        """Store a touch of ``platform`` (0 = reference, 1..C = comparison)."""
+        """Store a touch of ``platform`` (0 = reference, 1..C = comparison).
+
+        Raises TouchRejected (a TactexError) when the guard finds a blank or no-contact frame;
+        nothing is stored then and the platform still counts as untouched.
+        """
         if not 0 <= platform <= self.C:
             raise TactexError(f"platform {platform} outside 0..{self.C}")
+        if self.guard is not None:
+            ok, reason = self.guard.check(validate_frame(img, f"touch of platform {platform}"))
+            if not ok:
+                raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
             if self.x_test is None:
                 self.x_test = self.learner.test_tensor(img)
+                self._ref_frame = img
             self.reference_touches += 1
         else:
-            self.learner.add_touch(img, platform - 1)
+            x = self.learner.add_touch(img, platform - 1)
             self.touches[platform - 1] += 1
+            if self.is_auto:
+                self._frames.append((platform - 1, img))
+            if self.learner.rounds_trained > 0:
+                p = self.learner.heldout_proba(x)
+                ok = bool(int(np.argmax(p)) == platform - 1)
+                self._pending_heldout.append(ok)
+                self._heldout.append(ok)
 
     def record_failure(self, platform: int, reason: str) -> None:
         self.failed.append({"platform": self.platform_ids[platform], "reason": reason,
@@ -173,6 +285,10 @@ class TrialEngine:
         if self.x_test is None or np.any(self.touches == 0):
             raise TactexError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
+        escalation = self._escalation_reason() if self.is_auto else None
+        extra_s = 0.0
+        if escalation:
+            extra_s = self._escalate()
         stats = self.learner.train_round()
         t0 = time.perf_counter()
         probs = self.learner.mc_probs(self.x_test)
@@ -181,21 +297,66 @@ class TrialEngine:
         final = (len(self.records) >= self.trial_cfg.rounds or not self._budget_left() or
                  (self.trial_cfg.stop_confidence > 0 and
                   pbar.max() >= self.trial_cfg.stop_confidence))
-        choice, scores = (None, None) if final else self.strategy.choose(probs, self.touches,
-                                                                         self.rng)
+        choice, scores = (None, None) if final else self.strategy.choose(
+            probs, self.touches, self.rng, tie_break=self.learner_cfg.guards)
         t2 = time.perf_counter()
+        degenerate = bool(scores is not None and np.ptp(np.asarray(scores, float)) <=
+                          1e-9 * max(1.0, float(np.max(np.abs(scores)))))
         rec = RoundRecord(
             round=len(self.records) + 1, platform=None if choice is None else choice + 1,
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
-            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds,
+            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds + extra_s,
             score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
-            touches=self.touches.tolist(), model=self.learner.model_name)
+            touches=self.touches.tolist(), model=self.learner.model_name,
+            input_size=self.learner.cfg.input_size, escalation=escalation,
+            heldout=list(self._pending_heldout), degenerate=degenerate,
+            skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm)
+        self._pending_heldout = []
         if final:
             self.final = rec
         else:
             self.records.append(rec)
         self.next_platform = rec.platform
         return rec
+
+    # ------------------------------------------------------------------ model auto
+    def _escalation_reason(self) -> str | None:
+        """Evidence from this trial that the current stage is not enough (None = stay)."""
+        if self.stage + 1 >= len(self.ladder):
+            return None
+        c = self.learner_cfg
+        w = c.auto_window
+        if len(self._heldout) >= w:
+            acc = float(np.mean(self._heldout[-w:]))
+            if acc < c.auto_heldout_acc:
+                return (f"held-back touches: {acc:.2f} of the last {w} classified right "
+                        f"< {c.auto_heldout_acc:g}")
+        hist = [r.predictive_entropy for r in self.records[self._stage_round0:]]
+        k = c.auto_patience
+        if len(hist) > k:
+            h_now, h_then = hist[-1], hist[-1 - k]
+            floor = c.auto_entropy * math.log(self.C)
+            if h_now > floor and h_now > (1.0 - c.auto_min_drop) * h_then:
+                return (f"entropy not falling: {h_then:.3f} -> {h_now:.3f} nats over {k} rounds, "
+                        f"above {floor:.3f}")
+        return None
+
+    def _escalate(self) -> float:
+        """Move to the next stage; returns the seconds spent (re-adding, catch-up training)."""
+        t0 = time.perf_counter()
+        old = self.learner
+        self.stage += 1
+        self.learner = self._make_learner("auto")
+        self.learner.transfer_from(old)
+        for label, img in self._frames:
+            self.learner.add_touch(img, label)
+        self.x_test = self.learner.test_tensor(self._ref_frame)
+        catchup = min(self.learner_cfg.auto_catchup, len(self.records))
+        for _ in range(catchup):
+            self.learner.train_round()
+        self._heldout = []
+        self._stage_round0 = len(self.records)
+        return time.perf_counter() - t0
 
     def result(self, truth: int | None = None) -> TrialResult:
         if self.final is None:
@@ -210,20 +371,22 @@ class TrialEngine:
             on_round: Callable[[RoundRecord], None] | None = None) -> TrialResult:
         """Baseline, then rounds until done. ``touch_fn(platform) -> (240, 320, 3) uint8``.
 
-        A TouchFailed from ``touch_fn`` is recorded and the trial goes on (a failed baseline
-        touch is retried on the next pass over the missing platforms, up to 3 passes).
+        A TouchFailed from ``touch_fn`` or a touch the guard rejects is recorded and the trial
+        goes on (a failed baseline touch is retried on the next pass over the missing platforms,
+        up to ``TrialConfig.baseline_passes`` passes).
         """
-        for _ in range(3):
+        for _ in range(self.trial_cfg.baseline_passes):
             for p in self.baseline_platforms():
                 try:
                     self.add_touch(p, touch_fn(p))
-                except TouchFailed as exc:
+                except (TouchFailed, TouchRejected) as exc:
                     self.record_failure(p, str(exc))
             if not self.baseline_platforms():
                 break
         else:
             missing = [self.platform_ids[p] for p in self.baseline_platforms()]
-            raise TactexError(f"baseline touches failed three times for {missing}")
+            raise TactexError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
+                              f"for {missing}")
         while not self.done:
             rec = self.decide()
             if on_round:
@@ -231,6 +394,6 @@ class TrialEngine:
             if rec.platform is not None:
                 try:
                     self.add_touch(rec.platform, touch_fn(rec.platform))
-                except TouchFailed as exc:
+                except (TouchFailed, TouchRejected) as exc:
                     self.record_failure(rec.platform, str(exc))
         return self.result(truth)

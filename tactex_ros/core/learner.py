@@ -17,6 +17,7 @@ other code could have advanced.
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 
@@ -36,6 +37,9 @@ class TrainStats:
     seconds: float
     steps: int
     mean_loss: float
+    skipped: int = 0              # steps skipped for a non-finite loss or gradient (guards)
+    grad_norm: float = float("nan")   # median gradient norm before clipping
+    restored: bool = False        # round rolled back (too many bad steps), learning rate halved
 
 
 def class_weights(labels: np.ndarray, num_classes: int) -> np.ndarray:
@@ -67,6 +71,8 @@ class OnlineLearner:
                 name, num_classes, dropout=cfg.dropout, block_dropout=cfg.block_dropout,
                 aux_logits=cfg.aux_logits, weights=cfg.weights or None)
         self.model_name = name
+        self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
+        self.model = self.model.to(memory_format=self._fmt)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,
                                     weight_decay=cfg.weight_decay)
         self._rng = np.random.default_rng([self.seed, 1])
@@ -85,15 +91,21 @@ class OnlineLearner:
     def labels(self) -> np.ndarray:
         return np.concatenate(self._y_parts) if self._y_parts else np.zeros(0, dtype=np.int64)
 
-    def add_touch(self, img: np.ndarray, label: int) -> None:
-        """Store ``augment`` random rotations of a (240, 320, 3) uint8 frame under ``label``."""
+    def add_touch(self, img: np.ndarray, label: int) -> torch.Tensor:
+        """Store ``augment`` random rotations of a (240, 320, 3) uint8 frame under ``label``.
+
+        Returns the stored views (augment, 3, S, S): until the next ``train_round`` the model
+        has not seen them, so they can serve as a held-back check (``heldout_proba``).
+        """
         if not 0 <= label < self.num_classes:
             raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
         img = validate_frame(img, f"touch of platform {label}")
         views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng)
-        self._x_parts.append(to_tensor(views, self.cfg.fourier))
+        x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
+        self._x_parts.append(x)
         self._y_parts.append(np.full(len(views), label, dtype=np.int64))
         self._x = self._y = None
+        return x
 
     def test_tensor(self, img: np.ndarray) -> torch.Tensor:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
@@ -103,19 +115,26 @@ class OnlineLearner:
         else:
             views = augment(img, self.cfg.test_views, self.cfg.input_size,
                             np.random.default_rng([self.seed, 3]), include_identity=True)
-        return to_tensor(views, self.cfg.fourier)
+        return to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
 
     def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
         if self._x is None:
             if not self._x_parts:
                 raise TactexError("no touches stored: nothing to train on")
-            self._x = torch.cat(self._x_parts)
+            self._x = torch.cat(self._x_parts).contiguous(memory_format=self._fmt)
             self._y = torch.from_numpy(np.concatenate(self._y_parts))
         return self._x, self._y  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ training
     def train_round(self) -> TrainStats:
-        """One round of training (epochs or steps schedule); returns time and mean loss."""
+        """One round of training (epochs or steps schedule); returns time and mean loss.
+
+        With ``guards`` (default): gradients are clipped to ``grad_clip``; a step whose loss or
+        gradient is not finite is skipped; when more than half the steps of a round were bad (or
+        the weights went non-finite) the round is rolled back to its starting weights and
+        optimiser state and the learning rate is halved. Without guards a non-finite loss
+        raises FloatingPointError (the trial fails).
+        """
         t0 = time.perf_counter()
         x, y = self._dataset()
         n = x.shape[0]
@@ -129,8 +148,15 @@ class OnlineLearner:
             for _ in range(self.cfg.epochs):
                 perm = torch.randperm(n, generator=self._gen)
                 batches += [perm[i:i + bs] for i in range(0, n, bs)]
+        guards = self.cfg.guards
+        clip = self.cfg.grad_clip if guards else 0.0
+        snapshot = None
+        if guards:
+            snapshot = ({k: v.detach().clone() for k, v in self.model.state_dict().items()},
+                        copy.deepcopy(self.opt.state_dict()))
+        params = [p for p in self.model.parameters() if p.requires_grad]
         self.model.train()
-        losses = []
+        losses, norms, skipped = [], [], 0
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=self._gen)))
             for idx in batches:
@@ -141,16 +167,53 @@ class OnlineLearner:
                 if aux is not None:
                     loss = loss + 0.4 * F.cross_entropy(aux, y[idx], weight=weights)
                 if not torch.isfinite(loss):
-                    raise FloatingPointError(f"training loss became {loss.item()}")
+                    if not guards:
+                        raise FloatingPointError(f"training loss became {loss.item()}")
+                    skipped += 1
+                    continue
                 self.opt.zero_grad(set_to_none=True)
                 loss.backward()
+                if guards:
+                    gn = torch.nn.utils.clip_grad_norm_(params, clip if clip > 0 else float("inf"))
+                    if not torch.isfinite(gn):
+                        skipped += 1
+                        self.opt.zero_grad(set_to_none=True)
+                        continue
+                    norms.append(float(gn))
                 self.opt.step()
                 losses.append(float(loss.detach()))
+        restored = False
+        if guards and snapshot is not None and batches and (
+                skipped > len(batches) // 2 or
+                not all(bool(torch.isfinite(p).all()) for p in params)):
+            self.model.load_state_dict(snapshot[0])
+            self.opt.load_state_dict(snapshot[1])
+            for g in self.opt.param_groups:
+                g["lr"] *= 0.5
+            restored = True
         if self.cfg.bn_recalibrate:
             self._recalibrate_bn(x)
         self.rounds_trained += 1
         return TrainStats(time.perf_counter() - t0, len(losses),
-                          float(np.mean(losses)) if losses else float("nan"))
+                          float(np.mean(losses)) if losses else float("nan"), skipped,
+                          float(np.median(norms)) if norms else float("nan"), restored)
+
+    def transfer_from(self, other: "OnlineLearner") -> int:
+        """Start from ``other``'s weights where names and shapes match; returns tensors copied.
+
+        Same variant (e.g. a larger input for ``small_inception``): everything, classifier too.
+        ``small_inception`` -> ``inception_v3*``: the stem (its keys are a subset).
+        """
+        from .models import load_weights
+        rep = load_weights(self.model, other.model.state_dict(),
+                           keep_head=other.model_name == self.model_name)
+        self.model.to(memory_format=self._fmt)
+        return len(rep.loaded)
+
+    @torch.no_grad()
+    def heldout_proba(self, x: torch.Tensor) -> np.ndarray:
+        """(C,) eval-mode softmax averaged over the views of one not-yet-trained-on touch."""
+        return self.predict_proba(x).mean(axis=0)
 
     @torch.no_grad()
     def _recalibrate_bn(self, x: torch.Tensor) -> None:
@@ -183,7 +246,7 @@ class OnlineLearner:
         return mc_probs(self.model, x_test, passes or self.cfg.mc_passes,
                         generator=self._gen).double().numpy()
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def predict_proba(self, x: torch.Tensor, batch: int = 256) -> np.ndarray:
         """Deterministic (eval-mode) softmax for (N, 3, S, S) inputs -> (N, C)."""
         self.model.eval()

@@ -29,12 +29,18 @@ class Strategy:
               rng: np.random.Generator) -> np.ndarray | None:
         raise NotImplementedError
 
-    def choose(self, probs: np.ndarray, touches: np.ndarray,
-               rng: np.random.Generator) -> tuple[int | None, np.ndarray | None]:
-        """(chosen comparison index 0..C-1 or None, the (C,) scores or None)."""
+    def choose(self, probs: np.ndarray, touches: np.ndarray, rng: np.random.Generator,
+               tie_break: bool = True) -> tuple[int | None, np.ndarray | None]:
+        """(chosen comparison index 0..C-1 or None, the (C,) scores or None).
+
+        ``tie_break=False`` is the unguarded plain argmax (first index among equal scores),
+        kept for the before/after runs of ``tactex experiment stability``.
+        """
         s = self.score(probs, touches, rng)
         if s is None:
             return None, None
+        if not tie_break:
+            return int(np.argmax(np.asarray(s, dtype=np.float64))), s
         return break_ties(s, touches), s
 
 

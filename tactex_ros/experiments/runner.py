@@ -42,6 +42,8 @@ class TrialJob:
     trial_id: str = ""
     perturb: dict[str, Any] = field(default_factory=dict)
     tags: dict[str, Any] = field(default_factory=dict)   # free labels carried to the result
+    catch_errors: bool = False    # a trial that raises gives a result with "error" (not a crash)
+    no_contact_reference: bool = True   # give the engine a no-contact frame when the source can
 
 
 _SOURCES: dict[str, Any] = {}
@@ -127,10 +129,24 @@ def run_job(job: TrialJob, threads: int = 1,
     tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
                        stop_confidence=job.stop_confidence)
     eng = TrialEngine(n, cfg, tcfg, seed=job.seed, platform_ids=ids)
+    src = _source(job.source)
+    if job.no_contact_reference and hasattr(src, "renderer"):
+        eng.set_no_contact_reference(src.renderer.no_contact(np.random.default_rng([job.seed, 37])))
     if engine_hook:
         engine_hook(eng)
     t0 = time.perf_counter()
-    res = eng.run(_touch_fn(job, classes), truth=truth)
+    try:
+        res = eng.run(_touch_fn(job, classes), truth=truth)
+    except (TactexError, FloatingPointError, RuntimeError) as exc:
+        if not job.catch_errors:
+            raise
+        recs = eng.records
+        return {"correct": False, "prediction": None, "truth": ids[truth], "touches":
+                eng.total_touches, "rounds": [dataclasses.asdict(r) for r in recs],
+                "final": None, "failed_touches": list(eng.failed),
+                "error": f"{type(exc).__name__}: {exc}", "job": dataclasses.asdict(job),
+                "classes": classes, "truth_index": truth, "prediction_index": None,
+                "decision_s": [r.decision_s for r in recs], "wall_s": time.perf_counter() - t0}
     out = res.to_dict()
     out.update(job=dataclasses.asdict(job), classes=classes, truth_index=truth,
                prediction_index=res.prediction,

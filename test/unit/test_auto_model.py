@@ -1,0 +1,166 @@
+"""Model 'auto' (escalation on evidence) and the failure-mode guards of the trial engine."""
+
+import numpy as np
+import pytest
+import torch
+
+from tactex_ros.core.config import preset
+from tactex_ros.core.engine import (TouchRejected, TrialConfig, TrialEngine, parse_ladder)
+from tactex_ros.core.errors import TactexError
+from tactex_ros.core.guards import ContactGuard, flatness_score
+from tactex_ros.core.learner import OnlineLearner
+from tactex_ros.core.strategies import VarianceStrategy
+
+FAST = dict(input_size=32, steps=2, batch_size=8, mc_passes=4, augment=3, bn_recalibrate=8)
+
+
+def _frames(seed: int, n: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        yy, xx = np.mgrid[0:240, 0:320]
+        base = 120 + 60 * np.sin(2 * np.pi * (xx + yy * 0.3) / (12 * 2**k))
+        img = base[..., None] + rng.normal(0, 8, (240, 320, 3))
+        out.append(np.clip(img, 0, 255).astype(np.uint8))
+    return out
+
+
+def _touch_fn(seed=0, n=4):
+    frames = _frames(seed, n)
+    rng = np.random.default_rng(seed)
+
+    def touch(p: int) -> np.ndarray:
+        k = (p - 1) % n if p else 1
+        noisy = frames[k].astype(np.int16) + rng.integers(-3, 4, frames[k].shape)
+        return np.clip(noisy, 0, 255).astype(np.uint8)
+    return touch
+
+
+def test_parse_ladder_checks_names_and_sizes():
+    assert parse_ladder("small_inception@32, small_inception", 64) == [
+        ("small_inception", 32), ("small_inception", 64)]
+    with pytest.raises(TactexError, match="unknown model"):
+        parse_ladder("resnet@32", 64)
+    with pytest.raises(TactexError, match="at least 75"):
+        parse_ladder("inception_v3_random@48", 64)
+    with pytest.raises(TactexError, match="empty"):
+        parse_ladder(" , ", 64)
+
+
+def test_auto_escalates_on_evidence_and_keeps_touches():
+    # thresholds that any trial meets: entropy "not falling" after 1 round
+    cfg = preset("default", model="auto", auto_ladder="small_inception@32,small_inception@40",
+                 auto_patience=1, auto_min_drop=1.0, auto_entropy=0.0, auto_catchup=1,
+                 **{k: v for k, v in FAST.items() if k != "input_size"})
+    eng = TrialEngine(3, cfg, TrialConfig(rounds=4), seed=1)
+    res = eng.run(_touch_fn(1, 3), truth=2)
+    models = [(r.model, r.input_size) for r in res.rounds + [res.final]]
+    assert models[0] == ("small_inception", 32)
+    assert models[-1] == ("small_inception", 40)
+    esc = [r for r in res.rounds + [res.final] if r.escalation]
+    assert len(esc) == 1 and "entropy" in esc[0].escalation
+    # every stored touch was re-added to the escalated learner, at its input size
+    assert eng.learner.n_views == int(eng.touches.sum()) * cfg.augment
+    assert eng.x_test.shape[-1] == 40
+    d = res.to_dict()
+    assert d["models"] == ["small_inception@32", "small_inception@40"]
+    assert d["escalations"][0]["model"] == "small_inception@40"
+
+
+def test_auto_stays_cheap_without_evidence():
+    cfg = preset("default", model="auto", auto_ladder="small_inception@32,small_inception@40",
+                 auto_heldout_acc=0.0, auto_entropy=1.0,
+                 **{k: v for k, v in FAST.items() if k != "input_size"})
+    res = TrialEngine(3, cfg, TrialConfig(rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)
+    assert {r.input_size for r in res.rounds + [res.final]} == {32}
+    assert not res.to_dict()["escalations"]
+
+
+def test_heldout_touches_recorded_before_training():
+    cfg = preset("default", **FAST)
+    res = TrialEngine(3, cfg, TrialConfig(rounds=3), seed=0).run(_touch_fn(0, 3), truth=1)
+    assert res.rounds[0].heldout == []            # nothing trained before round 1
+    assert all(len(r.heldout) == 1 for r in res.rounds[1:] + [res.final])
+
+
+def test_contact_guard_rejects_blank_and_no_contact_frames():
+    tex = _frames(0, 1)[0]
+    flat = np.full((240, 320, 3), 100, np.uint8)
+    flat[::7, ::5] += 1
+    assert flatness_score(flat) < 0.35 < flatness_score(tex)
+    g = ContactGuard()
+    assert g.check(tex)[0] and not g.check(flat)[0]
+    g.set_reference(tex)                          # the same frame = no contact against it
+    ok, reason = g.check(tex)
+    assert not ok and "no contact" in reason
+    # lighting drift alone is not contact
+    drift = np.clip(tex.astype(int) + np.array([6, -4, 3]), 0, 255).astype(np.uint8)
+    assert not g.check(drift)[0]
+
+
+def test_engine_rejects_blank_touch_and_run_goes_on():
+    cfg = preset("default", **FAST)
+    flat = np.full((240, 320, 3), 90, np.uint8)
+    flat[0, 0] = 91
+    eng = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0)
+    with pytest.raises(TouchRejected, match="blank"):
+        eng.add_touch(1, flat)
+    assert eng.touches[0] == 0 and 1 in eng.baseline_platforms()
+    # unguarded: the same frame is stored
+    eng2 = TrialEngine(3, preset("default", guards=False, **FAST), TrialConfig(rounds=2))
+    eng2.add_touch(1, flat)
+    assert eng2.touches[0] == 1
+    # in run(): a blank touch is a recorded failure, the platform is retried
+    good = _touch_fn(0, 3)
+    calls = {"n": 0}
+
+    def touch(p):
+        calls["n"] += 1
+        return flat if calls["n"] == 2 else good(p)
+    res = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0).run(touch, truth=1)
+    assert len(res.failed_touches) == 1 and "blank" in res.failed_touches[0]["reason"]
+
+
+def test_nonfinite_loss_is_skipped_with_guards_and_raises_without():
+    frames = _frames(0, 3)
+    for guards in (True, False):
+        L = OnlineLearner(3, preset("default", guards=guards, **FAST), seed=0)
+        for k, f in enumerate(frames):
+            L.add_touch(f, k)
+        orig = L.model.forward_train
+        calls = {"n": 0}
+
+        def bad(x, orig=orig, calls=calls):
+            calls["n"] += 1
+            logits, aux = orig(x)
+            return (logits * float("nan") if calls["n"] == 1 else logits), aux
+        L.model.forward_train = bad
+        if guards:
+            st = L.train_round()
+            assert st.skipped == 1 and st.steps == FAST["steps"] - 1 and not st.restored
+            assert all(torch.isfinite(p).all() for p in L.model.parameters())
+        else:
+            with pytest.raises(FloatingPointError):
+                L.train_round()
+
+
+def test_round_rolled_back_when_most_steps_are_bad():
+    L = OnlineLearner(3, preset("default", **FAST), seed=0)
+    for k, f in enumerate(_frames(0, 3)):
+        L.add_touch(f, k)
+    before = {k: v.clone() for k, v in L.model.state_dict().items() if "bn" not in k}
+    orig = L.model.forward_train
+    L.model.forward_train = lambda x: (orig(x)[0] * float("inf"), None)
+    st = L.train_round()
+    assert st.restored and st.skipped == FAST["steps"]
+    assert L.opt.param_groups[0]["lr"] == pytest.approx(preset("default").lr / 2)
+    after = L.model.state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before)
+
+
+def test_degenerate_scores_tie_break_vs_plain_argmax():
+    probs = np.full((5, 4), 0.25)                  # every pass identical: all scores 0
+    touches = np.array([3, 1, 2, 1])
+    s = VarianceStrategy()
+    assert s.choose(probs, touches, np.random.default_rng(0))[0] == 1
+    assert s.choose(probs, touches, np.random.default_rng(0), tie_break=False)[0] == 0
