@@ -4,8 +4,10 @@ Model (per touch):
 
 1. Cut a 320x240 window out of the fabric's cached height tile at a random position and
    in-plane rotation (one affine warp) -> heights H [mm] at 0.0634 mm/px.
-2. Press: the gel is a slightly domed surface (curvature ``dome_per_mm2``); at press depth d the
-   gel indentation is D = max(0, H - (max H - d) - dome * r^2). The contact area grows with d.
+2. Press: loose fibres and rare peaks are squashed: H is clipped at its ``crush_percentile``
+   (top T). The gel is a slightly domed surface (curvature ``dome_per_mm2``); at press depth d
+   the gel indentation is D = max(0, min(H, T) - (T - d) - dome * r^2). The contact area grows
+   with d.
 3. Gel smoothing: the elastomer cannot follow detail finer than its thickness: Gaussian blur of
    D with ``gel_sigma_mm``.
 4. Photometric stereo: surface normals from the gradient of D, lit by three coloured lights
@@ -47,6 +49,7 @@ class SensorModel:
     noise_std: float = 1.6           # grey levels
     drift: float = 0.04              # relative light gain drift per touch (std)
     depth_mm: tuple[float, float] = (0.25, 0.6)   # uniform press depth range [mm]
+    crush_percentile: float = 97.0   # heights above this percentile are pressed flat
 
 
 @dataclass
@@ -98,8 +101,11 @@ class GelSightRenderer:
                rng: np.random.Generator) -> np.ndarray:
         """(240, 320) heights [mm] pressed to ``depth_mm`` -> uint8 RGB (240, 320, 3)."""
         s, c = self.sensor, self._c
-        top = float(heights.max())
-        d = heights - np.float32(top - depth_mm) - np.float32(s.dome_per_mm2) * c.r2_mm
+        # Loose fibres and rare high spots are squashed flat by the press: the surface the gel
+        # meets is the height map clipped at its ``crush_percentile``.
+        top = float(np.percentile(heights[::4, ::4], s.crush_percentile))
+        d = (np.minimum(heights, np.float32(top)) - np.float32(top - depth_mm) -
+             np.float32(s.dome_per_mm2) * c.r2_mm)
         np.maximum(d, 0, out=d)
         sig = s.gel_sigma_mm / s.mm_per_px
         d = cv2.GaussianBlur(d, (0, 0), sig)
