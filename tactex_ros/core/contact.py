@@ -108,3 +108,13 @@ class FrameRing:
         scores = [contact_score(f, self._ref_blur) for f in frames]
         i = int(np.argmax(scores))
         return frames[i], float(scores[i])
+
+
+def crop_border(frame: np.ndarray, fraction: float) -> np.ndarray:
+    """Crop ``fraction`` of each border (the GelSight Mini's dark rim), resize to (240, 320)."""
+    if not 0.0 <= fraction < 0.5:
+        raise ValueError(f"crop fraction {fraction} outside [0, 0.5)")
+    h, w = frame.shape[:2]
+    dy, dx = int(round(h * fraction)), int(round(w * fraction))
+    inner = frame[dy:h - dy, dx:w - dx]
+    return cv2.resize(inner, (FRAME_W, FRAME_H), interpolation=cv2.INTER_AREA)

@@ -1,0 +1,128 @@
+"""gelsight_node: the GelSight Mini as a ROS 2 camera with a capture service.
+
+Opens the sensor with OpenCV by device path (``/dev/videoN``, ``/dev/v4l/by-id/...``), by the
+name the camera reports (``GelSight Mini`` under /sys/class/video4linux/*/name), or a video
+file (recordings; tests use octopi-dev presses). Drops ``warmup_frames``, averages the next
+``reference_frames`` into the no-contact frame, crops ``crop_fraction`` of each border and
+resizes to 320x240, publishes ``sensor_msgs/Image`` rgb8 on /tactex/gelsight/image_raw
+(sensor-data QoS, stamped, frame_id set), keeps a ring buffer of ``buffer_s`` seconds and serves
+/tactex/gelsight/capture with the strongest-contact frame. Frames are read in their own thread.
+"""
+
+from __future__ import annotations
+
+import glob
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image
+
+from .. import adapter
+from ..core.contact import FrameRing, crop_border
+from ..core.errors import TactexError
+from ..node_settings import CAPTURE_SERVICE, IMAGE_TOPIC, GelsightSettings
+from .capture import serve_capture
+from .common import TactexNode, run
+
+
+def resolve_device(device: str) -> tuple[str, bool]:
+    """(path to open, is_file) for a device path, by-id path, camera name or video file."""
+    if not device:
+        raise TactexError("gelsight device: empty; give /dev/videoN, a /dev/v4l/by-id path, "
+                          "the camera's name or a video file")
+    p = Path(device)
+    if p.exists():
+        return str(p.resolve() if str(p).startswith("/dev/v4l") else p), p.is_file()
+    for name_file in sorted(glob.glob("/sys/class/video4linux/video*/name")):
+        if Path(name_file).read_text().strip().lower().startswith(device.lower()):
+            return "/dev/" + Path(name_file).parent.name, False
+    for link in sorted(glob.glob("/dev/v4l/by-id/*")):
+        if device.lower().replace(" ", "_") in Path(link).name.lower():
+            return str(Path(link).resolve()), False
+    raise TactexError(f"gelsight device {device!r}: no such file and no camera reports that "
+                      "name (/sys/class/video4linux/*/name, /dev/v4l/by-id)")
+
+
+class GelsightNode(TactexNode):
+    settings_cls = GelsightSettings
+
+    def __init__(self) -> None:
+        super().__init__("gelsight")
+
+    def configure(self) -> None:
+        s = self.settings
+        self.path, self.is_file = resolve_device(s.device)
+        self.cap = cv2.VideoCapture(self.path) if self.is_file else \
+            cv2.VideoCapture(self.path, cv2.CAP_V4L2)
+        end = time.monotonic() + s.open_timeout_s
+        while not self.cap.isOpened():
+            if time.monotonic() > end:
+                raise TactexError(f"gelsight device {s.device!r} ({self.path}): could not be "
+                                  f"opened within open_timeout_s ({s.open_timeout_s} s)")
+            time.sleep(0.1)
+            self.cap.open(self.path)
+        self.ring = FrameRing(max(2, int(round(s.buffer_s * s.fps))))
+        self.lock = threading.Lock()
+        self.pub = self.create_publisher(Image, IMAGE_TOPIC, qos_profile_sensor_data)
+        serve_capture(self, self.ring, self.lock, s.frame_id, CAPTURE_SERVICE)
+        self.frames_read = 0
+        self._stop = threading.Event()
+
+    def activate(self) -> None:
+        self.reader = threading.Thread(target=self._read_loop, name="gelsight", daemon=True)
+        self.reader.start()
+
+    def deactivate(self) -> None:
+        self._stop.set()
+
+    def _read(self) -> np.ndarray | None:
+        ok, bgr = self.cap.read()
+        if not ok and self.is_file and self.settings.loop_file:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            ok, bgr = self.cap.read()
+        if not ok or bgr is None or bgr.ndim != 3:
+            return None
+        return np.ascontiguousarray(crop_border(bgr, self.settings.crop_fraction)[:, :, ::-1])
+
+    def _read_loop(self) -> None:
+        s = self.settings
+        period = 1.0 / s.fps
+        for _ in range(s.warmup_frames):
+            self.cap.read()
+        refs = []
+        next_t = time.monotonic()
+        misses = 0
+        while not self._stop.is_set():
+            frame = self._read()
+            if frame is None:
+                misses += 1
+                if self.is_file or misses > s.fps * s.open_timeout_s:
+                    self.get_logger().warning("gelsight: no more frames")
+                    return
+                continue
+            misses = 0
+            self.frames_read += 1
+            if len(refs) < s.reference_frames:
+                refs.append(frame.astype(np.float32))
+                if len(refs) == s.reference_frames:
+                    with self.lock:
+                        self.ring.set_reference(np.mean(refs, axis=0).round().astype(np.uint8))
+            now = self.get_clock().now().nanoseconds * 1e-9
+            with self.lock:
+                self.ring.push(now, frame)
+            self.pub.publish(adapter.array_to_image(frame, now, s.frame_id))
+            if self.is_file:  # a recording plays at its nominal rate
+                next_t += period
+                time.sleep(max(0.0, next_t - time.monotonic()))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(GelsightNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,99 @@
+"""The simulated graph (mock arm, mock image, motion, explorer) as real processes over DDS."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from rclpy.qos import qos_profile_sensor_data
+from visualization_msgs.msg import MarkerArray
+
+from tactex_ros.graph import describe
+from tactex_ros.node_settings import POSE_TOPIC, WRENCH_TOPIC
+from tactex_ros.record import read_record
+from tactex_ros.runner import run_trial
+from tactex_ros.scene import load_scene
+
+pytestmark = pytest.mark.ros
+
+
+def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
+    from tactex.msg import ExplorationState
+    nodes = describe(True, explorer={"rounds": 2, "seed": 0, "record_dir": str(tmp_path),
+                                     "trial_id": "t1", "threads": 1})
+    scene = load_scene(nodes[0].parameters["scene_file"])
+    states = listener.collect(ExplorationState, "/tactex/state")
+    marks = listener.collect(MarkerArray, "/tactex/markers")
+    poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
+    wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
+
+    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+
+    assert not run.timed_out and run.exit_code == 0, (tmp_path / "logs" / "explorer.log")
+    res = run.result
+    truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
+    assert res["prediction"] == truth
+    # decisions: 2 that ask for a touch + the final one, all published
+    assert [s.round for s in states] == [1, 2, 3] and states[-1].done
+    assert states[-1].prediction == truth
+    assert all(abs(sum(s.belief) - 1.0) < 1e-3 for s in states)
+    assert len(marks) > 0 and len(marks[-1].markers) >= 2 * len(scene.platforms)
+    # safety: force and workspace, over everything the mock arm reported
+    assert len(poses) > 100 and len(wrenches) > 100
+    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in poses])
+    assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
+    assert np.all(xyz <= np.array(scene.workspace_max) + 1e-6)
+    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
+    # the record holds every touch, image and metadata, and the result
+    rec = read_record(run.record)
+    accepted = [t for t in rec["touches"] if t["accepted"]]
+    assert len(accepted) == res["touches"] == 5 + 2
+    assert all(t["array"].shape == (240, 320, 3) for t in accepted)
+    assert all(t["force_n"] >= scene.press.force_threshold for t in accepted)
+    assert rec["result"]["prediction"] == truth
+    assert len(rec["decisions"]) == 3
+    assert json.loads((run.record / "config.json").read_text())["explorer"]["rounds"] == 2
+
+
+def _press(listener, platform_id: str, timeout: float = 60.0):
+    from rclpy.action import ActionClient
+    from tactex.action import Press
+    ac = ActionClient(listener.node, Press, "/tactex/press")
+    assert ac.wait_for_server(timeout_sec=30.0)
+    fut = ac.send_goal_async(Press.Goal(platform_id=platform_id))
+    end = time.monotonic() + timeout
+    while not fut.done() and time.monotonic() < end:
+        time.sleep(0.02)
+    handle = fut.result()
+    if not handle.accepted:
+        return None
+    rfut = handle.get_result_async()
+    while not rfut.done() and time.monotonic() < end:
+        time.sleep(0.02)
+    assert rfut.done(), "press did not finish before the test deadline"
+    return rfut.result().result
+
+
+def test_press_faults(tmp_path: Path, listener) -> None:
+    """Unknown platform: goal rejected. Platforms lower than the scene says: no contact, the
+    press is retried, then reported failed; the arm stays in the workspace meanwhile."""
+    from tactex_ros.runner import Graph
+    nodes = [n for n in describe(True, mock_arm={"surface_offset": -0.03})
+             if n.name in ("mock_arm", "mock_image", "motion")]
+    scene = load_scene(nodes[0].parameters["scene_file"])
+    poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        assert _press(listener, "no_such_platform") is None
+        res = _press(listener, "c1")
+        assert res is not None and not res.success
+        assert res.attempts == scene.press.retries + 1
+        assert res.reason.count("attempt") == scene.press.retries + 1
+    xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in poses])
+    assert len(xyz) > 50
+    assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
+    # never below the deepest allowed press of the (scene's) surface
+    assert xyz[:, 2].min() >= scene.platform("c1").position[2] - scene.press.max_depth - 1e-6

@@ -1,0 +1,46 @@
+"""Bad scene or parameters: the node refuses to start (exit status 2) before moving anything."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tactex_ros.paths import config_dir
+from tactex_ros.runner import ros_env
+
+pytestmark = pytest.mark.ros
+
+
+def _start(node: str, params: list[str], domain_id: int) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", f"tactex_ros.nodes.{node}", "--ros-args"]
+    for p in params:
+        cmd += ["-p", p]
+    return subprocess.run(cmd, capture_output=True, timeout=60, env=ros_env(domain_id))
+
+
+@pytest.mark.parametrize("node", ["motion_node", "explorer_node", "mock_arm_node"])
+def test_platform_outside_workspace_refused(tmp_path: Path, node: str, domain_id) -> None:
+    scene = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
+    scene["platforms"][2]["position"] = [0.9, 0.22, 0.08]      # x beyond workspace max 0.75
+    bad = tmp_path / "scene.yaml"
+    bad.write_text(yaml.safe_dump(scene))
+    r = _start(node, [f"scene_file:={bad}", f"record_dir:={tmp_path}"]
+               if node == "explorer_node" else [f"scene_file:={bad}"], domain_id)
+    assert r.returncode == 2
+    assert b"platforms[2].position" in r.stdout + r.stderr
+
+
+def test_missing_scene_refused(tmp_path: Path, domain_id) -> None:
+    r = _start("motion_node", [f"scene_file:={tmp_path / 'nope.yaml'}"], domain_id)
+    assert r.returncode == 2
+
+
+def test_bad_strategy_refused(tmp_path: Path, domain_id) -> None:
+    r = _start("explorer_node", [f"scene_file:={config_dir() / 'scene_sim.yaml'}",
+                                 "strategy:=greedy", f"record_dir:={tmp_path}"], domain_id)
+    assert r.returncode == 2
+    assert b"strategy" in r.stdout + r.stderr
