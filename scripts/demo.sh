@@ -1,18 +1,9 @@
 #!/usr/bin/env bash
-# `make demo`: one replayed trial on real GelSight recordings, printing its answer.
+# `make demo`: the simulated ROS 2 graph (mock arm, mock image, motion, explorer) as real
+# processes over DDS on loopback, one full trial, the answer and where the trial record is.
+# DEMO_ROUNDS (default 5) and DEMO_STRATEGY (default variance) change the trial.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ROOT=$PWD
-DATA=""
-for d in "${TACTEX_SHARED:-}/datasets/octopi-dev" "$ROOT/../shared/datasets/octopi-dev" /work/shared/datasets/octopi-dev; do
-  if [ -d "$d" ]; then DATA=$d; break; fi
-done
 mkdir -p runs
-if [ -n "$DATA" ]; then
-  SOURCE="replay:$DATA"
-else
-  echo "octopi-dev recordings not found; using the fabric simulator" >&2
-  SOURCE="sim:medium"
-fi
-exec .venv/bin/tactex trial --source "$SOURCE" --strategy variance --rounds 5 --seed 0 \
-  --json runs/demo_trial.json
+exec .venv/bin/tactex graph run --sim --rounds "${DEMO_ROUNDS:-5}" \
+  --strategy "${DEMO_STRATEGY:-variance}" --seed 0 --record-dir runs/trials
