@@ -3,6 +3,7 @@
 Layout of ``<root>/<trial_id>/``::
 
     touches.jsonl        one JSON line per touch, in arrival order (also rejected ones)
+    rejections.jsonl     touches refused after they were written (the core's guard)
     touch_0001_c1.png    the touch image (lossless RGB), name = sequence number + platform id
     decisions.jsonl      one JSON line per decision (the exploration state)
     result.json          the trial's result (written last, atomically)
@@ -71,6 +72,11 @@ class TrialRecord:
         _fsync_write(self.dir / "touches.jsonl", (json.dumps(line) + "\n").encode(), True)
         return img_path
 
+    def reject_touch(self, seq: int, reason: str) -> None:
+        """Mark touch ``seq`` (already on disk) as not used, e.g. refused by the core's guard."""
+        _fsync_write(self.dir / "rejections.jsonl",
+                     (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
+
     def add_decision(self, state: dict[str, Any]) -> None:
         _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(), True)
 
@@ -99,6 +105,10 @@ def read_record(folder: str | Path) -> dict[str, Any]:
     if not d.is_dir():
         raise TactexError(f"trial record {str(d)!r} not found")
     touches = _read_jsonl(d / "touches.jsonl")
+    rejected = {r["seq"]: r["reason"] for r in _read_jsonl(d / "rejections.jsonl")}
+    for t in touches:
+        if t.get("seq") in rejected:
+            t.update(accepted=False, reason=rejected[t["seq"]])
     for t in touches:
         if t.get("image"):
             bgr = cv2.imread(str(d / t["image"]), cv2.IMREAD_COLOR)

@@ -141,8 +141,10 @@ class ExplorerNode(TactexNode):
         self.image_pub.publish(touch.image)
         try:
             self.engine.add_touch(platform, img)
-        except TactexError as exc:
+        except TactexError as exc:  # e.g. the core's guard: blank / no-contact frame
+            self.record.reject_touch(self.record.n_touches, str(exc))
             self.engine.record_failure(platform, str(exc))
+            self.get_logger().warning(f"touch rejected: {exc}")
             return False
         return True
 

@@ -176,12 +176,14 @@ def test_record_writes_every_touch(tmp_path) -> None:
     img = np.random.default_rng(1).integers(0, 255, (240, 320, 3), dtype=np.uint8)
     r.add_touch(img, {"platform_id": "c1", "accepted": True})
     r.add_touch(None, {"platform_id": "c2", "accepted": False, "reason": "no contact"})
+    r.reject_touch(1, "guard: blank")
     with open(r.dir / "touches.jsonl", "a") as f:
         f.write('{"torn": ')                      # a crash in the middle of a line
     back = read_record(r.dir)
     assert len(back["touches"]) == 2 and back["result"] is None
     np.testing.assert_array_equal(back["touches"][0]["array"], img)
     assert back["touches"][1]["image"] is None
+    assert back["touches"][0]["accepted"] is False
     r.finish({"prediction": "c1"})
     assert json.loads((r.dir / "result.json").read_text())["prediction"] == "c1"
     with pytest.raises(TactexError, match="already exists"):
