@@ -99,7 +99,7 @@ class TrialConfig:
     stop_confidence: float = param(0.0, "stop early when max mean probability >= this "
                                         "(0 = fixed rounds)", 0.0, 1.0)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
-    baseline_passes: int = param(3, "passes over platforms whose baseline touch failed before "
+    baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)
 
 
@@ -124,6 +124,8 @@ class RoundRecord:
     skipped_steps: int = 0        # training steps skipped (non-finite loss/gradient, guards)
     restored: bool = False        # training round rolled back, learning rate halved (guards)
     grad_norm: float = float("nan")  # median gradient norm this round
+    cpu_s: float = float("nan")   # CPU time of the decision, all threads of this process [s]
+    #                               (robust to other processes sharing the machine)
 
     @property
     def decision_s(self) -> float:
@@ -285,6 +287,7 @@ class TrialEngine:
         if self.x_test is None or np.any(self.touches == 0):
             raise TactexError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
+        c0 = time.process_time()
         escalation = self._escalation_reason() if self.is_auto else None
         extra_s = 0.0
         if escalation:
@@ -310,7 +313,8 @@ class TrialEngine:
             touches=self.touches.tolist(), model=self.learner.model_name,
             input_size=self.learner.cfg.input_size, escalation=escalation,
             heldout=list(self._pending_heldout), degenerate=degenerate,
-            skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm)
+            skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm,
+            cpu_s=time.process_time() - c0)
         self._pending_heldout = []
         if final:
             self.final = rec

@@ -1,0 +1,502 @@
+"""``tactex experiment pareto``: speed against accuracy, on the same trials and seeds.
+
+Parts (each can be switched off; all write into one results folder):
+
+- **grid**: every setting of ``--grid`` (one factor at a time around the default: input size,
+  training steps per round, Monte-Carlo passes, batch-norm recalibration, model variant, model
+  ``auto``, and combinations) runs the trials of ``--trials-file`` on ``--source`` for every
+  seed with the ``--strategy`` (variance), ``--rounds`` decisions after the baseline. Per setting:
+  the median decision time per round (train + score + choose, one torch thread per worker
+  process) and the trial accuracy at ``--budget`` total touches (the decision a run capped at that
+  budget would have ended with); the mean compute per trial (sum of its decision times).
+  Jobs are interleaved over settings so every setting sees the same machine load.
+  Heavy settings (``seed_faithful``: 299 px, 10 epochs per round; the full Inception v3) run on the
+  first ``--heavy-trials`` trials only, and their accuracy is compared with the default's on
+  exactly those trials and seeds.
+- **faithful**: seed-faithful against the default on ``--faithful-source`` (default: the replayed
+  octopi-dev presses), ``--faithful-trials`` scenes drawn from seeds 0..N-1, ``--faithful-rounds``
+  rounds, variance strategy: accuracy and time, paired.
+- **touches**: accuracy against the number of touches for every strategy of ``--strategies`` with
+  the default setting, ``--touch-rounds`` rounds, read at every budget from one run per trial
+  and seed; the wall time of this part is the "32 trials x 4 strategies x 20 rounds" speed target.
+
+Figures: ``pareto.png`` (accuracy against median decision time, log scale, Pareto front, the
+thesis's setting marked), ``pareto_heavy.png`` (the heavy subset), ``touches.png``,
+``faithful.png``. JSON: ``grid.json``, ``faithful.json``, ``touches.json``, ``runs.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import TactexError
+from .common import results_dir, write_json
+from .runner import TrialJob, default_workers, run_jobs
+
+OCTOPI = "/work/shared/datasets/octopi-dev"
+
+# The settings are spelled out in full around the pre-issue-5 default ("base": 64 px, 12 Adam
+# steps of 32 per round, 20 MC passes, BN recalibration on 64 views) so the grid does not move
+# when PRESETS["default"] changes; "default" is whatever the preset is now.
+BASE = dict(model="small_inception", input_size=64, epochs=0, steps=12, batch_size=32, lr=3e-3,
+            dropout=0.5, mc_passes=20, bn_recalibrate=64)
+
+
+def _b(**kw: Any) -> dict:
+    return {**BASE, **kw}
+
+
+# label -> (preset, overrides, heavy). One factor at a time around the base, plus combinations.
+GRIDS: dict[str, list[tuple[str, str, dict, bool]]] = {
+    "full": [
+        ("default", "default", {}, False),
+        ("base", "default", _b(), False),
+        ("32px", "default", _b(input_size=32), False),
+        ("48px", "default", _b(input_size=48), False),
+        ("96px", "default", _b(input_size=96), False),
+        ("steps4", "default", _b(steps=4), False),
+        ("steps8", "default", _b(steps=8), False),
+        ("steps24", "default", _b(steps=24), False),
+        ("mc5", "default", _b(mc_passes=5), False),
+        ("mc50", "default", _b(mc_passes=50), False),
+        ("bn0", "default", _b(bn_recalibrate=0), False),
+        ("bn16", "default", _b(bn_recalibrate=16), False),
+        ("48px+steps8", "default", _b(input_size=48, steps=8), False),
+        ("32px+steps24", "default", _b(input_size=32, steps=24), False),
+        ("32px+steps12+bs16", "default", _b(input_size=32, batch_size=16), False),
+        ("auto", "default", _b(model="auto"), False),
+        ("inception_v3_random@80", "default", _b(model="inception_v3_random", input_size=80),
+         True),
+        ("seed_faithful", "seed_faithful", {}, True),
+    ],
+    "quick": [
+        ("default", "default", {}, False),
+        ("32px", "default", _b(input_size=32), False),
+        ("steps4", "default", _b(steps=4), False),
+        ("auto", "default", _b(model="auto"), False),
+    ],
+}
+THESIS_LABEL = "seed_faithful"
+
+
+# ------------------------------------------------------------------------------ small helpers
+def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95 % Wilson interval of a proportion k/n."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def mcnemar(a: list[bool], b: list[bool]) -> dict:
+    """Exact two-sided McNemar test on paired correct/incorrect outcomes."""
+    from scipy.stats import binomtest
+    a_only = sum(1 for x, y in zip(a, b) if x and not y)
+    b_only = sum(1 for x, y in zip(a, b) if y and not x)
+    n = a_only + b_only
+    p = 1.0 if n == 0 else float(binomtest(a_only, n, 0.5).pvalue)
+    return {"a_only": a_only, "b_only": b_only, "p": p}
+
+
+def parse_set(items: list[str] | None) -> dict[str, Any]:
+    """``--set key=value`` (YAML scalars) -> LearnerConfig overrides applied to every job."""
+    import dataclasses
+
+    import yaml
+
+    from ..core.config import LearnerConfig
+    names = {f.name for f in dataclasses.fields(LearnerConfig)}
+    out: dict[str, Any] = {}
+    for it in items or []:
+        k, sep, v = it.partition("=")
+        if not sep or k not in names:
+            raise TactexError(f"--set {it!r}: expected key=value, key one of "
+                              f"{', '.join(sorted(names))}")
+        out[k] = yaml.safe_load(v)
+    return out
+
+
+def decisions_of(res: dict) -> list[dict]:
+    """Every decision of a runner result: total touches when deciding, probs, time, model."""
+    out = []
+    for r in res["rounds"] + ([res["final"]] if res.get("final") else []):
+        out.append({"total": int(sum(r["touches"])) + 1, "probs": r["probs"],
+                    "decision_s": r["decision_s"], "cpu_s": r.get("cpu_s", float("nan")),
+                    "entropy": r["predictive_entropy"],
+                    "model": f"{r['model']}@{r.get('input_size', 0)}",
+                    "escalation": r.get("escalation")})
+    return out
+
+
+def correct_at(decisions: list[dict], truth: int, k: int) -> bool:
+    """Was the decision a run capped at ``k`` total touches would end with right?"""
+    if not decisions:
+        return False
+    d = next((d for d in decisions if d["total"] >= k), decisions[-1])
+    return int(np.argmax(d["probs"])) + 1 == truth
+
+
+def compact(res: dict) -> dict:
+    job = res["job"]
+    return {"setting": job["tags"].get("setting"), "trial": job["trial_id"],
+            "seed": job["tags"].get("seed"), "job_seed": job["seed"],
+            "strategy": job["strategy"], "truth": res["truth_index"],
+            "correct": bool(res["correct"]), "error": res.get("error"),
+            "decisions": decisions_of(res), "wall_s": res["wall_s"],
+            "failed_touches": len(res["failed_touches"])}
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats (<= time and >= accuracy, one strictly)."""
+    front = []
+    for i, (t, a) in enumerate(points):
+        dominated = any((t2 <= t and a2 >= a and (t2 < t or a2 > a))
+                        for j, (t2, a2) in enumerate(points) if j != i)
+        if not dominated:
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])
+
+
+def summarise_setting(runs: list[dict], budget: int) -> dict:
+    times = [d["decision_s"] for r in runs for d in r["decisions"]]
+    cpu = [d["cpu_s"] for r in runs for d in r["decisions"]]
+    ok = [correct_at(r["decisions"], r["truth"], budget) for r in runs]
+    final = [r["correct"] for r in runs]
+    lo, hi = wilson(sum(ok), len(ok))
+    per_seed = {}
+    for r, c in zip(runs, ok):
+        per_seed.setdefault(r["seed"], []).append(c)
+    seed_acc = [float(np.mean(v)) for v in per_seed.values()]
+    escal = sum(1 for r in runs if any(d["escalation"] for d in r["decisions"]))
+    return {"n": len(runs), "accuracy": float(np.mean(ok)) if ok else float("nan"),
+            "ci95": [lo, hi], "accuracy_final": float(np.mean(final)) if final else float("nan"),
+            "std_over_seeds": float(np.std(seed_acc, ddof=1)) if len(seed_acc) > 1 else 0.0,
+            "median_decision_s": float(np.median(times)) if times else float("nan"),
+            "p90_decision_s": float(np.percentile(times, 90)) if times else float("nan"),
+            "median_cpu_s": float(np.median(cpu)) if cpu else float("nan"),
+            "cpu_per_trial_s": float(np.mean([sum(d["cpu_s"] for d in r["decisions"])
+                                              for r in runs])) if runs else float("nan"),
+            "compute_per_trial_s": float(np.mean([sum(d["decision_s"] for d in r["decisions"])
+                                                  for r in runs])) if runs else float("nan"),
+            "trials_escalated": escal, "errors": sum(1 for r in runs if r["error"]),
+            "models": sorted({d["model"] for r in runs for d in r["decisions"]})}
+
+
+# ------------------------------------------------------------------------------ figures
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_pareto(path: Path, rows: dict[str, dict], title: str, mark: str | None = THESIS_LABEL,
+                reference: str = "default", xkey: str = "median_cpu_s") -> Path:
+    plt = _plt()
+    labels = [k for k, v in rows.items() if not math.isnan(v[xkey])]
+    pts = [(rows[k][xkey], rows[k]["accuracy"]) for k in labels]
+    front = pareto_front(pts)
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for i, k in enumerate(labels):
+        t, a = pts[i]
+        lo, hi = rows[k]["ci95"]
+        color = ("tab:red" if k == mark else "tab:green" if k == reference
+                 else "tab:blue" if i in front else "tab:gray")
+        ax.errorbar([t], [a], yerr=[[a - lo], [hi - a]], fmt="o", color=color, ms=6,
+                    capsize=2, alpha=0.9)
+        ax.annotate(k, (t, a), textcoords="offset points", xytext=(5, 4), fontsize=7)
+    if front:
+        ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], where="post",
+                color="tab:blue", lw=1, alpha=0.6, label="Pareto front")
+    if mark in labels:
+        ax.plot([], [], "o", color="tab:red", label=f"thesis setting ({mark})")
+    ax.plot([], [], "o", color="tab:green", label=reference)
+    ax.set_xscale("log")
+    ax.set_xlabel("decision time per round, median CPU seconds (log scale; 1 torch thread per "
+                  "process)")
+    ax.set_ylabel("trial accuracy (95 % Wilson interval)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_touches(path: Path, curves: dict[str, dict], title: str) -> Path:
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for s, c in curves.items():
+        ax.plot(c["touches"], c["accuracy"], marker="o", ms=3, label=s)
+    ax.set_xlabel("total touches (baseline of 5 included)")
+    ax.set_ylabel("trial accuracy")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_faithful(path: Path, summary: dict, title: str) -> Path:
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(8, 3.6))
+    labels = list(summary)
+    acc = [summary[k]["accuracy_final"] for k in labels]
+    a1.bar(labels, acc, color=["tab:red" if k == THESIS_LABEL else "tab:green" for k in labels])
+    for i, k in enumerate(labels):
+        a1.text(i, acc[i] + 0.02, f"{summary[k]['correct']}/{summary[k]['n']}", ha="center")
+    a1.set_ylim(0, 1.1)
+    a1.set_ylabel("trial accuracy")
+    a2.bar(labels, [summary[k]["median_decision_s"] for k in labels],
+           color=["tab:red" if k == THESIS_LABEL else "tab:green" for k in labels])
+    a2.set_yscale("log")
+    a2.set_ylabel("median decision time [s]")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+# ------------------------------------------------------------------------------ parts
+def _trial_scenes(trials_file: str, source: str) -> list[tuple[str, list[str]]]:
+    from .runner import _source
+    from .trials import find_trial_file, load_trials, platform_classes
+    doc = load_trials(find_trial_file(trials_file))
+    src = _source(source)
+    return [(t["id"], platform_classes(src, t)) for t in doc["trials"]]
+
+
+def run_grid(args, out: Path) -> dict:
+    grid = GRIDS[args.grid]
+    if args.settings:
+        keep = set(args.settings)
+        grid = [g for g in grid if g[0] in keep]
+    scenes = _trial_scenes(args.trials_file, args.source)
+    if args.max_trials:
+        scenes = scenes[:args.max_trials]
+    heavy_n = min(args.heavy_trials, len(scenes))
+    jobs = []
+    for seed in args.seeds:
+        for pos, (tid, classes) in enumerate(scenes):
+            for label, pre, over, heavy in grid:
+                if heavy and pos >= heavy_n:
+                    continue
+                jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
+                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
+                                     overrides={**over, **args.overrides},
+                                     platform_classes=classes,
+                                     trial_id=tid, catch_errors=True,
+                                     tags={"setting": label, "seed": seed, "pos": pos}))
+    # heavy jobs first so the long ones do not trail at the end
+    jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
+    t0 = time.perf_counter()
+    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
+                   description=f"pareto grid ({len(grid)} settings)", quiet=args.quiet)
+    wall = time.perf_counter() - t0
+    runs = [dict(compact(r), pos=r["job"]["tags"]["pos"]) for r in res]
+    rows = {label: summarise_setting([r for r in runs if r["setting"] == label], args.budget)
+            for label, *_ in grid}
+    heavy_labels = [g[0] for g in grid if g[3]]
+    # on the heavy subset: every setting, same trials and seeds
+    sub = [r for r in runs if r["pos"] < heavy_n]
+    rows_heavy = {label: summarise_setting([r for r in sub if r["setting"] == label],
+                                           args.budget) for label, *_ in grid}
+    # paired tests against the default (full set; heavy ones on their subset)
+    tests = {}
+    for label, *_ in grid:
+        if label == "default":
+            continue
+        src = sub if label in heavy_labels else runs
+        key = {(r["trial"], r["seed"]): correct_at(r["decisions"], r["truth"], args.budget)
+               for r in src if r["setting"] == "default"}
+        mine = {(r["trial"], r["seed"]): correct_at(r["decisions"], r["truth"], args.budget)
+                for r in src if r["setting"] == label}
+        common = sorted(set(key) & set(mine))
+        tests[label] = mcnemar([mine[k] for k in common], [key[k] for k in common])
+        tests[label]["pairs"] = len(common)
+    summary = {"budget": args.budget, "rounds": args.rounds, "strategy": args.strategy,
+               "source": args.source, "trials": len(scenes), "seeds": args.seeds,
+               "heavy_trials": heavy_n, "settings": {g[0]: {"preset": g[1], "overrides": g[2],
+                                                             "heavy": g[3]} for g in grid},
+               "all_trials": rows, "heavy_subset": rows_heavy, "vs_default_mcnemar": tests,
+               "pareto_front": [list(rows)[i] for i in pareto_front(
+                   [(v["median_cpu_s"], v["accuracy"]) for v in rows.values()])],
+               "wall_s": wall, "workers": args.workers, "threads": args.threads}
+    write_json(out / "grid.json", summary)
+    write_json(out / "grid_runs.json", runs)
+    light = {k: v for k, v in rows.items() if k not in heavy_labels}
+    plot_pareto(out / "pareto.png", {**light, **{k: rows_heavy[k] for k in heavy_labels}},
+                f"{args.source}, {len(scenes)} trials x {len(args.seeds)} seeds, "
+                f"{args.strategy}, accuracy at {args.budget} touches "
+                f"(heavy settings: first {heavy_n} trials)")
+    if heavy_labels:
+        plot_pareto(out / "pareto_heavy.png", rows_heavy,
+                    f"same {heavy_n} trials x {len(args.seeds)} seeds for every setting, "
+                    f"accuracy at {args.budget} touches")
+    return summary
+
+
+def run_faithful(args, out: Path) -> dict:
+    settings = [(THESIS_LABEL, "seed_faithful", dict(args.overrides)),
+                ("default", "default", dict(args.overrides))]
+    jobs = [TrialJob(source=args.faithful_source, seed=s, strategy="variance",
+                     rounds=args.faithful_rounds, preset=pre, overrides=over,
+                     comparisons=4, trial_id=f"s{s}", catch_errors=True,
+                     tags={"setting": label, "seed": s})
+            for s in range(args.faithful_trials) for label, pre, over in settings]
+    jobs.sort(key=lambda j: j.tags["setting"] != THESIS_LABEL)
+    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
+                   description="seed-faithful vs default", quiet=args.quiet)
+    runs = [compact(r) for r in res]
+    for r, x in zip(runs, res):
+        r["classes"] = x["classes"]
+    summary = {}
+    for label, *_ in settings:
+        rr = [r for r in runs if r["setting"] == label]
+        times = [d["decision_s"] for r in rr for d in r["decisions"]]
+        summary[label] = {"correct": sum(r["correct"] for r in rr), "n": len(rr),
+                          "accuracy_final": float(np.mean([r["correct"] for r in rr])),
+                          "ci95": list(wilson(sum(r["correct"] for r in rr), len(rr))),
+                          "median_decision_s": float(np.median(times)),
+                          "median_cpu_s": float(np.median([d["cpu_s"] for r in rr
+                                                           for d in r["decisions"]])),
+                          "decision_s_by_touches": {
+                              str(k): float(np.median([d["decision_s"] for r in rr
+                                                       for d in r["decisions"]
+                                                       if d["total"] == k]))
+                              for k in sorted({d["total"] for r in rr for d in r["decisions"]})},
+                          "per_trial": {r["trial"]: r["correct"] for r in rr}}
+    a = [summary[THESIS_LABEL]["per_trial"][f"s{s}"] for s in range(args.faithful_trials)]
+    b = [summary["default"]["per_trial"][f"s{s}"] for s in range(args.faithful_trials)]
+    doc = {"source": args.faithful_source, "trials": args.faithful_trials,
+           "seeds": list(range(args.faithful_trials)), "rounds": args.faithful_rounds,
+           "strategy": "variance", "comparisons": 4,
+           "scenes": {r["trial"]: r["classes"] for r in runs if r["setting"] == "default"},
+           "summary": summary, "mcnemar_faithful_vs_default": mcnemar(a, b),
+           "threads": args.threads, "workers": args.workers}
+    write_json(out / "faithful.json", doc)
+    write_json(out / "faithful_runs.json", runs)
+    plot_faithful(out / "faithful.png", summary,
+                  f"seed_faithful vs default: {Path(args.faithful_source).name}, "
+                  f"{args.faithful_trials} trials (seeds 0-{args.faithful_trials - 1}), "
+                  f"{args.faithful_rounds} rounds, variance")
+    return doc
+
+
+def run_touches(args, out: Path) -> dict:
+    scenes = _trial_scenes(args.trials_file, args.source)
+    if args.max_trials:
+        scenes = scenes[:args.max_trials]
+    jobs = [TrialJob(source=args.source, seed=1000 * seed + pos, strategy=s,
+                     rounds=args.touch_rounds, preset="default", overrides=dict(args.overrides),
+                     platform_classes=classes, trial_id=tid, catch_errors=True,
+                     tags={"setting": "default", "seed": seed})
+            for seed in args.touch_seeds for pos, (tid, classes) in enumerate(scenes)
+            for s in args.strategies]
+    t0 = time.perf_counter()
+    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
+                   description=f"touch curves ({len(args.strategies)} strategies)",
+                   quiet=args.quiet)
+    wall = time.perf_counter() - t0
+    runs = [compact(r) for r in res]
+    budgets = list(range(len(scenes[0][1]), len(scenes[0][1]) + args.touch_rounds + 1))
+    curves = {}
+    for s in args.strategies:
+        rr = [r for r in runs if r["strategy"] == s]
+        acc = [float(np.mean([correct_at(r["decisions"], r["truth"], k) for r in rr]))
+               for k in budgets]
+        curves[s] = {"touches": budgets, "accuracy": acc, "n": len(rr),
+                     "accuracy_final": float(np.mean([r["correct"] for r in rr])),
+                     "median_decision_s": float(np.median([d["decision_s"] for r in rr
+                                                           for d in r["decisions"]]))}
+    doc = {"source": args.source, "trials": len(scenes), "seeds": args.touch_seeds,
+           "rounds": args.touch_rounds, "strategies": args.strategies, "curves": curves,
+           "wall_s": wall, "jobs": len(jobs), "workers": args.workers, "threads": args.threads,
+           "decisions": sum(len(r["decisions"]) for r in runs),
+           "cpu_total_s": float(sum(d["cpu_s"] for r in runs for d in r["decisions"])),
+           "trial_wall_total_s": float(sum(r["wall_s"] for r in runs))}
+    write_json(out / "touches.json", doc)
+    plot_touches(out / "touches.png", curves,
+                 f"default setting, {args.source}, {len(scenes)} trials x "
+                 f"{len(args.touch_seeds)} seed(s); wall {wall:.0f} s with {args.workers} "
+                 f"workers")
+    return doc
+
+
+# ------------------------------------------------------------------------------ command
+def run(args) -> int:
+    if args.grid not in GRIDS:
+        raise TactexError(f"unknown grid {args.grid!r}; choose one of {', '.join(GRIDS)}")
+    args.workers = args.workers or default_workers()
+    args.overrides = parse_set(args.set)
+    cfg = {k: v for k, v in vars(args).items() if k != "func"}
+    out = results_dir(args.out, "pareto", cfg)
+    parts = set(args.parts)
+    done = {}
+    if "grid" in parts:
+        done["grid"] = run_grid(args, out)
+    if "faithful" in parts:
+        done["faithful"] = run_faithful(args, out)
+    if "touches" in parts:
+        done["touches"] = run_touches(args, out)
+    if "grid" in done:
+        rows = done["grid"]["all_trials"]
+        print(f"{'setting':<24}{'accuracy':>9}{'median s':>10}{'median cpu s':>14}"
+              f"{'cpu/trial s':>13}")
+        for k, v in rows.items():
+            print(f"{k:<24}{v['accuracy']:>9.3f}{v['median_decision_s']:>10.3f}"
+                  f"{v['median_cpu_s']:>14.3f}{v['cpu_per_trial_s']:>13.2f}")
+        print("Pareto front:", ", ".join(done["grid"]["pareto_front"]))
+    if "faithful" in done:
+        for k, v in done["faithful"]["summary"].items():
+            print(f"{k}: {v['correct']}/{v['n']} correct, median decision "
+                  f"{v['median_decision_s']:.2f} s")
+    if "touches" in done:
+        t = done["touches"]
+        print(f"touch curves: {t['jobs']} trials, {t['decisions']} decisions, wall "
+              f"{t['wall_s']:.0f} s; decision CPU total {t['cpu_total_s']:.0f} s")
+    print(f"results in {out}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("pareto", help="speed against accuracy: decision time vs trial accuracy")
+    p.add_argument("--parts", nargs="+", default=["grid", "faithful", "touches"],
+                   choices=["grid", "faithful", "touches"])
+    p.add_argument("--grid", default="full", help=f"settings grid: {', '.join(GRIDS)}")
+    p.add_argument("--settings", nargs="+", help="run only these settings of the grid")
+    p.add_argument("--trials-file", default="human_study")
+    p.add_argument("--source", default="sim")
+    p.add_argument("--max-trials", type=int, default=0, help="first N trials only (0 = all)")
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    p.add_argument("--strategy", default="variance")
+    p.add_argument("--rounds", type=int, default=3, help="decisions after the baseline (grid)")
+    p.add_argument("--budget", type=int, default=8, help="touches at which accuracy is read")
+    p.add_argument("--heavy-trials", type=int, default=8,
+                   help="trials for the heavy settings (seed_faithful, inception_v3_random)")
+    p.add_argument("--faithful-source", default=f"replay:{OCTOPI}")
+    p.add_argument("--faithful-trials", type=int, default=8)
+    p.add_argument("--faithful-rounds", type=int, default=3)
+    p.add_argument("--strategies", nargs="+", default=["variance", "entropy", "random", "yoto"])
+    p.add_argument("--touch-rounds", type=int, default=20)
+    p.add_argument("--touch-seeds", type=int, nargs="+", default=[0])
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="learner override for every job (after the setting's own)")
+    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
+    p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
+    p.add_argument("--out", help="results folder (default results/pareto)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=run)
