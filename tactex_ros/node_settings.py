@@ -109,7 +109,7 @@ class MockImageSettings:
     source: str = param("sim", "sim[:difficulty] or replay:DIR")
     pose_topic: str = param(POSE_TOPIC, "mock arm pose, to know what is under the sensor")
     fps: float = param(25.0, "published frame rate [Hz]", 1.0, 120.0)
-    depth_gain: float = param(0.15, "gel indentation [mm] per mm of penetration", 0.0, 10.0)
+    depth_gain: float = param(0.2, "gel indentation [mm] per mm of penetration", 0.0, 10.0)
     buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     seed: int = param(0, "seed of the rendered presses", 0, 2**31 - 1)

@@ -28,6 +28,8 @@ def serve_capture(node, ring: FrameRing, lock: threading.Lock, frame_id: str,
         resp.success, resp.reason = True, ""
         resp.image = adapter.array_to_image(frame, now, frame_id)
         resp.contact_score = score
+        if ring.reference is not None:
+            resp.no_contact = adapter.array_to_image(ring.reference, now, frame_id)
         return resp
 
     return node.create_service(Capture, name, handle)

@@ -138,6 +138,7 @@ class ExplorerNode(TactexNode):
             self.get_logger().warning(f"touch rejected: {exc}")
             return False
         self.record.add_touch(img, dict(meta, accepted=True))   # on disk before it is used
+        self._set_guard_reference(touch)
         self.image_pub.publish(touch.image)
         try:
             self.engine.add_touch(platform, img)
@@ -147,6 +148,16 @@ class ExplorerNode(TactexNode):
             self.get_logger().warning(f"touch rejected: {exc}")
             return False
         return True
+
+    def _set_guard_reference(self, touch) -> None:
+        """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
+        guard = getattr(self.engine, "guard", None)
+        if guard is None or guard.has_reference or not touch.no_contact_image.data:
+            return
+        try:
+            guard.set_reference(adapter.image_to_array(touch.no_contact_image, "no-contact frame"))
+        except TactexError as exc:
+            self.get_logger().warning(f"no-contact frame unusable for the guard: {exc}")
 
     def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> bool:
         self.record.add_touch(None, dict(meta, accepted=False, reason=reason,

@@ -44,6 +44,9 @@ class MockImageNode(TactexNode):
                                   f"{s.source!r}")
             for p in self.scene.platforms:
                 self.src.fabric(p.sim_fabric)  # names the unknown fabric
+                # build the fabric's height tile now: doing it at the first press stalls the
+                # frame timer for a moment and the capture window then holds no contact frame
+                self.src.press(p.sim_fabric, np.random.default_rng(0))
             self._rng = np.random.default_rng([s.seed, 1])
             self.no_contact = self.src.renderer.no_contact(self._rng)
         elif kind == "replay":

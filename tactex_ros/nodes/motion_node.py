@@ -139,7 +139,7 @@ class MotionNode(TactexNode):
                 return False, "no robot state (pose/wrench) within state_timeout_s", None
             time.sleep(period)
         ctrl = PressController(self.scene, platform, self.position, time.monotonic())
-        image, pose_xyz, fb = None, None, Press.Feedback()
+        cap, pose_xyz, fb = None, None, Press.Feedback()
         while not ctrl.done:
             now = time.monotonic()
             if not self._fresh(now):
@@ -151,7 +151,7 @@ class MotionNode(TactexNode):
                 target, self.quat, self.get_clock().now().nanoseconds * 1e-9,
                 self.scene.frame_id))
             if ctrl.capture_requested:
-                ok, reason, image = self._capture(ctrl.s.capture_window_s,
+                ok, reason, cap = self._capture(ctrl.s.capture_window_s,
                                                   ctrl.s.capture_deadline_s)
                 pose_xyz = self.position.copy()
                 ctrl.captured(ok, reason, time.monotonic())
@@ -162,9 +162,9 @@ class MotionNode(TactexNode):
         out = ctrl.outcome()
         if not out.success:
             return False, out.reason, None
-        touch = Touch(header=image.header, platform_id=platform.id, platform_index=index,
-                      image=image, contact_force_n=out.force_n, depth_m=out.depth_m,
-                      attempt=attempt)
+        touch = Touch(header=cap.image.header, platform_id=platform.id, platform_index=index,
+                      image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
+                      attempt=attempt, no_contact_image=cap.no_contact)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
@@ -182,7 +182,7 @@ class MotionNode(TactexNode):
         resp = fut.result()
         if not resp.success:
             return False, resp.reason, None
-        return True, "", resp.image
+        return True, "", resp
 
     def _recover(self) -> None:
         """franka error recovery when franka_msgs is installed (reflex after a force abort)."""

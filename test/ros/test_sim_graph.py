@@ -97,3 +97,21 @@ def test_press_faults(tmp_path: Path, listener) -> None:
     assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
     # never below the deepest allowed press of the (scene's) surface
     assert xyz[:, 2].min() >= scene.platform("c1").position[2] - scene.press.max_depth - 1e-6
+
+
+def test_blank_presses_rejected_and_trial_goes_on(tmp_path: Path, listener) -> None:
+    """The mock camera shows no texture on some presses: those touches are recorded, refused by
+    the core's contact guard (never trained on), and the trial still finishes."""
+    nodes = describe(True, explorer={"rounds": 1, "seed": 0, "record_dir": str(tmp_path),
+                                     "trial_id": "blank", "threads": 1},
+                     mock_image={"fault_blank": 0.2, "seed": 3})
+    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+    assert not run.timed_out and run.exit_code == 0
+    rec = read_record(run.record)
+    rejected = [t for t in rec["touches"] if not t["accepted"]]
+    accepted = [t for t in rec["touches"] if t["accepted"]]
+    assert len(rejected) >= 1
+    assert all(t["image"] for t in rejected)          # the frame itself is kept on disk
+    assert len(accepted) == run.result["touches"]
+    assert len(run.result["failed_touches"]) == len(rejected)
+    assert run.result["prediction"] in {"c1", "c2", "c3", "c4"}
