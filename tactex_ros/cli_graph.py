@@ -51,6 +51,30 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def summarise(record: dict) -> dict:
+    """Where a trial's time went: press durations [s] (request -> capture), decision times [s]."""
+    import numpy as np
+    touches = record["touches"]
+    press = [t["stamp"] - t["requested"] for t in touches if t.get("stamp")]
+    dec = [d["decision_s"] for d in record["decisions"]]
+    out = {"touches": len(touches), "accepted": sum(bool(t.get("accepted")) for t in touches),
+           "decisions": len(dec),
+           "press_s_median": float(np.median(press)) if press else None,
+           "press_s_total": float(np.sum(press)) if press else 0.0,
+           "decision_s_median": float(np.median(dec)) if dec else None,
+           "decision_s_total": float(np.sum(dec)) if dec else 0.0}
+    res = record.get("result") or {}
+    out.update(prediction=res.get("prediction"), error=res.get("error"))
+    return out
+
+
+def cmd_summary(args: argparse.Namespace) -> int:
+    from .record import read_record
+    s = summarise(read_record(args.record))
+    print(json.dumps(s, indent=2))
+    return 0
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
     gsub = g.add_subparsers(dest="gcmd", required=True)
@@ -75,3 +99,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
             p.add_argument("--log-dir")
             p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for the nodes")
         p.set_defaults(func=fn)
+    sm = gsub.add_parser("summary", help="where a recorded trial's time went")
+    sm.add_argument("record", help="trial record folder")
+    sm.set_defaults(func=cmd_summary)

@@ -220,3 +220,20 @@ def test_frame_ring_picks_strongest_contact() -> None:
     assert score > 0 and int(frame[120, 120, 0]) - int(base[120, 120, 0]) == 35
     with pytest.raises(ValueError):
         ring.best(0.5, 100.0)
+
+
+def test_record_summary(tmp_path) -> None:
+    from tactex_ros.cli_graph import summarise
+    from tactex_ros.record import TrialRecord, read_record
+    r = TrialRecord(tmp_path, "s")
+    img = np.random.default_rng(2).integers(0, 255, (240, 320, 3), dtype=np.uint8)
+    for k, dur in enumerate([2.0, 3.0, 5.0]):
+        r.add_touch(img, {"platform_id": f"c{k}", "requested": 10.0 * k,
+                          "stamp": 10.0 * k + dur, "accepted": True})
+    r.add_touch(None, {"platform_id": "c9", "requested": 50.0, "accepted": False})
+    r.add_decision({"decision_s": 0.5})
+    r.add_decision({"decision_s": 1.5})
+    s = summarise(read_record(r.dir))
+    assert s["touches"] == 4 and s["accepted"] == 3 and s["decisions"] == 2
+    assert s["press_s_median"] == pytest.approx(3.0) and s["press_s_total"] == pytest.approx(10.0)
+    assert s["decision_s_median"] == pytest.approx(1.0) and s["prediction"] is None
