@@ -97,7 +97,7 @@ def confusion_grid(path: Path, cms: dict[str, np.ndarray], labels: Sequence[str]
     plt = _plt()
     n = len(cms)
     side = max(3.2, 0.32 * len(labels) + 1.8)
-    fig, axes = plt.subplots(1, n, figsize=(side * n, side), squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(side * n, side + 0.8), squeeze=False)
     small = len(labels) <= 12
     for ax, (title, cm) in zip(axes[0], cms.items()):
         cm = np.asarray(cm, dtype=float)
