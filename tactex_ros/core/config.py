@@ -64,17 +64,17 @@ class LearnerConfig:
                                     "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
     # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto").
-    auto_ladder: str = param("small_inception@32,small_inception@64",
+    auto_ladder: str = param("small_inception@32,small_inception@48,small_inception@96",
                              "model 'auto': stages cheapest first, 'model@input_px' separated by "
                              "commas ('model' alone = input_size)")
-    auto_patience: int = param(3, "model 'auto': rounds on a stage before the entropy test",
+    auto_patience: int = param(2, "model 'auto': rounds on a stage before the entropy test",
                                1, 1000)
-    auto_min_drop: float = param(0.1, "model 'auto': escalate when predictive entropy fell by "
+    auto_min_drop: float = param(0.7, "model 'auto': escalate when predictive entropy fell by "
                                       "less than this fraction over the last auto_patience rounds",
                                  0.0, 1.0)
-    auto_entropy: float = param(0.35, "model 'auto': ... and is still above this fraction of "
+    auto_entropy: float = param(0.2, "model 'auto': ... and is still above this fraction of "
                                       "log(C)", 0.0, 1.0)
-    auto_window: int = param(4, "model 'auto': held-back touches judged together", 1, 1000)
+    auto_window: int = param(3, "model 'auto': held-back touches judged together", 1, 1000)
     auto_heldout_acc: float = param(0.5, "model 'auto': escalate when fewer than this share of "
                                          "the last auto_window touches were classified right "
                                          "before being trained on", 0.0, 1.0)
@@ -91,7 +91,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
-    "default": dict(model="small_inception", input_size=64, epochs=0, steps=12,
+    # 48 px and 8 steps per round since issue 5 (was 64 px, 12 steps): 2.8x less CPU per
+    # decision at equal or better accuracy (docs/speed_stability.md).
+    "default": dict(model="small_inception", input_size=48, epochs=0, steps=8,
                     batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
 }
 

@@ -125,6 +125,51 @@ def parse_set(items: list[str] | None) -> dict[str, Any]:
     return out
 
 
+def job_key(job: TrialJob) -> str:
+    """Content hash of a job with its learner settings resolved (a preset change changes it)."""
+    import dataclasses
+    import hashlib
+    import json
+
+    from ..core.config import preset
+    cfg = dataclasses.asdict(preset(job.preset, **job.overrides))
+    if cfg["model"] != "auto":      # the auto_* fields do not change a fixed model's run
+        cfg = {k: v for k, v in cfg.items() if not k.startswith("auto_")}
+    d = dataclasses.asdict(job)
+    d.pop("tags")
+    blob = json.dumps({"job": d, "cfg": cfg}, sort_keys=True, default=str)
+    return hashlib.sha1(blob.encode()).hexdigest()[:20]
+
+
+def run_cached(jobs: list[TrialJob], args, description: str) -> list[dict]:
+    """``run_jobs`` with an optional per-job result cache (``--cache DIR``): a job whose content
+    hash (``job_key``) has a stored result is not run again. Results carry the job's own tags."""
+    import json
+    cache = Path(args.cache) if getattr(args, "cache", None) else None
+    out: list[dict | None] = [None] * len(jobs)
+    todo = []
+    for i, j in enumerate(jobs):
+        f = cache / f"{job_key(j)}.json" if cache else None
+        if f is not None and f.is_file():
+            r = json.loads(f.read_text())
+            r["job"]["tags"] = dict(j.tags)
+            out[i] = r
+        else:
+            todo.append(i)
+    # with a cache, run in chunks so finished jobs are stored as they come
+    step = len(todo) if cache is None else max(16, 6 * args.workers)
+    for c0 in range(0, len(todo), max(1, step)):
+        chunk = todo[c0:c0 + step]
+        res = run_jobs([jobs[i] for i in chunk], workers=args.workers, threads=args.threads,
+                       description=f"{description}: {c0 + len(chunk)}/{len(todo)} to run, "
+                                   f"{len(jobs) - len(todo)} cached", quiet=args.quiet)
+        for i, r in zip(chunk, res):
+            out[i] = r
+            if cache is not None:
+                write_json(cache / f"{job_key(jobs[i])}.json", r)
+    return out  # type: ignore[return-value]
+
+
 def decisions_of(res: dict) -> list[dict]:
     """Every decision of a runner result: total touches when deciding, probs, time, model."""
     out = []
@@ -292,7 +337,7 @@ def run_grid(args, out: Path) -> dict:
     for seed in args.seeds:
         for pos, (tid, classes) in enumerate(scenes):
             for label, pre, over, heavy in grid:
-                if heavy and pos >= heavy_n:
+                if heavy and (pos >= heavy_n or seed not in args.seeds[:args.heavy_seeds]):
                     continue
                 jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
                                      strategy=args.strategy, rounds=args.rounds, preset=pre,
@@ -303,15 +348,15 @@ def run_grid(args, out: Path) -> dict:
     # heavy jobs first so the long ones do not trail at the end
     jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
     t0 = time.perf_counter()
-    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
-                   description=f"pareto grid ({len(grid)} settings)", quiet=args.quiet)
+    res = run_cached(jobs, args, f"pareto grid ({len(grid)} settings)")
     wall = time.perf_counter() - t0
     runs = [dict(compact(r), pos=r["job"]["tags"]["pos"]) for r in res]
     rows = {label: summarise_setting([r for r in runs if r["setting"] == label], args.budget)
             for label, *_ in grid}
     heavy_labels = [g[0] for g in grid if g[3]]
     # on the heavy subset: every setting, same trials and seeds
-    sub = [r for r in runs if r["pos"] < heavy_n]
+    heavy_seeds = args.seeds[:args.heavy_seeds]
+    sub = [r for r in runs if r["pos"] < heavy_n and r["seed"] in heavy_seeds]
     rows_heavy = {label: summarise_setting([r for r in sub if r["setting"] == label],
                                            args.budget) for label, *_ in grid}
     # paired tests against the default (full set; heavy ones on their subset)
@@ -329,7 +374,7 @@ def run_grid(args, out: Path) -> dict:
         tests[label]["pairs"] = len(common)
     summary = {"budget": args.budget, "rounds": args.rounds, "strategy": args.strategy,
                "source": args.source, "trials": len(scenes), "seeds": args.seeds,
-               "heavy_trials": heavy_n, "settings": {g[0]: {"preset": g[1], "overrides": g[2],
+               "heavy_trials": heavy_n, "heavy_seeds": heavy_seeds, "settings": {g[0]: {"preset": g[1], "overrides": g[2],
                                                              "heavy": g[3]} for g in grid},
                "all_trials": rows, "heavy_subset": rows_heavy, "vs_default_mcnemar": tests,
                "pareto_front": [list(rows)[i] for i in pareto_front(
@@ -341,10 +386,10 @@ def run_grid(args, out: Path) -> dict:
     plot_pareto(out / "pareto.png", {**light, **{k: rows_heavy[k] for k in heavy_labels}},
                 f"{args.source}, {len(scenes)} trials x {len(args.seeds)} seeds, "
                 f"{args.strategy}, accuracy at {args.budget} touches "
-                f"(heavy settings: first {heavy_n} trials)")
+                f"(heavy settings: first {heavy_n} trials, seeds {heavy_seeds})")
     if heavy_labels:
         plot_pareto(out / "pareto_heavy.png", rows_heavy,
-                    f"same {heavy_n} trials x {len(args.seeds)} seeds for every setting, "
+                    f"same {heavy_n} trials x seeds {heavy_seeds} for every setting, "
                     f"accuracy at {args.budget} touches")
     return summary
 
@@ -358,8 +403,7 @@ def run_faithful(args, out: Path) -> dict:
                      tags={"setting": label, "seed": s})
             for s in range(args.faithful_trials) for label, pre, over in settings]
     jobs.sort(key=lambda j: j.tags["setting"] != THESIS_LABEL)
-    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
-                   description="seed-faithful vs default", quiet=args.quiet)
+    res = run_cached(jobs, args, "seed-faithful vs default")
     runs = [compact(r) for r in res]
     for r, x in zip(runs, res):
         r["classes"] = x["classes"]
@@ -407,9 +451,7 @@ def run_touches(args, out: Path) -> dict:
             for seed in args.touch_seeds for pos, (tid, classes) in enumerate(scenes)
             for s in args.strategies]
     t0 = time.perf_counter()
-    res = run_jobs(jobs, workers=args.workers, threads=args.threads,
-                   description=f"touch curves ({len(args.strategies)} strategies)",
-                   quiet=args.quiet)
+    res = run_cached(jobs, args, f"touch curves ({len(args.strategies)} strategies)")
     wall = time.perf_counter() - t0
     runs = [compact(r) for r in res]
     budgets = list(range(len(scenes[0][1]), len(scenes[0][1]) + args.touch_rounds + 1))
@@ -487,6 +529,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=8, help="touches at which accuracy is read")
     p.add_argument("--heavy-trials", type=int, default=8,
                    help="trials for the heavy settings (seed_faithful, inception_v3_random)")
+    p.add_argument("--heavy-seeds", type=int, default=1,
+                   help="the heavy settings run the first N of --seeds")
     p.add_argument("--faithful-source", default=f"replay:{OCTOPI}")
     p.add_argument("--faithful-trials", type=int, default=8)
     p.add_argument("--faithful-rounds", type=int, default=3)
@@ -498,5 +542,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
     p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
     p.add_argument("--out", help="results folder (default results/pareto)")
+    p.add_argument("--cache", help="per-job result cache folder (re-runs skip finished jobs; "
+                                   "the touches part's wall time then counts only new jobs)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
