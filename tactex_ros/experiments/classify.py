@@ -376,7 +376,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "small_inception")
     p.add_argument("--weights", help="torchvision checkpoint for inception_v3")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
-    p.add_argument("--epochs", type=int, default=15)
+    p.add_argument("--epochs", type=int, default=30)
     p.add_argument("--input-size", type=int, default=64, help="small_inception input [px]")
     p.add_argument("--inception-input-size", type=int, default=80,
                    help="input of the full network [px], >= 75 (thesis: 299)")
