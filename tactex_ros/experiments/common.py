@@ -43,12 +43,29 @@ def write_json(path: Path, obj: Any) -> Path:
     return path
 
 
+def git_commit() -> str | None:
+    """Commit of the source tree the code runs from ('+dirty' if modified), None if unknown."""
+    import subprocess
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                "--untracked-files=no"], capture_output=True, text=True,
+                               timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if head.returncode != 0:
+        return None
+    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
 def results_dir(out: str | None, name: str, config: dict) -> Path:
     """Create the results folder and record the run's configuration and library versions."""
     d = Path(out) if out else Path("results") / name
     d.mkdir(parents=True, exist_ok=True)
     write_json(d / "config.json", {"experiment": name, "argv": sys.argv, "config": config,
-                                   "versions": versions(),
+                                   "versions": versions(), "git_commit": git_commit(),
                                    "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
     return d
 
@@ -58,6 +75,17 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
     """Iterate with a rich progress bar on stderr (plain iteration when ``quiet``)."""
     if quiet:
         yield from items
+        return
+    if not sys.stderr.isatty():  # logs and pipes: a plain line every 10 s instead of a bar
+        n = total if total is not None else (len(items) if hasattr(items, "__len__") else None)
+        t0 = last = time.monotonic()
+        for k, it in enumerate(items, 1):
+            yield it
+            now = time.monotonic()
+            if now - last >= 10.0 or k == n:
+                last = now
+                print(f"{description}: {k}/{n if n is not None else '?'} done, "
+                      f"{now - t0:.0f} s", file=sys.stderr, flush=True)
         return
     from rich.console import Console
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
