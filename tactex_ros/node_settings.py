@@ -56,6 +56,9 @@ class MotionSettings:
                                                   "(used when franka_msgs is installed)")
     force_sign: float = param(1.0, "normal force = force_sign * wrench.force.z", -1.0, 1.0)
     rate_hz: float = param(50.0, "control loop rate [Hz]", 5.0, 1000.0)
+    min_contact_score: float = param(0.3, "captured frame must differ from the no-contact frame "
+                                          "by at least this [grey levels], else the press is "
+                                          "retried (0 = no check)", 0.0, 50.0)
     state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
                                    0.05, 30.0)
 

@@ -182,6 +182,9 @@ class MotionNode(TactexNode):
         resp = fut.result()
         if not resp.success:
             return False, resp.reason, None
+        if resp.contact_score < self.settings.min_contact_score:
+            return False, (f"no contact in the captured frames: score {resp.contact_score:.2f} < "
+                           f"min_contact_score {self.settings.min_contact_score}"), None
         return True, "", resp
 
     def _recover(self) -> None:

@@ -55,7 +55,10 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     # the record holds every touch, image and metadata, and the result
     rec = read_record(run.record)
     accepted = [t for t in rec["touches"] if t["accepted"]]
-    assert len(accepted) == res["touches"] == 5 + 2
+    # every requested touch is on disk; a touch that failed under load is recorded with its
+    # reason, the trial went on and the 2 rounds still requested their touches
+    assert len(accepted) == res["touches"] >= 5 + 1
+    assert len(rec["touches"]) == res["touches"] + len(res["failed_touches"]) >= 5 + 2
     assert all(t["array"].shape == (240, 320, 3) for t in accepted)
     assert all(t["force_n"] >= scene.press.force_threshold for t in accepted)
     assert rec["result"]["prediction"] == truth
@@ -103,19 +106,17 @@ def test_press_faults(tmp_path: Path, listener) -> None:
     assert xyz[:, 2].min() >= scene.platform("c1").position[2] - scene.press.max_depth - 1e-6
 
 
-def test_blank_presses_rejected_and_trial_goes_on(tmp_path: Path, listener) -> None:
-    """The mock camera shows no texture on some presses: those touches are recorded, refused by
-    the core's contact guard (never trained on), and the trial still finishes."""
+def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> None:
+    """The mock camera shows no texture on some presses: the motion node sees no contact in the
+    captured frames and retries the press; nothing blank reaches the learner; the trial ends."""
     nodes = describe(True, explorer={"rounds": 1, "seed": 0, "record_dir": str(tmp_path),
                                      "trial_id": "blank", "threads": 1},
                      mock_image={"fault_blank": 0.2, "seed": 3})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
     rec = read_record(run.record)
-    rejected = [t for t in rec["touches"] if not t["accepted"]]
     accepted = [t for t in rec["touches"] if t["accepted"]]
-    assert len(rejected) >= 1
-    assert all(t["image"] for t in rejected)          # the frame itself is kept on disk
+    assert max(t["attempts"] for t in accepted) >= 2      # a blank press was retried
     assert len(accepted) == run.result["touches"]
-    assert len(run.result["failed_touches"]) == len(rejected)
+    assert len(rec["touches"]) == run.result["touches"] + len(run.result["failed_touches"])
     assert run.result["prediction"] in {"c1", "c2", "c3", "c4"}
