@@ -63,6 +63,8 @@ class LearnerConfig:
                                     "no-contact reference is below this [grey levels] (0 = off; "
                                     "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
+    drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the model "
+                                    "sees it (robust to lighting drift; off = absolute colour)")
     # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto").
     auto_ladder: str = param("small_inception@32,small_inception@48,small_inception@96",
                              "model 'auto': stages cheapest first, 'model@input_px' separated by "

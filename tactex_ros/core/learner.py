@@ -99,7 +99,7 @@ class OnlineLearner:
         """
         if not 0 <= label < self.num_classes:
             raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
-        img = validate_frame(img, f"touch of platform {label}")
+        img = self._colour_norm(validate_frame(img, f"touch of platform {label}"))
         views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng)
         x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
         self._x_parts.append(x)
@@ -107,9 +107,17 @@ class OnlineLearner:
         self._x = self._y = None
         return x
 
+    def _colour_norm(self, img: np.ndarray) -> np.ndarray:
+        """With ``drift_norm``: shift each channel so its frame mean is the catalogue-wide grey
+        128 (a per-touch lighting offset then no longer reaches the model)."""
+        if not self.cfg.drift_norm:
+            return img
+        m = img.reshape(-1, 3).mean(axis=0)
+        return np.clip(img.astype(np.float32) - m + 128.0, 0, 255).astype(np.uint8)
+
     def test_tensor(self, img: np.ndarray) -> torch.Tensor:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
-        img = validate_frame(img, "reference touch")
+        img = self._colour_norm(validate_frame(img, "reference touch"))
         if self.cfg.test_views == 1:
             views = view(img, 0.0, self.cfg.input_size)[None]
         else:

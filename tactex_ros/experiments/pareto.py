@@ -258,7 +258,8 @@ def plot_pareto(path: Path, rows: dict[str, dict], title: str, mark: str | None 
                  else "tab:blue" if i in front else "tab:gray")
         ax.errorbar([t], [a], yerr=[[a - lo], [hi - a]], fmt="o", color=color, ms=6,
                     capsize=2, alpha=0.9)
-        ax.annotate(k, (t, a), textcoords="offset points", xytext=(5, 4), fontsize=7)
+        ax.annotate(k, (t, a), textcoords="offset points", xytext=(5, 4 - 9 * (i % 3)),
+                    fontsize=7)
     if front:
         ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], where="post",
                 color="tab:blue", lw=1, alpha=0.6, label="Pareto front")

@@ -164,3 +164,13 @@ def test_degenerate_scores_tie_break_vs_plain_argmax():
     s = VarianceStrategy()
     assert s.choose(probs, touches, np.random.default_rng(0))[0] == 1
     assert s.choose(probs, touches, np.random.default_rng(0), tie_break=False)[0] == 0
+
+
+def test_drift_norm_removes_a_per_touch_colour_offset():
+    img = _frames(0, 1)[0]
+    shifted = np.clip(img.astype(int) + np.array([9, -7, 5]), 0, 255).astype(np.uint8)
+    on = OnlineLearner(3, preset("default", drift_norm=True, **FAST), seed=0)
+    a, b = on.test_tensor(img), on.test_tensor(shifted)
+    assert float((a - b).abs().max()) < 0.05        # only clipping / rounding left
+    off = OnlineLearner(3, preset("default", **FAST), seed=0)
+    assert float((off.test_tensor(img) - off.test_tensor(shifted)).abs().max()) > 0.1
