@@ -330,7 +330,10 @@ def run_grid(args, out: Path) -> dict:
     if args.settings:
         keep = set(args.settings)
         grid = [g for g in grid if g[0] in keep]
-    scenes = _trial_scenes(args.trials_file, args.source)
+    if args.drawn:   # scenes drawn by the source from each job's seed (e.g. replay sources)
+        scenes = [(f"d{i}", None) for i in range(args.drawn)]
+    else:
+        scenes = _trial_scenes(args.trials_file, args.source)
     if args.max_trials:
         scenes = scenes[:args.max_trials]
     heavy_n = min(args.heavy_trials, len(scenes))
@@ -524,6 +527,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trials-file", default="human_study")
     p.add_argument("--source", default="sim")
     p.add_argument("--max-trials", type=int, default=0, help="first N trials only (0 = all)")
+    p.add_argument("--drawn", type=int, default=0,
+                   help="grid: N scenes of 4 comparisons drawn by the source from the job seeds "
+                        "(1000 * seed + 0..N-1) instead of --trials-file")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     p.add_argument("--strategy", default="variance")
     p.add_argument("--rounds", type=int, default=3, help="decisions after the baseline (grid)")

@@ -37,6 +37,14 @@ from .common import progress, results_dir, write_json
 from .pareto import OCTOPI
 
 
+def _small_png(path: Path) -> Path:
+    """Re-save a figure with a 128-colour palette (maps of textures compress badly)."""
+    from PIL import Image
+    Image.open(path).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
+        path, optimize=True)
+    return path
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -107,7 +115,7 @@ def figure_rows(path: Path, labels: list[str], imgs, ixg, cam, probs, targets, t
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
-    return path
+    return _small_png(path)
 
 
 def run_classify(args, pool: Pool, kind: str, out: Path) -> dict:
@@ -207,6 +215,7 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
     fig.tight_layout()
     fig.savefig(out / f"explore_{kind}_rounds.png", dpi=80)
     plt.close(fig)
+    _small_png(out / f"explore_{kind}_rounds.png")
     return {"kind": kind, "comparisons": comps, "reference": ref_cls, "correct": res.correct,
             "touches": res.touches, "rounds": per_round}
 

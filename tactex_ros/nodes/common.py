@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.task import Future
 
@@ -93,9 +93,37 @@ class TactexNode(LifecycleNode):
         return super().on_deactivate(state)
 
 
-def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None,
-        threads: int = 4) -> int:
-    """Create, auto-start and spin a node until shutdown or ``node.finished``; exit status."""
+async def in_thread(node: "rclpy.node.Node", fn: Callable[..., Any], *args: Any) -> Any:
+    """Await ``fn(*args)`` run in a new thread; the executor goes on serving other callbacks.
+
+    For long blocking work inside a callback (a press runs for seconds): the node's single
+    executor thread stays free for the robot state, the capture service and cancel requests.
+    """
+    ex = node.executor
+    fut: Future = Future(executor=ex)
+
+    def work() -> None:
+        try:
+            fut.set_result(fn(*args))
+        except BaseException as exc:  # handed to the awaiting callback
+            fut.set_exception(exc)
+        finally:
+            if ex is not None:
+                ex.wake()
+
+    threading.Thread(target=work, name=f"{node.get_name()}-work", daemon=True).start()
+    return await fut
+
+
+def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -> int:
+    """Create, auto-start and spin a node until shutdown or ``node.finished``; exit status.
+
+    One ``SingleThreadedExecutor`` per process; callbacks never block it (slow work runs in
+    threads: ``in_thread``, the explorer's trial thread, the GelSight reader). rclpy 9.1's
+    ``MultiThreadedExecutor`` re-queues tasks that wait in its thread pool (rclpy issue 1452,
+    fixed upstream in 10.0.4): with the mock arm's 100 Hz state it queued thousands of tasks,
+    took a full core and left the motion node's robot state stale for over a second.
+    """
     rclpy.init(args=args if args is not None else sys.argv)
     node = node_factory()
     code = 0
@@ -105,12 +133,17 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None,
             if node.exit_code:
                 return node.exit_code
             node.trigger_activate()
-        ex = MultiThreadedExecutor(num_threads=threads)
+        ex = SingleThreadedExecutor()
         ex.add_node(node)
         done = Future()
         threading.Thread(target=lambda: (node.finished.wait(), done.set_result(True)),
                          daemon=True).start()
-        ex.spin_until_future_complete(done)
+        try:
+            ex.spin_until_future_complete(done)
+        except RuntimeError:
+            if rclpy.ok():
+                raise
+            # SIGINT shut the context down while a message was being taken: a normal stop
         code = node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0

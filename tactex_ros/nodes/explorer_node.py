@@ -16,7 +16,6 @@ import threading
 import time
 
 from rclpy.action import ActionClient
-from rclpy.callback_groups import ReentrantCallbackGroup
 from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
@@ -60,8 +59,7 @@ class ExplorerNode(TactexNode):
         self.record.save_inputs(s.scene_file, {"explorer": s.__dict__,
                                                "learner": cfg.__dict__,
                                                "trial": tcfg.__dict__})
-        cb = ReentrantCallbackGroup()
-        self.press = ActionClient(self, Press, s.press_action, callback_group=cb)
+        self.press = ActionClient(self, Press, s.press_action)
         self.state_pub = self.create_publisher(ExplorationState, STATE_TOPIC, 10)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, 10)
         self.image_pub = self.create_publisher(Image, TOUCH_IMAGE_TOPIC, 10)

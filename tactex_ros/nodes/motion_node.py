@@ -19,7 +19,6 @@ import time
 import numpy as np
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.qos import qos_profile_sensor_data
 
 from .. import adapter
@@ -27,7 +26,7 @@ from ..core.errors import TactexError
 from ..core.press import PressController
 from ..node_settings import PRESS_ACTION, MotionSettings
 from ..scene import load_scene
-from .common import TactexNode, run
+from .common import TactexNode, in_thread, run
 
 try:  # franka_ros2's error recovery, only on robot machines
     from franka_msgs.action import ErrorRecovery  # type: ignore
@@ -47,27 +46,25 @@ class MotionNode(TactexNode):
         s = self.settings
         self.scene = load_scene(s.scene_file)
         self.quat = np.array(self.scene.tool_orientation)
-        self.cb = ReentrantCallbackGroup()
         self.position: np.ndarray | None = None
         self.pose_t = -1.0
         self.force = 0.0
         self.wrench_t = -1.0
         self.busy = threading.Lock()
         self.create_subscription(PoseStamped, s.pose_topic, self._on_pose,
-                                 qos_profile_sensor_data, callback_group=self.cb)
+                                 qos_profile_sensor_data)
         self.create_subscription(WrenchStamped, s.wrench_topic, self._on_wrench,
-                                 qos_profile_sensor_data, callback_group=self.cb)
+                                 qos_profile_sensor_data)
         self.target_pub = self.create_publisher(PoseStamped, s.target_topic, 10)
-        self.capture = self.create_client(Capture, s.capture_service, callback_group=self.cb)
-        self.recovery = (_recovery_client(self, s.recovery_action, self.cb)
+        self.capture = self.create_client(Capture, s.capture_service)
+        self.recovery = (_recovery_client(self, s.recovery_action)
                          if ErrorRecovery is not None else None)
         self._Press = Press
 
     def activate(self) -> None:
         self.server = ActionServer(
-            self, self._Press, PRESS_ACTION, execute_callback=self._execute,
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
-            callback_group=self.cb)
+            self, self._Press, PRESS_ACTION, execute_callback=self._execute_async,
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
 
     # ------------------------------------------------------------------ robot state
     def _on_pose(self, msg: PoseStamped) -> None:
@@ -100,6 +97,9 @@ class MotionNode(TactexNode):
             self.get_logger().warning("press goal rejected: a press is running")
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
+
+    async def _execute_async(self, goal_handle):
+        return await in_thread(self, self._execute, goal_handle)
 
     def _execute(self, goal_handle):
         Press = self._Press
@@ -200,9 +200,9 @@ class MotionNode(TactexNode):
             time.sleep(0.01)
 
 
-def _recovery_client(node, name: str, group):
+def _recovery_client(node, name: str):
     from rclpy.action import ActionClient
-    return ActionClient(node, ErrorRecovery, name, callback_group=group)
+    return ActionClient(node, ErrorRecovery, name)
 
 
 def main(args: list[str] | None = None) -> int:
