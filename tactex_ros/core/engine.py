@@ -101,6 +101,9 @@ class TrialConfig:
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)
+    touch_retries: int = param(2, "a touch that fails or that the contact guard rejects is "
+                                  "repeated at once up to this many times before its round "
+                                  "counts as lost", 0, 20)
 
 
 @dataclass
@@ -375,16 +378,14 @@ class TrialEngine:
             on_round: Callable[[RoundRecord], None] | None = None) -> TrialResult:
         """Baseline, then rounds until done. ``touch_fn(platform) -> (240, 320, 3) uint8``.
 
-        A TouchFailed from ``touch_fn`` or a touch the guard rejects is recorded and the trial
-        goes on (a failed baseline touch is retried on the next pass over the missing platforms,
-        up to ``TrialConfig.baseline_passes`` passes).
+        A TouchFailed from ``touch_fn`` or a touch the guard rejects is recorded and repeated at
+        once up to ``TrialConfig.touch_retries`` times; then the round is lost and the trial goes
+        on (a baseline touch is tried again on the next pass over the missing platforms, up to
+        ``TrialConfig.baseline_passes`` passes).
         """
         for _ in range(self.trial_cfg.baseline_passes):
             for p in self.baseline_platforms():
-                try:
-                    self.add_touch(p, touch_fn(p))
-                except (TouchFailed, TouchRejected) as exc:
-                    self.record_failure(p, str(exc))
+                self._touch(p, touch_fn)
             if not self.baseline_platforms():
                 break
         else:
@@ -396,8 +397,16 @@ class TrialEngine:
             if on_round:
                 on_round(rec)
             if rec.platform is not None:
-                try:
-                    self.add_touch(rec.platform, touch_fn(rec.platform))
-                except (TouchFailed, TouchRejected) as exc:
-                    self.record_failure(rec.platform, str(exc))
+                self._touch(rec.platform, touch_fn)
         return self.result(truth)
+
+    def _touch(self, platform: int, touch_fn: Callable[[int], np.ndarray]) -> bool:
+        """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
+        times (each failure recorded); True once a touch is stored."""
+        for _ in range(1 + self.trial_cfg.touch_retries):
+            try:
+                self.add_touch(platform, touch_fn(platform))
+                return True
+            except (TouchFailed, TouchRejected) as exc:
+                self.record_failure(platform, str(exc))
+        return False

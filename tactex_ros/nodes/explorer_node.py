@@ -103,8 +103,10 @@ class ExplorerNode(TactexNode):
         return True
 
     def _touch(self, platform: int) -> bool:
-        """Press ``platform`` (index), record, validate, store. False if it failed."""
+        """Press ``platform`` (index), record, validate, store. False if it failed
+        (``self._rejected``: the press worked but the core's guard refused the image)."""
         from tactex.action import Press
+        self._rejected = False
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
@@ -144,8 +146,19 @@ class ExplorerNode(TactexNode):
             self.record.reject_touch(self.record.n_touches, str(exc))
             self.engine.record_failure(platform, str(exc))
             self.get_logger().warning(f"touch rejected: {exc}")
+            self._rejected = True
             return False
         return True
+
+    def _touch_retried(self, platform: int) -> bool:
+        """A touch the core's guard rejected is repeated up to ``touch_retries`` times (a failed
+        press was already retried by the motion node: ``press.retries``)."""
+        for _ in range(1 + self.engine.trial_cfg.touch_retries):
+            if self._touch(platform):
+                return True
+            if not self._rejected:
+                return False
+        return False
 
     def _set_guard_reference(self, touch) -> None:
         """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
@@ -182,13 +195,14 @@ class ExplorerNode(TactexNode):
             raise TactexError(f"press action {s.press_action!r} not available within "
                               f"server_timeout_s ({s.server_timeout_s} s)")
         eng = self.engine
-        for _ in range(3):
+        passes = eng.trial_cfg.baseline_passes
+        for _ in range(passes):
             for p in eng.baseline_platforms():
-                self._touch(p)
+                self._touch_retried(p)
             if not eng.baseline_platforms():
                 break
         else:
-            raise TactexError("baseline touches failed three times for "
+            raise TactexError(f"baseline touches failed {passes} times for "
                               f"{[self.ids[p] for p in eng.baseline_platforms()]}")
         while not eng.done:
             rec = eng.decide()
@@ -196,7 +210,7 @@ class ExplorerNode(TactexNode):
                                                              key=rec.probs.__getitem__)) + 1]
             self._publish_state(rec, eng.done, pred)
             if rec.platform is not None:
-                self._touch(rec.platform)
+                self._touch_retried(rec.platform)
         res = eng.result()
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),

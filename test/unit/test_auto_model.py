@@ -174,3 +174,34 @@ def test_drift_norm_removes_a_per_touch_colour_offset():
     assert float((a - b).abs().max()) < 0.05        # only clipping / rounding left
     off = OnlineLearner(3, preset("default", **FAST), seed=0)
     assert float((off.test_tensor(img) - off.test_tensor(shifted)).abs().max()) > 0.1
+
+
+def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
+    """touch_retries: a guard-rejected touch is pressed again in the same round; with 0 retries
+    the round is lost (one accepted touch fewer)."""
+    cfg = preset("default", **FAST)
+    flat = np.full((240, 320, 3), 90, np.uint8)
+    flat[0, 0] = 91          # not constant: the guard (not frame validation) must refuse it
+    good = _touch_fn(0, 3)
+
+    def run(retries: int):
+        calls = {"n": 0}
+
+        def touch(p):
+            calls["n"] += 1
+            return flat if calls["n"] == 5 else good(p)     # the first round's touch is blank
+        eng = TrialEngine(3, cfg, TrialConfig(rounds=2, touch_retries=retries), seed=0)
+        res = eng.run(touch, truth=1)
+        return res, int(eng.touches.sum()) + eng.reference_touches, calls["n"]
+
+    res2, accepted2, calls2 = run(2)
+    res0, accepted0, calls0 = run(0)
+    assert len(res2.failed_touches) == len(res0.failed_touches) == 1
+    # baseline: reference + 3 comparisons; 2 rounds; the blank one repeated at once
+    assert accepted2 == 4 + 2 and calls2 == 4 + 2 + 1
+    assert accepted0 == 4 + 1 and calls0 == 4 + 2
+
+
+def test_touch_retries_validated():
+    with pytest.raises(TactexError, match="touch_retries"):
+        TrialEngine(3, preset("default", **FAST), TrialConfig(touch_retries=-1))

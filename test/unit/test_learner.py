@@ -121,7 +121,13 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
     eng = TrialEngine(4, preset("default", **FAST), TrialConfig(rounds=3), seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1 and "deadline" in res.failed_touches[0]["reason"]
-    assert res.touches == 5 + 3 - 1
+    assert res.touches == 5 + 3          # the failed touch was repeated at once
+    calls["n"] = 0
+    eng = TrialEngine(4, preset("default", **FAST), TrialConfig(rounds=3, touch_retries=0),
+                      seed=0)
+    res = eng.run(touch, truth=3)
+    assert len(res.failed_touches) == 1
+    assert res.touches == 5 + 3 - 1      # without retries the round is lost
 
 
 def test_learner_training_reduces_loss():
