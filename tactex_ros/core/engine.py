@@ -34,7 +34,7 @@ model and input size it used (``RoundRecord.model``, ``input_size``) and why it 
 
 Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
 ``TouchRejected`` (a TactexError) for a blank or no-contact frame, which ``run`` records as a
-failed touch; rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
+failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
 then falls to the least-touched platform, ``strategies.break_ties``).
 """
 
