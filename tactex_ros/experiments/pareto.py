@@ -67,7 +67,7 @@ GRIDS: dict[str, list[tuple[str, str, dict, bool]]] = {
         ("mc50", "default", _b(mc_passes=50), False),
         ("bn0", "default", _b(bn_recalibrate=0), False),
         ("bn16", "default", _b(bn_recalibrate=16), False),
-        ("48px+steps8", "default", _b(input_size=48, steps=8), False),
+        # (48 px + 8 steps is the current "default" preset: not listed twice)
         ("32px+steps24", "default", _b(input_size=32, steps=24), False),
         ("32px+steps12+bs16", "default", _b(input_size=32, batch_size=16), False),
         ("auto", "default", _b(model="auto"), False),
