@@ -65,8 +65,10 @@ class LearnerConfig:
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
     drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the model "
                                     "sees it (robust to lighting drift; off = absolute colour)")
-    # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto").
-    auto_ladder: str = param("small_inception@32,small_inception@48,small_inception@96",
+    # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto"). The first
+    # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
+    # (docs/speed_stability.md), and a 32 px start made auto 9 points worse than the default.
+    auto_ladder: str = param("small_inception@48,small_inception@96",
                              "model 'auto': stages cheapest first, 'model@input_px' separated by "
                              "commas ('model' alone = input_size)")
     auto_patience: int = param(2, "model 'auto': rounds on a stage before the entropy test",

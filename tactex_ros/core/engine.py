@@ -16,7 +16,7 @@ request a touch, then a final decision whose mean softmax gives the prediction; 
 rule ends earlier when the mean probability of the best platform reaches ``stop_confidence``.
 
 Model ``auto`` (``LearnerConfig.auto_*``): the trial starts on the first, cheapest stage of
-``auto_ladder`` (e.g. ``small_inception`` at 32 px) and moves one stage up only on evidence from
+``auto_ladder`` (by default ``small_inception`` at 48 px, then 96 px) and moves one stage up only on evidence from
 the trial itself, checked at the start of every decision:
 
 - *held-back touches*: every comparison touch added after the first round is classified by the
