@@ -71,6 +71,10 @@ class ExplorerSettings:
     model: str = param("", "model variant override ('' = the preset's)",
                        choices=("",) + MODEL_NAMES + ("auto",))
     weights: str = param("", "torchvision-format checkpoint for inception_v3 ('' = none)")
+    drift_norm: bool = param(False, "remove each touch's mean colour before learning: turn on "
+                                    "where the lighting drifts between touches (measured: it "
+                                    "restores accuracy under drift in simulation, and cost 2 of "
+                                    "24 replayed octopi-dev scenes, docs/speed_stability.md)")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(0.0, "stop early at this mean probability (0 = never)",
                                    0.0, 1.0)

@@ -44,7 +44,7 @@ class ExplorerNode(TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        over = {"threads": s.threads}
+        over = {"threads": s.threads, "drift_norm": s.drift_norm}
         if s.model:
             over["model"] = s.model
         if s.weights:
