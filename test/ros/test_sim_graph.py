@@ -120,3 +120,25 @@ def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> No
     assert len(accepted) == run.result["touches"]
     assert len(rec["touches"]) == run.result["touches"] + len(run.result["failed_touches"])
     assert run.result["prediction"] in {"c1", "c2", "c3", "c4"}
+
+
+def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None:
+    """The motion node lets blank captures through (min_contact_score 0): the core's contact
+    guard refuses them in the explorer, which presses the same platform again at once; the
+    rejected image stays on disk, marked, and the round is not lost."""
+    nodes = describe(True, explorer={"rounds": 1, "seed": 0, "record_dir": str(tmp_path),
+                                     "trial_id": "guard", "threads": 1},
+                     mock_image={"fault_blank": 0.3, "seed": 3},
+                     motion={"min_contact_score": 0.0})
+    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+    assert not run.timed_out and run.exit_code == 0
+    rec = read_record(run.record)
+    touches = rec["touches"]
+    rejected = [i for i, t in enumerate(touches) if not t["accepted"]]
+    assert rejected, "no blank press reached the explorer's guard"
+    for i in rejected:
+        assert touches[i].get("array") is not None               # kept on disk
+        assert i + 1 < len(touches)
+        assert touches[i + 1]["platform_id"] == touches[i]["platform_id"]   # pressed again
+    accepted = [t for t in touches if t["accepted"]]
+    assert run.result["touches"] == len(accepted) == 5 + 1     # baseline 5, 1 round: none lost
