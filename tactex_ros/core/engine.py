@@ -4,11 +4,10 @@ The engine does not know where touches come from. Platform indices: 0 is the ref
 are the comparison platforms (class c-1 of the learner). The first reference touch is the test
 sample; every comparison touch is training data for its platform's class.
 
-Two ways to drive it:
-
-- ``run(touch_fn)``: synchronous loop for the command line and experiments.
-- ``add_touch`` / ``decide`` / ``done``: step by step, for the ROS explorer node, which presses
-  asynchronously and calls ``decide`` off its executor thread.
+Drive it with ``run(touch_fn)``: the command line and experiments pass a simulated or replayed
+touch, the ROS explorer node a press over the graph (in its trial thread, off the executor).
+``add_touch`` / ``decide`` / ``done`` are the steps ``run`` takes, for callers that need them
+one by one.
 
 A round (``decide``): train one round, T Monte-Carlo passes on the reference, the strategy's
 per-platform scores, the choice of the next platform (or none). Fixed ``rounds`` decisions that
@@ -59,7 +58,14 @@ from .uncertainty import predictive_entropy
 
 
 class TouchFailed(RuntimeError):
-    """A touch could not be made (no contact, no image, arm fault); the trial goes on."""
+    """A touch could not be made (no contact, no image, arm fault); the trial goes on.
+
+    ``retry=False`` when the thrower already retried (the ROS motion node retries a press
+    ``press.retries`` times): the engine then does not repeat it."""
+
+    def __init__(self, reason: str, retry: bool = True) -> None:
+        super().__init__(reason)
+        self.retry = retry
 
 
 class TouchRejected(TactexError):
@@ -375,17 +381,20 @@ class TrialEngine:
 
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], np.ndarray], truth: int | None = None,
-            on_round: Callable[[RoundRecord], None] | None = None) -> TrialResult:
+            on_round: Callable[[RoundRecord], None] | None = None,
+            on_rejected: Callable[[int, TactexError], None] | None = None) -> TrialResult:
         """Baseline, then rounds until done. ``touch_fn(platform) -> (240, 320, 3) uint8``.
 
-        A TouchFailed from ``touch_fn`` or a touch the guard rejects is recorded and repeated at
-        once up to ``TrialConfig.touch_retries`` times; then the round is lost and the trial goes
-        on (a baseline touch is tried again on the next pass over the missing platforms, up to
-        ``TrialConfig.baseline_passes`` passes).
+        A TouchFailed from ``touch_fn`` (unless ``retry=False``) or a frame ``add_touch``
+        refuses (guard or validation; ``on_rejected(platform, error)`` is told) is recorded and
+        repeated at once up to ``TrialConfig.touch_retries`` times; then the round is lost and
+        the trial goes on (a baseline touch is tried again on the next pass over the missing
+        platforms, up to ``TrialConfig.baseline_passes`` passes). ``on_round`` sees every
+        decision before its touch is made.
         """
         for _ in range(self.trial_cfg.baseline_passes):
             for p in self.baseline_platforms():
-                self._touch(p, touch_fn)
+                self._touch(p, touch_fn, on_rejected)
             if not self.baseline_platforms():
                 break
         else:
@@ -397,16 +406,26 @@ class TrialEngine:
             if on_round:
                 on_round(rec)
             if rec.platform is not None:
-                self._touch(rec.platform, touch_fn)
+                self._touch(rec.platform, touch_fn, on_rejected)
         return self.result(truth)
 
-    def _touch(self, platform: int, touch_fn: Callable[[int], np.ndarray]) -> bool:
+    def _touch(self, platform: int, touch_fn: Callable[[int], np.ndarray],
+               on_rejected: Callable[[int, TactexError], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""
         for _ in range(1 + self.trial_cfg.touch_retries):
             try:
-                self.add_touch(platform, touch_fn(platform))
-                return True
-            except (TouchFailed, TouchRejected) as exc:
+                img = touch_fn(platform)
+            except TouchFailed as exc:
                 self.record_failure(platform, str(exc))
+                if not exc.retry:
+                    return False
+                continue
+            try:
+                self.add_touch(platform, img)
+                return True
+            except TactexError as exc:   # TouchRejected (guard) or a frame that fails validation
+                self.record_failure(platform, str(exc))
+                if on_rejected is not None:
+                    on_rejected(platform, exc)
         return False

@@ -15,13 +15,14 @@ import os
 import threading
 import time
 
+import numpy as np
 from rclpy.action import ActionClient
 from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
 from ..core.config import preset
-from ..core.engine import TrialConfig, TrialEngine
+from ..core.engine import TouchFailed, TrialConfig, TrialEngine
 from ..core.errors import TactexError
 from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
 from ..record import TrialRecord
@@ -102,28 +103,28 @@ class ExplorerNode(TactexNode):
             time.sleep(0.01)
         return True
 
-    def _touch(self, platform: int) -> bool:
-        """Press ``platform`` (index), record, validate, store. False if it failed
-        (``self._rejected``: the press worked but the core's guard refused the image)."""
+    def _press(self, platform: int) -> np.ndarray:
+        """The engine's ``touch_fn``: press ``platform`` (index), put the touch on disk, return
+        its image. A failed press (already retried by the motion node) or an unreadable image is
+        recorded and raised as ``TouchFailed(retry=False)``."""
         from tactex.action import Press
-        self._rejected = False
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
         fut = self.press.send_goal_async(Press.Goal(platform_id=pid))
         if not self._wait(fut, deadline):
-            return self._failed(platform, meta, "press goal not answered before the deadline")
+            self._failed(platform, meta, "press goal not answered before the deadline")
         handle = fut.result()
         if not handle.accepted:
-            return self._failed(platform, meta, "press goal rejected by the motion node")
+            self._failed(platform, meta, "press goal rejected by the motion node")
         rfut = handle.get_result_async()
         if not self._wait(rfut, deadline):
             handle.cancel_goal_async()
-            return self._failed(platform, meta, f"press not finished within press_timeout_s "
-                                                f"({self.settings.press_timeout_s} s)")
+            self._failed(platform, meta, f"press not finished within press_timeout_s "
+                                         f"({self.settings.press_timeout_s} s)")
         res = rfut.result().result
         if not res.success:
-            return self._failed(platform, meta, res.reason or "press failed", res.attempts)
+            self._failed(platform, meta, res.reason or "press failed", res.attempts)
         touch = res.touch
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
@@ -134,31 +135,17 @@ class ExplorerNode(TactexNode):
             meta.update(accepted=False, reason=str(exc), encoding=touch.image.encoding,
                         width=touch.image.width, height=touch.image.height)
             self.record.add_touch(None, meta)
-            self.engine.record_failure(platform, str(exc))
             self.get_logger().warning(f"touch rejected: {exc}")
-            return False
+            raise TouchFailed(str(exc), retry=False) from exc
         self.record.add_touch(img, dict(meta, accepted=True))   # on disk before it is used
         self._set_guard_reference(touch)
         self.image_pub.publish(touch.image)
-        try:
-            self.engine.add_touch(platform, img)
-        except TactexError as exc:  # e.g. the core's guard: blank / no-contact frame
-            self.record.reject_touch(self.record.n_touches, str(exc))
-            self.engine.record_failure(platform, str(exc))
-            self.get_logger().warning(f"touch rejected: {exc}")
-            self._rejected = True
-            return False
-        return True
+        return img
 
-    def _touch_retried(self, platform: int) -> bool:
-        """A touch the core's guard rejected is repeated up to ``touch_retries`` times (a failed
-        press was already retried by the motion node: ``press.retries``)."""
-        for _ in range(1 + self.engine.trial_cfg.touch_retries):
-            if self._touch(platform):
-                return True
-            if not self._rejected:
-                return False
-        return False
+    def _on_rejected(self, platform: int, exc: TactexError) -> None:
+        """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
+        self.record.reject_touch(self.record.n_touches, str(exc))
+        self.get_logger().warning(f"touch rejected: {exc}")
 
     def _set_guard_reference(self, touch) -> None:
         """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
@@ -170,12 +157,11 @@ class ExplorerNode(TactexNode):
         except TactexError as exc:
             self.get_logger().warning(f"no-contact frame unusable for the guard: {exc}")
 
-    def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> bool:
+    def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> None:
         self.record.add_touch(None, dict(meta, accepted=False, reason=reason,
                                          attempts=attempts))
-        self.engine.record_failure(platform, reason)
         self.get_logger().warning(f"touch of {self.ids[platform]} failed: {reason}")
-        return False
+        raise TouchFailed(reason, retry=False)
 
     def _trial(self) -> None:
         try:
@@ -195,23 +181,12 @@ class ExplorerNode(TactexNode):
             raise TactexError(f"press action {s.press_action!r} not available within "
                               f"server_timeout_s ({s.server_timeout_s} s)")
         eng = self.engine
-        passes = eng.trial_cfg.baseline_passes
-        for _ in range(passes):
-            for p in eng.baseline_platforms():
-                self._touch_retried(p)
-            if not eng.baseline_platforms():
-                break
-        else:
-            raise TactexError(f"baseline touches failed {passes} times for "
-                              f"{[self.ids[p] for p in eng.baseline_platforms()]}")
-        while not eng.done:
-            rec = eng.decide()
-            pred = "" if not eng.done else self.ids[int(max(range(len(rec.probs)),
-                                                             key=rec.probs.__getitem__)) + 1]
+
+        def on_round(rec) -> None:
+            pred = self.ids[int(np.argmax(rec.probs)) + 1] if eng.done else ""
             self._publish_state(rec, eng.done, pred)
-            if rec.platform is not None:
-                self._touch_retried(rec.platform)
-        res = eng.result()
+
+        res = eng.run(self._press, on_round=on_round, on_rejected=self._on_rejected)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=s.strategy, model=eng.learner.model_name, seed=s.seed)

@@ -205,3 +205,28 @@ def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
 def test_touch_retries_validated():
     with pytest.raises(TactexError, match="touch_retries"):
         TrialEngine(3, preset("default", **FAST), TrialConfig(touch_retries=-1))
+
+
+def test_run_reports_rejections_and_honours_no_retry_failures():
+    """on_rejected sees every frame add_touch refuses (guard or validation), which is retried;
+    a TouchFailed(retry=False) (its thrower already retried) loses its touch at once."""
+    from tactex_ros.core.engine import TouchFailed
+    cfg = preset("default", **FAST)
+    good = _touch_fn(0, 3)
+    constant = np.full((240, 320, 3), 90, np.uint8)
+    calls = {"n": 0}
+    seen = []
+
+    def touch(p):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            return constant                      # fails validation: refused, pressed again
+        if calls["n"] == 6:
+            raise TouchFailed("motion node gave up", retry=False)
+        return good(p)
+    eng = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0)
+    res = eng.run(touch, truth=1, on_rejected=lambda p, exc: seen.append((p, str(exc))))
+    assert len(seen) == 1 and seen[0][0] == 1 and "constant" in seen[0][1]
+    assert [f["reason"] for f in res.failed_touches][1] == "motion node gave up"
+    assert calls["n"] == 5 + 2           # baseline 4 + 1 repeat, 2 rounds, no repeat of call 6
+    assert int(eng.touches.sum()) + eng.reference_touches == 4 + 1
