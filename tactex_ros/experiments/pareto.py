@@ -337,11 +337,12 @@ def run_grid(args, out: Path) -> dict:
     if args.max_trials:
         scenes = scenes[:args.max_trials]
     heavy_n = min(args.heavy_trials, len(scenes))
+    heavy_seeds = args.seeds[:args.heavy_seeds]
     jobs = []
     for seed in args.seeds:
         for pos, (tid, classes) in enumerate(scenes):
             for label, pre, over, heavy in grid:
-                if heavy and (pos >= heavy_n or seed not in args.seeds[:args.heavy_seeds]):
+                if heavy and (pos >= heavy_n or seed not in heavy_seeds):
                     continue
                 jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
                                      strategy=args.strategy, rounds=args.rounds, preset=pre,
@@ -359,7 +360,6 @@ def run_grid(args, out: Path) -> dict:
             for label, *_ in grid}
     heavy_labels = [g[0] for g in grid if g[3]]
     # on the heavy subset: every setting, same trials and seeds
-    heavy_seeds = args.seeds[:args.heavy_seeds]
     sub = [r for r in runs if r["pos"] < heavy_n and r["seed"] in heavy_seeds]
     rows_heavy = {label: summarise_setting([r for r in sub if r["setting"] == label],
                                            args.budget) for label, *_ in grid}

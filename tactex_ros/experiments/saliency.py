@@ -37,10 +37,15 @@ from .common import progress, results_dir, write_json
 from .pareto import OCTOPI
 
 
-def _small_png(path: Path) -> Path:
-    """Re-save a figure with a 128-colour palette (maps of textures compress badly)."""
+def _save_small(fig, path: Path, dpi: int = 80) -> Path:
+    """Write a figure as a 128-colour palette PNG (maps of textures compress badly)."""
+    import io
+
     from PIL import Image
-    Image.open(path).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    buf.seek(0)
+    Image.open(buf).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
         path, optimize=True)
     return path
 
@@ -113,9 +118,9 @@ def figure_rows(path: Path, labels: list[str], imgs, ixg, cam, probs, targets, t
                              f"{'' if pred == targets[i] else ' (wrong)'}")
     fig.suptitle(title, fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    _save_small(fig, path)
     plt.close(fig)
-    return _small_png(path)
+    return path
 
 
 def run_classify(args, pool: Pool, kind: str, out: Path) -> dict:
@@ -213,9 +218,8 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
     axes[0][0].set_title("input", fontsize=6)
     fig.suptitle(f"Grad-CAM on the validation set after each decision ({kind})", fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / f"explore_{kind}_rounds.png", dpi=80)
+    _save_small(fig, out / f"explore_{kind}_rounds.png")
     plt.close(fig)
-    _small_png(out / f"explore_{kind}_rounds.png")
     return {"kind": kind, "comparisons": comps, "reference": ref_cls, "correct": res.correct,
             "touches": res.touches, "rounds": per_round}
 
