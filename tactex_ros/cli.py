@@ -57,7 +57,7 @@ def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | N
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
-    from .core.engine import TrialConfig, TrialEngine
+    from .core.engine import TrialEngine, trial_preset
     from .sources import open_source
     src = open_source(args.source)
     cfg = _learner_config(args)
@@ -69,8 +69,8 @@ def cmd_trial(args: argparse.Namespace) -> int:
     platform_classes, truth = assign_platforms(list(getattr(src, "fabrics", src.classes)),
                                                args.comparisons, chosen, args.reference,
                                                args.seed)
-    tcfg = TrialConfig(strategy=args.strategy, rounds=args.rounds,
-                       stop_confidence=args.stop_confidence)
+    tcfg = trial_preset(args.config, strategy=args.strategy, rounds=args.rounds,
+                        stop_confidence=args.stop_confidence)
     n = len(platform_classes) - 1
     ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
     engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
@@ -78,7 +78,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
 
     def progress(rec) -> None:
         if not args.quiet:
-            nxt = ids[rec.platform] if rec.platform else "-"
+            nxt = ids[rec.platform] if rec.platform is not None else "-"
             print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
                   f"decision {rec.decision_s:.2f}s", file=sys.stderr)
 
@@ -86,13 +86,13 @@ def cmd_trial(args: argparse.Namespace) -> int:
     out = res.to_dict()
     out.update(classes={i: c for i, c in zip(ids, platform_classes)},
                prediction_class=platform_classes[res.prediction],
-               truth_class=platform_classes[truth], strategy=args.strategy,
+               truth_class=platform_classes[truth], strategy=tcfg.strategy,
                model=cfg.model, config=args.config, seed=args.seed, source=args.source)
     _write_json(args.json, out)
     verdict = "correct" if res.correct else "wrong"
     print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
           f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
-          f"{res.touches} touches")
+          f"{res.touches} touches; stopped: {res.stop_reason}")
     return 0
 
 
@@ -126,13 +126,19 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--comparisons", type=int, default=4)
     t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
     t.add_argument("--reference", help="class of the reference platform")
-    t.add_argument("--strategy", default="variance",
-                   help=f"one of {', '.join(STRATEGIES)}")
+    t.add_argument("--strategy", help=f"one of {', '.join(STRATEGIES)} (default: the "
+                                        "configuration's: infogain for default, variance for "
+                                        "cnn and seed_faithful)")
     t.add_argument("--model", help=f"one of {', '.join(MODEL_NAMES + ('auto',))}")
-    t.add_argument("--config", default="default", help=f"one of {', '.join(PRESETS)}")
+    t.add_argument("--config", default="default",
+                   help=f"one of {', '.join(PRESETS)} (default: texture descriptor, "
+                        "information-gain touches, stop at belief 0.95)")
     t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
-    t.add_argument("--rounds", type=int, default=20)
-    t.add_argument("--stop-confidence", type=float, default=0.0)
+    t.add_argument("--rounds", type=int, help="most decisions that request a touch after the "
+                                           "baseline (default 20)")
+    t.add_argument("--stop-confidence", type=float,
+                   help="stop once the belief in one platform reaches this (0 = never; "
+                        "default: the configuration's)")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")

@@ -5,10 +5,12 @@ For each touch count n (total touches, reference included) and each configuratio
 ``decide()`` runs ``repeats`` times; the median decision time is reported. Configurations are
 interleaved per touch count so both see the same machine state.
 
-The seed-faithful configuration (299 px, 10 epochs per round) trains for ``seed_epochs`` epochs
+Configurations: ``default`` (texture descriptor + match belief, strategy infogain), ``cnn``
+(the CNN default before real presses decided: small Inception, 48 px, 8 steps) and
+``seed_faithful`` (the thesis). The seed-faithful configuration (299 px, 10 epochs per round) trains for ``seed_epochs`` epochs
 and its training time is scaled by 10 / seed_epochs (training cost is linear in epochs); the
 output says so. Frames come from the fabric simulator (content does not change
-the cost of a CNN; the frames only have to be valid).
+the cost of a CNN or of a descriptor; the frames only have to be valid).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 import torch
 
 from ..core.config import preset
-from ..core.engine import TrialConfig, TrialEngine
+from ..core.engine import TrialEngine, trial_preset
 from ..sim.source import SimSource
 
 
@@ -34,7 +36,8 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
             epochs_override: int | None = None) -> dict:
     over = {"epochs": epochs_override} if epochs_override else {}
     cfg = preset(config, **over)
-    eng = TrialEngine(4, cfg, TrialConfig(strategy="variance", rounds=10**3 - 1), seed=0)
+    eng = TrialEngine(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
+                      seed=0)
     eng.add_touch(0, frames[0])
     for k in range(n_touches - 1):
         eng.add_touch(1 + k % 4, frames[1 + k % (len(frames) - 1)])
@@ -50,7 +53,8 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
 
 
 def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 5,
-        seed_epochs: int = 1, configs: tuple[str, ...] = ("seed_faithful", "default")) -> dict:
+        seed_epochs: int = 1,
+        configs: tuple[str, ...] = ("seed_faithful", "cnn", "default")) -> dict:
     """Measure, print a table, return ``{config: {str(n): median seconds}}`` plus details."""
     frames = _frames(8)
     out: dict = {c: {} for c in configs}
@@ -62,11 +66,14 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
             out[c][str(n)] = d["median_s"]
     print(f"decision time per round, median [s]  (torch {torch.__version__}, "
           f"{torch.get_num_threads()} threads, {platform.processor() or platform.machine()})")
-    print(f"{'touches':>8}  " + "  ".join(f"{c:>14}" for c in configs) + "   ratio")
+    last = configs[-1]
+    print(f"{'touches':>8}  " + "  ".join(f"{c:>14}" for c in configs) + "   " +
+          "  ".join(f"{c + '/' + last:>20}" for c in configs[:-1]))
     for n in touch_counts:
         vals = [out[c][str(n)] for c in configs]
-        ratio = vals[0] / vals[-1] if vals[-1] > 0 else float("inf")
-        print(f"{n:>8}  " + "  ".join(f"{v:>14.3f}" for v in vals) + f"   {ratio:7.1f}x")
+        ratios = [v / vals[-1] if vals[-1] > 0 else float("inf") for v in vals[:-1]]
+        print(f"{n:>8}  " + "  ".join(f"{v:>14.3f}" for v in vals) + "   " +
+              "  ".join(f"{r:>19.1f}x" for r in ratios))
     if "seed_faithful" in configs:
         print(f"seed_faithful: trained {seed_epochs} epoch(s) per round, training time scaled "
               f"x{preset('seed_faithful').epochs / seed_epochs:g} to its 10 epochs")

@@ -26,8 +26,10 @@ def param(default: Any, description: str, lo: float | None = None, hi: float | N
 class LearnerConfig:
     """How the online learner trains and scores (units in the descriptions)."""
 
-    model: str = param("small_inception", "model variant (or 'auto' for the escalating chooser)",
-                       choices=MODEL_NAMES + ("auto",))
+    model: str = param("small_inception", "model: 'descriptor' (texture descriptor + Gaussian "
+                                          "match belief, no training), a CNN variant, or "
+                                          "'auto' (escalating CNN chooser)",
+                       choices=("descriptor",) + MODEL_NAMES + ("auto",))
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
     epochs: int = param(10, "full passes over all stored views per round (when steps == 0)",
@@ -85,20 +87,42 @@ class LearnerConfig:
     auto_catchup: int = param(3, "model 'auto': extra training rounds given at once to an "
                                  "escalated model (at most the rounds trained so far)", 0, 100)
 
+    # model 'descriptor' (core/texture.py, core/match.py); chosen on real presses
+    # (docs/real_presses.md)
+    descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
+                                      "into its descriptor (the strongest + more of the press)",
+                                   1, 16)
+    match_prior_scale: float = param(0.5, "model 'descriptor': prior within-platform spread of a "
+                                          "descriptor, as a fraction of the scene's spread",
+                                     1e-3, 10.0)
+    match_prior_strength: float = param(4.0, "model 'descriptor': weight of that prior in "
+                                             "pseudo-touches", 1e-3, 1000.0)
+    match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
+                                           "(calibrates the belief)", 1e-4, 10.0)
+
     def replace(self, **kw: Any) -> "LearnerConfig":
         return validate(dataclasses.replace(self, **kw))
 
 
-# The thesis's setting, kept by name for reproductions; and our default, chosen by
-# `tactex bench latency` / `tactex experiment pareto` (see README, "Speed").
+# The thesis's setting, kept by name for reproductions; the CNN setting chosen by
+# `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
+# and the default, chosen on real presses (`tactex evaluate`, docs/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
+    "default": dict(model="descriptor"),
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
     # 48 px and 8 steps per round since issue 5 (was 64 px, 12 steps): 2.8x less CPU per
     # decision at equal or better accuracy (docs/speed_stability.md).
-    "default": dict(model="small_inception", input_size=48, epochs=0, steps=8,
-                    batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
+    "cnn": dict(model="small_inception", input_size=48, epochs=0, steps=8,
+                batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
+}
+# What a trial does under each preset (TrialConfig fields); the default stops on a calibrated
+# belief and picks touches by expected information about the match (docs/real_presses.md).
+TRIAL_PRESETS: dict[str, dict[str, Any]] = {
+    "default": dict(strategy="infogain", stop_confidence=0.95),
+    "seed_faithful": dict(strategy="variance", stop_confidence=0.0),
+    "cnn": dict(strategy="variance", stop_confidence=0.0),
 }
 
 

@@ -47,13 +47,15 @@ from typing import Callable
 
 import numpy as np
 
-from .config import LearnerConfig, param, validate
+from .config import TRIAL_PRESETS, LearnerConfig, param, validate
+from .descriptor import DescriptorLearner
 from .errors import TactexError
 from .guards import ContactGuard
 from .learner import OnlineLearner
 from .models import MODEL_NAMES
 from .preprocess import validate_frame
 from .strategies import STRATEGIES, make_strategy
+from .touch import Touch, as_touch
 from .uncertainty import predictive_entropy
 
 
@@ -112,6 +114,17 @@ class TrialConfig:
                                   "counts as lost", 0, 20)
 
 
+def trial_preset(name: str, **overrides: object) -> "TrialConfig":
+    """The TrialConfig of a named preset (``config.TRIAL_PRESETS``) with overrides, validated.
+
+    Overrides whose value is None are ignored (an option the user did not give)."""
+    if name not in TRIAL_PRESETS:
+        raise TactexError(f"unknown configuration {name!r}; choose one of "
+                          f"{', '.join(TRIAL_PRESETS)}")
+    kw = {**TRIAL_PRESETS[name], **{k: v for k, v in overrides.items() if v is not None}}
+    return validate(TrialConfig(**kw))
+
+
 @dataclass
 class RoundRecord:
     round: int
@@ -150,6 +163,9 @@ class TrialResult:
     final: RoundRecord
     failed_touches: list[dict] = field(default_factory=list)
     platform_ids: list[str] = field(default_factory=list)
+    stop_reason: str = ""         # 'confident' (belief reached stop_confidence), 'rounds'
+    #                               (all rounds used) or 'max_touches' (touch cap reached)
+    reference_touches: int = 1
 
     @property
     def correct(self) -> bool | None:
@@ -171,7 +187,8 @@ class TrialResult:
             "correct": self.correct, "prediction": name(self.prediction),
             "truth": name(self.truth), "touches": self.touches,
             "rounds": rounds[:-1], "final": rounds[-1],
-            "failed_touches": self.failed_touches,
+            "failed_touches": self.failed_touches, "stop_reason": self.stop_reason,
+            "reference_touches": self.reference_touches,
             "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
             "escalations": [{"round": r.round, "reason": r.escalation,
                              "model": f"{r.model}@{r.input_size}"}
@@ -205,15 +222,15 @@ class TrialEngine:
         self.rng = np.random.default_rng([seed, 7])
         self.touches = np.zeros(n_comparisons, dtype=np.int64)
         self.reference_touches = 0
-        self.x_test = None
+        self.stop_reason = ""
         self.records: list[RoundRecord] = []
         self.final: RoundRecord | None = None
         self.failed: list[dict] = []
         self.next_platform: int | None = None
         g = self.learner_cfg
         self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
-        self._ref_frame: np.ndarray | None = None          # raw frames, for re-adding on
-        self._frames: list[tuple[int, np.ndarray]] = []    # escalation: (class, frame)
+        self._ref_touches: list[Touch] = []                 # raw touches, for re-adding on
+        self._frames: list[tuple[int, Touch]] = []          # escalation: (class, touch)
         self._heldout: list[bool] = []                     # this stage's held-back outcomes
         self._pending_heldout: list[bool] = []             # since the last decision
         self._stage_round0 = 0                             # first round index of this stage
@@ -226,8 +243,10 @@ class TrialEngine:
         name, size = self.ladder[stage]
         return dataclasses.replace(self.learner_cfg, model=name, input_size=size)
 
-    def _make_learner(self, model: str) -> OnlineLearner:
+    def _make_learner(self, model: str) -> "OnlineLearner | DescriptorLearner":
         """The learner of the current stage (model 'auto') or of ``model``."""
+        if model == "descriptor":
+            return DescriptorLearner(self.C, self.learner_cfg, seed=self.seed)
         if model == "auto":
             cfg = self._stage_cfg(self.stage)
             return OnlineLearner(self.C, cfg, seed=self.seed, model_name=cfg.model)
@@ -253,28 +272,31 @@ class TrialEngine:
     def done(self) -> bool:
         return self.final is not None
 
-    def add_touch(self, platform: int, img: np.ndarray) -> None:
+    def add_touch(self, platform: int, touch: Touch | np.ndarray) -> None:
         """Store a touch of ``platform`` (0 = reference, 1..C = comparison).
 
-        Raises TouchRejected (a TactexError) when the guard finds a blank or no-contact frame;
-        nothing is stored then and the platform still counts as untouched.
+        ``touch``: a ``Touch`` (contact frame, optional no-contact frame and more contact
+        frames) or a bare (240, 320, 3) uint8 frame. Every reference touch counts for the
+        decision. Raises TouchRejected (a TactexError) when the guard finds a blank or
+        no-contact frame; nothing is stored then and the platform still counts as untouched.
         """
         if not 0 <= platform <= self.C:
             raise TactexError(f"platform {platform} outside 0..{self.C}")
+        touch = as_touch(touch)
+        frame = validate_frame(touch.frame, f"touch of platform {platform}")
         if self.guard is not None:
-            ok, reason = self.guard.check(validate_frame(img, f"touch of platform {platform}"))
+            ok, reason = self.guard.check(frame)
             if not ok:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
-            if self.x_test is None:
-                self.x_test = self.learner.test_tensor(img)
-                self._ref_frame = img
+            self.learner.add_reference(touch)
+            self._ref_touches.append(touch)
             self.reference_touches += 1
         else:
-            x = self.learner.add_touch(img, platform - 1)
+            x = self.learner.add_touch(touch, platform - 1)
             self.touches[platform - 1] += 1
             if self.is_auto:
-                self._frames.append((platform - 1, img))
+                self._frames.append((platform - 1, touch))
             if self.learner.rounds_trained > 0:
                 p = self.learner.heldout_proba(x)
                 ok = bool(int(np.argmax(p)) == platform - 1)
@@ -293,7 +315,7 @@ class TrialEngine:
         """Train, score, choose. Sets ``next_platform`` (1..C or None) and maybe ``done``."""
         if self.done:
             raise TactexError("trial already finished")
-        if self.x_test is None or np.any(self.touches == 0):
+        if self.reference_touches == 0 or np.any(self.touches == 0):
             raise TactexError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
@@ -303,19 +325,21 @@ class TrialEngine:
             extra_s = self._escalate()
         stats = self.learner.train_round()
         t0 = time.perf_counter()
-        probs = self.learner.mc_probs(self.x_test)
-        pbar = probs.mean(axis=0)
+        probs = self.learner.reference_probs()
+        pbar = self.learner.belief(probs)
         t1 = time.perf_counter()
-        final = (len(self.records) >= self.trial_cfg.rounds or not self._budget_left() or
-                 (self.trial_cfg.stop_confidence > 0 and
-                  pbar.max() >= self.trial_cfg.stop_confidence))
+        stop = self._stop_reason(pbar)
+        final = stop is not None
         choice, scores = (None, None) if final else self.strategy.choose(
-            probs, self.touches, self.rng, tie_break=self.learner_cfg.guards)
+            probs, self.touches, self.rng, tie_break=self.learner_cfg.guards,
+            model=self.learner, reference_touches=self.reference_touches)
+        if choice is not None and not self.strategy.includes_reference:
+            choice += 1                                   # comparison index -> platform
         t2 = time.perf_counter()
         degenerate = bool(scores is not None and np.ptp(np.asarray(scores, float)) <=
                           1e-9 * max(1.0, float(np.max(np.abs(scores)))))
         rec = RoundRecord(
-            round=len(self.records) + 1, platform=None if choice is None else choice + 1,
+            round=len(self.records) + 1, platform=choice,
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
             predictive_entropy=predictive_entropy(probs), train_s=stats.seconds + extra_s,
             score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
@@ -327,10 +351,22 @@ class TrialEngine:
         self._pending_heldout = []
         if final:
             self.final = rec
+            self.stop_reason = stop
         else:
             self.records.append(rec)
         self.next_platform = rec.platform
         return rec
+
+    def _stop_reason(self, belief: np.ndarray) -> str | None:
+        """Why the trial ends at this decision, or None to go on."""
+        c = self.trial_cfg
+        if c.stop_confidence > 0 and float(belief.max()) >= c.stop_confidence:
+            return "confident"
+        if len(self.records) >= c.rounds:
+            return "rounds"
+        if not self._budget_left():
+            return "max_touches"
+        return None
 
     # ------------------------------------------------------------------ model auto
     def _escalation_reason(self) -> str | None:
@@ -361,9 +397,10 @@ class TrialEngine:
         self.stage += 1
         self.learner = self._make_learner("auto")
         self.learner.transfer_from(old)
-        for label, img in self._frames:
-            self.learner.add_touch(img, label)
-        self.x_test = self.learner.test_tensor(self._ref_frame)
+        for label, touch in self._frames:
+            self.learner.add_touch(touch, label)
+        for touch in self._ref_touches:
+            self.learner.add_reference(touch)
         catchup = min(self.learner_cfg.auto_catchup, len(self.records))
         for _ in range(catchup):
             self.learner.train_round()
@@ -377,10 +414,12 @@ class TrialEngine:
         pred = int(np.argmax(self.final.probs)) + 1
         return TrialResult(prediction=pred, truth=truth, touches=self.total_touches,
                            rounds=list(self.records), final=self.final,
-                           failed_touches=list(self.failed), platform_ids=self.platform_ids)
+                           failed_touches=list(self.failed), platform_ids=self.platform_ids,
+                           stop_reason=self.stop_reason,
+                           reference_touches=self.reference_touches)
 
     # ------------------------------------------------------------------ loop
-    def run(self, touch_fn: Callable[[int], np.ndarray], truth: int | None = None,
+    def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
             on_rejected: Callable[[int, TactexError], None] | None = None) -> TrialResult:
         """Baseline, then rounds until done. ``touch_fn(platform) -> (240, 320, 3) uint8``.
@@ -409,7 +448,7 @@ class TrialEngine:
                 self._touch(rec.platform, touch_fn, on_rejected)
         return self.result(truth)
 
-    def _touch(self, platform: int, touch_fn: Callable[[int], np.ndarray],
+    def _touch(self, platform: int, touch_fn: Callable[[int], "Touch | np.ndarray"],
                on_rejected: Callable[[int, TactexError], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""

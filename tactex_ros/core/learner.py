@@ -29,6 +29,7 @@ from .config import LearnerConfig, validate
 from .errors import TactexError
 from .models import build_model
 from .preprocess import augment, to_tensor, validate_frame, view
+from .touch import Touch, as_touch
 from .uncertainty import mc_probs
 
 
@@ -81,6 +82,7 @@ class OnlineLearner:
         self._y_parts: list[np.ndarray] = []
         self._x: torch.Tensor | None = None
         self._y: torch.Tensor | None = None
+        self._ref_parts: list[torch.Tensor] = []
         self.rounds_trained = 0
 
     # ------------------------------------------------------------------ data
@@ -91,15 +93,17 @@ class OnlineLearner:
     def labels(self) -> np.ndarray:
         return np.concatenate(self._y_parts) if self._y_parts else np.zeros(0, dtype=np.int64)
 
-    def add_touch(self, img: np.ndarray, label: int) -> torch.Tensor:
+    def add_touch(self, img: "Touch | np.ndarray", label: int) -> torch.Tensor:
         """Store ``augment`` random rotations of a (240, 320, 3) uint8 frame under ``label``.
+
+        A ``Touch`` contributes its contact frame (the CNN sees frames as they are).
 
         Returns the stored views (augment, 3, S, S): until the next ``train_round`` the model
         has not seen them, so they can serve as a held-back check (``heldout_proba``).
         """
         if not 0 <= label < self.num_classes:
             raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
-        img = self._colour_norm(validate_frame(img, f"touch of platform {label}"))
+        img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
         views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng)
         x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
         self._x_parts.append(x)
@@ -115,9 +119,23 @@ class OnlineLearner:
         m = img.reshape(-1, 3).mean(axis=0)
         return np.clip(img.astype(np.float32) - m + 128.0, 0, 255).astype(np.uint8)
 
-    def test_tensor(self, img: np.ndarray) -> torch.Tensor:
+    def add_reference(self, img: "Touch | np.ndarray") -> None:
+        """Store a reference touch's views; decisions average over every reference touch."""
+        self._ref_parts.append(self.test_tensor(img))
+
+    def reference_probs(self) -> np.ndarray:
+        """(T, C) MC-dropout softmax of the reference, averaged over all its touches' views."""
+        if not self._ref_parts:
+            raise TactexError("no reference touch stored")
+        return self.mc_probs(torch.cat(self._ref_parts))
+
+    def belief(self, probs: np.ndarray) -> np.ndarray:
+        """(C,) mean softmax over the passes: the CNN's belief over the matching platform."""
+        return np.asarray(probs, dtype=np.float64).mean(axis=0)
+
+    def test_tensor(self, img: "Touch | np.ndarray") -> torch.Tensor:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
-        img = self._colour_norm(validate_frame(img, "reference touch"))
+        img = self._colour_norm(validate_frame(as_touch(img).frame, "reference touch"))
         if self.cfg.test_views == 1:
             views = view(img, 0.0, self.cfg.input_size)[None]
         else:

@@ -1,8 +1,11 @@
 """Exploration strategies: each one is a single scoring function over the comparison platforms.
 
-``score(probs, touches, rng)`` gets the (T, C) Monte-Carlo softmax table of the reference, the
-(C,) touches so far per comparison platform and the trial's random generator, and returns a (C,)
-score (higher = touch next) or ``None`` for "touch nothing more".
+``score(probs, touches, rng, model)`` gets the (T, C) table of the reference's class
+probabilities (Monte-Carlo dropout passes of the CNN, or posterior draws of the descriptor
+model's belief), the (C,) touches so far per comparison platform, the trial's random generator
+and the learner, and returns a (C,) score over the comparisons (higher = touch next) or
+``None`` for "touch nothing more". A strategy with ``includes_reference = True`` scores
+(C + 1,) platforms instead, index 0 being the reference (it may touch the reference again).
 
 Tie-breaking (``Strategy.choose``): among the platforms whose score is within ``TIE_TOL`` of the
 best, the one touched least so far wins; if still tied, the lowest platform index. So when every
@@ -24,24 +27,29 @@ class Strategy:
     """Base class; subclasses override ``score`` only."""
 
     name = "base"
+    includes_reference = False
 
-    def score(self, probs: np.ndarray, touches: np.ndarray,
-              rng: np.random.Generator) -> np.ndarray | None:
+    def score(self, probs: np.ndarray, touches: np.ndarray, rng: np.random.Generator,
+              model: object = None) -> np.ndarray | None:
         raise NotImplementedError
 
     def choose(self, probs: np.ndarray, touches: np.ndarray, rng: np.random.Generator,
-               tie_break: bool = True) -> tuple[int | None, np.ndarray | None]:
-        """(chosen comparison index 0..C-1 or None, the (C,) scores or None).
+               tie_break: bool = True, model: object = None,
+               reference_touches: int = 1) -> tuple[int | None, np.ndarray | None]:
+        """(chosen index into the scores or None, the scores or None).
 
-        ``tie_break=False`` is the unguarded plain argmax (first index among equal scores),
-        kept for the before/after runs of ``tactex experiment stability``.
+        Scores are (C,) over the comparisons, or (C + 1,) with the reference at index 0 when
+        ``includes_reference``. ``tie_break=False`` is the unguarded plain argmax (first index
+        among equal scores), kept for the before/after runs of ``tactex experiment stability``.
         """
-        s = self.score(probs, touches, rng)
+        s = self.score(probs, touches, rng, model)
         if s is None:
             return None, None
         if not tie_break:
             return int(np.argmax(np.asarray(s, dtype=np.float64))), s
-        return break_ties(s, touches), s
+        counts = (np.r_[reference_touches, np.asarray(touches)] if self.includes_reference
+                  else touches)
+        return break_ties(s, counts), s
 
 
 def break_ties(scores: np.ndarray, touches: np.ndarray) -> int:
@@ -60,28 +68,28 @@ def break_ties(scores: np.ndarray, touches: np.ndarray) -> int:
 class VarianceStrategy(Strategy):
     name = "variance"
 
-    def score(self, probs, touches, rng):
+    def score(self, probs, touches, rng, model=None):
         return unc.expected_variance(probs)
 
 
 class EntropyStrategy(Strategy):
     name = "entropy"
 
-    def score(self, probs, touches, rng):
+    def score(self, probs, touches, rng, model=None):
         return unc.entropy_contribution(probs)
 
 
 class BaldStrategy(Strategy):
     name = "bald"
 
-    def score(self, probs, touches, rng):
+    def score(self, probs, touches, rng, model=None):
         return unc.bald_contribution(probs)
 
 
 class RandomStrategy(Strategy):
     name = "random"
 
-    def score(self, probs, touches, rng):
+    def score(self, probs, touches, rng, model=None):
         return rng.random(np.shape(touches)[0])
 
 
@@ -90,13 +98,33 @@ class YotoStrategy(Strategy):
 
     name = "yoto"
 
-    def score(self, probs, touches, rng):
+    def score(self, probs, touches, rng, model=None):
         return None
+
+
+class InfoGainStrategy(Strategy):
+    """Expected information about *which comparison matches*, per platform incl. the reference.
+
+    Needs a learner with ``info_gain(rng) -> (C + 1,)`` (the descriptor model,
+    ``core/match.py``). It cannot get stuck: a platform whose next touch cannot change the
+    belief scores ~0, so touches go where the answer is still open (typically the two leading
+    candidates and the reference).
+    """
+
+    name = "infogain"
+    includes_reference = True
+
+    def score(self, probs, touches, rng, model=None):
+        gain = getattr(model, "info_gain", None)
+        if gain is None:
+            raise TactexError("strategy 'infogain' needs the descriptor model (model "
+                              "'descriptor'); the CNN has no belief over the match to score")
+        return gain(rng)
 
 
 STRATEGIES: dict[str, type[Strategy]] = {
     cls.name: cls for cls in (VarianceStrategy, EntropyStrategy, RandomStrategy, YotoStrategy,
-                              BaldStrategy)
+                              BaldStrategy, InfoGainStrategy)
 }
 
 

@@ -381,7 +381,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--inception-input-size", type=int, default=80,
                    help="input of the full network [px], >= 75 (thesis: 299)")
     p.add_argument("--fourier", action="store_true", help="train on Fourier spectra")
-    p.add_argument("--config", default="default", help=f"learner preset: {', '.join(PRESETS)}")
+    p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="learner override")
     p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
     p.add_argument("--threads", type=int, default=1, help="torch threads per worker")

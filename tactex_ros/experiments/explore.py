@@ -349,7 +349,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rounds", type=int, default=20)
     p.add_argument("--budgets", type=int, nargs="+", default=BUDGETS_DEFAULT,
                    help="total-touch budgets (baseline of 5 included) read from the runs")
-    p.add_argument("--config", default="default", help=f"learner preset: {', '.join(PRESETS)}")
+    p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="learner override, e.g. --set input_size=32 (repeatable)")
     p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")

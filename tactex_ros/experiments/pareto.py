@@ -55,31 +55,31 @@ def _b(**kw: Any) -> dict:
 # label -> (preset, overrides, heavy). One factor at a time around the base, plus combinations.
 GRIDS: dict[str, list[tuple[str, str, dict, bool]]] = {
     "full": [
-        ("default", "default", {}, False),
-        ("base", "default", _b(), False),
-        ("32px", "default", _b(input_size=32), False),
-        ("48px", "default", _b(input_size=48), False),
-        ("96px", "default", _b(input_size=96), False),
-        ("steps4", "default", _b(steps=4), False),
-        ("steps8", "default", _b(steps=8), False),
-        ("steps24", "default", _b(steps=24), False),
-        ("mc5", "default", _b(mc_passes=5), False),
-        ("mc50", "default", _b(mc_passes=50), False),
-        ("bn0", "default", _b(bn_recalibrate=0), False),
-        ("bn16", "default", _b(bn_recalibrate=16), False),
+        ("default", "cnn", {}, False),
+        ("base", "cnn", _b(), False),
+        ("32px", "cnn", _b(input_size=32), False),
+        ("48px", "cnn", _b(input_size=48), False),
+        ("96px", "cnn", _b(input_size=96), False),
+        ("steps4", "cnn", _b(steps=4), False),
+        ("steps8", "cnn", _b(steps=8), False),
+        ("steps24", "cnn", _b(steps=24), False),
+        ("mc5", "cnn", _b(mc_passes=5), False),
+        ("mc50", "cnn", _b(mc_passes=50), False),
+        ("bn0", "cnn", _b(bn_recalibrate=0), False),
+        ("bn16", "cnn", _b(bn_recalibrate=16), False),
         # (48 px + 8 steps is the current "default" preset: not listed twice)
-        ("32px+steps24", "default", _b(input_size=32, steps=24), False),
-        ("32px+steps12+bs16", "default", _b(input_size=32, batch_size=16), False),
-        ("auto", "default", _b(model="auto"), False),
-        ("inception_v3_random@80", "default", _b(model="inception_v3_random", input_size=80),
+        ("32px+steps24", "cnn", _b(input_size=32, steps=24), False),
+        ("32px+steps12+bs16", "cnn", _b(input_size=32, batch_size=16), False),
+        ("auto", "cnn", _b(model="auto"), False),
+        ("inception_v3_random@80", "cnn", _b(model="inception_v3_random", input_size=80),
          True),
         ("seed_faithful", "seed_faithful", {}, True),
     ],
     "quick": [
-        ("default", "default", {}, False),
-        ("32px", "default", _b(input_size=32), False),
-        ("steps4", "default", _b(steps=4), False),
-        ("auto", "default", _b(model="auto"), False),
+        ("default", "cnn", {}, False),
+        ("32px", "cnn", _b(input_size=32), False),
+        ("steps4", "cnn", _b(steps=4), False),
+        ("auto", "cnn", _b(model="auto"), False),
     ],
 }
 THESIS_LABEL = "seed_faithful"
@@ -400,7 +400,7 @@ def run_grid(args, out: Path) -> dict:
 
 def run_faithful(args, out: Path) -> dict:
     settings = [(THESIS_LABEL, "seed_faithful", dict(args.overrides)),
-                ("default", "default", dict(args.overrides))]
+                ("default", "cnn", dict(args.overrides))]
     jobs = [TrialJob(source=args.faithful_source, seed=s, strategy="variance",
                      rounds=args.faithful_rounds, preset=pre, overrides=over,
                      comparisons=4, trial_id=f"s{s}", catch_errors=True,
@@ -449,7 +449,7 @@ def run_touches(args, out: Path) -> dict:
     if args.max_trials:
         scenes = scenes[:args.max_trials]
     jobs = [TrialJob(source=args.source, seed=1000 * seed + pos, strategy=s,
-                     rounds=args.touch_rounds, preset="default", overrides=dict(args.overrides),
+                     rounds=args.touch_rounds, preset="cnn", overrides=dict(args.overrides),
                      platform_classes=classes, trial_id=tid, catch_errors=True,
                      tags={"setting": "default", "seed": seed})
             for seed in args.touch_seeds for pos, (tid, classes) in enumerate(scenes)

@@ -17,13 +17,14 @@ import dataclasses
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
 
 from ..core.engine import TrialConfig, TrialEngine
 from ..core.errors import TactexError
+from ..core.touch import Touch, as_touch
 from .common import progress
 
 
@@ -35,7 +36,7 @@ class TrialJob:
     rounds: int = 20
     max_touches: int = 0
     stop_confidence: float = 0.0
-    preset: str = "default"
+    preset: str = "cnn"
     overrides: dict[str, Any] = field(default_factory=dict)
     platform_classes: list[str] | None = None     # [reference, comp 1..C]; None = draw
     comparisons: int = 4                          # used when drawing the scene
@@ -92,7 +93,7 @@ def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
-def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], np.ndarray]:
+def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], "Touch | np.ndarray"]:
     src = _source(job.source)
     depth = job.perturb.get("depth_spread")
     if depth is not None and hasattr(src, "press"):
@@ -111,7 +112,12 @@ def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], np.ndarray]:
     if not keys:
         return base
     rng = np.random.default_rng([job.seed, 31])
-    return lambda p: apply_perturbation(base(p), job.perturb, rng)
+
+    def perturbed(p: int) -> Touch:
+        t = as_touch(base(p))
+        return replace(t, frame=apply_perturbation(t.frame, job.perturb, rng))
+
+    return perturbed
 
 
 def run_job(job: TrialJob, threads: int = 1,

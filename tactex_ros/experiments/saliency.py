@@ -266,7 +266,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--explore-rounds", type=int, default=10)
     p.add_argument("--reference", type=int, default=0, help="reference = comparison class k")
     p.add_argument("--fourier", choices=["off", "on", "both"], default="both")
-    p.add_argument("--config", default="default")
+    p.add_argument("--config", default="cnn")
     p.add_argument("--input-size", type=int, default=0, help="override the preset's input size")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)

@@ -228,7 +228,7 @@ def build_jobs(args) -> list[TrialJob]:
     models = {"default": {}, "auto": {"model": "auto"}, "top": {}}
     from ..core.config import preset
     from ..core.engine import parse_ladder
-    d = preset("default", **args.overrides)
+    d = preset("cnn", **args.overrides)
     top = parse_ladder(d.auto_ladder, d.input_size)[-1]
     models["top"] = {"model": top[0], "input_size": top[1]}
     axes = {a: AXES[a] for a in args.axes}
@@ -242,7 +242,7 @@ def build_jobs(args) -> list[TrialJob]:
             over["guards"] = False
         for seed in args.seeds:
             jobs.append(TrialJob(source=c["source"], seed=seed, strategy=strategy,
-                                 rounds=args.rounds, preset="default", overrides=over,
+                                 rounds=args.rounds, preset="cnn", overrides=over,
                                  platform_classes=None, comparisons=4,
                                  trial_id=f"{axis}={value:g}/s{seed}", perturb=c["perturb"],
                                  catch_errors=True,

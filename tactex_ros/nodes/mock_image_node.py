@@ -110,7 +110,7 @@ class MockImageNode(TactexNode):
             self.press_id += 1
             self._blank = self._rng_fault().random() < self.settings.fault_blank
             if self.kind == "replay":
-                self._press_frame = self.replay(idx)
+                self._press_frame = self.replay(idx).frame
         self._in_contact = contact
         if not contact or self._blank:
             return self.no_contact

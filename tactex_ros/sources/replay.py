@@ -3,7 +3,11 @@
 Folder layout: ``<root>/<class>/<file>``; each file is one press, a video readable by OpenCV
 (``.mov .mp4 .avi .mkv``) or a single image (``.png .jpg .jpeg .bmp``). For a video the contact
 frame is chosen deliberately: the strongest contact against the press's own no-contact frames
-(see ``core.contact``). Frames are returned as RGB uint8 (240, 320, 3).
+(see ``core.contact``). A touch is a ``core.touch.Touch``: that frame, the press's no-contact
+frame (median of its first 3 frames) and up to ``EXTRA_FRAMES`` more in-contact frames at other
+depths (frames whose contact score is at least ``EXTRA_MIN`` of the strongest, evenly spaced in
+time). An image file gives a touch without a no-contact frame. Frames are RGB uint8
+(240, 320, 3).
 
 A trial assigns a class to the reference and to every comparison platform. Touching a platform
 draws a press of its class not used yet in this trial, in a seeded random order, cycling when
@@ -21,7 +25,10 @@ import numpy as np
 
 from ..core.contact import strongest_contact, to_sensor_frame
 from ..core.errors import TactexError
+from ..core.touch import Touch
 
+EXTRA_FRAMES = 3       # in-contact frames kept per press besides the strongest
+EXTRA_MIN = 0.7        # ... each with at least this share of the strongest contact score
 VIDEO_EXT = {".mov", ".mp4", ".avi", ".mkv"}
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
 
@@ -43,19 +50,33 @@ def read_video(path: str | Path) -> np.ndarray:
     return np.stack(frames)
 
 
-@lru_cache(maxsize=1024)
 def load_press(path: str) -> tuple[np.ndarray, float]:
     """(contact frame RGB uint8 (240, 320, 3), contact score in grey levels) of one press file."""
+    touch, score = load_touch(path)
+    return touch.frame, score
+
+
+@lru_cache(maxsize=512)
+def load_touch(path: str) -> tuple[Touch, float]:
+    """(the press as a Touch, contact score of its strongest frame [grey levels])."""
     p = Path(path)
     ext = p.suffix.lower()
     if ext in IMAGE_EXT:
         img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if img is None:
             raise TactexError(f"unreadable image file: {p}")
-        return cv2.cvtColor(to_sensor_frame(img), cv2.COLOR_BGR2RGB), float("nan")
+        return Touch(cv2.cvtColor(to_sensor_frame(img), cv2.COLOR_BGR2RGB)), float("nan")
     arr = read_video(p)
     idx, scores = strongest_contact(arr)
-    return cv2.cvtColor(arr[idx], cv2.COLOR_BGR2RGB), float(scores[idx])
+    strong = np.flatnonzero(scores >= EXTRA_MIN * scores[idx])
+    strong = strong[strong != idx]
+    pick = (strong[np.round(np.linspace(0, len(strong) - 1, EXTRA_FRAMES)).astype(int)]
+            if len(strong) > EXTRA_FRAMES else strong)
+    rgb = arr[..., ::-1]
+    touch = Touch(frame=np.ascontiguousarray(rgb[idx]),
+                  no_contact=np.median(rgb[:3], axis=0).astype(np.uint8),
+                  extra=np.ascontiguousarray(rgb[np.unique(pick)]) if len(pick) else None)
+    return touch, float(scores[idx])
 
 
 class ReplaySource:
@@ -90,7 +111,12 @@ class ReplaySource:
         return self.files[cls]
 
     def frame(self, path: Path) -> np.ndarray:
-        return load_press(str(path))[0]
+        """The strongest-contact frame of one press file."""
+        return load_touch(str(path))[0].frame
+
+    def touch(self, path: Path) -> Touch:
+        """One press file as a Touch (contact frame, no-contact frame, more contact frames)."""
+        return load_touch(str(path))[0]
 
     def check_class(self, cls: str) -> None:
         """Raise TactexError unless at least one press of ``cls`` decodes."""
@@ -136,9 +162,9 @@ class ReplayTrial:
             self._reference_used.add(i)
         return i
 
-    def __call__(self, platform: int) -> np.ndarray:
+    def __call__(self, platform: int) -> Touch:
         cls = self.platform_classes[platform]
         i = self._draw(cls, platform == 0)
         path = self.source.presses(cls)[i]
         self.log.append((platform, str(path)))
-        return self.source.frame(path)
+        return self.source.touch(path)

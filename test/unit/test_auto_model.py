@@ -49,7 +49,7 @@ def test_parse_ladder_checks_names_and_sizes():
 
 def test_auto_escalates_on_evidence_and_keeps_touches():
     # thresholds that any trial meets: entropy "not falling" after 1 round
-    cfg = preset("default", model="auto", auto_ladder="small_inception@32,small_inception@40",
+    cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_patience=1, auto_min_drop=1.0, auto_entropy=0.0, auto_catchup=1,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     eng = TrialEngine(3, cfg, TrialConfig(rounds=4), seed=1)
@@ -61,14 +61,14 @@ def test_auto_escalates_on_evidence_and_keeps_touches():
     assert len(esc) == 1 and "entropy" in esc[0].escalation
     # every stored touch was re-added to the escalated learner, at its input size
     assert eng.learner.n_views == int(eng.touches.sum()) * cfg.augment
-    assert eng.x_test.shape[-1] == 40
+    assert [x.shape[-1] for x in eng.learner._ref_parts] == [40]
     d = res.to_dict()
     assert d["models"] == ["small_inception@32", "small_inception@40"]
     assert d["escalations"][0]["model"] == "small_inception@40"
 
 
 def test_auto_stays_cheap_without_evidence():
-    cfg = preset("default", model="auto", auto_ladder="small_inception@32,small_inception@40",
+    cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_heldout_acc=0.0, auto_entropy=1.0,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     res = TrialEngine(3, cfg, TrialConfig(rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)
@@ -77,7 +77,7 @@ def test_auto_stays_cheap_without_evidence():
 
 
 def test_heldout_touches_recorded_before_training():
-    cfg = preset("default", **FAST)
+    cfg = preset("cnn", **FAST)
     res = TrialEngine(3, cfg, TrialConfig(rounds=3), seed=0).run(_touch_fn(0, 3), truth=1)
     assert res.rounds[0].heldout == []            # nothing trained before round 1
     assert all(len(r.heldout) == 1 for r in res.rounds[1:] + [res.final])
@@ -99,7 +99,7 @@ def test_contact_guard_rejects_blank_and_no_contact_frames():
 
 
 def test_engine_rejects_blank_touch_and_run_goes_on():
-    cfg = preset("default", **FAST)
+    cfg = preset("cnn", **FAST)
     flat = np.full((240, 320, 3), 90, np.uint8)
     flat[0, 0] = 91
     eng = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0)
@@ -107,7 +107,7 @@ def test_engine_rejects_blank_touch_and_run_goes_on():
         eng.add_touch(1, flat)
     assert eng.touches[0] == 0 and 1 in eng.baseline_platforms()
     # unguarded: the same frame is stored
-    eng2 = TrialEngine(3, preset("default", guards=False, **FAST), TrialConfig(rounds=2))
+    eng2 = TrialEngine(3, preset("cnn", guards=False, **FAST), TrialConfig(rounds=2))
     eng2.add_touch(1, flat)
     assert eng2.touches[0] == 1
     # in run(): a blank touch is a recorded failure, the platform is retried
@@ -124,7 +124,7 @@ def test_engine_rejects_blank_touch_and_run_goes_on():
 def test_nonfinite_loss_is_skipped_with_guards_and_raises_without():
     frames = _frames(0, 3)
     for guards in (True, False):
-        L = OnlineLearner(3, preset("default", guards=guards, **FAST), seed=0)
+        L = OnlineLearner(3, preset("cnn", guards=guards, **FAST), seed=0)
         for k, f in enumerate(frames):
             L.add_touch(f, k)
         orig = L.model.forward_train
@@ -145,7 +145,7 @@ def test_nonfinite_loss_is_skipped_with_guards_and_raises_without():
 
 
 def test_round_rolled_back_when_most_steps_are_bad():
-    L = OnlineLearner(3, preset("default", **FAST), seed=0)
+    L = OnlineLearner(3, preset("cnn", **FAST), seed=0)
     for k, f in enumerate(_frames(0, 3)):
         L.add_touch(f, k)
     before = {k: v.clone() for k, v in L.model.state_dict().items() if "bn" not in k}
@@ -153,7 +153,7 @@ def test_round_rolled_back_when_most_steps_are_bad():
     L.model.forward_train = lambda x: (orig(x)[0] * float("inf"), None)
     st = L.train_round()
     assert st.restored and st.skipped == FAST["steps"]
-    assert L.opt.param_groups[0]["lr"] == pytest.approx(preset("default").lr / 2)
+    assert L.opt.param_groups[0]["lr"] == pytest.approx(preset("cnn").lr / 2)
     after = L.model.state_dict()
     assert all(torch.equal(before[k], after[k]) for k in before)
 
@@ -169,17 +169,17 @@ def test_degenerate_scores_tie_break_vs_plain_argmax():
 def test_drift_norm_removes_a_per_touch_colour_offset():
     img = _frames(0, 1)[0]
     shifted = np.clip(img.astype(int) + np.array([9, -7, 5]), 0, 255).astype(np.uint8)
-    on = OnlineLearner(3, preset("default", drift_norm=True, **FAST), seed=0)
+    on = OnlineLearner(3, preset("cnn", drift_norm=True, **FAST), seed=0)
     a, b = on.test_tensor(img), on.test_tensor(shifted)
     assert float((a - b).abs().max()) < 0.05        # only clipping / rounding left
-    off = OnlineLearner(3, preset("default", **FAST), seed=0)
+    off = OnlineLearner(3, preset("cnn", **FAST), seed=0)
     assert float((off.test_tensor(img) - off.test_tensor(shifted)).abs().max()) > 0.1
 
 
 def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
     """touch_retries: a guard-rejected touch is pressed again in the same round; with 0 retries
     the round is lost (one accepted touch fewer)."""
-    cfg = preset("default", **FAST)
+    cfg = preset("cnn", **FAST)
     flat = np.full((240, 320, 3), 90, np.uint8)
     flat[0, 0] = 91          # not constant: the guard (not frame validation) must refuse it
     good = _touch_fn(0, 3)
@@ -204,14 +204,14 @@ def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
 
 def test_touch_retries_validated():
     with pytest.raises(TactexError, match="touch_retries"):
-        TrialEngine(3, preset("default", **FAST), TrialConfig(touch_retries=-1))
+        TrialEngine(3, preset("cnn", **FAST), TrialConfig(touch_retries=-1))
 
 
 def test_run_reports_rejections_and_honours_no_retry_failures():
     """on_rejected sees every frame add_touch refuses (guard or validation), which is retried;
     a TouchFailed(retry=False) (its thrower already retried) loses its touch at once."""
     from tactex_ros.core.engine import TouchFailed
-    cfg = preset("default", **FAST)
+    cfg = preset("cnn", **FAST)
     good = _touch_fn(0, 3)
     constant = np.full((240, 320, 3), 90, np.uint8)
     calls = {"n": 0}

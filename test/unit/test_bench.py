@@ -14,7 +14,7 @@ def test_bench_latency_json_shape(tmp_path, monkeypatch):
     assert main(["bench", "latency", "--touches", "5", "7", "--repeats", "2",
                  "--json", str(out)]) == 0
     d = json.loads(out.read_text())
-    assert set(d) == {"seed_faithful", "default"}
+    assert set(d) == {"seed_faithful", "cnn", "default"}
     for cfg in d.values():
         assert set(cfg) == {"5", "7"} and all(v > 0 for v in cfg.values())
 

@@ -59,7 +59,7 @@ def test_bad_frames_are_rejected_with_reason():
 
 def test_config_validation_names_the_field():
     with pytest.raises(TactexError, match="input_size"):
-        preset("default", input_size=8)
+        preset("cnn", input_size=8)
     with pytest.raises(TactexError, match="model"):
         LearnerConfig(model="vgg").replace()
     with pytest.raises(TactexError, match="configuration"):
@@ -69,7 +69,7 @@ def test_config_validation_names_the_field():
 def _run(seed: int, strategy: str = "variance", rounds: int = 3, **over):
     frames = _frames(1, 4)
     rng = np.random.default_rng(seed)
-    cfg = preset("default", **{**FAST, **over})
+    cfg = preset("cnn", **{**FAST, **over})
     eng = TrialEngine(4, cfg, TrialConfig(strategy=strategy, rounds=rounds), seed=seed)
 
     def touch(p):
@@ -118,12 +118,12 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
             raise TouchFailed("no contact before deadline")
         return frames[2 if p == 0 else p - 1]
 
-    eng = TrialEngine(4, preset("default", **FAST), TrialConfig(rounds=3), seed=0)
+    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3), seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1 and "deadline" in res.failed_touches[0]["reason"]
     assert res.touches == 5 + 3          # the failed touch was repeated at once
     calls["n"] = 0
-    eng = TrialEngine(4, preset("default", **FAST), TrialConfig(rounds=3, touch_retries=0),
+    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3, touch_retries=0),
                       seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1
@@ -132,7 +132,7 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
 
 def test_learner_training_reduces_loss():
     frames = _frames(3, 3)
-    L = OnlineLearner(3, preset("default", **{**FAST, "steps": 15}), seed=0)
+    L = OnlineLearner(3, preset("cnn", **{**FAST, "steps": 15}), seed=0)
     for k, f in enumerate(frames):
         L.add_touch(f, k)
     first = L.train_round().mean_loss

@@ -1,0 +1,82 @@
+"""The descriptor learner: texture descriptors of every touch and the Gaussian match belief.
+
+The engine's cheapest model (``LearnerConfig.model = 'descriptor'``): nothing is trained; each
+touch becomes a rotation-invariant descriptor (``core/texture.py``) once, when it is added, and a
+decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
+It offers the same interface the trial engine uses for the CNN learner (``add_touch``,
+``add_reference``, ``train_round``, ``reference_probs``, ``belief``) plus ``info_gain`` for the
+``infogain`` strategy.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .config import LearnerConfig, validate
+from .errors import TactexError
+from .learner import TrainStats
+from .match import MatchModel
+from .texture import describe_touch
+from .touch import Touch
+
+#: Posterior draws of the belief returned by ``reference_probs`` (the (T, C) table).
+DRAWS = 32
+
+
+class DescriptorLearner:
+    """Descriptors + match belief for one trial over ``num_classes`` comparison platforms."""
+
+    model_name = "descriptor"
+
+    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
+        self.cfg = validate(cfg)
+        self.num_classes = num_classes
+        self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
+                                cfg.match_temperature)
+        self._rng = np.random.default_rng([int(seed), 31])
+        self.rounds_trained = 0
+        self._heldout: np.ndarray | None = None
+
+    def _describe(self, touch: Touch) -> np.ndarray:
+        return describe_touch(touch, self.cfg.descriptor_frames)
+
+    def add_touch(self, touch: Touch, label: int) -> np.ndarray:
+        """Store the descriptor of a comparison touch under ``label`` (0..C-1); returns it."""
+        if not 0 <= label < self.num_classes:
+            raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
+        x = self._describe(touch)
+        self._heldout = self.match.comparison_proba(x) if self.match.ready else None
+        self.match.add(label + 1, x)
+        return x
+
+    def add_reference(self, touch: Touch) -> None:
+        """Store a reference touch; the belief uses every one of them."""
+        self.match.add(0, self._describe(touch))
+
+    def heldout_proba(self, x: np.ndarray) -> np.ndarray:
+        """(C,) probabilities of the comparison descriptor ``x`` just added, computed by
+        ``add_touch`` before it was stored (the held-back check of the engine)."""
+        if self._heldout is None:
+            raise TactexError("no held-back probabilities: the belief was not ready yet")
+        return self._heldout
+
+    def train_round(self) -> TrainStats:
+        """Nothing to train: checks the belief can be computed; returns its time."""
+        t0 = time.perf_counter()
+        self.match.stats()
+        self.rounds_trained += 1
+        return TrainStats(time.perf_counter() - t0, 0, float("nan"))
+
+    def reference_probs(self) -> np.ndarray:
+        """(T, C) beliefs under posterior draws of the platform means (T = ``DRAWS``)."""
+        return self.match.samples(DRAWS, self._rng)
+
+    def belief(self, probs: np.ndarray) -> np.ndarray:
+        """(C,) the exact belief (the draws only serve the uncertainty strategies)."""
+        return self.match.belief()
+
+    def info_gain(self, rng: np.random.Generator) -> np.ndarray:
+        """(C + 1,) expected entropy drop per platform, 0 = reference (``MatchModel``)."""
+        return self.match.info_gain(rng)

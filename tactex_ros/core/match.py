@@ -1,0 +1,175 @@
+"""Belief over which comparison platform matches the reference, from texture descriptors.
+
+The question of a trial is "which of the C comparison platforms holds the reference's material?".
+``MatchModel`` answers it with a Gaussian model of the descriptors (``core/texture.py``) of every
+touch, reference touches included:
+
+- Units: each descriptor dimension j is divided by the scene's spread s_j (std over the C + 1
+  platforms' mean descriptors, plus a small floor), so no scale learned elsewhere is needed.
+- Platform p's touches are draws x ~ N(mu_p, diag(sigma^2)); sigma_j^2 is the pooled within-
+  platform variance of this trial's repeated touches, shrunk toward ``prior_scale``^2 with the
+  weight of ``prior_strength`` pseudo-observations: sigma_j^2 = (nu0 kappa^2 + SS_j) / (nu0 + dof).
+- Hypothesis h: the reference platform shares mu with comparison h. With a flat prior on the
+  means, the evidence for h is the predictive density of the reference mean r (k touches) given
+  comparison h's mean x_h (n_h touches):
+  l_h = -D/2 log v_h - 1/2 sum_j (r_j - x_hj)^2 / (sigma_j^2 v_h),  v_h = 1/k + 1/n_h.
+- belief = softmax(``temperature`` * l): descriptor dimensions are correlated, so the raw
+  likelihood is over-confident; the temperature is calibrated on real presses
+  (``tactex evaluate``, docs/real_presses.md).
+
+``info_gain`` scores every platform (0 = the reference, 1..C) by the expected drop of the
+belief's entropy if it were touched once more (Monte Carlo over hypotheses and simulated
+descriptors). ``samples`` gives (T, C) beliefs under posterior draws of the platform means, the
+table the uncertainty strategies of ``core/strategies.py`` score.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import TactexError
+
+_EPS = 1e-12
+
+
+def entropy(p: np.ndarray) -> float:
+    """Entropy (nats) of a probability vector."""
+    q = np.clip(np.asarray(p, dtype=np.float64), _EPS, 1.0)
+    return float(-(q * np.log(q)).sum())
+
+
+def softmax(logits: np.ndarray) -> np.ndarray:
+    """Softmax over the last axis (float64)."""
+    z = np.asarray(logits, dtype=np.float64)
+    z = z - z.max(axis=-1, keepdims=True)
+    e = np.exp(z)
+    return e / e.sum(axis=-1, keepdims=True)
+
+
+class MatchModel:
+    """Descriptors of one trial's touches and the belief over the matching comparison."""
+
+    def __init__(self, n_comparisons: int, prior_scale: float = 0.5,
+                 prior_strength: float = 4.0, temperature: float = 0.05,
+                 scale_floor: float = 0.05) -> None:
+        if n_comparisons < 2:
+            raise TactexError(f"MatchModel needs >= 2 comparisons, got {n_comparisons}")
+        for name, v in (("prior_scale", prior_scale), ("prior_strength", prior_strength),
+                        ("temperature", temperature)):
+            if not v > 0:
+                raise TactexError(f"MatchModel.{name} must be > 0, got {v}")
+        self.C = n_comparisons
+        self.kappa = float(prior_scale)
+        self.nu0 = float(prior_strength)
+        self.beta = float(temperature)
+        self.floor = float(scale_floor)
+        self.samples_by_platform: list[list[np.ndarray]] = [[] for _ in range(self.C + 1)]
+
+    # ------------------------------------------------------------------ data
+    def add(self, platform: int, descriptor: np.ndarray) -> None:
+        """Store the (D,) descriptor of a touch of ``platform`` (0 = reference, 1..C)."""
+        if not 0 <= platform <= self.C:
+            raise TactexError(f"platform {platform} outside 0..{self.C}")
+        x = np.asarray(descriptor, dtype=np.float64)
+        if x.ndim != 1 or not np.all(np.isfinite(x)):
+            raise TactexError("descriptor must be a finite 1-D vector")
+        if any(s and s[0].shape != x.shape for s in self.samples_by_platform):
+            raise TactexError(f"descriptor of size {x.size} differs from the stored ones")
+        self.samples_by_platform[platform].append(x)
+
+    @property
+    def counts(self) -> np.ndarray:
+        """(C + 1,) touches per platform, 0 = reference."""
+        return np.array([len(s) for s in self.samples_by_platform])
+
+    @property
+    def ready(self) -> bool:
+        return bool(np.all(self.counts > 0))
+
+    def _check_ready(self) -> None:
+        if not self.ready:
+            missing = [p for p, n in enumerate(self.counts) if n == 0]
+            raise TactexError(f"belief needs a touch of every platform; missing {missing}")
+
+    def stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(means (C+1, D), counts (C+1,), sigma^2 (D,)) in scene units."""
+        means, counts, sigma2, _ = self._stats()
+        return means, counts, sigma2
+
+    def _stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``stats`` plus the (D,) scene scale that defines the units."""
+        self._check_ready()
+        means = np.stack([np.mean(s, axis=0) for s in self.samples_by_platform])
+        spread = means.std(axis=0)
+        scale = np.sqrt(spread ** 2 + (self.floor * (np.median(spread) + _EPS)) ** 2) + _EPS
+        ss = np.zeros(means.shape[1])
+        dof = 0
+        for s, m in zip(self.samples_by_platform, means):
+            if len(s) > 1:
+                ss += (((np.stack(s) - m) / scale) ** 2).sum(axis=0)
+                dof += len(s) - 1
+        sigma2 = (self.nu0 * self.kappa ** 2 + ss) / (self.nu0 + dof)
+        return means / scale, self.counts.astype(np.float64), sigma2, scale
+
+    def comparison_proba(self, descriptor: np.ndarray) -> np.ndarray:
+        """(C,) tempered nearest-mean probabilities of one more (unstored) comparison touch."""
+        means, _, sigma2, scale = self._stats()
+        d2 = (((np.asarray(descriptor) / scale - means[1:]) ** 2) / sigma2).sum(axis=1)
+        return softmax(-0.5 * self.beta * d2)
+
+    # ------------------------------------------------------------------ belief
+    def _logits(self, means: np.ndarray, counts: np.ndarray, sigma2: np.ndarray) -> np.ndarray:
+        """(..., C) tempered log evidence; ``means`` (..., C+1, D), ``counts`` (..., C+1)."""
+        r = means[..., :1, :]
+        x = means[..., 1:, :]
+        v = 1.0 / counts[..., :1] + 1.0 / counts[..., 1:]              # (..., C)
+        d2 = (((r - x) ** 2) / sigma2).sum(axis=-1)                     # (..., C)
+        D = means.shape[-1]
+        return self.beta * (-0.5 * D * np.log(v) - 0.5 * d2 / v)
+
+    def belief(self) -> np.ndarray:
+        """(C,) probability that comparison c (index c-1) matches the reference."""
+        means, counts, sigma2 = self.stats()
+        return softmax(self._logits(means, counts, sigma2))
+
+    def samples(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """(n, C) beliefs under posterior draws of the platform means (epistemic spread)."""
+        means, counts, sigma2 = self.stats()
+        draws = means + rng.standard_normal((n,) + means.shape) * np.sqrt(
+            sigma2 / counts[:, None])
+        return softmax(self._logits(draws, np.broadcast_to(counts, (n,) + counts.shape),
+                                    sigma2))
+
+    def info_gain(self, rng: np.random.Generator, draws: int = 32) -> np.ndarray:
+        """(C + 1,) expected entropy drop of the belief [nats] from one more touch of each
+        platform (index 0 = the reference).
+
+        For each platform: draw ``draws`` hypotheses h from the belief; under h, a new touch of
+        the reference or of comparison h comes from their pooled mean, any other comparison's
+        from its own mean, plus within-platform noise (predictive variance sigma^2 (1 + 1/n));
+        the belief is recomputed with that descriptor added (sums updated in closed form).
+        """
+        means, counts, sigma2 = self.stats()
+        b = softmax(self._logits(means, counts, sigma2))
+        h0 = entropy(b)
+        C, D = self.C, means.shape[1]
+        hyp = rng.choice(C, size=draws, p=b) + 1                       # (M,) platform of h
+        noise = rng.standard_normal((C + 1, draws, D))
+        gains = np.zeros(C + 1)
+        for a in range(C + 1):
+            if a == 0:
+                pooled_n = counts[0] + counts[hyp]
+                mu = (means[0] * counts[0] + means[hyp] * counts[hyp, None]) / pooled_n[:, None]
+            else:
+                same = hyp == a
+                pooled_n = np.where(same, counts[0] + counts[a], counts[a])
+                mu = np.where(same[:, None], (means[0] * counts[0] + means[a] * counts[a]) /
+                              (counts[0] + counts[a]), means[a])
+            x = mu + noise[a] * np.sqrt(sigma2 * (1.0 + 1.0 / pooled_n[:, None]))
+            new_means = np.broadcast_to(means, (draws,) + means.shape).copy()
+            new_counts = np.broadcast_to(counts, (draws,) + counts.shape).copy()
+            new_means[:, a] = (means[a] * counts[a] + x) / (counts[a] + 1.0)
+            new_counts[:, a] += 1.0
+            post = softmax(self._logits(new_means, new_counts, sigma2))
+            gains[a] = h0 - float(np.mean([entropy(p) for p in post]))
+        return gains

@@ -1,0 +1,136 @@
+"""A rotation-invariant texture descriptor of one touch, computed on the contact difference.
+
+A GelSight frame is mostly the gel's own background (vignetting, tint); contact changes it by a
+few grey levels. The descriptor therefore works on the *contact difference*
+d = blur(contact) - blur(no contact) (per-channel mean removed, so a lighting offset between the
+two frames does not count), cropped by ``BORDER`` px against the sensor's dark rim. Without a
+no-contact frame the difference is taken against a heavy blur of the contact frame itself (a
+high-pass proxy that keeps texture but loses the contact's overall shape).
+
+Parts (all invariant to in-plane rotation of the texture, up to sampling):
+
+- ``intensity`` (6): log of the 50/75/90/99th percentiles, mean and std of |d| (RGB norm)
+  [log grey levels]: how strongly and how widely the surface pressed into the gel.
+- ``spectrum`` (3 x 10): log radial power spectrum of each channel of d in 10 log-spaced bands
+  from 1/80 to 0.5 cycles/px: the texture's scales, whatever its orientation.
+- ``lbp`` (10 + 18 + 18 + 18): rotation-invariant uniform local binary patterns (scikit-image,
+  ``method='uniform'``) of the grey difference at (P, R) = (8, 1), (16, 2), (16, 4) and (16, 2)
+  at half resolution, as square-rooted histograms (Hellinger geometry).
+- ``structure`` (3 x 2): structure-tensor energy (log) and coherence (0 = isotropic,
+  1 = one orientation) at integration scales 1, 3 and 8 px: how directional the texture is.
+
+``describe`` returns a (DIM,) float64 vector; ``describe_touch`` averages it over a touch's
+contact frames (the strongest one plus ``Touch.extra``).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from skimage.feature import local_binary_pattern
+
+from .errors import TactexError
+from .preprocess import validate_frame
+from .touch import Touch, as_touch
+
+BORDER = 16                                   # px cropped from every side (dark rim)
+N_BANDS = 10
+BAND_EDGES = np.geomspace(1.0 / 80.0, 0.5, N_BANDS + 1)   # cycles/px
+LBP_SCALES = ((8, 1, 1), (16, 2, 1), (16, 4, 1), (16, 2, 2))  # (points, radius, downscale)
+STRUCTURE_SCALES = (1.0, 3.0, 8.0)           # px
+PARTS = {"intensity": 6, "spectrum": 3 * N_BANDS,
+         "lbp": sum(p + 2 for p, _, _ in LBP_SCALES), "structure": 2 * len(STRUCTURE_SCALES)}
+DIM = sum(PARTS.values())
+
+
+def part_slices() -> dict[str, slice]:
+    """Where each part lies in the descriptor vector."""
+    out, i = {}, 0
+    for name, n in PARTS.items():
+        out[name] = slice(i, i + n)
+        i += n
+    return out
+
+
+def contact_difference(frame: np.ndarray, no_contact: np.ndarray | None) -> np.ndarray:
+    """(240, 320, 3) uint8 frames -> (240 - 2B, 320 - 2B, 3) float32 difference, mean removed."""
+    c = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 0.8)
+    if no_contact is None:
+        r = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 12.0)
+    else:
+        r = cv2.GaussianBlur(no_contact.astype(np.float32), (0, 0), 0.8)
+    d = (c - r)[BORDER:-BORDER, BORDER:-BORDER]
+    return d - d.reshape(-1, 3).mean(axis=0)
+
+
+def _radial_bands(img: np.ndarray, radius: np.ndarray, window: np.ndarray) -> np.ndarray:
+    """(H, W) float -> (N_BANDS,) log mean power per radial frequency band."""
+    p = np.abs(np.fft.fft2((img - img.mean()) * window)) ** 2
+    out = np.empty(N_BANDS)
+    for k in range(N_BANDS):
+        m = (radius >= BAND_EDGES[k]) & (radius < BAND_EDGES[k + 1])
+        out[k] = np.log(p[m].mean() + 1e-6)
+    return out
+
+
+def _lbp_hist(grey_u8: np.ndarray, points: int, radius: int) -> np.ndarray:
+    codes = local_binary_pattern(grey_u8, points, radius, method="uniform").astype(np.int64)
+    h = np.bincount(codes.ravel(), minlength=points + 2).astype(np.float64)
+    return np.sqrt(h / h.sum())
+
+
+def _structure(grey: np.ndarray, sigma: float) -> tuple[float, float]:
+    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
+    jxx = cv2.GaussianBlur(gx * gx, (0, 0), sigma)
+    jyy = cv2.GaussianBlur(gy * gy, (0, 0), sigma)
+    jxy = cv2.GaussianBlur(gx * gy, (0, 0), sigma)
+    tr = jxx + jyy
+    aniso = np.sqrt((jxx - jyy) ** 2 + 4.0 * jxy ** 2)
+    return float(np.log(tr.mean() + 1e-6)), float(aniso.sum() / (tr.sum() + 1e-6))
+
+
+_GEOMETRY: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _geometry(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Radial frequency [cycles/px] of every FFT bin and the Hann window, cached per shape."""
+    if (h, w) not in _GEOMETRY:
+        fy = np.fft.fftfreq(h)[:, None]
+        fx = np.fft.fftfreq(w)[None, :]
+        _GEOMETRY[(h, w)] = (np.sqrt(fx ** 2 + fy ** 2), np.outer(np.hanning(h), np.hanning(w)))
+    return _GEOMETRY[(h, w)]
+
+
+def describe(frame: np.ndarray, no_contact: np.ndarray | None = None) -> np.ndarray:
+    """(DIM,) float64 descriptor of one contact frame (see the module docstring)."""
+    frame = validate_frame(frame, "touch frame")
+    if no_contact is not None:
+        no_contact = validate_frame(no_contact, "no-contact frame")
+    d = contact_difference(frame, no_contact)
+    mag = np.sqrt((d ** 2).sum(axis=-1))
+    grey = d.mean(axis=-1)
+    q = np.percentile(mag, [50, 75, 90, 99])
+    feats = [np.log(q + 1e-3), np.log([mag.mean() + 1e-3, mag.std() + 1e-3])]
+    radius, window = _geometry(*grey.shape)
+    feats += [_radial_bands(d[..., ch], radius, window) for ch in range(3)]
+    smooth = cv2.GaussianBlur(grey, (0, 0), 1.0)
+    u8 = np.clip(smooth * 4.0 + 128.0, 0, 255).astype(np.uint8)
+    for points, rad, down in LBP_SCALES:
+        img = u8 if down == 1 else cv2.resize(u8, None, fx=1.0 / down, fy=1.0 / down,
+                                              interpolation=cv2.INTER_AREA)
+        feats.append(_lbp_hist(img, points, rad))
+    feats.append(np.array([v for s in STRUCTURE_SCALES for v in _structure(grey, s)]))
+    out = np.concatenate([np.asarray(f, dtype=np.float64).ravel() for f in feats])
+    if out.shape != (DIM,) or not np.all(np.isfinite(out)):
+        raise TactexError("texture descriptor: non-finite or mis-sized result")
+    return out
+
+
+def describe_touch(touch: "Touch | np.ndarray", max_frames: int = 1) -> np.ndarray:
+    """(DIM,) mean descriptor over up to ``max_frames`` contact frames of one touch."""
+    t = as_touch(touch)
+    frames = [t.frame]
+    if t.extra is not None and max_frames > 1:
+        frames += list(t.extra[:max_frames - 1])
+    return np.mean([describe(f, t.no_contact) for f in frames], axis=0)

@@ -1,0 +1,33 @@
+"""What one touch delivers: the contact frame, the sensor's no-contact frame, more contact frames.
+
+Every touch source returns a ``Touch``: the replay source (a press video holds its no-contact
+frames at the start and tens of in-contact frames), the simulator (it renders the same sensor
+without contact) and the ROS explorer (``tactex/Touch`` carries ``no_contact_image``). Frames are
+uint8 RGB (240, 320, 3). A bare frame (numpy array) is accepted wherever a Touch is, as a touch
+without a no-contact frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Touch:
+    """One press of one platform.
+
+    ``frame``: the strongest-contact frame (240, 320, 3) uint8 RGB.
+    ``no_contact``: the same sensor without contact (240, 320, 3) uint8 RGB, or None.
+    ``extra``: further in-contact frames of the same press (K, 240, 320, 3), or None.
+    """
+
+    frame: np.ndarray
+    no_contact: np.ndarray | None = None
+    extra: np.ndarray | None = None
+
+
+def as_touch(touch: "Touch | np.ndarray") -> Touch:
+    """A Touch as it is, or a bare frame wrapped as a Touch without a no-contact frame."""
+    return touch if isinstance(touch, Touch) else Touch(frame=touch)
