@@ -148,6 +148,7 @@ class RoundRecord:
     grad_norm: float = float("nan")  # median gradient norm this round
     cpu_s: float = float("nan")   # CPU time of the decision, all threads of this process [s]
     #                               (robust to other processes sharing the machine)
+    reference_touches: int = 1    # touches of the reference when deciding
 
     @property
     def decision_s(self) -> float:
@@ -343,7 +344,8 @@ class TrialEngine:
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
             predictive_entropy=predictive_entropy(probs), train_s=stats.seconds + extra_s,
             score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
-            touches=self.touches.tolist(), model=self.learner.model_name,
+            touches=self.touches.tolist(), reference_touches=self.reference_touches,
+            model=self.learner.model_name,
             input_size=self.learner.cfg.input_size, escalation=escalation,
             heldout=list(self._pending_heldout), degenerate=degenerate,
             skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm,

@@ -142,8 +142,10 @@ class ReplayTrial:
         self.source = source
         self.platform_classes = list(platform_classes)
         rng = np.random.default_rng([seed, 11])
+        # sorted: a set's order changes between processes (string hashing is salted), and the
+        # draws must not (same seed -> same presses, in every process)
         self._order = {c: list(rng.permutation(len(source.presses(c))))
-                       for c in set(platform_classes)}
+                       for c in sorted(set(platform_classes))}
         self._used: dict[str, list[int]] = {c: [] for c in set(platform_classes)}
         self._reference_used: set[int] = set()
         self.log: list[tuple[int, str]] = []   # (platform, file) per touch

@@ -1,0 +1,354 @@
+"""``tactex experiment real``: accuracy against touches on real presses, class-disjoint.
+
+Every default of tactex is justified by this command on recorded real presses (a replay folder,
+e.g. ``../shared/datasets/octopi-dev``); the simulator is a second opinion.
+
+Scenes: 1 reference + C comparisons drawn from a set of classes with ``cli.assign_platforms``
+(the same draw as ``tactex trial --seed S``), the same scenes for every setting (paired).
+Each setting runs every scene *without* a stop rule up to ``--budget`` touches after the
+baseline and records the belief after every touch. From that one run:
+
+- accuracy after k touches (k = 0 .. budget) with Wilson 95 % intervals;
+- for every stop threshold theta in ``--thresholds``: the trial stops at the first decision
+  whose belief reaches theta (or at the budget); accuracy at the stop, touches after the
+  baseline until the stop (mean), wrong-stop rate (stopped confident and wrong);
+- decision time (median over all decisions) and the share of touches spent on the platform the
+  belief favoured at that moment ("believed").
+
+The policy's choices do not depend on theta, so the sweep over theta is exact, not re-run.
+
+Class-disjoint protocol (``--folds K``, K >= 2): the classes are split into K folds (seeded). For
+fold k, ``--scenes`` scenes are drawn from the other folds' classes (*choose* scenes) and as many
+from fold k's classes (*report* scenes). On the choose scenes, every (setting, theta) pair is
+scored; the pair with the highest accuracy at the stop whose mean touches after the baseline are
+<= ``--target-touches`` wins (ties: fewer touches). That pair is then measured on the report
+scenes. The figure to trust pools the report scenes of all folds: classes never used for
+choosing. Each setting is also reported at its own chosen theta, with exact McNemar tests paired
+with the chosen setting on the same report scenes.
+
+Output folder: ``config.json``, ``runs.json`` (per scene and setting: classes, the belief curve),
+``summary.json``, ``accuracy_vs_touches.png``, ``pareto.png`` (accuracy at the stop against
+touches, every setting x threshold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..core.errors import TactexError
+from . import charts
+from .common import results_dir, write_json
+from .runner import TrialJob, default_workers, run_jobs
+from .stats import mcnemar_exact, wilson
+
+DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
+                    "variance=default:strategy=variance")
+DEFAULT_THRESHOLDS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 1.01)
+
+
+def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
+    """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
+
+    ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
+    import dataclasses
+
+    from ..core.config import PRESETS, LearnerConfig
+    label, sep, rest = text.partition("=")
+    if not sep or not label:
+        raise TactexError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+    pre, _, kv = rest.partition(":")
+    if pre not in PRESETS:
+        raise TactexError(f"--setting {text!r}: unknown preset {pre!r}; one of "
+                          f"{', '.join(PRESETS)}")
+    names = {f.name for f in dataclasses.fields(LearnerConfig)}
+    strategy, over = None, {}
+    for item in filter(None, kv.split(",")):
+        k, s2, v = item.partition("=")
+        if not s2 or (k not in names and k != "strategy"):
+            raise TactexError(f"--setting {text!r}: {item!r} is not key=value with key "
+                              f"'strategy' or a learner field")
+        if k == "strategy":
+            strategy = v
+        else:
+            over[k] = yaml.safe_load(v)
+    return label, pre, strategy, over
+
+
+def class_folds(classes: list[str], k: int, seed: int) -> list[list[str]]:
+    """``classes`` shuffled (seeded) and split into ``k`` folds of near-equal size."""
+    if k < 2:
+        return [list(classes)]
+    order = [classes[i] for i in np.random.default_rng([seed, 41]).permutation(len(classes))]
+    return [sorted(order[i::k]) for i in range(k)]
+
+
+def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> list[list[str]]:
+    """``n`` scenes [reference, comparisons...] from ``classes`` (seeds seed0 ..)."""
+    from ..cli import assign_platforms
+    if len(classes) < comparisons:
+        raise TactexError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
+    return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
+
+
+def curve(res: dict) -> dict:
+    """A runner result -> the belief after every decision (touches after the baseline)."""
+    recs = res["rounds"] + ([res["final"]] if res.get("final") else [])
+    base = len(res["classes"])
+    truth = res["truth_index"]
+    out = {"extra": [], "correct": [], "conf": [], "decision_s": [], "believed": 0,
+           "touched": 0, "error": res.get("error")}
+    prev = None
+    for r in recs:
+        probs = np.asarray(r["probs"])
+        out["extra"].append(int(sum(r["touches"]) + r.get("reference_touches", 1) - base))
+        out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
+        out["conf"].append(float(probs.max()))
+        out["decision_s"].append(float(r["train_s"] + r["score_s"] + r["choose_s"]))
+        if prev is not None and prev["platform"] not in (None, "reference", 0):
+            out["touched"] += 1
+            chosen = prev["platform"]
+            idx = int(chosen[1:]) if isinstance(chosen, str) else int(chosen)
+            out["believed"] += int(idx == int(np.argmax(prev["probs"])) + 1)
+        prev = r
+    return out
+
+
+def at_budget(c: dict, k: int) -> bool:
+    """Correct after at most ``k`` touches after the baseline (the last decision <= k)."""
+    idx = max(i for i, e in enumerate(c["extra"]) if e <= k) if c["extra"] else None
+    return bool(idx is not None and c["correct"][idx])
+
+
+def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
+    """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
+    for i, conf in enumerate(c["conf"]):
+        if conf >= theta:
+            return c["correct"][i], c["extra"][i], True
+    return c["correct"][-1], c["extra"][-1], False
+
+
+def score_pairs(curves: dict[str, list[dict]], thresholds: list[float]) -> list[dict]:
+    """Every (setting, theta): accuracy at the stop, mean touches, wrong-stop rate, n."""
+    rows = []
+    for label, cs in curves.items():
+        for th in thresholds:
+            st = [at_stop(c, th) for c in cs]
+            acc = float(np.mean([s[0] for s in st]))
+            rows.append({"setting": label, "theta": th, "accuracy": acc,
+                         "touches": float(np.mean([s[1] for s in st])),
+                         "wrong_stop": float(np.mean([s[2] and not s[0] for s in st])),
+                         "n": len(st)})
+    return rows
+
+
+def choose(rows: list[dict], target: float, settings: list[str] | None = None) -> dict:
+    """Best (setting, theta) row: highest accuracy with mean touches <= target; ties fewer
+    touches. If no row meets the target, the one with the fewest touches."""
+    cand = [r for r in rows if settings is None or r["setting"] in settings]
+    ok = [r for r in cand if r["touches"] <= target]
+    if not ok:
+        return min(cand, key=lambda r: (r["touches"], -r["accuracy"]))
+    return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
+
+
+def _jobs(scenes: list[list[str]], settings: list[tuple], args, tag: str) -> list[TrialJob]:
+    jobs = []
+    for i, classes in enumerate(scenes):
+        for label, pre, strategy, over in settings:
+            from ..core.engine import trial_preset
+            st = strategy or trial_preset(pre).strategy
+            jobs.append(TrialJob(source=args.source, seed=args.seed + i, strategy=st,
+                                 rounds=args.budget, stop_confidence=0.0, preset=pre,
+                                 overrides=over, platform_classes=classes,
+                                 comparisons=args.comparisons, catch_errors=True,
+                                 no_contact_reference=False,
+                                 trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
+    return jobs
+
+
+def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+    res = run_jobs(_jobs(scenes, settings, args, tag), workers=args.workers,
+                   description=f"{tag} scenes x settings")
+    out: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    for r in res:
+        c = curve(r)
+        c["classes"] = r["classes"]
+        out[r["job"]["tags"]["setting"]].append(c)
+    return out
+
+
+def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
+    """Per setting: accuracy after k touches with intervals, decision time, believed share."""
+    out = {}
+    for label, cs in curves.items():
+        n = len(cs)
+        acc = []
+        for k in range(budget + 1):
+            s = sum(at_budget(c, k) for c in cs)
+            lo, hi = wilson(s, n)
+            acc.append({"touches": k, "accuracy": s / n, "ci95": [lo, hi]})
+        dec = [d for c in cs for d in c["decision_s"]]
+        touched = sum(c["touched"] for c in cs)
+        out[label] = {"scenes": n, "accuracy_vs_touches": acc,
+                      "decision_s_median": statistics.median(dec) if dec else None,
+                      "believed_share": (sum(c["believed"] for c in cs) / touched
+                                         if touched else None),
+                      "errors": sum(1 for c in cs if c["error"])}
+    return out
+
+
+def run(args: argparse.Namespace) -> dict:
+    from ..sources import open_source
+    settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
+    labels = [s[0] for s in settings]
+    if len(set(labels)) != len(labels):
+        raise TactexError(f"--setting labels must be unique, got {labels}")
+    src = open_source(args.source)
+    classes = sorted(getattr(src, "classes"))
+    thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
+    out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
+    folds = class_folds(classes, args.folds, args.seed)
+    report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    fold_info = []
+    for k, fold in enumerate(folds):
+        if args.folds >= 2:
+            rest = sorted(set(classes) - set(fold))
+            choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
+                                             args.seed + 1000 * (k + 1)),
+                                 settings, args, f"choose{k}-")
+            rows = score_pairs(choose_curves, thresholds)
+            best = choose(rows, args.target_touches)
+            per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
+        else:
+            rest, rows, best, per_setting = [], [], None, {}
+        rep = _run(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
+                   settings, args, f"report{k}-")
+        for lab, cs in rep.items():
+            report_curves[lab].extend(cs)
+        fold_info.append({"fold": k, "report_classes": fold, "choose_classes": rest,
+                          "chosen": best, "chosen_per_setting": per_setting,
+                          "choose_rows": rows, "report_rows": score_pairs(rep, thresholds),
+                          "report_chosen": _report(rep, best, per_setting)})
+    summary = {"source": args.source, "comparisons": args.comparisons, "budget": args.budget,
+               "folds": fold_info, "settings": {s[0]: {"preset": s[1], "strategy": s[2],
+                                                       "overrides": s[3]} for s in settings},
+               "per_setting": summarise(report_curves, args.budget),
+               "report_rows": score_pairs(report_curves, thresholds)}
+    if args.folds >= 2:
+        summary["held_out"] = _pool_chosen(fold_info, labels)
+    write_json(out / "runs.json", report_curves)
+    write_json(out / "summary.json", summary)
+    _charts(out, summary, labels, args.budget)
+    _print(summary, labels, args)
+    return summary
+
+
+def _report(curves: dict[str, list[dict]], best: dict | None,
+            per_setting: dict[str, dict]) -> dict:
+    """Report-scene outcomes (per scene) of each setting at its chosen theta."""
+    out = {}
+    for lab, cs in curves.items():
+        th = per_setting.get(lab, {}).get("theta", 1.01)
+        out[lab] = {"theta": th, "outcomes": [at_stop(c, th) for c in cs]}
+    if best is not None:
+        out["__chosen__"] = {"setting": best["setting"], "theta": best["theta"],
+                             "outcomes": [at_stop(c, best["theta"])
+                                          for c in curves[best["setting"]]]}
+    return out
+
+
+def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
+    """Pool the report scenes of every fold: the chosen pair and each setting at its theta."""
+    def pooled(key: str) -> dict:
+        oc = [o for f in fold_info for o in f["report_chosen"][key]["outcomes"]]
+        s = sum(o[0] for o in oc)
+        return {"accuracy": s / len(oc), "ci95": list(wilson(s, len(oc))), "n": len(oc),
+                "touches_mean": float(np.mean([o[1] for o in oc])),
+                "wrong_stop": float(np.mean([o[2] and not o[0] for o in oc])),
+                "correct": [bool(o[0]) for o in oc]}
+    out = {"chosen": pooled("__chosen__"),
+           "chosen_pairs": [(f["chosen"]["setting"], f["chosen"]["theta"]) for f in fold_info],
+           "settings": {lab: pooled(lab) for lab in labels}}
+    base = out["chosen"]["correct"]
+    for lab in labels:
+        out["settings"][lab]["mcnemar_vs_chosen"] = mcnemar_exact(
+            base, out["settings"][lab]["correct"])
+    return out
+
+
+def _charts(out: Path, summary: dict, labels: list[str], budget: int) -> None:
+    series = {}
+    for lab in labels:
+        acc = summary["per_setting"][lab]["accuracy_vs_touches"]
+        series[lab] = ([a["accuracy"] for a in acc], None)
+    charts.lines(out / "accuracy_vs_touches.png", list(range(budget + 1)), series,
+                 "touches after the baseline", "accuracy (report scenes)",
+                 "real presses: accuracy against touches (no stop rule)", ylim=(0.0, 1.02))
+    plt = charts._plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for lab in labels:
+        rows = [r for r in summary["report_rows"] if r["setting"] == lab]
+        ax.plot([r["touches"] for r in rows], [r["accuracy"] for r in rows], marker="o",
+                ms=3, label=lab)
+    ax.set_xlabel("touches after the baseline until the stop (mean)")
+    ax.set_ylabel("accuracy at the stop")
+    ax.set_title("stop threshold sweep (report scenes)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    charts._save(fig, out / "pareto.png")
+
+
+def _print(summary: dict, labels: list[str], args) -> None:
+    print(f"real presses: {args.source}, {args.comparisons} comparisons, budget {args.budget}")
+    for lab in labels:
+        p = summary["per_setting"][lab]
+        acc = p["accuracy_vs_touches"]
+        ks = [k for k in (0, 1, 3, 5, 10, args.budget) if k <= args.budget]
+        print(f"  {lab:>14}: " + "  ".join(f"+{k}: {acc[k]['accuracy']:.3f}" for k in ks) +
+              f"  decision {p['decision_s_median']:.4f} s  believed-share "
+              f"{p['believed_share'] if p['believed_share'] is None else round(p['believed_share'], 2)}")
+    if "held_out" in summary:
+        h = summary["held_out"]["chosen"]
+        print(f"  held-out classes, chosen per fold {summary['held_out']['chosen_pairs']}: "
+              f"accuracy {h['accuracy']:.3f} [{h['ci95'][0]:.3f}, {h['ci95'][1]:.3f}] "
+              f"n={h['n']}, touches after baseline {h['touches_mean']:.2f}, wrong stops "
+              f"{h['wrong_stop']:.3f}")
+        for lab, s in summary["held_out"]["settings"].items():
+            print(f"    {lab:>14} at its theta: {s['accuracy']:.3f} "
+                  f"[{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] touches {s['touches_mean']:.2f}"
+                  f"  McNemar vs chosen p={s['mcnemar_vs_chosen']['p']:.3g}")
+
+
+def register(esub: argparse._SubParsersAction) -> None:
+    p = esub.add_parser("real", help="accuracy against touches on real presses "
+                                     "(class-disjoint folds)")
+    p.add_argument("--source", required=True, help="replay:DIR of recorded presses")
+    p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
+    p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
+    p.add_argument("--folds", type=int, default=3, help="class folds (1 = no choosing)")
+    p.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] (repeat); default: "
+                        + " ".join(DEFAULT_SETTINGS))
+    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--target-touches", type=float, default=5.0,
+                   help="choose the most accurate (setting, theta) with at most this many "
+                        "touches after the baseline on average")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=default_workers())
+    p.add_argument("--out")
+
+    def func(args: argparse.Namespace) -> int:
+        for name in ("comparisons", "scenes", "budget", "folds"):
+            if getattr(args, name) < (2 if name == "comparisons" else 1):
+                raise TactexError(f"--{name} too small: {getattr(args, name)}")
+        run(args)
+        return 0
+
+    p.set_defaults(func=func)
