@@ -50,7 +50,7 @@ def generate_launch_description() -> LaunchDescription:
     args = [("sim", "false", "mock arm + mock image instead of the hardware"),
             ("rviz", "false", "start rviz2 with config/tactex.rviz"),
             ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)"),
-            ("strategy", "variance", "variance | entropy | random | yoto | bald"),
+            ("strategy", "", "'' (the preset's) | infogain | variance | entropy | random | yoto | bald"),
             ("model", "", "model variant ('' = the preset's; auto escalates)"),
             ("rounds", "20", "decisions that request a touch"),
             ("seed", "0", "learner / strategy seed"),

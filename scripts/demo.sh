@@ -6,4 +6,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p runs
 exec .venv/bin/tactex graph run --sim --rounds "${DEMO_ROUNDS:-5}" \
-  --strategy "${DEMO_STRATEGY:-variance}" --seed 0 --record-dir runs/trials
+  ${DEMO_STRATEGY:+--strategy "$DEMO_STRATEGY"} --seed 0 --record-dir runs/trials

@@ -103,15 +103,22 @@ def normal_force(force: Vector3, sign: float = 1.0) -> float:
 
 # ---------------------------------------------------------------------- exploration state
 def state_msg(rec, *, trial_id: str, strategy: str, platform_ids: list[str],
-              reference_touches: int, done: bool, prediction: str, t: float, frame_id: str):
-    """A core ``RoundRecord`` -> ``tactex/ExplorationState`` (platform_ids: comparisons)."""
+              reference_touches: int, done: bool, prediction: str, t: float, frame_id: str,
+              reference_id: str = "reference"):
+    """A core ``RoundRecord`` -> ``tactex/ExplorationState`` (platform_ids: comparisons).
+
+    ``rec.platform`` 0 (the reference touched again) becomes ``reference_id``; a strategy that
+    also scored the reference ((C + 1,) scores) reports the comparisons' scores as uncertainty.
+    """
     from tactex.msg import ExplorationState
-    nxt = "" if rec.platform is None else platform_ids[rec.platform - 1]
+    nxt = ("" if rec.platform is None else reference_id if rec.platform == 0
+           else platform_ids[rec.platform - 1])
+    scores = list(rec.scores or [0.0] * len(rec.probs))[-len(rec.probs):]
     return ExplorationState(
         header=Header(stamp=stamp(t), frame_id=frame_id), trial_id=trial_id,
         round=int(rec.round), strategy=strategy, model=rec.model,
         platform_ids=list(platform_ids), belief=[float(v) for v in rec.probs],
-        uncertainty=[float(v) for v in (rec.scores or [0.0] * len(rec.probs))],
+        uncertainty=[float(v) for v in scores],
         touches=[int(v) for v in rec.touches], reference_touches=int(reference_touches),
         next_platform=nxt, train_s=float(rec.train_s), score_s=float(rec.score_s),
         decision_s=float(rec.decision_s), done=bool(done), prediction=prediction)

@@ -28,6 +28,8 @@ def _learner_config(args: argparse.Namespace):
         over["model"] = args.model
     if getattr(args, "weights", None):
         over["weights"] = args.weights
+    if getattr(args, "representation", None):
+        over.update(representation=args.representation, match_units="fixed")
     return preset(args.config, **over)
 
 
@@ -96,6 +98,47 @@ def cmd_trial(args: argparse.Namespace) -> int:
     return 0
 
 
+def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
+                        seed: int = 0) -> dict[str, np.ndarray]:
+    """{class: (n, D) descriptors} of a library: every press of ``replay:DIR``, or
+    ``sim_presses`` simulated presses of every catalogue fabric for ``sim``."""
+    from .core.texture import describe_touch
+    from .core.touch import Touch
+    from .sources import open_source
+    src = open_source(spec)
+    out = {}
+    if spec.startswith("replay:"):
+        for cls in src.classes:
+            xs = []
+            for path in src.presses(cls):
+                try:
+                    xs.append(describe_touch(src.touch(path), frames))
+                except TactexError as exc:
+                    print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
+            if xs:
+                out[f"{spec}/{cls}"] = np.stack(xs)
+        return out
+    rng = np.random.default_rng([seed, 43])
+    for cls in src.classes:
+        nc = src.renderer.no_contact(rng)
+        out[f"{spec}/{cls}"] = np.stack([describe_touch(Touch(src.press(cls, rng), nc), frames)
+                                         for _ in range(sim_presses)])
+    return out
+
+
+def cmd_prepare(args: argparse.Namespace) -> int:
+    from .core import representation
+    desc: dict[str, np.ndarray] = {}
+    for spec in args.library:
+        desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed))
+    rep = representation.fit(desc, shrink=args.shrink)
+    path = representation.save(rep, args.out)
+    print(f"representation from {rep.classes} classes, {rep.presses} presses "
+          f"({', '.join(args.library)}) -> {path}; use it with "
+          f"`tactex trial ... --representation {path}`")
+    return 0
+
+
 def cmd_weights_inspect(args: argparse.Namespace) -> int:
     from .core.models import build_model, load_weights, read_checkpoint
     state = read_checkpoint(args.path)
@@ -134,6 +177,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"one of {', '.join(PRESETS)} (default: texture descriptor, "
                         "information-gain touches, stop at belief 0.95)")
     t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
+    t.add_argument("--representation",
+                   help="representation file made by `tactex prepare` (descriptor model)")
     t.add_argument("--rounds", type=int, help="most decisions that request a touch after the "
                                            "baseline (default 20)")
     t.add_argument("--stop-confidence", type=float,
@@ -143,6 +188,18 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=cmd_trial)
+
+    pr = sub.add_parser("prepare", help="build a representation (descriptor metric) from a "
+                                        "library of presses of other materials")
+    pr.add_argument("--library", action="append", required=True,
+                    help="replay:DIR of recorded presses, or sim (repeat to combine)")
+    pr.add_argument("--frames", type=int, default=1, help="contact frames per press")
+    pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
+    pr.add_argument("--shrink", type=float, default=1.0,
+                    help="ridge added to the within-class covariance (standardised units)")
+    pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--out", required=True, help="representation file to write (.pt)")
+    pr.set_defaults(func=cmd_prepare)
 
     w = sub.add_parser("weights", help="checkpoint tools")
     wsub = w.add_subparsers(dest="wcmd", required=True)

@@ -66,18 +66,21 @@ class MotionSettings:
 @dataclass
 class ExplorerSettings:
     scene_file: str = param("", "scene YAML (platform ids and order)")
-    strategy: str = param("variance", "exploration strategy", choices=tuple(STRATEGIES))
+    strategy: str = param("", "exploration strategy ('' = the preset's: infogain for default, "
+                              "variance for cnn and seed_faithful)",
+                          choices=("",) + tuple(STRATEGIES))
     config: str = param("default", "learner preset", choices=tuple(PRESETS))
     model: str = param("", "model variant override ('' = the preset's)",
-                       choices=("",) + MODEL_NAMES + ("auto",))
+                       choices=("", "descriptor") + MODEL_NAMES + ("auto",))
     weights: str = param("", "torchvision-format checkpoint for inception_v3 ('' = none)")
     drift_norm: bool = param(False, "remove each touch's mean colour before learning: turn on "
                                     "where the lighting drifts between touches (measured: it "
                                     "restores accuracy under drift in simulation, and cost 2 of "
                                     "24 replayed octopi-dev scenes, docs/speed_stability.md)")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
-    stop_confidence: float = param(0.0, "stop early at this mean probability (0 = never)",
-                                   0.0, 1.0)
+    stop_confidence: float = param(-1.0, "stop once the belief in one platform reaches this "
+                                         "(0 = never; < 0 = the preset's: 0.95 for default)",
+                                   -1.0, 1.0)
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")
     trial_id: str = param("", "record sub-folder ('' = time stamp)")

@@ -97,6 +97,13 @@ class LearnerConfig:
                                      1e-3, 10.0)
     match_prior_strength: float = param(4.0, "model 'descriptor': weight of that prior in "
                                              "pseudo-touches", 1e-3, 1000.0)
+    representation: str = param("", "model 'descriptor': a representation file made by "
+                                    "`tactex prepare` (a metric learnt from presses of other "
+                                    "materials; '' = none)")
+    match_units: str = param("scene", "model 'descriptor': units of the belief: 'scene' (each "
+                                      "dimension divided by its spread over this scene's "
+                                      "platforms) or 'fixed' (as given, e.g. by a "
+                                      "representation)", choices=("scene", "fixed"))
     match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
                                            "(calibrates the belief)", 1e-4, 10.0)
 

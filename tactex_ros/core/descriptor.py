@@ -18,11 +18,22 @@ from .config import LearnerConfig, validate
 from .errors import TactexError
 from .learner import TrainStats
 from .match import MatchModel
+from .representation import Representation, load
 from .texture import describe_touch
 from .touch import Touch
 
 #: Posterior draws of the belief returned by ``reference_probs`` (the (T, C) table).
 DRAWS = 32
+
+
+_REPRESENTATIONS: dict[str, Representation] = {}
+
+
+def _load_representation(path: str) -> Representation:
+    """A representation file, loaded once per process."""
+    if path not in _REPRESENTATIONS:
+        _REPRESENTATIONS[path] = load(path)
+    return _REPRESENTATIONS[path]
 
 
 class DescriptorLearner:
@@ -34,13 +45,16 @@ class DescriptorLearner:
         self.cfg = validate(cfg)
         self.num_classes = num_classes
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
-                                cfg.match_temperature)
+                                cfg.match_temperature, scene_units=cfg.match_units == "scene")
+        self.representation: Representation | None = (
+            _load_representation(cfg.representation) if cfg.representation else None)
         self._rng = np.random.default_rng([int(seed), 31])
         self.rounds_trained = 0
         self._heldout: np.ndarray | None = None
 
     def _describe(self, touch: Touch) -> np.ndarray:
-        return describe_touch(touch, self.cfg.descriptor_frames)
+        x = describe_touch(touch, self.cfg.descriptor_frames)
+        return x if self.representation is None else self.representation.apply(x)
 
     def add_touch(self, touch: Touch, label: int) -> np.ndarray:
         """Store the descriptor of a comparison touch under ``label`` (0..C-1); returns it."""

@@ -5,7 +5,8 @@ The question of a trial is "which of the C comparison platforms holds the refere
 touch, reference touches included:
 
 - Units: each descriptor dimension j is divided by the scene's spread s_j (std over the C + 1
-  platforms' mean descriptors, plus a small floor), so no scale learned elsewhere is needed.
+  platforms' mean descriptors, plus a small floor), so no scale learned elsewhere is needed
+  (``scene_units=False``: descriptors as given, e.g. whitened by a prepared representation).
 - Platform p's touches are draws x ~ N(mu_p, diag(sigma^2)); sigma_j^2 is the pooled within-
   platform variance of this trial's repeated touches, shrunk toward ``prior_scale``^2 with the
   weight of ``prior_strength`` pseudo-observations: sigma_j^2 = (nu0 kappa^2 + SS_j) / (nu0 + dof).
@@ -51,7 +52,7 @@ class MatchModel:
 
     def __init__(self, n_comparisons: int, prior_scale: float = 0.5,
                  prior_strength: float = 4.0, temperature: float = 0.05,
-                 scale_floor: float = 0.05) -> None:
+                 scale_floor: float = 0.05, scene_units: bool = True) -> None:
         if n_comparisons < 2:
             raise TactexError(f"MatchModel needs >= 2 comparisons, got {n_comparisons}")
         for name, v in (("prior_scale", prior_scale), ("prior_strength", prior_strength),
@@ -63,6 +64,7 @@ class MatchModel:
         self.nu0 = float(prior_strength)
         self.beta = float(temperature)
         self.floor = float(scale_floor)
+        self.scene_units = bool(scene_units)
         self.samples_by_platform: list[list[np.ndarray]] = [[] for _ in range(self.C + 1)]
 
     # ------------------------------------------------------------------ data
@@ -100,8 +102,11 @@ class MatchModel:
         """``stats`` plus the (D,) scene scale that defines the units."""
         self._check_ready()
         means = np.stack([np.mean(s, axis=0) for s in self.samples_by_platform])
-        spread = means.std(axis=0)
-        scale = np.sqrt(spread ** 2 + (self.floor * (np.median(spread) + _EPS)) ** 2) + _EPS
+        if self.scene_units:
+            spread = means.std(axis=0)
+            scale = np.sqrt(spread ** 2 + (self.floor * (np.median(spread) + _EPS)) ** 2) + _EPS
+        else:
+            scale = np.ones(means.shape[1])
         ss = np.zeros(means.shape[1])
         dof = 0
         for s, m in zip(self.samples_by_platform, means):

@@ -22,8 +22,9 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
 from ..core.config import preset
-from ..core.engine import TouchFailed, TrialConfig, TrialEngine
+from ..core.engine import TouchFailed, TrialEngine, trial_preset
 from ..core.errors import TactexError
+from ..core.touch import Touch
 from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
 from ..record import TrialRecord
 from ..scene import load_scene
@@ -51,8 +52,9 @@ class ExplorerNode(TactexNode):
         if s.weights:
             over["weights"] = s.weights
         cfg = preset(s.config, **over)
-        tcfg = TrialConfig(strategy=s.strategy, rounds=s.rounds,
-                           stop_confidence=s.stop_confidence)
+        tcfg = trial_preset(s.config, strategy=s.strategy or None, rounds=s.rounds,
+                            stop_confidence=None if s.stop_confidence < 0 else
+                            s.stop_confidence)
         self.engine = TrialEngine(len(self.ids) - 1, cfg, tcfg, seed=s.seed,
                                   platform_ids=self.ids)
         self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
@@ -80,8 +82,9 @@ class ExplorerNode(TactexNode):
         self.marker_pub.publish(adapter.markers(self.scene, self.last_state, self._now()))
 
     def _publish_state(self, rec, done: bool, prediction: str) -> None:
-        msg = adapter.state_msg(rec, trial_id=self.trial_id, strategy=self.settings.strategy,
-                                platform_ids=self.ids[1:],
+        msg = adapter.state_msg(rec, trial_id=self.trial_id,
+                                strategy=self.engine.trial_cfg.strategy,
+                                platform_ids=self.ids[1:], reference_id=self.ids[0],
                                 reference_touches=self.engine.reference_touches, done=done,
                                 prediction=prediction, t=self._now(),
                                 frame_id=self.scene.frame_id)
@@ -103,9 +106,9 @@ class ExplorerNode(TactexNode):
             time.sleep(0.01)
         return True
 
-    def _press(self, platform: int) -> np.ndarray:
+    def _press(self, platform: int) -> Touch:
         """The engine's ``touch_fn``: press ``platform`` (index), put the touch on disk, return
-        its image. A failed press (already retried by the motion node) or an unreadable image is
+        it (contact image and the sensor's no-contact frame). A failed press (already retried by the motion node) or an unreadable image is
         recorded and raised as ``TouchFailed(retry=False)``."""
         from tactex.action import Press
         pid = self.ids[platform]
@@ -138,24 +141,32 @@ class ExplorerNode(TactexNode):
             self.get_logger().warning(f"touch rejected: {exc}")
             raise TouchFailed(str(exc), retry=False) from exc
         self.record.add_touch(img, dict(meta, accepted=True))   # on disk before it is used
-        self._set_guard_reference(touch)
+        no_contact = self._no_contact(touch)
+        self._set_guard_reference(no_contact)
         self.image_pub.publish(touch.image)
-        return img
+        return Touch(frame=img, no_contact=no_contact)
+
+    def _no_contact(self, touch) -> np.ndarray | None:
+        """The touch's no-contact frame as an array (None when absent or unusable)."""
+        if not touch.no_contact_image.data:
+            return None
+        try:
+            return adapter.image_to_array(touch.no_contact_image, "no-contact frame")
+        except TactexError as exc:
+            self.get_logger().warning(f"no-contact frame unusable: {exc}")
+            return None
 
     def _on_rejected(self, platform: int, exc: TactexError) -> None:
         """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
         self.record.reject_touch(self.record.n_touches, str(exc))
         self.get_logger().warning(f"touch rejected: {exc}")
 
-    def _set_guard_reference(self, touch) -> None:
+    def _set_guard_reference(self, no_contact: np.ndarray | None) -> None:
         """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
-        guard = getattr(self.engine, "guard", None)
-        if guard is None or guard.has_reference or not touch.no_contact_image.data:
+        guard = self.engine.guard
+        if guard is None or guard.has_reference or no_contact is None:
             return
-        try:
-            guard.set_reference(adapter.image_to_array(touch.no_contact_image, "no-contact frame"))
-        except TactexError as exc:
-            self.get_logger().warning(f"no-contact frame unusable for the guard: {exc}")
+        guard.set_reference(no_contact)
 
     def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> None:
         self.record.add_touch(None, dict(meta, accepted=False, reason=reason,
@@ -189,12 +200,12 @@ class ExplorerNode(TactexNode):
         res = eng.run(self._press, on_round=on_round, on_rejected=self._on_rejected)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
-                   strategy=s.strategy, model=eng.learner.model_name, seed=s.seed)
+                   strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)
         self.result = out
         path = self.record.finish(out)
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
-                               f"{out['prediction']} after {out['touches']} touches; "
-                               f"record {path.parent}")
+                               f"{out['prediction']} after {out['touches']} touches "
+                               f"(stopped: {out['stop_reason']}); record {path.parent}")
 
 
 def main(args: list[str] | None = None) -> int:

@@ -23,7 +23,8 @@ pytestmark = pytest.mark.ros
 
 def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     from tactex.msg import ExplorationState
-    nodes = describe(True, explorer={"rounds": 2, "seed": 0, "record_dir": str(tmp_path),
+    nodes = describe(True, explorer={"rounds": 2, "stop_confidence": 0.0, "seed": 0,
+                                     "record_dir": str(tmp_path),
                                      "trial_id": "t1", "threads": 1})
     scene = load_scene(nodes[0].parameters["scene_file"])
     states = listener.collect(ExplorationState, "/tactex/state")
@@ -109,7 +110,8 @@ def test_press_faults(tmp_path: Path, listener) -> None:
 def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> None:
     """The mock camera shows no texture on some presses: the motion node sees no contact in the
     captured frames and retries the press; nothing blank reaches the learner; the trial ends."""
-    nodes = describe(True, explorer={"rounds": 1, "seed": 0, "record_dir": str(tmp_path),
+    nodes = describe(True, explorer={"rounds": 1, "stop_confidence": 0.0, "seed": 0,
+                                     "record_dir": str(tmp_path),
                                      "trial_id": "blank", "threads": 1},
                      mock_image={"fault_blank": 0.2, "seed": 3})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
@@ -126,7 +128,8 @@ def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None
     """The motion node lets blank captures through (min_contact_score 0): the core's contact
     guard refuses them in the explorer, which presses the same platform again at once; the
     rejected image stays on disk, marked, and the round is not lost."""
-    nodes = describe(True, explorer={"rounds": 1, "seed": 0, "record_dir": str(tmp_path),
+    nodes = describe(True, explorer={"rounds": 1, "stop_confidence": 0.0, "seed": 0,
+                                     "record_dir": str(tmp_path),
                                      "trial_id": "guard", "threads": 1},
                      mock_image={"fault_blank": 0.3, "seed": 3},
                      motion={"min_contact_score": 0.0})
