@@ -97,6 +97,9 @@ class LearnerConfig:
                                      1e-3, 10.0)
     match_prior_strength: float = param(4.0, "model 'descriptor': weight of that prior in "
                                              "pseudo-touches", 1e-3, 1000.0)
+    descriptor_no_contact: bool = param(True, "model 'descriptor': describe the contact minus "
+                                              "the sensor's no-contact frame when the touch has "
+                                              "one (off: against a blur of the contact frame)")
     representation: str = param("", "model 'descriptor': a representation file made by "
                                     "`tactex prepare` (a metric learnt from presses of other "
                                     "materials; '' = none)")

@@ -53,6 +53,8 @@ class DescriptorLearner:
         self._heldout: np.ndarray | None = None
 
     def _describe(self, touch: Touch) -> np.ndarray:
+        if not self.cfg.descriptor_no_contact:
+            touch = Touch(touch.frame, None, touch.extra)
         x = describe_touch(touch, self.cfg.descriptor_frames)
         return x if self.representation is None else self.representation.apply(x)
 

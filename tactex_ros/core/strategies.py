@@ -118,7 +118,8 @@ class InfoGainStrategy(Strategy):
         gain = getattr(model, "info_gain", None)
         if gain is None:
             raise TactexError("strategy 'infogain' needs the descriptor model (model "
-                              "'descriptor'); the CNN has no belief over the match to score")
+                              "'descriptor'); with a CNN model choose another strategy, e.g. "
+                              "--strategy variance")
         return gain(rng)
 
 
