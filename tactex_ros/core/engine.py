@@ -218,6 +218,10 @@ class TrialEngine:
         self.ladder = (parse_ladder(self.learner_cfg.auto_ladder, self.learner_cfg.input_size)
                        if self.learner_cfg.model == "auto"
                        else [(self.learner_cfg.model, self.learner_cfg.input_size)])
+        if self.strategy.includes_reference and self.learner_cfg.model != "descriptor":
+            raise TactexError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
+                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
+                              "another strategy, e.g. variance")
         self.stage = 0
         self.learner = self._make_learner(self.learner_cfg.model)
         self.rng = np.random.default_rng([seed, 7])

@@ -152,7 +152,6 @@ def test_reference_retouch_is_pressed_and_used():
 
 
 def test_infogain_needs_the_descriptor_model():
-    eng = TrialEngine(2, preset("cnn", input_size=32, steps=1), TrialConfig(
-        strategy="infogain", rounds=1), seed=0)
     with pytest.raises(TactexError, match="descriptor"):
-        eng.run(_touch_fn([0, 0, 2], 0))
+        TrialEngine(2, preset("cnn", input_size=32, steps=1),
+                    TrialConfig(strategy="infogain", rounds=1), seed=0)
