@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import platform
 import statistics
+import time
 
 import numpy as np
 import torch
@@ -38,9 +39,14 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
     cfg = preset(config, **over)
     eng = TrialEngine(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
                       seed=0)
-    eng.add_touch(0, frames[0])
-    for k in range(n_touches - 1):
-        eng.add_touch(1 + k % 4, frames[1 + k % (len(frames) - 1)])
+    add_s = []
+    for k in range(n_touches):
+        t0 = time.perf_counter()
+        if k == 0:
+            eng.add_touch(0, frames[0])
+        else:
+            eng.add_touch(1 + (k - 1) % 4, frames[1 + (k - 1) % (len(frames) - 1)])
+        add_s.append(time.perf_counter() - t0)
     scale = (preset(config).epochs / epochs_override) if epochs_override else 1.0
     times, train, score = [], [], []
     for _ in range(repeats):
@@ -49,7 +55,8 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
         score.append(rec.score_s)
         times.append(rec.train_s * scale + rec.score_s + rec.choose_s)
     return {"median_s": statistics.median(times), "train_median_s": statistics.median(train),
-            "score_median_s": statistics.median(score), "repeats": repeats, "scaled": scale}
+            "score_median_s": statistics.median(score), "repeats": repeats, "scaled": scale,
+            "add_touch_median_s": statistics.median(add_s)}
 
 
 def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 5,
@@ -58,12 +65,14 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
     """Measure, print a table, return ``{config: {str(n): median seconds}}`` plus details."""
     frames = _frames(8)
     out: dict = {c: {} for c in configs}
+    add: dict = {c: [] for c in configs}
     for n in touch_counts:
         for c in configs:
             ep = seed_epochs if c == "seed_faithful" else None
             reps = max(1, repeats // 2) if c == "seed_faithful" else repeats
             d = measure(c, n, reps, frames, ep)
             out[c][str(n)] = d["median_s"]
+            add[c].append(d["add_touch_median_s"])
     print(f"decision time per round, median [s]  (torch {torch.__version__}, "
           f"{torch.get_num_threads()} threads, {platform.processor() or platform.machine()})")
     last = configs[-1]
@@ -74,6 +83,9 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
         ratios = [v / vals[-1] if vals[-1] > 0 else float("inf") for v in vals[:-1]]
         print(f"{n:>8}  " + "  ".join(f"{v:>14.3f}" for v in vals) + "   " +
               "  ".join(f"{r:>19.1f}x" for r in ratios))
+    print("adding one touch (descriptor / rotated views), median [s]: " +
+          ", ".join(f"{c} {statistics.median(v):.3f}" for c, v in add.items()))
+    out["add_touch_median_s"] = {c: statistics.median(v) for c, v in add.items()}
     if "seed_faithful" in configs:
         print(f"seed_faithful: trained {seed_epochs} epoch(s) per round, training time scaled "
               f"x{preset('seed_faithful').epochs / seed_epochs:g} to its 10 epochs")

@@ -14,9 +14,10 @@ def test_bench_latency_json_shape(tmp_path, monkeypatch):
     assert main(["bench", "latency", "--touches", "5", "7", "--repeats", "2",
                  "--json", str(out)]) == 0
     d = json.loads(out.read_text())
-    assert set(d) == {"seed_faithful", "cnn", "default"}
-    for cfg in d.values():
-        assert set(cfg) == {"5", "7"} and all(v > 0 for v in cfg.values())
+    assert set(d) == {"seed_faithful", "cnn", "default", "add_touch_median_s"}
+    for name in ("seed_faithful", "cnn", "default"):
+        assert set(d[name]) == {"5", "7"} and all(v > 0 for v in d[name].values())
+    assert set(d["add_touch_median_s"]) == {"seed_faithful", "cnn", "default"}
 
 
 def test_bench_sim_json(tmp_path):
