@@ -175,7 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--model", help=f"one of {', '.join(MODEL_NAMES + ('auto',))}")
     t.add_argument("--config", default="default",
                    help=f"one of {', '.join(PRESETS)} (default: texture descriptor, "
-                        "information-gain touches, stop at belief 0.95)")
+                        "information-gain touches, stop at belief 0.9)")
     t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
     t.add_argument("--representation",
                    help="representation file made by `tactex prepare` (descriptor model)")

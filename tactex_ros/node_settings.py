@@ -79,7 +79,7 @@ class ExplorerSettings:
                                     "24 replayed octopi-dev scenes, docs/speed_stability.md)")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(-1.0, "stop once the belief in one platform reaches this "
-                                         "(0 = never; < 0 = the preset's: 0.95 for default)",
+                                         "(0 = never; < 0 = the preset's: 0.9 for default)",
                                    -1.0, 1.0)
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")

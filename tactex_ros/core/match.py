@@ -50,7 +50,7 @@ def softmax(logits: np.ndarray) -> np.ndarray:
 class MatchModel:
     """Descriptors of one trial's touches and the belief over the matching comparison."""
 
-    def __init__(self, n_comparisons: int, prior_scale: float = 0.5,
+    def __init__(self, n_comparisons: int, prior_scale: float = 1.0,
                  prior_strength: float = 4.0, temperature: float = 0.05,
                  scale_floor: float = 0.05, scene_units: bool = True) -> None:
         if n_comparisons < 2:

@@ -37,7 +37,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     assert not run.timed_out and run.exit_code == 0, (tmp_path / "logs" / "explorer.log")
     res = run.result
     truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
-    assert res["prediction"] == truth
+    assert res["prediction"] == truth and res["stop_reason"] == "rounds"
     # decisions: 2 that ask for a touch + the final one, all published
     assert [s.round for s in states] == [1, 2, 3] and states[-1].done
     assert states[-1].prediction == truth
