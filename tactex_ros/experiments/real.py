@@ -45,7 +45,7 @@ from ..core.errors import TactexError
 from . import charts
 from .common import results_dir, write_json
 from .runner import TrialJob, default_workers, run_jobs
-from .stats import mcnemar_exact, wilson
+from .stats import mcnemar_exact, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
                     "variance=default:strategy=variance")
@@ -203,6 +203,25 @@ def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
     return out
 
 
+def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
+                      budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
+    """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
+    rule), on the same scenes: {setting: {str(k): {"a": acc ref, "b": acc setting, "p"}}}."""
+    out = {}
+    base = curves[reference]
+    for lab, cs in curves.items():
+        if lab == reference:
+            continue
+        row = {}
+        for k in budgets:
+            a = [at_budget(c, k) for c in base]
+            b = [at_budget(c, k) for c in cs]
+            row[str(k)] = {"reference": float(np.mean(a)), "setting": float(np.mean(b)),
+                           "p": mcnemar_exact(a, b)["p"]}
+        out[lab] = row
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
     from ..sources import open_source
     settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
@@ -239,7 +258,10 @@ def run(args: argparse.Namespace) -> dict:
                "folds": fold_info, "settings": {s[0]: {"preset": s[1], "strategy": s[2],
                                                        "overrides": s[3]} for s in settings},
                "per_setting": summarise(report_curves, args.budget),
-               "report_rows": score_pairs(report_curves, thresholds)}
+               "report_rows": score_pairs(report_curves, thresholds),
+               "paired_at_budgets": paired_at_budgets(report_curves, labels[0],
+                                                      tuple(k for k in (0, 1, 3, 5, 10)
+                                                            if k <= args.budget))}
     if args.folds >= 2:
         summary["held_out"] = _pool_chosen(fold_info, labels)
     write_json(out / "runs.json", report_curves)
@@ -271,14 +293,15 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
         return {"accuracy": s / len(oc), "ci95": list(wilson(s, len(oc))), "n": len(oc),
                 "touches_mean": float(np.mean([o[1] for o in oc])),
                 "wrong_stop": float(np.mean([o[2] and not o[0] for o in oc])),
-                "correct": [bool(o[0]) for o in oc]}
+                "correct": [bool(o[0]) for o in oc], "touches": [int(o[1]) for o in oc]}
     out = {"chosen": pooled("__chosen__"),
            "chosen_pairs": [(f["chosen"]["setting"], f["chosen"]["theta"]) for f in fold_info],
            "settings": {lab: pooled(lab) for lab in labels}}
-    base = out["chosen"]["correct"]
+    base = out["chosen"]
     for lab in labels:
-        out["settings"][lab]["mcnemar_vs_chosen"] = mcnemar_exact(
-            base, out["settings"][lab]["correct"])
+        st = out["settings"][lab]
+        st["mcnemar_vs_chosen"] = mcnemar_exact(base["correct"], st["correct"])
+        st["wilcoxon_touches_vs_chosen"] = wilcoxon_paired(base["touches"], st["touches"])
     return out
 
 

@@ -75,5 +75,10 @@ def test_real_evaluation_end_to_end(octopi_dir, tmp_path):
     acc = s["per_setting"]["d"]["accuracy_vs_touches"]
     assert [a["touches"] for a in acc] == [0, 1, 2]
     assert all(a["ci95"][0] <= a["accuracy"] <= a["ci95"][1] for a in acc)
+    # paired scenes: after the baseline alone the strategy has not acted yet, so both
+    # settings saw the same presses and hold the same belief
+    p0 = s["paired_at_budgets"]["r"]["0"]
+    assert p0["reference"] == p0["setting"] and p0["p"] == 1.0
+    assert set(ho["settings"]["r"]["wilcoxon_touches_vs_chosen"]) >= {"p", "mean_difference"}
     assert (out / "accuracy_vs_touches.png").stat().st_size > 0
     assert (out / "pareto.png").stat().st_size > 0
