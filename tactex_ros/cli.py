@@ -29,7 +29,7 @@ def _learner_config(args: argparse.Namespace):
     if getattr(args, "weights", None):
         over["weights"] = args.weights
     if getattr(args, "representation", None):
-        over.update(representation=args.representation, match_units="fixed")
+        over["representation"] = args.representation
     return preset(args.config, **over)
 
 
