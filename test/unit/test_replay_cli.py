@@ -1,15 +1,12 @@
 """Replay source and `tactex trial` end to end on the real octopi-dev recordings."""
 
 import json
-import shutil
 
 import cv2
 import numpy as np
-import pytest
 
 from tactex_ros.cli import main
-from tactex_ros.core.contact import contact_scores, strongest_contact
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.contact import strongest_contact
 from tactex_ros.sources.replay import ReplaySource, load_press
 
 
