@@ -63,7 +63,7 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
         seed_epochs: int = 1,
         configs: tuple[str, ...] = ("seed_faithful", "cnn", "default")) -> dict:
     """Measure, print a table, return ``{config: {str(n): median seconds}}`` plus details."""
-    frames = _frames(8)
+    frames = _frames(max(touch_counts) + 1)   # distinct frames: no descriptor cache hits
     out: dict = {c: {} for c in configs}
     add: dict = {c: [] for c in configs}
     for n in touch_counts:
