@@ -24,6 +24,7 @@ import torch
 
 from ..core.config import preset
 from ..core.engine import TrialEngine, trial_preset
+from ..core.texture import clear_cache
 from ..sim.source import SimSource
 
 
@@ -39,6 +40,7 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
     cfg = preset(config, **over)
     eng = TrialEngine(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
                       seed=0)
+    clear_cache()
     add_s = []
     for k in range(n_touches):
         t0 = time.perf_counter()
