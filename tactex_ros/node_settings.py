@@ -8,10 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .core.config import param
-from .core.strategies import STRATEGIES
-from .core.models import MODEL_NAMES
-from .core.config import PRESETS
+from .core.config import PRESETS, param
+from .core.names import MODEL_NAMES, STRATEGY_NAMES
 
 IMAGE_TOPIC = "/tactex/gelsight/image_raw"
 CAPTURE_SERVICE = "/tactex/gelsight/capture"
@@ -40,6 +38,19 @@ class GelsightSettings:
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     loop_file: bool = param(True, "restart a video file at its end (recordings only)")
     open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
+    capture_width: int = param(320, "capture mode width requested from the camera [px] (the "
+                                    "GelSight SDK's 320x240; 0 = the camera's default)",
+                               0, 4096)
+    capture_height: int = param(240, "capture mode height [px] (0 = the camera's default)",
+                                0, 4096)
+    auto_exposure: bool = param(False, "leave the camera's auto exposure on (off: lighting "
+                                       "drift of 10 grey levels broke every strategy in "
+                                       "`tactex experiment stability`)")
+    exposure: float = param(-1.0, "manual exposure in the driver's units (V4L2: 100 us) "
+                                  "(< 0 = keep the value the camera has)", -1.0, 100000.0)
+    auto_white_balance: bool = param(False, "leave the camera's auto white balance on")
+    white_balance: float = param(-1.0, "white balance temperature [K] (< 0 = keep the "
+                                       "camera's)", -1.0, 15000.0)
 
 
 @dataclass
@@ -76,7 +87,7 @@ class ExplorerSettings:
     scene_file: str = param("", "scene YAML (platform ids and order)")
     strategy: str = param("", "exploration strategy ('' = the preset's: infogain for default, "
                               "variance for cnn and seed_faithful)",
-                          choices=("",) + tuple(STRATEGIES))
+                          choices=("",) + STRATEGY_NAMES)
     config: str = param("default", "learner preset", choices=tuple(PRESETS))
     model: str = param("", "model variant override ('' = the preset's)",
                        choices=("", "descriptor") + MODEL_NAMES + ("auto",))
@@ -134,6 +145,7 @@ class MockArmSettings:
     reflex_force: float = param(0.0, "contact force above which the mock goes into a reflex: "
                                      "the arm stops and no state is published until recovered "
                                      "(0 = never) [N]", 0.0, 1000.0)
+    reflex_limit: int = param(1, "reflexes injected at most (reflex_force)", 0, 1000)
     recovery_standin: str = param("none", "serve stand-ins of the recovery interfaces: 'action' "
                                           "(tactex/action/Press as the action type), 'service' "
                                           "(std_srvs/srv/Trigger), plus the re-activation "

@@ -10,6 +10,7 @@ missing or invalid scene) ends the process with exit status 2 and the reason in 
 from __future__ import annotations
 
 import dataclasses
+import signal
 import sys
 import threading
 from typing import Any, Callable
@@ -148,6 +149,9 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     finally:
+        # Ctrl-C in a terminal reaches every process of the group and `ros2 launch` sends its
+        # own SIGINT too: a second one during clean-up must not kill the process (exit -2)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
             node.destroy_node()
         finally:

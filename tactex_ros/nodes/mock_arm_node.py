@@ -132,7 +132,8 @@ class MockArmNode(TactexNode):
         self.arm.step(min(0.1, now - self._last))
         self._last = now
         rf = self.settings.reflex_force
-        if rf and self.controller_active and self.arm.peak_force > rf:
+        if (rf and self.controller_active and self.arm.peak_force > rf and
+                self.reflexes < self.settings.reflex_limit):
             self.get_logger().error(f"reflex: contact force {self.arm.peak_force:.1f} N > "
                                     f"reflex_force {rf} N; arm stopped")
             self.arm.freeze()
