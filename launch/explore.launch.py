@@ -67,29 +67,37 @@ def _nodes(context, *args, **kwargs):
         frame = fixed_frame(nodes)
     except TactexError as exc:
         raise LaunchArgumentError(str(exc)) from None
-    if rviz:
+    if rviz and not _installed("rviz2"):
         # a missing rviz2 must fail here, before any node starts, not after (orphans)
-        from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-        try:
-            get_package_prefix("rviz2")
-        except PackageNotFoundError:
-            raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
-                                      "(apt install ros-$ROS_DISTRO-rviz2), nothing "
-                                      "started") from None
+        raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
+                                  "(apt install ros-$ROS_DISTRO-rviz2), nothing started")
     actions = [Node(package=n.package, executable=n.executable, name=n.name,
                     parameters=[n.parameters], remappings=n.remappings, output="screen",
                     sigterm_timeout="10", sigkill_timeout="5",
                     on_exit=Shutdown(reason=f"tactex node {n.name} exited"))
                for n in nodes]
-    if sim:
+    if sim and _installed("tf2_ros"):   # rviz's fixed frame exists in TF (viewer only)
         actions.append(Node(package="tf2_ros", executable="static_transform_publisher",
                             name="tactex_sim_world",
                             arguments=["--frame-id", "world", "--child-frame-id", frame]))
+    elif sim:
+        from launch.actions import LogInfo
+        actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
+                                   f"{frame} for rviz"))
     if rviz:
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
                             arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",
                                                               frame))]))
     return actions
+
+
+def _installed(package: str) -> bool:
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    try:
+        get_package_prefix(package)
+    except PackageNotFoundError:
+        return False
+    return True
 
 
 def _rviz_config(template, frame: str):

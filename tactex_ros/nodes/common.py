@@ -125,6 +125,13 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     fixed upstream in 10.0.4): with the mock arm's 100 Hz state it queued thousands of tasks,
     took a full core and left the motion node's robot state stale for over a second.
     """
+    stopping = threading.Event()
+
+    def on_sigint(signum, frame):  # rclpy's handler chains to this one
+        stopping.set()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, on_sigint)
     rclpy.init(args=args if args is not None else sys.argv)
     node = node_factory()
     code = 0
@@ -142,9 +149,10 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
         try:
             ex.spin_until_future_complete(done)
         except RuntimeError:
-            if rclpy.ok():
+            if rclpy.ok() and not stopping.is_set():
                 raise
-            # SIGINT shut the context down while a message was being taken: a normal stop
+            # SIGINT while a message was being taken (the KeyboardInterrupt surfaces as a
+            # RuntimeError from the C++ layer, seen under `ros2 launch`): a normal stop
         code = node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
