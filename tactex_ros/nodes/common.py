@@ -128,10 +128,21 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     stopping = threading.Event()
 
     def on_sigint(signum, frame):  # rclpy's handler chains to this one
+        if stopping.is_set():
+            return   # Ctrl-C reaches every process of the group and `ros2 launch` sends its
+            #          own SIGINT too: a second one during clean-up must not kill (exit -2)
         stopping.set()
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGINT, on_sigint)
+    try:
+        return _spin(node_factory, args, stopping)
+    except KeyboardInterrupt:   # a requested stop that surfaced outside the spin
+        return 0
+
+
+def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,
+          stopping: threading.Event) -> int:
     rclpy.init(args=args if args is not None else sys.argv)
     node = node_factory()
     code = 0
@@ -157,8 +168,7 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     finally:
-        # Ctrl-C in a terminal reaches every process of the group and `ros2 launch` sends its
-        # own SIGINT too: a second one during clean-up must not kill the process (exit -2)
+        stopping.set()   # from here on SIGINT is ignored, also during interpreter shutdown
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
             node.destroy_node()
