@@ -65,6 +65,10 @@ def _nodes(context, *args, **kwargs):
                          mock_image={"source": arg("source")} if sim and arg("source") else None,
                          robot=arg("robot") or None, motion_file=arg("motion_params") or None)
         frame = fixed_frame(nodes)
+        from tactex_ros.robot import load_profile
+        motion = next(n for n in nodes if n.name == "motion")
+        profile = load_profile(motion.parameters["robot"])
+        pose_topic = motion.parameters.get("pose_topic") or profile.pose_topic
     except TactexError as exc:
         raise LaunchArgumentError(str(exc)) from None
     if rviz and not _installed("rviz2"):
@@ -87,7 +91,7 @@ def _nodes(context, *args, **kwargs):
     if rviz:
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
                             arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",
-                                                              frame))]))
+                                                              frame, pose_topic))]))
     return actions
 
 
@@ -100,14 +104,20 @@ def _installed(package: str) -> bool:
     return True
 
 
-def _rviz_config(template, frame: str):
-    """A copy of the rviz config whose fixed frame is the robot profile's base frame."""
+def _rviz_config(template, frame: str, pose_topic: str):
+    """A copy of the rviz config with the robot profile's base frame as fixed frame and its
+    pose topic in the Pose display (off where the profile has no PoseStamped state)."""
     import tempfile
     from pathlib import Path
 
     import yaml
     cfg = yaml.safe_load(Path(template).read_text())
     cfg["Visualization Manager"]["Global Options"]["Fixed Frame"] = frame
+    for d in cfg["Visualization Manager"].get("Displays", []):
+        if d.get("Class") == "rviz_default_plugins/Pose":
+            d["Enabled"] = bool(pose_topic)
+            if pose_topic:
+                d["Topic"]["Value"] = pose_topic
     out = Path(tempfile.mkdtemp(prefix="tactex_rviz_")) / "tactex.rviz"
     out.write_text(yaml.safe_dump(cfg, sort_keys=False))
     return out

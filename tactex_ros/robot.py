@@ -13,7 +13,9 @@ Pure Python (no rclpy). A profile says:
 - ``state``: either ``pose_topic`` + ``wrench_topic`` (PoseStamped + WrenchStamped, as
   franka_robot_state_broadcaster publishes them) or ``topic`` + ``type`` of a franka state
   message with ``o_t_ee`` (16, column-major), ``o_f_ext_hat_k`` (6) and ``robot_mode``
-  (multipanda_ros2's ``franka_msgs/msg/FrankaState``);
+  (multipanda_ros2's ``franka_msgs/msg/FrankaState``); optionally ``mode_topic`` + ``mode_type``:
+  a full state message whose ``robot_mode`` reports a reflex (franka_ros2's
+  ``franka_msgs/msg/FrankaRobotState``; read only where that type is installed);
 - ``force_sign``: normal force = ``force_sign * f_z`` of the base-frame wrench;
 - ``recovery``: ``kind`` (``action``, ``service`` or ``none``), ``name``, ``type``,
   ``ok_field`` (service: the response field that says it worked), and ``then``: the service
@@ -70,6 +72,8 @@ class RobotProfile:
     wrench_topic: str = ""
     state_topic: str = ""
     state_type: str = ""                 # "" = PoseStamped + WrenchStamped
+    mode_topic: str = ""                 # optional: robot_mode of a full state message
+    mode_type: str = ""
     force_sign: float = 1.0
     target_filter_s: float = 0.0         # s, the controller's filter on the equilibrium
     recovery: Recovery = field(default_factory=Recovery)
@@ -121,7 +125,7 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
     if ttype not in TARGET_TYPES:
         raise TactexError(f"{origin}: target.type: one of {list(TARGET_TYPES)}, got {ttype!r}")
     st = _mapping(d.get("state"), f"{origin}: state",
-                  {"pose_topic", "wrench_topic", "topic", "type"})
+                  {"pose_topic", "wrench_topic", "topic", "type", "mode_topic", "mode_type"})
     if "topic" in st or "type" in st:
         if "pose_topic" in st or "wrench_topic" in st:
             raise TactexError(f"{origin}: state: give either topic + type (a franka state "
@@ -132,6 +136,10 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
     else:
         state = {"pose_topic": _str(st, "pose_topic", f"{origin}: state"),
                  "wrench_topic": _str(st, "wrench_topic", f"{origin}: state")}
+        if "mode_topic" in st or "mode_type" in st:
+            state["mode_topic"] = _str(st, "mode_topic", f"{origin}: state")
+            state["mode_type"] = _interface_name(_str(st, "mode_type", f"{origin}: state"),
+                                                 f"{origin}: state.mode_type", ("msg",))
     sign = d.get("force_sign", 1.0)
     if sign not in (1, -1, 1.0, -1.0) or isinstance(sign, bool):
         raise TactexError(f"{origin}: force_sign: 1 or -1, got {sign!r}")

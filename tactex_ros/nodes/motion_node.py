@@ -75,6 +75,13 @@ class MotionNode(TactexNode):
                                      self._on_pose, qos_profile_sensor_data)
             self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
                                      self._on_wrench, qos_profile_sensor_data)
+        if prof.mode_topic:
+            try:
+                self.create_subscription(import_interface(prof.mode_type), prof.mode_topic,
+                                         self._on_mode, 10)
+            except TactexError as exc:
+                self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
+                                          f"stopping): {exc}")
         self.target_type = prof.target_type
         self.target_pub = self.create_publisher(import_interface(prof.target_type),
                                                 s.target_topic or prof.target_topic, 10)
@@ -133,6 +140,9 @@ class MotionNode(TactexNode):
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
         self.pose_t = self.wrench_t = time.monotonic()
+
+    def _on_mode(self, msg) -> None:
+        self.robot_mode = int(msg.robot_mode)
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s

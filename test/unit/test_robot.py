@@ -28,6 +28,7 @@ def test_shipped_profiles_load() -> None:
         ["ok", "ok"]
     assert panda.recovery.kind == "service" and panda.franka_state
     assert panda.target_type == "std_msgs/msg/Float64MultiArray"
+    assert fr3.mode_type == "franka_msgs/msg/FrankaRobotState" and not fr3.franka_state
 
 
 @pytest.mark.parametrize("path,value,field", [
@@ -39,6 +40,7 @@ def test_shipped_profiles_load() -> None:
     (("recovery", "then", 0, "type"), "controller_manager_msgs/SetHardwareComponentState",
      r"recovery.then\[0\].type"),
     (("state", "topic"), "/x", "state: give either"),
+    (("state", "mode_type"), "FrankaRobotState", "state.mode_type"),
     (("bogus",), 1, "unknown field"),
 ])
 def test_profile_errors_name_the_field(path, value, field) -> None:
