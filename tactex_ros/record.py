@@ -81,6 +81,9 @@ class TrialRecord:
             if res is not None and "error" not in res:
                 raise TactexError(f"resume: trial record {str(self.dir)!r} already has its "
                                   "result; nothing to resume")
+            if res is not None:                 # a failed trial: its error goes to the events
+                append_event(self.dir, {"event": "failed", "result": res})
+                os.remove(self.dir / "result.json")
             for f in self.dir.glob("*.jsonl"):      # a torn last line stays a line of its own
                 data = f.read_bytes()
                 if data and not data.endswith(b"\n"):

@@ -38,6 +38,7 @@ class RecordedTouch:
     platform_id: str
     touch: Touch | None            # None: the touch failed (``reason``)
     reason: str = ""
+    rejected: bool = False         # written, then refused by the core's guard
 
 
 def recorded_touches(record: dict) -> list[RecordedTouch]:
@@ -61,7 +62,8 @@ def recorded_touches(record: dict) -> list[RecordedTouch]:
             raise TactexError(f"resume: touch {seq} is marked accepted but has no image")
         out.append(RecordedTouch(seq=seq, platform_index=int(t["platform_index"]),
                                  platform_id=str(t.get("platform_id", "")), touch=touch,
-                                 reason=str(t.get("reason") or "touch failed")))
+                                 reason=str(t.get("reason") or "touch failed"),
+                                 rejected=touch is not None and not t.get("accepted", True)))
     return out
 
 
@@ -107,3 +109,30 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
     """A ``Replay`` of the record in ``folder`` and the loaded record."""
     rec = read_record(folder)
     return Replay(recorded_touches(rec), live, platform_ids), rec
+
+
+# settings that may change between the interrupted run and its resume (where, how long, how fast)
+_FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "threads", "nice",
+                      "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
+                      "scene_file"},
+         "learner": {"threads"}, "trial": set()}
+
+
+def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
+    """Refuse a resume whose settings differ from the record's ``config.json`` where they
+    change the trial (seed, strategy, model, rounds, stop rule, every learner setting); the
+    error names the first field that differs. ``now``: {section: settings dict}."""
+    import json
+    p = Path(folder) / "config.json"
+    try:
+        was = json.loads(p.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise TactexError(f"resume: cannot read {str(p)!r} ({exc})") from None
+    for section, free in _FREE.items():
+        a = json.loads(json.dumps(was.get(section, {}), default=str))
+        b = json.loads(json.dumps(now.get(section, {}), default=str))
+        for k in sorted(set(a) | set(b)):
+            if k not in free and a.get(k) != b.get(k):
+                raise TactexError(f"resume: {section}.{k} is {b.get(k)!r} now but "
+                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "
+                                  "trial runs with the settings it started with")

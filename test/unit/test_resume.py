@@ -125,6 +125,9 @@ def test_resume_refuses_finished_or_missing_records(tmp_path: Path) -> None:
         TrialRecord(tmp_path, "done", resume=True)
     rec.finish({"error": "press server gone"})           # a failed trial can be resumed
     assert TrialRecord(tmp_path, "done", resume=True).n_touches == 0
+    rec = read_record(tmp_path / "done")              # its error kept, the result cleared
+    assert rec["result"] is None
+    assert rec["events"][-1]["result"] == {"error": "press server gone"}
 
 
 def test_torn_lines_and_orphan_images_survive_a_resume(tmp_path: Path) -> None:
