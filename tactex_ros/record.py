@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,8 @@ class TrialRecord:
         self.dir = Path(root) / trial_id
         self.n_touches = 0
         self._no_contact: tuple[np.ndarray, str] | None = None
+        self._lock = threading.Lock()      # a touch's image and line are written together
+        self.closed = False
         if resume:
             if not (self.dir / "config.json").is_file():
                 raise TactexError(f"resume: {str(self.dir)!r} is not a trial record "
@@ -95,6 +98,18 @@ class TrialRecord:
                               "trial_id (records are never overwritten)")
         self.dir.mkdir(parents=True, exist_ok=True)
 
+    def close(self, timeout_s: float = 5.0) -> None:
+        """Wait (up to ``timeout_s``) for a write in progress, then refuse further writes:
+        for a process being stopped mid-trial (nothing half-written, no result)."""
+        got = self._lock.acquire(timeout=timeout_s)
+        self.closed = True
+        if got:
+            self._lock.release()
+
+    def _open(self) -> None:
+        if self.closed:
+            raise TactexError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
+
     def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
         if scene_file:
             shutil.copyfile(scene_file, self.dir / "scene.yaml")
@@ -113,6 +128,12 @@ class TrialRecord:
         and the metadata line, last (the line commits the touch).
 
         Returns the image path. Called before the touch is used for anything."""
+        with self._lock:
+            self._open()
+            return self._add_touch(image, meta, no_contact)
+
+    def _add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
+                   no_contact: np.ndarray | None) -> Path | None:
         self.n_touches += 1
         img_path = None
         if image is not None:
@@ -134,17 +155,30 @@ class TrialRecord:
 
     def reject_touch(self, seq: int, reason: str) -> None:
         """Mark touch ``seq`` (already on disk) as not used, e.g. refused by the core's guard."""
-        _fsync_write(self.dir / "rejections.jsonl",
-                     (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
+        with self._lock:
+            self._open()
+            _fsync_write(self.dir / "rejections.jsonl",
+                         (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
 
     def add_decision(self, state: dict[str, Any]) -> None:
-        _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(), True)
+        with self._lock:
+            self._open()
+            _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(),
+                         True)
 
     def finish(self, result: dict[str, Any]) -> Path:
-        tmp = self.dir / "result.json.tmp"
-        _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
-        os.replace(tmp, self.dir / "result.json")
-        return self.dir / "result.json"
+        """Write ``result.json`` atomically (temporary file, fsync, rename)."""
+        with self._lock:
+            self._open()
+            tmp = self.dir / "result.json.tmp"
+            _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
+            os.replace(tmp, self.dir / "result.json")
+            fd = os.open(self.dir, os.O_RDONLY)     # the rename itself survives a power loss
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            return self.dir / "result.json"
 
 
 def _read_jsonl(path: Path) -> list[dict]:

@@ -65,6 +65,7 @@ class GraphRun:
     elapsed_s: float = 0.0             # start of the nodes -> end of the trial [s]
     stop_s: float = 0.0                # end of the trial -> every node stopped [s]
     left_running: list[str] = field(default_factory=list)  # nodes alive after stop (goal: none)
+    pids: dict[str, int] = field(default_factory=dict)     # process id of every node
 
 
 def node_command(n: NodeSpec, params: Path) -> list[str]:
@@ -251,4 +252,5 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
                     record=record if record.exists() else None, logs=g.log_dir,
                     timed_out=failure is not None and failure.startswith("trial not finished"),
                     node_exit=exits, failure=failure, failed_node=failed_node,
-                    signal=sig.received, elapsed_s=elapsed, stop_s=stop_s, left_running=left)
+                    signal=sig.received, elapsed_s=elapsed, stop_s=stop_s, left_running=left,
+                    pids=g.pids)

@@ -161,6 +161,8 @@ class ExplorerNode(TactexNode):
             now = time.monotonic()
             if now > deadline:
                 return False
+            if getattr(self, "_stopping", False) or not self.context.ok():
+                raise TactexError("the explorer is stopping")
             if watch:
                 silent = now - self._feedback_t
                 if silent > self.settings.press_silence_s:
@@ -270,6 +272,8 @@ class ExplorerNode(TactexNode):
         try:
             self._run_trial()
         except Exception as exc:  # the trial must end in an explicit result
+            if not self.context.ok() or self.record.closed:
+                return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
             self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
             self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
             self.record.finish(self.result)
@@ -277,6 +281,18 @@ class ExplorerNode(TactexNode):
         finally:
             if self.settings.exit_when_done:
                 self.finished.set()
+
+    def destroy_node(self) -> None:
+        """Stopped mid-trial: let a touch being written finish, then write nothing more; give
+        the trial thread a moment to leave its wait before the action client goes away."""
+        self._stopping = True
+        record = getattr(self, "record", None)
+        if record is not None:
+            record.close()
+        worker = getattr(self, "worker", None)
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=3.0)
+        super().destroy_node()
 
     def _run_trial(self) -> None:
         s = self.settings
