@@ -9,25 +9,12 @@ import time
 from pathlib import Path
 
 
+from .cli import bounded
 from .core.errors import TactexError
 
 # explorer settings a resumed trial takes from its record (config.json)
 RESUMED = ("strategy", "config", "model", "weights", "drift_norm", "rounds", "stop_confidence",
            "seed", "threads")
-
-
-def bounded(kind: type, lo: float, hi: float):
-    """argparse type: a number of ``kind`` in [lo, hi]; the error names the range."""
-    def parse(text: str):
-        try:
-            v = kind(text)
-        except ValueError:
-            what = "an integer" if kind is int else "a number"
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{text} is outside {lo:g}..{hi:g}")
-        return v
-    return parse
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
