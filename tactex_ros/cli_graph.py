@@ -110,9 +110,30 @@ def summarise(record: dict) -> dict:
     return out
 
 
+def summarise_bag(messages: list) -> dict:
+    """The same figures from an MCAP file of a trial (``bag.read_bag``): touches, decisions
+    and decision times; press times need the request times only the record folder keeps."""
+    import numpy as np
+    from .bag import TOUCH_TOPIC
+    from .node_settings import STATE_TOPIC
+    touches = [m for topic, _, m in messages if topic == TOUCH_TOPIC]
+    states = [m for topic, _, m in messages if topic == STATE_TOPIC]
+    dec = [float(s.decision_s) for s in states]
+    done = [s for s in states if s.done]
+    return {"touches": len(touches), "accepted": len(touches), "decisions": len(dec),
+            "press_s_median": None, "press_s_total": None,
+            "decision_s_median": float(np.median(dec)) if dec else None,
+            "decision_s_total": float(np.sum(dec)) if dec else 0.0,
+            "prediction": done[-1].prediction if done else None, "error": None}
+
+
 def cmd_summary(args: argparse.Namespace) -> int:
     from .record import read_record
-    s = summarise(read_record(args.record))
+    if Path(args.record).is_file():
+        from .bag import read_bag
+        s = summarise_bag(read_bag(args.record))
+    else:
+        s = summarise(read_record(args.record, images=False))
     print(json.dumps(s, indent=2))
     return 0
 
@@ -147,5 +168,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                                 "settings, its record)")
         p.set_defaults(func=fn)
     sm = gsub.add_parser("summary", help="where a recorded trial's time went")
-    sm.add_argument("record", help="trial record folder")
+    sm.add_argument("record", help="trial record folder, or an MCAP file of a trial "
+                                   "(<record>/topics.mcap; a crashed one is read up to its "
+                                   "last whole message)")
     sm.set_defaults(func=cmd_summary)

@@ -32,6 +32,7 @@ from ..core.engine import TouchFailed, TrialEngine, trial_preset
 from ..core.errors import TactexError
 from ..core.touch import Touch
 from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
+from ..bag import TOUCH_TOPIC
 from ..record import TrialRecord
 from ..scene import load_scene
 from .common import TactexNode, run
@@ -75,6 +76,7 @@ class ExplorerNode(TactexNode):
             self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
             self.record = TrialRecord(s.record_dir, self.trial_id)
             self.record.save_inputs(s.scene_file, inputs)
+        self.bag = self._open_bag()
         self.press = ActionClient(self, Press, s.press_action)
         self.state_pub = self.create_publisher(ExplorationState, STATE_TOPIC, 10)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, 10)
@@ -82,6 +84,21 @@ class ExplorerNode(TactexNode):
         self.last_state = None
         self.result: dict | None = None
         self._feedback_t = time.monotonic()
+
+    def _open_bag(self):
+        """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
+        from ..bag import BagWriter
+        k = len(list(self.record.dir.glob("topics*.mcap")))
+        return BagWriter(self.record.dir / ("topics.mcap" if k == 0 else f"topics.{k}.mcap"))
+
+    def _bag_write(self, topic: str, msg) -> None:
+        """Copy a message into the MCAP file; a failure there never stops the trial."""
+        try:
+            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+        except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
+            if not getattr(self, "_bag_warned", False):
+                self._bag_warned = True
+                self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
 
     def _open_resume(self, folder: str, inputs: dict) -> None:
         """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
@@ -114,7 +131,9 @@ class ExplorerNode(TactexNode):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _publish_markers(self) -> None:
-        self.marker_pub.publish(adapter.markers(self.scene, self.last_state, self._now()))
+        msg = adapter.markers(self.scene, self.last_state, self._now())
+        self.marker_pub.publish(msg)
+        self._bag_write(MARKER_TOPIC, msg)
 
     def _publish_state(self, rec, done: bool, prediction: str) -> None:
         msg = adapter.state_msg(rec, trial_id=self.trial_id,
@@ -125,6 +144,7 @@ class ExplorerNode(TactexNode):
                                 frame_id=self.scene.frame_id)
         self.last_state = msg
         self.state_pub.publish(msg)
+        self._bag_write(STATE_TOPIC, msg)
         self._publish_markers()
         if self.replay is not None and self._replayed_decision(msg):
             return                            # already on disk before the interruption
@@ -233,6 +253,7 @@ class ExplorerNode(TactexNode):
                               no_contact=no_contact)
         self._set_guard_reference(no_contact)
         self.image_pub.publish(touch.image)
+        self._bag_write(TOUCH_TOPIC, touch)
         return Touch(frame=img, no_contact=no_contact)
 
     def _no_contact(self, touch) -> np.ndarray | None:
@@ -279,6 +300,7 @@ class ExplorerNode(TactexNode):
             self.record.finish(self.result)
             self.exit_code = 1
         finally:
+            self.bag.close()
             if self.settings.exit_when_done:
                 self.finished.set()
 
@@ -289,6 +311,8 @@ class ExplorerNode(TactexNode):
         record = getattr(self, "record", None)
         if record is not None:
             record.close()
+        if getattr(self, "bag", None) is not None:
+            self.bag.close()
         worker = getattr(self, "worker", None)
         if worker is not None and worker is not threading.current_thread():
             worker.join(timeout=3.0)

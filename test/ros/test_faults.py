@@ -21,6 +21,8 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from tactex_ros import adapter
+from tactex_ros.bag import TOUCH_TOPIC, read_bag
+from tactex_ros.cli_graph import summarise_bag
 from tactex_ros.graph import describe
 from tactex_ros.node_settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
 from tactex_ros.record import read_record, read_result
@@ -104,6 +106,11 @@ def _check_record(record: Path, used: list[np.ndarray]) -> dict:
         assert any(np.array_equal(img, t["array"]) for t in with_image), \
             "a touch the explorer used is not on disk"
     read_result(record)
+    for bag in sorted(record.glob("topics*.mcap")):          # the MCAP copy, crashed or closed
+        for topic, _, m in read_bag(bag):
+            if topic == TOUCH_TOPIC:
+                arr = adapter.image_to_array(m.image, "bag touch")
+                assert any(np.array_equal(arr, t["array"]) for t in with_image), bag.name
     return rec
 
 
@@ -176,6 +183,8 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
     assert len(rec["decisions"]) == ROUNDS + 1                # every decision once
     assert [d["round"] for d in rec["decisions"]] == list(range(1, ROUNDS + 2))
     assert len(res["resumed"]) >= 2
+    last = max(record.glob("topics*.mcap"), key=lambda f: f.stat().st_mtime)   # the last run
+    assert summarise_bag(read_bag(last))["prediction"] == truth
     assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
 
 
