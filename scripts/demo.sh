@@ -2,6 +2,8 @@
 # `make demo`: the simulated ROS 2 graph (mock arm, mock image, motion, explorer) as real
 # processes over DDS on loopback, one full trial, the answer and where the trial record is.
 # DEMO_ROUNDS (default 5) and DEMO_STRATEGY (default variance) change the trial.
+# `exec`: Ctrl-C or SIGTERM reaches the runner itself, which stops every node (none is left);
+# an interrupted demo prints the command that resumes it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p runs

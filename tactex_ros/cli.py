@@ -15,6 +15,25 @@ import numpy as np
 from .core.errors import TactexError
 
 
+# a trial touches every platform at least once first; a bench holds a handful (the lab scene
+# has 4 comparisons): more than this is a typing error, not an experiment
+MAX_COMPARISONS = 24
+
+
+def bounded(kind: type, lo: float, hi: float):
+    """argparse type: a number of ``kind`` in [lo, hi]; the error names the range."""
+    def parse(text: str):
+        try:
+            v = kind(text)
+        except ValueError:
+            what = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not lo <= v <= hi:     # also refuses nan
+            raise argparse.ArgumentTypeError(f"{text} is outside {kind(lo)}..{kind(hi)}")
+        return v
+    return parse
+
+
 def _write_json(path: str | None, obj: dict) -> None:
     if path:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -64,6 +83,9 @@ def cmd_trial(args: argparse.Namespace) -> int:
     src = open_source(args.source)
     cfg = _learner_config(args)
     chosen = args.classes.split(",") if args.classes else None
+    if chosen is not None and len(chosen) > MAX_COMPARISONS:
+        raise TactexError(f"--classes: {len(chosen)} comparison classes; at most "
+                          f"{MAX_COMPARISONS}")
     if chosen is None and args.comparisons < 2:
         raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
     if chosen is None and hasattr(src, "draw_scene"):
@@ -171,7 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     t = sub.add_parser("trial", help="run one active-exploration trial")
     t.add_argument("--source", required=True, help="replay:DIR or sim[:difficulty]")
-    t.add_argument("--comparisons", type=int, default=4)
+    t.add_argument("--comparisons", type=bounded(int, 2, MAX_COMPARISONS), default=4,
+                   help=f"comparison platforms, 2..{MAX_COMPARISONS}")
     t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
     t.add_argument("--reference", help="class of the reference platform")
     t.add_argument("--strategy", help=f"one of {', '.join(STRATEGIES)} (default: the "
@@ -184,12 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
     t.add_argument("--representation",
                    help="representation file made by `tactex prepare` (descriptor model)")
-    t.add_argument("--rounds", type=int, help="most decisions that request a touch after the "
-                                           "baseline (default 20)")
-    t.add_argument("--stop-confidence", type=float,
+    t.add_argument("--rounds", type=bounded(int, 0, 1000),
+                   help="most decisions that request a touch after the baseline (default 20)")
+    t.add_argument("--stop-confidence", type=bounded(float, 0.0, 1.0),
                    help="stop once the belief in one platform reaches this (0 = never; "
                         "default: the configuration's)")
-    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=cmd_trial)

@@ -9,13 +9,50 @@ import time
 from pathlib import Path
 
 
+from .cli import bounded
+from .core.errors import TactexError
+
+# explorer settings a resumed trial takes from its record (config.json)
+RESUMED = ("strategy", "config", "model", "weights", "drift_norm", "rounds", "stop_confidence",
+           "seed", "threads")
+
+
+def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
+    """Explorer parameters that continue the trial recorded in ``folder``: its settings from
+    ``config.json``; an option that contradicts them is refused (named)."""
+    d = Path(folder).resolve()
+    try:
+        cfg = json.loads((d / "config.json").read_text())["explorer"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise TactexError(f"--resume {str(folder)!r}: not a trial record with a config.json "
+                          f"({exc})") from None
+    ex = {k: cfg[k] for k in RESUMED if k in cfg}
+    for k in ("strategy", "model", "rounds", "seed", "config"):
+        v = getattr(args, k, None)
+        if v is not None and v != ex.get(k):
+            raise TactexError(f"--{k} {v!r}: the trial in {str(d)!r} ran with {ex.get(k)!r}; "
+                              "a resumed trial keeps its settings")
+    if args.record_dir is not None or args.trial_id is not None:
+        raise TactexError("--resume names the record; --record-dir and --trial-id do not apply")
+    ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
+    if args.scene is None:
+        orig = Path(cfg.get("scene_file") or "")
+        copy = d / "scene.yaml"
+        same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
+        args.scene = str(orig if same or not copy.is_file() else copy)
+    return ex
+
+
 def _nodes(args: argparse.Namespace):
     from .graph import describe
     ex = {}
-    for k in ("strategy", "model", "rounds", "seed", "config", "record_dir", "trial_id"):
-        v = getattr(args, k, None)
-        if v is not None:
-            ex[k] = v
+    if getattr(args, "resume", None):
+        ex = resume_settings(args.resume, args)
+    else:
+        for k in ("strategy", "model", "rounds", "seed", "config", "record_dir", "trial_id"):
+            v = getattr(args, k, None)
+            if v is not None:
+                ex[k] = v
     img = {"source": args.source} if getattr(args, "source", None) else {}
     return describe(args.sim, args.scene, explorer=ex, mock_image=img,
                     gelsight={"device": args.device} if args.device else None)
@@ -30,19 +67,24 @@ def cmd_describe(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .runner import run_trial
+    from .runner import exit_text, run_trial
     nodes = _nodes(args)
     logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id)
-    if run.timed_out:
-        print(f"tactex: trial not finished within {args.timeout} s; logs in {logs}",
+    if run.left_running:
+        print(f"tactex: nodes still running after the stop: {run.left_running}",
               file=sys.stderr)
-        return 1
     if run.result is None or "error" in run.result:
-        why = run.result.get("error") if run.result else f"explorer exit {run.exit_code}"
-        print(f"tactex: trial failed: {why}; logs in {logs}", file=sys.stderr)
-        return 1
+        why = (run.failure or (run.result or {}).get("error")
+               or f"explorer ended without a result ({exit_text(run.exit_code)})")
+        print(f"tactex: trial ended without a result: {why}; logs in {logs}", file=sys.stderr)
+        if run.record is not None:
+            from .record import read_record
+            n = len(read_record(run.record, images=False)["touches"])
+            print(f"tactex: {n} touches on disk in {run.record}; continue with: tactex graph "
+                  f"run{' --sim' if args.sim else ''} --resume {run.record}", file=sys.stderr)
+        return 128 + run.signal if run.signal else 1
     r = run.result
     print(f"reference matches {r['prediction']} after {r['touches']} touches "
           f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
@@ -68,9 +110,30 @@ def summarise(record: dict) -> dict:
     return out
 
 
+def summarise_bag(messages: list) -> dict:
+    """The same figures from an MCAP file of a trial (``bag.read_bag``): touches, decisions
+    and decision times; press times need the request times only the record folder keeps."""
+    import numpy as np
+    from .bag import TOUCH_TOPIC
+    from .node_settings import STATE_TOPIC
+    touches = [m for topic, _, m in messages if topic == TOUCH_TOPIC]
+    states = [m for topic, _, m in messages if topic == STATE_TOPIC]
+    dec = [float(s.decision_s) for s in states]
+    done = [s for s in states if s.done]
+    return {"touches": len(touches), "accepted": len(touches), "decisions": len(dec),
+            "press_s_median": None, "press_s_total": None,
+            "decision_s_median": float(np.median(dec)) if dec else None,
+            "decision_s_total": float(np.sum(dec)) if dec else 0.0,
+            "prediction": done[-1].prediction if done else None, "error": None}
+
+
 def cmd_summary(args: argparse.Namespace) -> int:
     from .record import read_record
-    s = summarise(read_record(args.record))
+    if Path(args.record).is_file():
+        from .bag import read_bag
+        s = summarise_bag(read_bag(args.record))
+    else:
+        s = summarise(read_record(args.record, images=False))
     print(json.dumps(s, indent=2))
     return 0
 
@@ -90,15 +153,22 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--strategy")
         p.add_argument("--model")
         p.add_argument("--config")
-        p.add_argument("--rounds", type=int)
-        p.add_argument("--seed", type=int)
+        p.add_argument("--rounds", type=bounded(int, 0, 1000))
+        p.add_argument("--seed", type=bounded(int, 0, 2**31 - 1))
         p.add_argument("--record-dir", dest="record_dir")
         p.add_argument("--trial-id", dest="trial_id")
         if name == "run":
-            p.add_argument("--timeout", type=float, default=600.0, help="deadline [s]")
+            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
+                           help="deadline [s], 1..86400")
             p.add_argument("--log-dir")
-            p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for the nodes")
+            p.add_argument("--domain-id", type=bounded(int, 0, 232),
+                           help="ROS_DOMAIN_ID for the nodes (0..232)")
+            p.add_argument("--resume", metavar="RECORD_DIR",
+                           help="continue the interrupted trial recorded in RECORD_DIR (its "
+                                "settings, its record)")
         p.set_defaults(func=fn)
     sm = gsub.add_parser("summary", help="where a recorded trial's time went")
-    sm.add_argument("record", help="trial record folder")
+    sm.add_argument("record", help="trial record folder, or an MCAP file of a trial "
+                                   "(<record>/topics.mcap; a crashed one is read up to its "
+                                   "last whole message)")
     sm.set_defaults(func=cmd_summary)

@@ -103,11 +103,17 @@ class ExplorerSettings:
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")
     trial_id: str = param("", "record sub-folder ('' = time stamp)")
+    resume: str = param("", "record folder of an interrupted trial to continue ('' = a new "
+                            "trial); its settings must equal this node's")
     press_action: str = param(PRESS_ACTION, "press action served by the motion node")
     press_timeout_s: float = param(120.0, "deadline for one press (all attempts) [s]",
                                    1.0, 3600.0)
     server_timeout_s: float = param(30.0, "deadline for the press server to appear [s]",
                                     0.5, 600.0)
+    press_silence_s: float = param(10.0, "a press server that sends no feedback (and no goal "
+                                         "answer) for this long, or that leaves the ROS graph, "
+                                         "is gone: the trial ends with that reason [s]",
+                                   1.0, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
     threads: int = param(0, "torch threads (0 = torch default)", 0, 256)
     nice: int = param(10, "CPU priority increment of this process, so training never starves "

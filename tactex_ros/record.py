@@ -5,13 +5,18 @@ Layout of ``<root>/<trial_id>/``::
     touches.jsonl        one JSON line per touch, in arrival order (also rejected ones)
     rejections.jsonl     touches refused after they were written (the core's guard)
     touch_0001_c1.png    the touch image (lossless RGB), name = sequence number + platform id
+    no_contact_0001.png  the sensor's no-contact frame that came with touch 1 (written again
+                         only when it changes; each touch line names its file)
     decisions.jsonl      one JSON line per decision (the exploration state)
+    events.jsonl         what happened to the trial: how it ended without a result (node exit,
+                         signal, deadline), where it was resumed
     result.json          the trial's result (written last, atomically)
     scene.yaml, config.json   what the trial ran with
 
 Line-per-event files with ``fsync`` after every write lose nothing already recorded when the
-process dies; a reader (``read_record``) ignores a torn last line. PNG+JSONL instead of a bag:
-an MCAP/rosbag file needs its footer written on close, which a crash never does.
+process dies; a reader (``read_record``) ignores a torn last line. This folder is the ground
+truth (a resume is rebuilt from it, ``tactex_ros.resume``); an MCAP file of the trial's topics
+(``bag.py``) is written beside it for ROS tools.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -38,53 +44,141 @@ def _fsync_write(path: Path, data: bytes, append: bool) -> None:
         os.close(fd)
 
 
-class TrialRecord:
-    """Writer for one trial's record folder."""
+def append_event(folder: str | Path, event: dict[str, Any]) -> None:
+    """Append one line to ``<folder>/events.jsonl`` (fsync'ed)."""
+    _fsync_write(Path(folder) / "events.jsonl", (json.dumps(event) + "\n").encode(), True)
 
-    def __init__(self, root: str | Path, trial_id: str) -> None:
-        if not trial_id or "/" in trial_id:
+
+def _last_seq(d: Path) -> int:
+    """Highest touch number on disk: metadata lines and image files (an image written just
+    before a crash, without its line, is never overwritten)."""
+    seqs = [int(t.get("seq", 0)) for t in _read_jsonl(d / "touches.jsonl")]
+    for f in d.glob("touch_*.png"):
+        try:
+            seqs.append(int(f.name.split("_")[1]))
+        except (IndexError, ValueError):
+            pass
+    return max(seqs, default=0)
+
+
+class TrialRecord:
+    """Writer for one trial's record folder.
+
+    ``resume=False``: a new folder (an existing record is never overwritten). ``resume=True``:
+    continue an existing record that has no finished result; numbering goes on after the last
+    touch on disk."""
+
+    def __init__(self, root: str | Path, trial_id: str, resume: bool = False) -> None:
+        if not trial_id or "/" in trial_id or trial_id in (".", ".."):
             raise TactexError(f"trial_id {trial_id!r}: a non-empty name without '/'")
         self.dir = Path(root) / trial_id
+        self.n_touches = 0
+        self._no_contact: tuple[np.ndarray, str] | None = None
+        self._lock = threading.Lock()      # a touch's image and line are written together
+        self.closed = False
+        if resume:
+            if not (self.dir / "config.json").is_file():
+                raise TactexError(f"resume: {str(self.dir)!r} is not a trial record "
+                                  "(no config.json)")
+            res = read_result(self.dir)
+            if res is not None and "error" not in res:
+                raise TactexError(f"resume: trial record {str(self.dir)!r} already has its "
+                                  "result; nothing to resume")
+            if res is not None:                 # a failed trial: its error goes to the events
+                append_event(self.dir, {"event": "failed", "result": res})
+                os.remove(self.dir / "result.json")
+            for f in self.dir.glob("*.jsonl"):      # a torn last line stays a line of its own
+                data = f.read_bytes()
+                if data and not data.endswith(b"\n"):
+                    _fsync_write(f, b"\n", True)
+            self.n_touches = _last_seq(self.dir)
+            return
         if (self.dir / "touches.jsonl").exists():
             raise TactexError(f"trial record {str(self.dir)!r} already exists: choose another "
                               "trial_id (records are never overwritten)")
         self.dir.mkdir(parents=True, exist_ok=True)
-        self.n_touches = 0
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        """Wait (up to ``timeout_s``) for a write in progress, then refuse further writes:
+        for a process being stopped mid-trial (nothing half-written, no result)."""
+        got = self._lock.acquire(timeout=timeout_s)
+        self.closed = True
+        if got:
+            self._lock.release()
+
+    def _open(self) -> None:
+        if self.closed:
+            raise TactexError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
 
     def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
         if scene_file:
             shutil.copyfile(scene_file, self.dir / "scene.yaml")
         _fsync_write(self.dir / "config.json", json.dumps(config, indent=2).encode(), False)
 
-    def add_touch(self, image: np.ndarray | None, meta: dict[str, Any]) -> Path | None:
-        """Write the image (RGB uint8, any size; None = no usable image) and its metadata line.
+    def _png(self, path: Path, image: np.ndarray) -> None:
+        ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
+        if not ok:
+            raise TactexError(f"could not encode {path.name} as PNG")
+        _fsync_write(path, buf.tobytes(), False)
+
+    def add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
+                  no_contact: np.ndarray | None = None) -> Path | None:
+        """Write the image (RGB uint8, any size; None = no usable image), the sensor's
+        no-contact frame that came with it (written only when it differs from the last one)
+        and the metadata line, last (the line commits the touch).
 
         Returns the image path. Called before the touch is used for anything."""
+        with self._lock:
+            self._open()
+            return self._add_touch(image, meta, no_contact)
+
+    def _add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
+                   no_contact: np.ndarray | None) -> Path | None:
         self.n_touches += 1
         img_path = None
         if image is not None:
             img_path = self.dir / f"touch_{self.n_touches:04d}_{meta.get('platform_id', 'x')}.png"
-            ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
-            if not ok:
-                raise TactexError(f"could not encode touch {self.n_touches} as PNG")
-            _fsync_write(img_path, buf.tobytes(), False)
+            self._png(img_path, image)
+        nc_name = None
+        if no_contact is not None:
+            if self._no_contact is not None and np.array_equal(self._no_contact[0], no_contact):
+                nc_name = self._no_contact[1]
+            else:
+                nc_name = f"no_contact_{self.n_touches:04d}.png"
+                self._png(self.dir / nc_name, no_contact)
+                self._no_contact = (np.array(no_contact, copy=True), nc_name)
         line = dict(meta, seq=self.n_touches, image=img_path.name if img_path else None)
+        if nc_name is not None:
+            line["no_contact"] = nc_name
         _fsync_write(self.dir / "touches.jsonl", (json.dumps(line) + "\n").encode(), True)
         return img_path
 
     def reject_touch(self, seq: int, reason: str) -> None:
         """Mark touch ``seq`` (already on disk) as not used, e.g. refused by the core's guard."""
-        _fsync_write(self.dir / "rejections.jsonl",
-                     (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
+        with self._lock:
+            self._open()
+            _fsync_write(self.dir / "rejections.jsonl",
+                         (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
 
     def add_decision(self, state: dict[str, Any]) -> None:
-        _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(), True)
+        with self._lock:
+            self._open()
+            _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(),
+                         True)
 
     def finish(self, result: dict[str, Any]) -> Path:
-        tmp = self.dir / "result.json.tmp"
-        _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
-        os.replace(tmp, self.dir / "result.json")
-        return self.dir / "result.json"
+        """Write ``result.json`` atomically (temporary file, fsync, rename)."""
+        with self._lock:
+            self._open()
+            tmp = self.dir / "result.json.tmp"
+            _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
+            os.replace(tmp, self.dir / "result.json")
+            fd = os.open(self.dir, os.O_RDONLY)     # the rename itself survives a power loss
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            return self.dir / "result.json"
 
 
 def _read_jsonl(path: Path) -> list[dict]:
@@ -95,12 +189,30 @@ def _read_jsonl(path: Path) -> list[dict]:
         try:
             out.append(json.loads(line))
         except json.JSONDecodeError:
-            break  # torn last line of a crashed writer
+            continue  # torn line of a crashed writer (ended by a resume's newline)
     return out
 
 
-def read_record(folder: str | Path) -> dict[str, Any]:
-    """Load a record folder: touches (with images as arrays), decisions, result (or None)."""
+def read_result(folder: str | Path) -> dict | None:
+    """``result.json`` of a record, None when absent; a result that does not parse is an
+    error (it is written atomically, so it is never torn)."""
+    p = Path(folder) / "result.json"
+    if not p.exists():
+        return None
+    try:
+        return json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise TactexError(f"{str(p)!r} is not valid JSON ({exc})") from None
+
+
+def _read_png(path: Path) -> np.ndarray | None:
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    return None if bgr is None else bgr[:, :, ::-1].copy()
+
+
+def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
+    """Load a record folder: touches (with images as arrays: ``array``, ``no_contact_array``),
+    decisions, events, result (or None). ``images=False`` skips the PNGs."""
     d = Path(folder)
     if not d.is_dir():
         raise TactexError(f"trial record {str(d)!r} not found")
@@ -109,10 +221,14 @@ def read_record(folder: str | Path) -> dict[str, Any]:
     for t in touches:
         if t.get("seq") in rejected:
             t.update(accepted=False, reason=rejected[t["seq"]])
-    for t in touches:
-        if t.get("image"):
-            bgr = cv2.imread(str(d / t["image"]), cv2.IMREAD_COLOR)
-            t["array"] = None if bgr is None else bgr[:, :, ::-1].copy()
-    res = d / "result.json"
+    if images:
+        cache: dict[str, np.ndarray | None] = {}
+        for t in touches:
+            if t.get("image"):
+                t["array"] = _read_png(d / t["image"])
+            if t.get("no_contact"):
+                if t["no_contact"] not in cache:
+                    cache[t["no_contact"]] = _read_png(d / t["no_contact"])
+                t["no_contact_array"] = cache[t["no_contact"]]
     return {"touches": touches, "decisions": _read_jsonl(d / "decisions.jsonl"),
-            "result": json.loads(res.read_text()) if res.exists() else None}
+            "events": _read_jsonl(d / "events.jsonl"), "result": read_result(d)}

@@ -7,6 +7,12 @@ and publishing; every wait has a deadline. Publishes ``tactex/ExplorationState``
 image on ``/tactex/touch_image``. The record (``record.TrialRecord``) receives each touch
 before it is used; a corrupt or wrongly sized image is recorded as rejected and never trained
 on; a failed press is recorded with its reason and the trial goes on.
+
+A press server that leaves the ROS graph, or sends no feedback for ``press_silence_s``, ends
+the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
+than waiting out ``press_timeout_s``. With ``resume`` (a record folder) the trial continues an
+interrupted one: the recorded touches are handed to the engine again in order
+(``resume.Replay``), then live presses take over.
 """
 
 from __future__ import annotations
@@ -26,9 +32,14 @@ from ..core.engine import TouchFailed, TrialEngine, trial_preset
 from ..core.errors import TactexError
 from ..core.touch import Touch
 from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
+from ..bag import TOUCH_TOPIC
 from ..record import TrialRecord
 from ..scene import load_scene
 from .common import TactexNode, run
+
+
+class PressServerLost(TactexError):
+    """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
 
 class ExplorerNode(TactexNode):
@@ -57,17 +68,58 @@ class ExplorerNode(TactexNode):
                             s.stop_confidence)
         self.engine = TrialEngine(len(self.ids) - 1, cfg, tcfg, seed=s.seed,
                                   platform_ids=self.ids)
-        self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
-        self.record = TrialRecord(s.record_dir, self.trial_id)
-        self.record.save_inputs(s.scene_file, {"explorer": s.__dict__,
-                                               "learner": cfg.__dict__,
-                                               "trial": tcfg.__dict__})
+        inputs = {"explorer": s.__dict__, "learner": cfg.__dict__, "trial": tcfg.__dict__}
+        self.replay = None
+        if s.resume:
+            self._open_resume(s.resume, inputs)
+        else:
+            self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
+            self.record = TrialRecord(s.record_dir, self.trial_id)
+            self.record.save_inputs(s.scene_file, inputs)
+        self.bag = self._open_bag()
         self.press = ActionClient(self, Press, s.press_action)
         self.state_pub = self.create_publisher(ExplorationState, STATE_TOPIC, 10)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, 10)
         self.image_pub = self.create_publisher(Image, TOUCH_IMAGE_TOPIC, 10)
         self.last_state = None
         self.result: dict | None = None
+        self._feedback_t = time.monotonic()
+
+    def _open_bag(self):
+        """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
+        from ..bag import BagWriter
+        k = len(list(self.record.dir.glob("topics*.mcap")))
+        return BagWriter(self.record.dir / ("topics.mcap" if k == 0 else f"topics.{k}.mcap"))
+
+    def _bag_write(self, topic: str, msg) -> None:
+        """Copy a message into the MCAP file; a failure there never stops the trial."""
+        try:
+            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+        except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
+            if not getattr(self, "_bag_warned", False):
+                self._bag_warned = True
+                self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
+
+    def _open_resume(self, folder: str, inputs: dict) -> None:
+        """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
+        from pathlib import Path
+
+        from ..record import append_event, read_record
+        from ..resume import check_settings, load_replay
+        d = Path(folder).resolve()
+        self.record = TrialRecord(d.parent, d.name, resume=True)
+        self.trial_id = d.name
+        check_settings(d, inputs)
+        was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
+        if was is not None and [p.id for p in was.ordered] != self.ids:
+            raise TactexError(f"resume: the scene's platforms {self.ids} are not the record's "
+                              f"{[p.id for p in was.ordered]}")
+        self.replay, rec = load_replay(d, self._press, self.ids)
+        self._replay_decisions = rec["decisions"]
+        self._decisions = 0
+        append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
+                         "touches_replayed": len(self.replay.recorded),
+                         "decisions_on_disk": len(rec["decisions"]), "time": time.time()})
 
     def activate(self) -> None:
         self.create_timer(1.0, self._publish_markers)
@@ -79,7 +131,9 @@ class ExplorerNode(TactexNode):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _publish_markers(self) -> None:
-        self.marker_pub.publish(adapter.markers(self.scene, self.last_state, self._now()))
+        msg = adapter.markers(self.scene, self.last_state, self._now())
+        self.marker_pub.publish(msg)
+        self._bag_write(MARKER_TOPIC, msg)
 
     def _publish_state(self, rec, done: bool, prediction: str) -> None:
         msg = adapter.state_msg(rec, trial_id=self.trial_id,
@@ -90,7 +144,10 @@ class ExplorerNode(TactexNode):
                                 frame_id=self.scene.frame_id)
         self.last_state = msg
         self.state_pub.publish(msg)
+        self._bag_write(STATE_TOPIC, msg)
         self._publish_markers()
+        if self.replay is not None and self._replayed_decision(msg):
+            return                            # already on disk before the interruption
         self.record.add_decision({"round": rec.round, "next": msg.next_platform,
                                   "belief": list(msg.belief),
                                   "uncertainty": list(msg.uncertainty),
@@ -98,13 +155,57 @@ class ExplorerNode(TactexNode):
                                   "decision_s": rec.decision_s, "done": done,
                                   "prediction": prediction})
 
+    def _replayed_decision(self, msg) -> bool:
+        """True for a decision a resumed trial re-made that the record already holds (a
+        recomputed belief that differs from the recorded one is noted in events.jsonl)."""
+        i, self._decisions = self._decisions, self._decisions + 1
+        if i >= len(self._replay_decisions):
+            return False
+        was = self._replay_decisions[i].get("belief") or []
+        diff = float(np.max(np.abs(np.subtract(was, list(msg.belief))))) \
+            if len(was) == len(msg.belief) else float("inf")
+        if diff > 1e-4:
+            from ..record import append_event
+            append_event(self.record.dir, {"event": "replay_differs", "decision": i + 1,
+                                           "max_belief_diff": diff})
+            self.get_logger().warning(f"resume: decision {i + 1} differs from the record "
+                                      f"(belief by up to {diff:.3g})")
+        return True
+
     # ------------------------------------------------------------------ the trial
-    def _wait(self, fut, deadline: float) -> bool:
+    def _wait(self, fut, deadline: float, watch: bool = False) -> bool:
+        """Wait for ``fut`` until ``deadline``; with ``watch``, raise PressServerLost once the
+        press server is gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+        absent_since = None
         while not fut.done():
-            if time.monotonic() > deadline:
+            now = time.monotonic()
+            if now > deadline:
                 return False
+            if getattr(self, "_stopping", False) or not self.context.ok():
+                raise TactexError("the explorer is stopping")
+            if watch:
+                silent = now - self._feedback_t
+                if silent > self.settings.press_silence_s:
+                    raise PressServerLost(f"no answer or feedback from the press server for "
+                                          f"{silent:.1f} s (press_silence_s)")
+                if self.press.server_is_ready():
+                    absent_since = None
+                elif absent_since is None:
+                    absent_since = now
+                elif now - absent_since > 1.0:
+                    raise PressServerLost("the press server left the ROS graph")
             time.sleep(0.01)
         return True
+
+    def _on_feedback(self, _msg) -> None:
+        self._feedback_t = time.monotonic()
+
+    def _touch(self, platform: int) -> Touch:
+        """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
+        touch = self.replay(platform)
+        if self.replay.current is not None and isinstance(touch, Touch):
+            self._set_guard_reference(touch.no_contact)
+        return touch
 
     def _press(self, platform: int) -> Touch:
         """The engine's ``touch_fn``: press ``platform`` (index), put the touch on disk, return
@@ -114,17 +215,24 @@ class ExplorerNode(TactexNode):
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
-        fut = self.press.send_goal_async(Press.Goal(platform_id=pid))
-        if not self._wait(fut, deadline):
-            self._failed(platform, meta, "press goal not answered before the deadline")
-        handle = fut.result()
-        if not handle.accepted:
-            self._failed(platform, meta, "press goal rejected by the motion node")
-        rfut = handle.get_result_async()
-        if not self._wait(rfut, deadline):
-            handle.cancel_goal_async()
-            self._failed(platform, meta, f"press not finished within press_timeout_s "
-                                         f"({self.settings.press_timeout_s} s)")
+        self._feedback_t = time.monotonic()
+        fut = self.press.send_goal_async(Press.Goal(platform_id=pid),
+                                         feedback_callback=self._on_feedback)
+        try:
+            if not self._wait(fut, deadline, watch=True):
+                self._failed(platform, meta, "press goal not answered before the deadline")
+            handle = fut.result()
+            if not handle.accepted:
+                self._failed(platform, meta, "press goal rejected by the motion node")
+            rfut = handle.get_result_async()
+            if not self._wait(rfut, deadline, watch=True):
+                handle.cancel_goal_async()
+                self._failed(platform, meta, f"press not finished within press_timeout_s "
+                                             f"({self.settings.press_timeout_s} s)")
+        except PressServerLost as exc:   # the press never ended: a resume makes it again
+            self.record.add_touch(None, dict(meta, accepted=False, reason=str(exc),
+                                             interrupted=True))
+            raise
         res = rfut.result().result
         if not res.success:
             self._failed(platform, meta, res.reason or "press failed", res.attempts)
@@ -140,10 +248,12 @@ class ExplorerNode(TactexNode):
             self.record.add_touch(None, meta)
             self.get_logger().warning(f"touch rejected: {exc}")
             raise TouchFailed(str(exc), retry=False) from exc
-        self.record.add_touch(img, dict(meta, accepted=True))   # on disk before it is used
         no_contact = self._no_contact(touch)
+        self.record.add_touch(img, dict(meta, accepted=True),   # on disk before it is used
+                              no_contact=no_contact)
         self._set_guard_reference(no_contact)
         self.image_pub.publish(touch.image)
+        self._bag_write(TOUCH_TOPIC, touch)
         return Touch(frame=img, no_contact=no_contact)
 
     def _no_contact(self, touch) -> np.ndarray | None:
@@ -158,6 +268,11 @@ class ExplorerNode(TactexNode):
 
     def _on_rejected(self, platform: int, exc: TactexError) -> None:
         """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
+        cur = self.replay.current if self.replay is not None else None
+        if cur is not None:              # a replayed touch: marked already, unless cut off
+            if not cur.rejected:
+                self.record.reject_touch(cur.seq, str(exc))
+            return
         self.record.reject_touch(self.record.n_touches, str(exc))
         self.get_logger().warning(f"touch rejected: {exc}")
 
@@ -178,13 +293,30 @@ class ExplorerNode(TactexNode):
         try:
             self._run_trial()
         except Exception as exc:  # the trial must end in an explicit result
+            if not self.context.ok() or self.record.closed:
+                return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
             self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
             self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
             self.record.finish(self.result)
             self.exit_code = 1
         finally:
+            self.bag.close()
             if self.settings.exit_when_done:
                 self.finished.set()
+
+    def destroy_node(self) -> None:
+        """Stopped mid-trial: let a touch being written finish, then write nothing more; give
+        the trial thread a moment to leave its wait before the action client goes away."""
+        self._stopping = True
+        record = getattr(self, "record", None)
+        if record is not None:
+            record.close()
+        if getattr(self, "bag", None) is not None:
+            self.bag.close()
+        worker = getattr(self, "worker", None)
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=3.0)
+        super().destroy_node()
 
     def _run_trial(self) -> None:
         s = self.settings
@@ -197,10 +329,15 @@ class ExplorerNode(TactexNode):
             pred = self.ids[int(np.argmax(rec.probs)) + 1] if eng.done else ""
             self._publish_state(rec, eng.done, pred)
 
-        res = eng.run(self._press, on_round=on_round, on_rejected=self._on_rejected)
+        touch_fn = self._press if self.replay is None else self._touch
+        res = eng.run(touch_fn, on_round=on_round, on_rejected=self._on_rejected)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)
+        if self.replay is not None:
+            from ..record import read_record
+            out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
+                              if e.get("event") == "resumed"]
         self.result = out
         path = self.record.finish(out)
         self.get_logger().info(f"trial {self.trial_id}: reference matches "

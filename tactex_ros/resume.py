@@ -1,0 +1,138 @@
+"""Resume an interrupted trial from its record (no ROS here).
+
+The trial engine is deterministic given the outcome of every touch: the same touches, failures
+and refusals in the same order lead to the same ``decide()`` calls, the same learner state and
+the same random draws. So a trial is resumed by running a fresh engine (same settings, same
+seed) with ``run(touch_fn)`` where ``touch_fn`` is a ``Replay``: it hands back the touches on
+disk in their recorded order (a recorded failure is raised again as ``TouchFailed``, a touch
+the contact guard refused is handed back and refused again), and only once they are used up
+does it call the live touch function. The engine re-decides at exactly the recorded points,
+and the trial goes on to the same number of rounds or stop rule.
+
+A press that was cut off by the fault itself (the record marks it ``interrupted``) is not
+replayed: the resumed trial makes that touch again, as the uninterrupted one did. If the
+engine asks for another platform than the record holds next, the record was made with other
+settings or code, and ``Replay`` raises a ``TactexError`` naming the touch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .core.engine import TouchFailed
+from .core.errors import TactexError
+from .core.touch import Touch
+from .record import read_record
+
+
+@dataclass
+class RecordedTouch:
+    """One line of ``touches.jsonl`` as the engine saw it."""
+
+    seq: int
+    platform_index: int            # 0 = reference, 1..C comparisons
+    platform_id: str
+    touch: Touch | None            # None: the touch failed (``reason``)
+    reason: str = ""
+    rejected: bool = False         # written, then refused by the core's guard
+
+
+def recorded_touches(record: dict) -> list[RecordedTouch]:
+    """The touches of a loaded record (``read_record``) in arrival order, interrupted presses
+    left out. A touch whose image is missing or unreadable is refused (nothing is guessed)."""
+    out = []
+    for t in record["touches"]:
+        if t.get("interrupted"):
+            continue
+        seq = int(t.get("seq", 0))
+        if "platform_index" not in t:
+            raise TactexError(f"resume: touch {seq} of the record has no platform_index")
+        touch = None
+        if t.get("image"):
+            arr = t.get("array")
+            if arr is None:
+                raise TactexError(f"resume: image {t['image']!r} of touch {seq} is missing or "
+                                  "unreadable")
+            touch = Touch(frame=arr, no_contact=t.get("no_contact_array"))
+        elif t.get("accepted", False):
+            raise TactexError(f"resume: touch {seq} is marked accepted but has no image")
+        out.append(RecordedTouch(seq=seq, platform_index=int(t["platform_index"]),
+                                 platform_id=str(t.get("platform_id", "")), touch=touch,
+                                 reason=str(t.get("reason") or "touch failed"),
+                                 rejected=touch is not None and not t.get("accepted", True)))
+    return out
+
+
+class Replay:
+    """A ``touch_fn`` for ``TrialEngine.run``: the recorded touches in order, then ``live``.
+
+    ``current`` is the recorded touch handed back last (None once live), so a caller can tell
+    a replayed touch (already on disk) from a new one."""
+
+    def __init__(self, recorded: list[RecordedTouch],
+                 live: Callable[[int], "Touch | np.ndarray"], platform_ids: list[str]) -> None:
+        self.recorded = list(recorded)
+        self.live = live
+        self.platform_ids = platform_ids
+        self.pos = 0
+        self.current: RecordedTouch | None = None
+
+    @property
+    def replaying(self) -> bool:
+        """True while recorded touches remain."""
+        return self.pos < len(self.recorded)
+
+    def __call__(self, platform: int) -> "Touch | np.ndarray":
+        if not self.replaying:
+            self.current = None
+            return self.live(platform)
+        r = self.recorded[self.pos]
+        self.pos += 1
+        self.current = r
+        if r.platform_index != platform:
+            want = self.platform_ids[platform] if 0 <= platform < len(self.platform_ids) \
+                else str(platform)
+            raise TactexError(f"resume: the record diverges at touch {r.seq}: it holds a touch "
+                              f"of {r.platform_id or r.platform_index}, the trial asks for "
+                              f"{want} (other settings or code than the interrupted run)")
+        if r.touch is None:
+            raise TouchFailed(r.reason, retry=False)
+        return r.touch
+
+
+def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
+                platform_ids: list[str]) -> tuple[Replay, dict]:
+    """A ``Replay`` of the record in ``folder`` and the loaded record."""
+    rec = read_record(folder)
+    return Replay(recorded_touches(rec), live, platform_ids), rec
+
+
+# settings that may change between the interrupted run and its resume (where, how long, how fast)
+_FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "threads", "nice",
+                      "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
+                      "scene_file"},
+         "learner": {"threads"}, "trial": set()}
+
+
+def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
+    """Refuse a resume whose settings differ from the record's ``config.json`` where they
+    change the trial (seed, strategy, model, rounds, stop rule, every learner setting); the
+    error names the first field that differs. ``now``: {section: settings dict}."""
+    import json
+    p = Path(folder) / "config.json"
+    try:
+        was = json.loads(p.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise TactexError(f"resume: cannot read {str(p)!r} ({exc})") from None
+    for section, free in _FREE.items():
+        a = json.loads(json.dumps(was.get(section, {}), default=str))
+        b = json.loads(json.dumps(now.get(section, {}), default=str))
+        for k in sorted(set(a) | set(b)):
+            if k not in free and a.get(k) != b.get(k):
+                raise TactexError(f"resume: {section}.{k} is {b.get(k)!r} now but "
+                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "
+                                  "trial runs with the settings it started with")

@@ -1,0 +1,235 @@
+"""Faults in the running graph: a node killed mid-trial, a frozen mock arm, Ctrl-C of the explorer
+or of the runner itself. Each run has a deadline; after each: every touch the explorer used is
+on disk (byte for byte), ``result.json`` is valid or absent, no node process is left; then the
+interrupted trial is resumed and ends with the prediction of an uninterrupted one."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image
+
+from tactex_ros import adapter
+from tactex_ros.bag import TOUCH_TOPIC, read_bag
+from tactex_ros.cli_graph import summarise_bag
+from tactex_ros.graph import describe
+from tactex_ros.node_settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
+from tactex_ros.record import read_record, read_result
+from tactex_ros.runner import ros_env, run_trial
+from tactex_ros.scene import load_scene
+
+pytestmark = pytest.mark.ros
+
+ROUNDS = 4                      # 5 baseline touches + 4 rounds = 9 touches
+DEADLINE_S = 150.0              # per graph run
+CLEAR_S = 15.0                  # fault -> the runner has a clear result and every node stopped
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:                                   # a zombie not yet reaped counts as gone
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def _touches_on_disk(record: Path) -> int:
+    try:
+        return len((record / "touches.jsonl").read_text().splitlines())
+    except OSError:
+        return 0
+
+
+class Fault:
+    """Injects ``action(graph)`` once the record holds ``after`` touch lines (own deadline)."""
+
+    def __init__(self, record: Path, after: int, action) -> None:
+        self.record, self.after, self.action = record, after, action
+        self.t: float | None = None
+
+    def __call__(self, graph) -> None:
+        def watch() -> None:
+            end = time.monotonic() + DEADLINE_S
+            while time.monotonic() < end:
+                if _touches_on_disk(self.record) >= self.after:
+                    time.sleep(0.3)              # the next press is under way
+                    self.t = time.monotonic()
+                    self.action(graph)
+                    return
+                if any(p.poll() is not None for p in graph.procs.values()):
+                    return
+                time.sleep(0.05)
+        threading.Thread(target=watch, daemon=True).start()
+
+
+def kill(name: str, sig: int = signal.SIGKILL):
+    return lambda g: os.kill(g.procs[name].pid, sig)
+
+
+def freeze(name: str, seconds: float):
+    def act(g) -> None:
+        pid = g.procs[name].pid
+        os.kill(pid, signal.SIGSTOP)
+        time.sleep(seconds)
+        os.kill(pid, signal.SIGCONT)
+    return act
+
+
+def _check_record(record: Path, used: list[np.ndarray]) -> dict:
+    """Every line whole, every image readable, every touch the explorer used on disk byte for
+    byte, result.json valid or absent (read_result raises on a torn one)."""
+    lines = (record / "touches.jsonl").read_text().splitlines()
+    for line in lines:
+        json.loads(line)                                     # no torn line
+    rec = read_record(record)
+    assert len(rec["touches"]) == len(lines)
+    with_image = [t for t in rec["touches"] if t.get("image")]
+    for t in with_image:
+        assert t["array"] is not None and t["array"].shape == (240, 320, 3), t["image"]
+    named = {t["image"] for t in with_image}
+    assert {f.name for f in record.glob("touch_*.png")} == named   # no image without its line
+    for img in used:
+        assert any(np.array_equal(img, t["array"]) for t in with_image), \
+            "a touch the explorer used is not on disk"
+    read_result(record)
+    for bag in sorted(record.glob("topics*.mcap")):          # the MCAP copy, crashed or closed
+        for topic, _, m in read_bag(bag):
+            if topic == TOUCH_TOPIC:
+                arr = adapter.image_to_array(m.image, "bag touch")
+                assert any(np.array_equal(arr, t["array"]) for t in with_image), bag.name
+    return rec
+
+
+def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | None = None,
+         **explorer) -> tuple:
+    ex = {"rounds": ROUNDS, "stop_confidence": 0.0, "seed": 0, "threads": 1,
+          "record_dir": str(tmp), "trial_id": "trial", **explorer}
+    if resume is not None:
+        ex["resume"] = str(resume)
+    nodes = describe(True, explorer=ex)
+    used = listener.collect(Image, TOUCH_IMAGE_TOPIC)
+    t0 = time.monotonic()
+    run = run_trial(nodes, tmp / f"logs_{name}", timeout_s=DEADLINE_S,
+                    domain_id=listener.domain_id, on_start=fault)
+    t_end = time.monotonic()
+    assert not run.timed_out, run.failure
+    assert run.left_running == []
+    assert len(run.pids) == 4 and not any(_alive(p) for p in run.pids.values())
+    clear = None if fault is None or fault.t is None else t_end - fault.t
+    imgs = [adapter.image_to_array(m, "touch") for m in list(used)]
+    used.clear()
+    rec = _check_record(tmp / "trial", imgs)
+    print(f"\n{name}: {run.failure or 'finished'}; fault -> result and all stopped "
+          f"{clear if clear is None else round(clear, 2)} s; run {t_end - t0:.1f} s; "
+          f"touches on disk {len(rec['touches'])}")
+    return run, rec, clear
+
+
+def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
+    """One trial, interrupted four times and resumed each time: kill -9 of the motion node
+    (after the mock arm was frozen for 5 s), of the mock camera, of the mock arm, SIGINT of
+    the explorer mid-round; the last resume finishes it. No touch lost, none twice."""
+    scene = load_scene(describe(True)[0].parameters["scene_file"])
+    truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
+    wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
+    record = tmp_path / "trial"
+
+    # 1. the mock arm frozen 5 s mid-press (stale state), then kill -9 of the motion node
+    def freeze_then_kill(g) -> None:
+        freeze("mock_arm", 5.0)(g)
+        time.sleep(1.0)
+        kill("motion")(g)
+    f = Fault(record, 2, freeze_then_kill)
+    run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f)
+    assert run.failed_node == "motion" and run.node_exit["motion"] == -signal.SIGKILL
+    assert run.result is None and clear is not None and clear - 1.0 < CLEAR_S
+    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
+    n = len(rec["touches"])
+
+    steps = [("kill_mock_camera", "mock_image", kill("mock_image")),
+             ("kill_mock_arm", "mock_arm", kill("mock_arm")),
+             ("sigint_explorer", "explorer", kill("explorer", signal.SIGINT))]
+    for name, node, act in steps:
+        f = Fault(record, n + 1, act)
+        run, rec, clear = _run(tmp_path, listener, name, f, resume=record)
+        if run.result is not None:            # the trial ended before the fault could land
+            break
+        assert run.failed_node == node, run.failure
+        assert clear is not None and clear < CLEAR_S
+        assert len(rec["touches"]) > n             # the resumed run made new touches
+        n = len(rec["touches"])
+
+    if run.result is None:
+        run, rec, _ = _run(tmp_path, listener, "resume_to_the_end", None, resume=record)
+    res = run.result
+    assert res is not None and "error" not in res, res
+    assert res["prediction"] == truth and res["stop_reason"] == "rounds"
+    accepted = [t for t in rec["touches"] if t["accepted"]]
+    assert res["touches"] == len(accepted) == 5 + ROUNDS      # none lost, none twice
+    assert len(rec["decisions"]) == ROUNDS + 1                # every decision once
+    assert [d["round"] for d in rec["decisions"]] == list(range(1, ROUNDS + 2))
+    assert len(res["resumed"]) >= 2
+    last = max(record.glob("topics*.mcap"), key=lambda f: f.stat().st_mtime)   # the last run
+    assert summarise_bag(read_bag(last))["prediction"] == truth
+    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
+
+
+def _node_pids(tag: str) -> list[int]:
+    """Processes whose command line contains ``tag`` (a unique log folder of this test)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            except OSError:
+                continue
+            if tag in cmd and "tactex_ros.nodes." in cmd and _alive(int(d.name)):
+                out.append(int(d.name))
+    return out
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_runner_signalled_leaves_no_node(tmp_path: Path, domain_id: int, sig: int) -> None:
+    """`tactex graph run` gets SIGTERM (or SIGKILL) mid-trial: every node is stopped."""
+    logs = tmp_path / f"logs_{sig}"
+    cmd = [sys.executable, "-m", "tactex_ros.cli", "graph", "run", "--sim", "--rounds", "3",
+           "--record-dir", str(tmp_path), "--trial-id", "t", "--log-dir", str(logs),
+           "--domain-id", str(domain_id), "--timeout", "120"]
+    proc = subprocess.Popen(cmd, env=ros_env(domain_id), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
+    try:
+        end = time.monotonic() + 90
+        while _touches_on_disk(tmp_path / "t") < 1 and time.monotonic() < end:
+            assert proc.poll() is None, proc.stdout.read().decode()
+            time.sleep(0.1)
+        assert len(_node_pids(str(logs))) == 4
+        t0 = time.monotonic()
+        proc.send_signal(sig)
+        code = proc.wait(timeout=30)
+        while _node_pids(str(logs)) and time.monotonic() - t0 < 15:
+            time.sleep(0.1)
+        gone_s = time.monotonic() - t0
+        left = _node_pids(str(logs))
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for pid in _node_pids(str(logs)):
+            os.kill(pid, signal.SIGKILL)
+    assert left == [], f"nodes left after {signal.Signals(sig).name}: {left}"
+    assert code == (128 + sig if sig != signal.SIGKILL else -sig)
+    print(f"\nrunner {signal.Signals(sig).name}: all nodes gone after {gone_s:.2f} s")
+    _check_record(tmp_path / "t", [])
