@@ -3,6 +3,9 @@
 Images: ``sensor_msgs/Image`` rgb8 or bgr8 (240 x 320) <-> RGB uint8 (240, 320, 3).
 Poses: ``geometry_msgs/PoseStamped`` <-> position (3,) [m] + quaternion (4,) x y z w.
 Wrenches: ``geometry_msgs/WrenchStamped`` -> normal force [N] (sign configurable).
+Robot interfaces of a robot profile (``robot.py``): equilibrium targets as PoseStamped or
+multipanda_ros2's ``Float64MultiArray`` (x y z + rotation matrix row by row); franka state
+messages (``o_t_ee`` column-major 4x4, ``o_f_ext_hat_k``) -> position, force, robot mode.
 Exploration: ``RoundRecord`` -> ``tactex/ExplorationState``; scene + state ->
 ``visualization_msgs/MarkerArray`` for rviz.
 """
@@ -15,11 +18,11 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from sensor_msgs.msg import Image
-from std_msgs.msg import ColorRGBA, Header
+from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .core.errors import TactexError
-from .core.preprocess import FRAME_H, FRAME_W
+from .core.names import FRAME_H, FRAME_W
 from .scene import Scene
 
 
@@ -99,6 +102,72 @@ def normal_force(force: Vector3, sign: float = 1.0) -> float:
     if not math.isfinite(f):
         raise TactexError("wrench with a non-finite force")
     return max(0.0, f)
+
+
+def force_components(force: Vector3 | np.ndarray, sign: float = 1.0) -> tuple[float, float]:
+    """(signed normal force ``sign * f_z`` [N], force magnitude [N]) of a base-frame force;
+    TactexError if not finite. The magnitude does not depend on the sign convention, so the
+    force limit holds even where ``sign`` is wrong."""
+    f = (np.array([force.x, force.y, force.z], dtype=float) if isinstance(force, Vector3)
+         else np.asarray(force, dtype=float)[:3])
+    if not np.all(np.isfinite(f)):
+        raise TactexError("wrench with a non-finite force")
+    return float(sign * f[2]), float(np.linalg.norm(f))
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion x y z w -> rotation matrix (3, 3)."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quat(r: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) -> unit quaternion x y z w (w >= 0)."""
+    r = np.asarray(r, dtype=float)
+    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2, r[2, 1] - r[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2, r[0, 2] - r[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2, r[1, 0] - r[0, 1])
+    q = np.array([x, y, z, w])
+    return q / np.linalg.norm(q)
+
+
+def target_msg(kind: str, xyz: np.ndarray, quat: np.ndarray, t: float, frame_id: str):
+    """An equilibrium target of the profile's ``kind`` (``geometry_msgs/msg/PoseStamped`` or
+    ``std_msgs/msg/Float64MultiArray``: x y z then the rotation matrix row by row, 12 values)."""
+    if kind == "std_msgs/msg/Float64MultiArray":
+        r = quat_to_matrix(quat)
+        return Float64MultiArray(data=[float(v) for v in xyz] + [float(v) for v in r.ravel()])
+    return array_to_pose(xyz, quat, t, frame_id)
+
+
+def target_to_array(msg) -> tuple[np.ndarray, np.ndarray]:
+    """A PoseStamped or 12-value Float64MultiArray target -> position (3,), quaternion (4,)."""
+    if isinstance(msg, Float64MultiArray):
+        d = np.asarray(msg.data, dtype=float)
+        if d.shape != (12,) or not np.all(np.isfinite(d)):
+            raise TactexError(f"Float64MultiArray target: expected 12 finite values (x y z + "
+                              f"rotation row by row), got {d.size}")
+        return d[:3].copy(), matrix_to_quat(d[3:].reshape(3, 3))
+    return pose_to_array(msg)
+
+
+FRANKA_MODE_REFLEX = 4     # franka_msgs/FrankaState.ROBOT_MODE_REFLEX
+
+
+def franka_state_to_array(msg, sign: float) -> tuple[np.ndarray, float, float, int]:
+    """A franka state message (``o_t_ee`` 16 values column-major, ``o_f_ext_hat_k`` 6 values,
+    ``robot_mode``) -> (position (3,) [m], signed normal force [N], force magnitude [N],
+    robot mode)."""
+    t = np.asarray(msg.o_t_ee, dtype=float)
+    f = np.asarray(msg.o_f_ext_hat_k, dtype=float)
+    if t.shape != (16,) or f.shape != (6,) or not (np.all(np.isfinite(t)) and
+                                                   np.all(np.isfinite(f))):
+        raise TactexError("franka state: o_t_ee must hold 16 and o_f_ext_hat_k 6 finite values")
+    fn, mag = force_components(f[:3], sign)
+    return t[12:15].copy(), fn, mag, int(getattr(msg, "robot_mode", 0))
 
 
 # ---------------------------------------------------------------------- exploration state

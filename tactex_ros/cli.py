@@ -173,8 +173,13 @@ def cmd_weights_inspect(args: argparse.Namespace) -> int:
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
     from .bench import latency
+    from .core.config import PRESETS
+    unknown = [c for c in args.configs if c not in PRESETS]
+    if unknown:
+        raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
+                          f"{', '.join(PRESETS)}")
     out = latency.run(touch_counts=args.touches, repeats=args.repeats,
-                      seed_epochs=args.seed_epochs)
+                      seed_epochs=args.seed_epochs, configs=tuple(args.configs))
     _write_json(args.json, out)
     return 0
 
@@ -240,6 +245,8 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--repeats", type=int, default=5)
     bl.add_argument("--seed-epochs", type=int, default=1,
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
+    bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
+                    help="configurations to time (ratios are to the last one)")
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 

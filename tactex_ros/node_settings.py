@@ -8,10 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .core.config import param
-from .core.strategies import STRATEGIES
-from .core.models import MODEL_NAMES
-from .core.config import PRESETS
+from .core.config import PRESETS, param
+from .core.names import MODEL_NAMES, STRATEGY_NAMES
 
 IMAGE_TOPIC = "/tactex/gelsight/image_raw"
 CAPTURE_SERVICE = "/tactex/gelsight/capture"
@@ -23,7 +21,6 @@ TOUCH_TOPIC = "/tactex/touch"
 POSE_TOPIC = "/franka_robot_state_broadcaster/current_pose"
 WRENCH_TOPIC = "/franka_robot_state_broadcaster/external_wrench_in_base_frame"
 TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
-RECOVERY_ACTION = "/action_server/error_recovery"
 
 
 @dataclass
@@ -41,20 +38,42 @@ class GelsightSettings:
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     loop_file: bool = param(True, "restart a video file at its end (recordings only)")
     open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
+    capture_width: int = param(320, "capture mode width requested from the camera [px] (the "
+                                    "GelSight SDK's 320x240; 0 = the camera's default)",
+                               0, 4096)
+    capture_height: int = param(240, "capture mode height [px] (0 = the camera's default)",
+                                0, 4096)
+    auto_exposure: bool = param(False, "leave the camera's auto exposure on (off: lighting "
+                                       "drift of 10 grey levels broke every strategy in "
+                                       "`tactex experiment stability`)")
+    exposure: float = param(-1.0, "manual exposure in the driver's units (V4L2: 100 us) "
+                                  "(< 0 = keep the value the camera has)", -1.0, 100000.0)
+    auto_white_balance: bool = param(False, "leave the camera's auto white balance on")
+    white_balance: float = param(-1.0, "white balance temperature [K] (< 0 = keep the "
+                                       "camera's)", -1.0, 15000.0)
 
 
 @dataclass
 class MotionSettings:
     scene_file: str = param("", "scene YAML (platforms, workspace, press settings)")
-    pose_topic: str = param(POSE_TOPIC, "current end-effector pose (PoseStamped) from "
-                                        "franka_robot_state_broadcaster")
-    wrench_topic: str = param(WRENCH_TOPIC, "external wrench in the base frame (WrenchStamped)")
-    target_topic: str = param(TARGET_TOPIC, "Cartesian target pose (PoseStamped), e.g. the "
-                                            "impedance controller's equilibrium pose")
+    robot: str = param("fr3_jazzy", "robot profile: a name from config/robots/ (fr3_jazzy, "
+                                    "panda_multipanda, sim) or a path; gives the controller, "
+                                    "topics, message types, stiffness and recovery interface")
+    pose_topic: str = param("", "current end-effector pose (PoseStamped) ('' = the profile's)")
+    wrench_topic: str = param("", "external wrench in the base frame (WrenchStamped) "
+                                  "('' = the profile's)")
+    state_topic: str = param("", "franka state message topic, for profiles that read one "
+                                 "('' = the profile's)")
+    target_topic: str = param("", "the impedance controller's equilibrium pose topic "
+                                  "('' = the profile's)")
+    stiffness: float = param(0.0, "the impedance controller's translational stiffness [N/m] "
+                                  "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
-    recovery_action: str = param(RECOVERY_ACTION, "franka_msgs ErrorRecovery action "
-                                                  "(used when franka_msgs is installed)")
-    force_sign: float = param(1.0, "normal force = force_sign * wrench.force.z", -1.0, 1.0)
+    recovery_name: str = param("", "error recovery action or service ('' = the profile's)")
+    recovery_timeout_s: float = param(30.0, "deadline for error recovery and re-activation, "
+                                            "each call [s]", 0.5, 600.0)
+    force_sign: float = param(0.0, "normal force = force_sign * wrench.force.z (0 = the "
+                                   "profile's)", -1.0, 1.0)
     rate_hz: float = param(50.0, "control loop rate [Hz]", 5.0, 1000.0)
     min_contact_score: float = param(0.3, "captured frame must differ from the no-contact frame "
                                           "by at least this [grey levels], else the press is "
@@ -68,7 +87,7 @@ class ExplorerSettings:
     scene_file: str = param("", "scene YAML (platform ids and order)")
     strategy: str = param("", "exploration strategy ('' = the preset's: infogain for default, "
                               "variance for cnn and seed_faithful)",
-                          choices=("",) + tuple(STRATEGIES))
+                          choices=("",) + STRATEGY_NAMES)
     config: str = param("default", "learner preset", choices=tuple(PRESETS))
     model: str = param("", "model variant override ('' = the preset's)",
                        choices=("", "descriptor") + MODEL_NAMES + ("auto",))
@@ -104,11 +123,24 @@ class ExplorerSettings:
 @dataclass
 class MockArmSettings:
     scene_file: str = param("", "scene YAML (platform surfaces)")
-    pose_topic: str = param(POSE_TOPIC, "where the mock publishes the current pose")
-    wrench_topic: str = param(WRENCH_TOPIC, "where the mock publishes the external wrench")
-    target_topic: str = param(TARGET_TOPIC, "where the mock reads target poses")
-    stiffness: float = param(2000.0, "platform stiffness [N/m]", 1.0, 1e6)
-    max_speed: float = param(0.3, "end-effector speed limit [m/s]", 0.001, 5.0)
+    robot: str = param("sim", "robot profile whose topics, target type, stiffness and wrench "
+                              "sign the mock takes (PoseStamped + WrenchStamped state only)")
+    pose_topic: str = param("", "where the mock publishes the current pose ('' = profile's)")
+    wrench_topic: str = param("", "where the mock publishes the external wrench "
+                                  "('' = profile's)")
+    target_topic: str = param("", "where the mock reads equilibrium poses ('' = profile's)")
+    stiffness: float = param(0.0, "impedance controller stiffness [N/m] (0 = the profile's)",
+                             0.0, 1e6)
+    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = 2 sqrt(stiffness) "
+                                 "as franka's controllers)", -1.0, 1e5)
+    mass: float = param(3.0, "apparent end-effector mass [kg]", 0.1, 100.0)
+    target_filter_s: float = param(-1.0, "controller filter on the equilibrium [s] (< 0 = the "
+                                         "profile's)", -1.0, 5.0)
+    platform_stiffness: float = param(2e4, "contact stiffness of gel, fabric and platform in "
+                                           "series [N/m]", 1.0, 1e7)
+    platform_damping: float = param(50.0, "contact damping [N s/m]", 0.0, 1e5)
+    wrench_sign: float = param(0.0, "published wrench z = wrench_sign * contact force (0 = the "
+                                    "profile's force_sign)", -1.0, 1.0)
     rate_hz: float = param(100.0, "simulation and publish rate [Hz]", 5.0, 1000.0)
     start_x: float = param(0.5, "start position x [m] in the base frame", -2.0, 2.0)
     start_y: float = param(0.0, "start position y [m] in the base frame", -2.0, 2.0)
@@ -116,6 +148,20 @@ class MockArmSettings:
     surface_offset: float = param(0.0, "platforms' true surface z minus the scene's [m] "
                                        "(fault injection: < 0 means lower, no contact)",
                                   -0.5, 0.5)
+    reflex_force: float = param(0.0, "contact force above which the mock goes into a reflex: "
+                                     "the arm stops and no state is published until recovered "
+                                     "(0 = never) [N]", 0.0, 1000.0)
+    reflex_limit: int = param(1, "reflexes injected at most (reflex_force)", 0, 1000)
+    recovery_standin: str = param("none", "serve stand-ins of the recovery interfaces: 'action' "
+                                          "(tactex/action/Press as the action type), 'service' "
+                                          "(std_srvs/srv/Trigger), plus the re-activation "
+                                          "services (std_srvs/srv/SetBool) for tests",
+                                  choices=("none", "action", "service"))
+    recovery_name: str = param("/tactex_test/error_recovery", "stand-in recovery name")
+    hardware_service: str = param("/tactex_test/set_hardware_active",
+                                  "stand-in hardware re-activation service (SetBool)")
+    controller_service: str = param("/tactex_test/activate_controller",
+                                    "stand-in controller re-activation service (SetBool)")
 
 
 @dataclass
@@ -125,7 +171,8 @@ class MockImageSettings:
     source: str = param("sim", "sim[:difficulty] or replay:DIR")
     pose_topic: str = param(POSE_TOPIC, "mock arm pose, to know what is under the sensor")
     fps: float = param(25.0, "published frame rate [Hz]", 1.0, 120.0)
-    depth_gain: float = param(0.2, "gel indentation [mm] per mm of penetration", 0.0, 10.0)
+    depth_per_n: float = param(0.1, "gel indentation [mm] per newton of contact force (the "
+                                    "GelSight Mini's gel takes about 0.4 mm at 4 N)", 0.0, 10.0)
     buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     seed: int = param(0, "seed of the rendered presses", 0, 2**31 - 1)

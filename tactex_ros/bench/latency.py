@@ -24,6 +24,7 @@ import torch
 
 from ..core.config import preset
 from ..core.engine import TrialEngine, trial_preset
+from ..core.texture import clear_cache
 from ..sim.source import SimSource
 
 
@@ -39,6 +40,7 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
     cfg = preset(config, **over)
     eng = TrialEngine(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
                       seed=0)
+    clear_cache()
     add_s = []
     for k in range(n_touches):
         t0 = time.perf_counter()
@@ -63,7 +65,7 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
         seed_epochs: int = 1,
         configs: tuple[str, ...] = ("seed_faithful", "cnn", "default")) -> dict:
     """Measure, print a table, return ``{config: {str(n): median seconds}}`` plus details."""
-    frames = _frames(8)
+    frames = _frames(max(touch_counts) + 1)   # distinct frames: no descriptor cache hits
     out: dict = {c: {} for c in configs}
     add: dict = {c: [] for c in configs}
     for n in touch_counts:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .errors import TactexError
-from .models import MODEL_NAMES
+from .names import MODEL_NAMES
 
 
 def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .preprocess import FRAME_H, FRAME_W
+from .names import FRAME_H, FRAME_W
 
 _BLUR = (5, 5)
 

@@ -1,18 +1,24 @@
 """The trial engine: baseline touches, then rounds of train -> score -> choose -> touch.
 
 The engine does not know where touches come from. Platform indices: 0 is the reference, 1..C
-are the comparison platforms (class c-1 of the learner). The first reference touch is the test
-sample; every comparison touch is training data for its platform's class.
+are the comparison platforms (class c-1 of the learner). Every reference touch is a test sample
+(the decision uses all of them); every comparison touch is data for its platform's class.
+
+Learners (``LearnerConfig.model``): ``descriptor`` (``core/descriptor.py``: texture descriptors
+and a closed-form belief over the matching comparison; nothing is trained) or a CNN
+(``core/learner.py``). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
+strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
 
 Drive it with ``run(touch_fn)``: the command line and experiments pass a simulated or replayed
 touch, the ROS explorer node a press over the graph (in its trial thread, off the executor).
 ``add_touch`` / ``decide`` / ``done`` are the steps ``run`` takes, for callers that need them
 one by one.
 
-A round (``decide``): train one round, T Monte-Carlo passes on the reference, the strategy's
-per-platform scores, the choice of the next platform (or none). Fixed ``rounds`` decisions that
-request a touch, then a final decision whose mean softmax gives the prediction; an optional stop
-rule ends earlier when the mean probability of the best platform reaches ``stop_confidence``.
+A round (``decide``): train one round (CNN), the (T, C) table of the reference and the belief,
+the strategy's per-platform scores, the choice of the next platform (or none). At most
+``rounds`` decisions that request a touch, then a final decision whose belief gives the
+prediction; the stop rule ends earlier when the belief in one platform reaches
+``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
 
 Model ``auto`` (``LearnerConfig.auto_*``): the trial starts on the first, cheapest stage of
 ``auto_ladder`` (by default ``small_inception`` at 48 px, then 96 px) and moves one stage up only on evidence from
@@ -295,7 +301,8 @@ class TrialEngine:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
             self.learner.add_reference(touch)
-            self._ref_touches.append(touch)
+            if self.is_auto:
+                self._ref_touches.append(touch)
             self.reference_touches += 1
         else:
             x = self.learner.add_touch(touch, platform - 1)
@@ -317,7 +324,8 @@ class TrialEngine:
         return cap == 0 or self.total_touches < cap
 
     def decide(self) -> RoundRecord:
-        """Train, score, choose. Sets ``next_platform`` (1..C or None) and maybe ``done``."""
+        """Train, score, choose. Sets ``next_platform`` (0 = the reference again, 1..C, or
+        None) and maybe ``done`` (``stop_reason`` says why)."""
         if self.done:
             raise TactexError("trial already finished")
         if self.reference_touches == 0 or np.any(self.touches == 0):
@@ -428,7 +436,8 @@ class TrialEngine:
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
             on_rejected: Callable[[int, TactexError], None] | None = None) -> TrialResult:
-        """Baseline, then rounds until done. ``touch_fn(platform) -> (240, 320, 3) uint8``.
+        """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
+        (240, 320, 3) uint8 frame.
 
         A TouchFailed from ``touch_fn`` (unless ``retry=False``) or a frame ``add_touch``
         refuses (guard or validation; ``on_rejected(platform, error)`` is told) is recorded and

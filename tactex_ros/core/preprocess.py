@@ -15,8 +15,8 @@ import numpy as np
 import torch
 
 from .errors import TactexError
+from .names import FRAME_H, FRAME_W  # defined torch-free, for the nodes
 
-FRAME_H, FRAME_W = 240, 320
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
 

@@ -141,6 +141,11 @@ def _key(frame: np.ndarray, no_contact: np.ndarray | None) -> bytes:
     return h.digest()
 
 
+def clear_cache() -> None:
+    """Forget every cached descriptor (benchmarks time the description itself)."""
+    _CACHE.clear()
+
+
 def describe_cached(frame: np.ndarray, no_contact: np.ndarray | None = None) -> np.ndarray:
     """``describe`` with a process-wide LRU cache keyed by the frames' bytes (a replayed press
     met again, e.g. in an evaluation over many scenes, is described once)."""

@@ -40,8 +40,7 @@ import numpy as np
 
 from ..core.errors import TactexError
 from . import charts, stats
-from .common import results_dir, write_json
-from .explore import parse_overrides
+from .common import parse_set, results_dir, write_json
 from .runner import default_workers
 
 # thesis Table 5.1 (test accuracy)
@@ -242,7 +241,7 @@ def build_specs(args: argparse.Namespace) -> tuple[list[dict], list[str], dict]:
         raise TactexError("classification needs at least 2 classes")
     models = args.models or (["inception_v3"] if args.weights else []) + \
         ["inception_v3_random", "small_inception"]
-    base = parse_overrides(args.set)
+    base = parse_set(args.set)
     if args.fourier:
         base["fourier"] = True
     if min(args.train, args.val, args.test) < 1:

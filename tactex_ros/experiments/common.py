@@ -60,6 +60,26 @@ def git_commit() -> str | None:
     return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
 
 
+def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
+    """``key=value`` items (values parsed as YAML scalars) -> LearnerConfig overrides; a key
+    that is not a LearnerConfig field is refused, naming ``option`` and the valid keys."""
+    import dataclasses
+
+    import yaml
+
+    from ..core.config import LearnerConfig
+    from ..core.errors import TactexError
+    names = {f.name for f in dataclasses.fields(LearnerConfig)}
+    out: dict[str, Any] = {}
+    for it in items or []:
+        key, sep, val = it.partition("=")
+        if not sep or key not in names:
+            raise TactexError(f"{option} {it!r}: expected key=value with key one of "
+                              f"{', '.join(sorted(names))}")
+        out[key] = yaml.safe_load(val)
+    return out
+
+
 def results_dir(out: str | None, name: str, config: dict) -> Path:
     """Create the results folder and record the run's configuration and library versions."""
     d = Path(out) if out else Path("results") / name

@@ -24,16 +24,14 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..core.errors import TactexError
 from . import charts, stats
-from .common import results_dir, write_json
+from .common import parse_set, results_dir, write_json
 from .runner import TrialJob, default_workers, run_jobs
 from .trials import find_trial_file, load_trials, platform_classes
 
@@ -45,20 +43,6 @@ THESIS_MATCHED = {"humans": 0.6688, "variance": 0.9000, "entropy": 0.8813, "rand
 
 
 # ---------------------------------------------------------------------------------- helpers
-def parse_overrides(items: list[str] | None) -> dict[str, Any]:
-    """``key=value`` pairs (values parsed as YAML scalars) -> LearnerConfig overrides."""
-    from ..core.config import LearnerConfig
-    fields = {f.name for f in __import__("dataclasses").fields(LearnerConfig)}
-    out: dict[str, Any] = {}
-    for it in items or []:
-        key, sep, val = it.partition("=")
-        if not sep or key not in fields:
-            raise TactexError(f"--set {it!r}: expected key=value with key one of "
-                              f"{', '.join(sorted(fields))}")
-        out[key] = yaml.safe_load(val)
-    return out
-
-
 def decision_at_budget(decisions: list[dict], k: int) -> dict:
     """The decision a run capped at ``k`` total touches would have ended with (see module doc)."""
     for d in decisions:
@@ -273,7 +257,7 @@ def run(args: argparse.Namespace) -> dict:
     budgets = sorted(set(args.budgets))
     if not budgets or budgets[0] < 1:
         raise TactexError("--budgets must be positive touch counts")
-    overrides = parse_overrides(args.set)
+    overrides = parse_set(args.set)
     jobs = build_jobs(trials, args.source, args.strategies, args.models, args.seeds,
                       args.rounds, args.config, overrides, args.weights)
     workers = args.workers or default_workers()

@@ -36,8 +36,10 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from .common import results_dir, write_json
+from .common import parse_set, results_dir, write_json
 from .runner import TrialJob, default_workers, run_jobs
+from .stats import mcnemar_exact as mcnemar
+from .stats import wilson
 
 OCTOPI = "/work/shared/datasets/octopi-dev"
 
@@ -86,45 +88,6 @@ THESIS_LABEL = "seed_faithful"
 
 
 # ------------------------------------------------------------------------------ small helpers
-def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """95 % Wilson interval of a proportion k/n."""
-    if n == 0:
-        return float("nan"), float("nan")
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return max(0.0, c - h), min(1.0, c + h)
-
-
-def mcnemar(a: list[bool], b: list[bool]) -> dict:
-    """Exact two-sided McNemar test on paired correct/incorrect outcomes."""
-    from scipy.stats import binomtest
-    a_only = sum(1 for x, y in zip(a, b) if x and not y)
-    b_only = sum(1 for x, y in zip(a, b) if y and not x)
-    n = a_only + b_only
-    p = 1.0 if n == 0 else float(binomtest(a_only, n, 0.5).pvalue)
-    return {"a_only": a_only, "b_only": b_only, "p": p}
-
-
-def parse_set(items: list[str] | None) -> dict[str, Any]:
-    """``--set key=value`` (YAML scalars) -> LearnerConfig overrides applied to every job."""
-    import dataclasses
-
-    import yaml
-
-    from ..core.config import LearnerConfig
-    names = {f.name for f in dataclasses.fields(LearnerConfig)}
-    out: dict[str, Any] = {}
-    for it in items or []:
-        k, sep, v = it.partition("=")
-        if not sep or k not in names:
-            raise TactexError(f"--set {it!r}: expected key=value, key one of "
-                              f"{', '.join(sorted(names))}")
-        out[k] = yaml.safe_load(v)
-    return out
-
-
 def job_key(job: TrialJob) -> str:
     """Content hash of a job with its learner settings resolved (a preset change changes it)."""
     import dataclasses

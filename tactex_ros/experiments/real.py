@@ -39,11 +39,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..core.errors import TactexError
 from . import charts
-from .common import results_dir, write_json
+from .common import parse_set, results_dir, write_json
 from .runner import TrialJob, default_workers, run_jobs
 from .stats import mcnemar_exact, wilcoxon_paired, wilson
 
@@ -56,9 +55,7 @@ def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
 
     ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
-    import dataclasses
-
-    from ..core.config import PRESETS, LearnerConfig
+    from ..core.config import PRESETS
     label, sep, rest = text.partition("=")
     if not sep or not label:
         raise TactexError(f"--setting {text!r}: expected label=preset[:key=value,...]")
@@ -66,17 +63,10 @@ def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     if pre not in PRESETS:
         raise TactexError(f"--setting {text!r}: unknown preset {pre!r}; one of "
                           f"{', '.join(PRESETS)}")
-    names = {f.name for f in dataclasses.fields(LearnerConfig)}
-    strategy, over = None, {}
-    for item in filter(None, kv.split(",")):
-        k, s2, v = item.partition("=")
-        if not s2 or (k not in names and k != "strategy"):
-            raise TactexError(f"--setting {text!r}: {item!r} is not key=value with key "
-                              f"'strategy' or a learner field")
-        if k == "strategy":
-            strategy = v
-        else:
-            over[k] = yaml.safe_load(v)
+    items = [it for it in kv.split(",") if it]
+    strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
+    over = parse_set([it for it in items if not it.startswith("strategy=")],
+                     option=f"--setting {text!r}:")
     return label, pre, strategy, over
 
 

@@ -43,9 +43,10 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from .common import results_dir, write_json
-from .pareto import mcnemar, parse_set, wilson
+from .common import parse_set, results_dir, write_json
 from .runner import TrialJob, default_workers, run_jobs
+from .stats import mcnemar_exact as mcnemar
+from .stats import wilson
 
 AXES: dict[str, list[float]] = {
     "difficulty": [0.3, 0.5, 0.7, 0.8, 0.9, 0.95],

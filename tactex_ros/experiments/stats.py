@@ -16,7 +16,6 @@
 
 from __future__ import annotations
 
-import math
 from itertools import combinations
 from typing import Sequence
 
@@ -32,15 +31,15 @@ def mean_std(values: Sequence[float]) -> dict:
             "n": int(v.size)}
 
 
-def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score interval of ``successes`` / ``n`` (95 % by default); (nan, nan) for n = 0."""
+def wilson(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of ``successes`` / ``n`` (scipy's ``binomtest(...).proportion_ci``);
+    (nan, nan) for n = 0."""
     if n == 0:
         return float("nan"), float("nan")
-    p = successes / n
-    den = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, centre - half), min(1.0, centre + half)
+    from scipy.stats import binomtest
+    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=confidence,
+                                                          method="wilson")
+    return float(ci.low), float(ci.high)
 
 
 def confusion(truth: Sequence, pred: Sequence, labels: Sequence) -> np.ndarray:

@@ -10,6 +10,7 @@ missing or invalid scene) ends the process with exit status 2 and the reason in 
 from __future__ import annotations
 
 import dataclasses
+import signal
 import sys
 import threading
 from typing import Any, Callable
@@ -124,6 +125,24 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     fixed upstream in 10.0.4): with the mock arm's 100 Hz state it queued thousands of tasks,
     took a full core and left the motion node's robot state stale for over a second.
     """
+    stopping = threading.Event()
+
+    def on_sigint(signum, frame):  # rclpy's handler chains to this one
+        if stopping.is_set():
+            return   # Ctrl-C reaches every process of the group and `ros2 launch` sends its
+            #          own SIGINT too: a second one during clean-up must not kill (exit -2)
+        stopping.set()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, on_sigint)
+    try:
+        return _spin(node_factory, args, stopping)
+    except KeyboardInterrupt:   # a requested stop that surfaced outside the spin
+        return 0
+
+
+def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,
+          stopping: threading.Event) -> int:
     rclpy.init(args=args if args is not None else sys.argv)
     node = node_factory()
     code = 0
@@ -141,13 +160,16 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
         try:
             ex.spin_until_future_complete(done)
         except RuntimeError:
-            if rclpy.ok():
+            if rclpy.ok() and not stopping.is_set():
                 raise
-            # SIGINT shut the context down while a message was being taken: a normal stop
+            # SIGINT while a message was being taken (the KeyboardInterrupt surfaces as a
+            # RuntimeError from the C++ layer, seen under `ros2 launch`): a normal stop
         code = node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     finally:
+        stopping.set()   # from here on SIGINT is ignored, also during interpreter shutdown
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
             node.destroy_node()
         finally:

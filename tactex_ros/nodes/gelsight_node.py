@@ -7,11 +7,19 @@ file (recordings; tests use octopi-dev presses). Drops ``warmup_frames``, averag
 resizes to 320x240, publishes ``sensor_msgs/Image`` rgb8 on /tactex/gelsight/image_raw
 (sensor-data QoS, stamped, frame_id set), keeps a ring buffer of ``buffer_s`` seconds and serves
 /tactex/gelsight/capture with the strongest-contact frame. Frames are read in their own thread.
+
+A camera (not a file) is set up through OpenCV's V4L2 properties before the warm-up: the
+capture mode (``capture_width`` x ``capture_height``, the SDK's 320x240), auto exposure and
+auto white balance off (``exposure`` / ``white_balance`` fix their values where given), so the
+no-contact reference stays valid for the whole trial. A property the driver refuses ends the
+configuration with the parameter named; the values read back are logged. The measured frame
+rate is logged every 10 s (``measured_fps``).
 """
 
 from __future__ import annotations
 
 import glob
+import re
 import threading
 import time
 from pathlib import Path
@@ -37,7 +45,7 @@ def resolve_device(device: str) -> tuple[str, bool]:
     p = Path(device)
     if p.exists():
         return str(p.resolve() if str(p).startswith("/dev/v4l") else p), p.is_file()
-    for name_file in sorted(glob.glob("/sys/class/video4linux/video*/name")):
+    for name_file in sorted(glob.glob("/sys/class/video4linux/video*/name"), key=_video_number):
         if Path(name_file).read_text().strip().lower().startswith(device.lower()):
             return "/dev/" + Path(name_file).parent.name, False
     for link in sorted(glob.glob("/dev/v4l/by-id/*")):
@@ -45,6 +53,47 @@ def resolve_device(device: str) -> tuple[str, bool]:
             return str(Path(link).resolve()), False
     raise TactexError(f"gelsight device {device!r}: no such file and no camera reports that "
                       "name (/sys/class/video4linux/*/name, /dev/v4l/by-id)")
+
+
+def _video_number(path: str) -> tuple[int, str]:
+    """Sort key: /sys/class/video4linux/video10 after video9 (numeric, not lexicographic)."""
+    m = re.search(r"/video(\d+)(?:/|$)", path)
+    return (int(m.group(1)) if m else 1 << 30, path)
+
+
+# OpenCV's V4L2 backend: CAP_PROP_AUTO_EXPOSURE 1 = manual, 3 = aperture priority (auto)
+V4L2_EXPOSURE_MANUAL, V4L2_EXPOSURE_AUTO = 1.0, 3.0
+
+
+def camera_setup(cap, s) -> dict[str, float]:
+    """Apply capture mode, exposure and white balance to an opened ``cv2.VideoCapture`` (V4L2).
+
+    ``s``: GelsightSettings. Returns the values read back; TactexError names the parameter
+    whose property the driver refused."""
+    wanted: list[tuple[str, int, float]] = []
+    if s.capture_width and s.capture_height:
+        wanted += [("capture_width", cv2.CAP_PROP_FRAME_WIDTH, float(s.capture_width)),
+                   ("capture_height", cv2.CAP_PROP_FRAME_HEIGHT, float(s.capture_height))]
+    wanted.append(("auto_exposure", cv2.CAP_PROP_AUTO_EXPOSURE,
+                   V4L2_EXPOSURE_AUTO if s.auto_exposure else V4L2_EXPOSURE_MANUAL))
+    if not s.auto_exposure and s.exposure >= 0:
+        wanted.append(("exposure", cv2.CAP_PROP_EXPOSURE, float(s.exposure)))
+    wanted.append(("auto_white_balance", cv2.CAP_PROP_AUTO_WB,
+                   1.0 if s.auto_white_balance else 0.0))
+    if not s.auto_white_balance and s.white_balance >= 0:
+        wanted.append(("white_balance", cv2.CAP_PROP_WB_TEMPERATURE, float(s.white_balance)))
+    got = {}
+    for name, prop, value in wanted:
+        if not cap.set(prop, value):
+            raise TactexError(f"gelsight {name} = {value:g}: the camera driver refused it "
+                              "(v4l2-ctl --list-ctrls shows what the camera supports)")
+        got[name] = float(cap.get(prop))
+    if s.capture_width and s.capture_height and \
+            (got["capture_width"], got["capture_height"]) != (s.capture_width, s.capture_height):
+        raise TactexError(f"gelsight capture_width x capture_height = {s.capture_width}x"
+                          f"{s.capture_height}: the camera runs "
+                          f"{got['capture_width']:g}x{got['capture_height']:g}")
+    return got
 
 
 class GelsightNode(TactexNode):
@@ -65,11 +114,15 @@ class GelsightNode(TactexNode):
                                   f"opened within open_timeout_s ({s.open_timeout_s} s)")
             time.sleep(0.1)
             self.cap.open(self.path)
+        if not self.is_file:
+            self.camera = camera_setup(self.cap, s)
+            self.get_logger().info(f"gelsight camera settings: {self.camera}")
         self.ring = FrameRing(max(2, int(round(s.buffer_s * s.fps))))
         self.lock = threading.Lock()
         self.pub = self.create_publisher(Image, IMAGE_TOPIC, qos_profile_sensor_data)
         serve_capture(self, self.ring, self.lock, s.frame_id, CAPTURE_SERVICE)
         self.frames_read = 0
+        self.measured_fps = 0.0
         self._stop = threading.Event()
 
     def activate(self) -> None:
@@ -96,6 +149,7 @@ class GelsightNode(TactexNode):
         refs = []
         next_t = time.monotonic()
         misses = 0
+        t_rate, n_rate = time.monotonic(), 0
         while not self._stop.is_set():
             frame = self._read()
             if frame is None:
@@ -106,6 +160,12 @@ class GelsightNode(TactexNode):
                 continue
             misses = 0
             self.frames_read += 1
+            n_rate += 1
+            if time.monotonic() - t_rate >= 10.0:
+                self.measured_fps = n_rate / (time.monotonic() - t_rate)
+                t_rate, n_rate = time.monotonic(), 0
+                self.get_logger().info(f"gelsight frame rate {self.measured_fps:.1f} Hz "
+                                       f"(requested {s.fps:g})")
             if len(refs) < s.reference_frames:
                 refs.append(frame.astype(np.float32))
                 if len(refs) == s.reference_frames:

@@ -3,8 +3,8 @@
 Knows what lies on each platform from the scene (``sim_fabric`` for the simulator,
 ``replay_class`` for recorded presses). While the mock arm presses a platform (force > 0 and
 the sensor within the platform's radius) it publishes that fabric's texture at a gel depth
-proportional to the penetration; otherwise a no-contact frame. Each press shows a new random
-patch of the fabric (new window; a new recorded press for replay sources).
+proportional to the contact force (``depth_per_n``); otherwise a no-contact frame. Each press
+shows a new random patch of the fabric (new window; a new recorded press for replay sources).
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ class MockImageNode(TactexNode):
             pass
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
-        self.force = adapter.normal_force(msg.wrench.force)
+        self.force = abs(float(msg.wrench.force.z))   # either wrench sign convention
 
     def _under(self):
         if self.position is None:
@@ -117,7 +117,7 @@ class MockImageNode(TactexNode):
         if self.kind == "replay":
             return self._press_frame
         p = self.scene.ordered[idx]
-        depth_mm = float(np.clip(self.settings.depth_gain * pen * 1000.0, 0.02, 1.0))
+        depth_mm = float(np.clip(self.settings.depth_per_n * self.force, 0.02, 1.0))
         rng = np.random.default_rng([self.settings.seed, self.press_id])
         return self.src.press(p.sim_fabric, rng, depth_mm=depth_mm)
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..core.preprocess import FRAME_H, FRAME_W
+from ..core.names import FRAME_H, FRAME_W
 
 MM_PER_PX = 0.0634
 

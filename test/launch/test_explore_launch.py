@@ -1,8 +1,11 @@
-"""launch_testing test of ``explore.launch.py sim:=true`` (needs launch_testing: a ROS 2
-system; on machines without it pytest skips this file with the reason).
+"""launch_testing test of ``explore.launch.py sim:=true exit_when_done:=true`` (needs
+launch_testing: a ROS 2 system; run it with ``launch_test test/launch/test_explore_launch.py``
+or ``colcon test``; ``make test`` disables launch_testing's pytest plugin, see conftest.py).
 
 The launch file starts the simulated graph; the test waits for the explorer to finish a short
-trial, checks its exit status, the published state and the trial record.
+trial, checks the published state, that the explorer's exit ends the launch (the other nodes
+are stopped by it), that every process exits with status 0 (a -2 from a second SIGINT, or a
+traceback exit, fails), and the trial record.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ def generate_test_description():
 
 
 class TestTrial(unittest.TestCase):
-    def test_state_published(self, proc_output):
+    def test_state_published_and_launch_ends(self, proc_info):
         import rclpy
         from tactex.msg import ExplorationState
         rclpy.init()
@@ -54,12 +57,17 @@ class TestTrial(unittest.TestCase):
             rclpy.shutdown()
         self.assertTrue(got and got[-1].done, "no final exploration state within 240 s")
         self.assertAlmostEqual(sum(got[-1].belief), 1.0, places=3)
+        # exit_when_done: the explorer exits, and its exit ends the launch
+        proc_info.assertWaitForShutdown(process="explorer_node", timeout=60)
+        proc_info.assertWaitForShutdown(process="mock_arm_node", timeout=60)
+        proc_info.assertWaitForShutdown(process="motion_node", timeout=60)
 
 
 @launch_testing.post_shutdown_test()
 class TestAfterShutdown(unittest.TestCase):
-    def test_explorer_exit_code(self, proc_info):
-        launch_testing.asserts.assertExitCodes(proc_info, allowable_exit_codes=[0, -2, -15])
+    def test_exit_codes(self, proc_info):
+        # every process, status 0 only: -2 / -15 (killed by a signal) fail
+        launch_testing.asserts.assertExitCodes(proc_info)
 
     def test_record_complete(self):
         result = json.loads((RECORD / "launch_test" / "result.json").read_text())

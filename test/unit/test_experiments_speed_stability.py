@@ -3,12 +3,13 @@
 import json
 import math
 
-import numpy as np
 import pytest
 
 from tactex_ros.cli import main
-from tactex_ros.experiments.pareto import (correct_at, mcnemar, pareto_front, parse_set,
-                                           wilson)
+from tactex_ros.experiments.common import parse_set
+from tactex_ros.experiments.pareto import correct_at, pareto_front
+from tactex_ros.experiments.stats import mcnemar_exact as mcnemar
+from tactex_ros.experiments.stats import wilson
 from tactex_ros.experiments.stability import condition, failure_mode
 from tactex_ros.core.errors import TactexError
 

@@ -1,5 +1,4 @@
-"""Pure helpers of the ROS graph, tested without rclpy.init: scene, press state machine, mock
-arm physics, message adapter, trial record, graph description, frame ring."""
+"""Pure helpers of the ROS graph, tested without rclpy.init: scene, message adapter, trial record, graph description, frame ring."""
 
 from __future__ import annotations
 
@@ -11,7 +10,6 @@ import yaml
 
 from tactex_ros.core.contact import FrameRing
 from tactex_ros.core.errors import TactexError
-from tactex_ros.core.press import DONE, ArmModel, PressController
 from tactex_ros.paths import config_dir
 from tactex_ros.scene import load_scene, parse_scene
 
@@ -49,78 +47,6 @@ def test_scene_files_load(tmp_path) -> None:
     (tmp_path / "bad.yaml").write_text("platforms: [\n")
     with pytest.raises(TactexError, match="not valid YAML"):
         load_scene(tmp_path / "bad.yaml")
-
-
-def _simulate(scene, platform_id: str, stiffness: float = 2000.0, surface_offset: float = 0.0,
-              dt: float = 0.01, capture_ok: bool = True, t_max: float = 60.0):
-    """Closed loop: controller -> mock arm -> controller, returns (outcome, positions, forces)."""
-    plat = scene.platform(platform_id)
-    arm_scene = scene
-    if surface_offset:
-        from dataclasses import replace
-        arm_scene = replace(scene, platforms=tuple(
-            replace(p, position=(p.position[0], p.position[1], p.position[2] + surface_offset))
-            for p in scene.platforms))
-    arm = ArmModel(arm_scene, np.array([0.5, 0.0, 0.3]), stiffness=stiffness, max_speed=1.0)
-    ctrl = PressController(scene, plat, arm.position, 0.0)
-    t, pos, forces, targets = 0.0, [], [], []
-    while not ctrl.done and t < t_max:
-        f = arm.normal_force()
-        arm.target = ctrl.step(t, arm.position, f)
-        targets.append(arm.target.copy())
-        if ctrl.capture_requested:
-            ctrl.captured(capture_ok, "" if capture_ok else "no frame", t)
-        arm.step(dt)
-        pos.append(arm.position.copy())
-        forces.append(f)
-        t += dt
-    return ctrl.outcome(), np.array(pos), np.array(forces), np.array(targets), ctrl
-
-
-def test_press_reaches_threshold_and_retracts() -> None:
-    scene = load_scene(config_dir() / "scene_sim.yaml")
-    out, pos, forces, targets, ctrl = _simulate(scene, "c3")
-    assert out.success and ctrl.phase == DONE
-    s = scene.press
-    assert s.force_threshold <= out.force_n < s.max_force
-    assert forces.max() < s.max_force
-    # commanded speed never above max_speed (per 10 ms tick)
-    steps = np.linalg.norm(np.diff(targets, axis=0), axis=1)
-    assert steps.max() <= s.max_speed * 0.01 + 1e-9
-    assert np.all(targets >= np.array(scene.workspace_min) - 1e-9)
-    assert np.all(targets <= np.array(scene.workspace_max) + 1e-9)
-    # ends at the approach point above the platform
-    np.testing.assert_allclose(pos[-1], np.array(scene.platform("c3").position) +
-                               [0, 0, s.approach_height], atol=s.position_tolerance)
-
-
-def test_press_without_contact_fails_at_max_depth() -> None:
-    scene = load_scene(config_dir() / "scene_sim.yaml")
-    out, pos, forces, _, _ = _simulate(scene, "c1", surface_offset=-0.03)
-    assert not out.success and out.reason.startswith("no contact")
-    surface = scene.platform("c1").position[2]
-    assert pos[:, 2].min() >= surface - scene.press.max_depth - 1e-6
-
-
-def test_force_limit_aborts() -> None:
-    scene = load_scene(config_dir() / "scene_sim.yaml")
-    # a very stiff platform: one descent step overshoots the threshold past max_force
-    out, _, forces, _, _ = _simulate(scene, "c2", stiffness=3e7)
-    assert not out.success and out.reason.startswith("force limit")
-
-
-def test_capture_failure_and_deadline() -> None:
-    scene = load_scene(config_dir() / "scene_sim.yaml")
-    out, *_ = _simulate(scene, "c2", capture_ok=False)
-    assert not out.success and out.reason.startswith("capture failed")
-    ctrl = PressController(scene, scene.platform("c4"), np.array([0.5, 0.0, 0.3]), 0.0)
-    # the arm never moves: the approach deadline ends the press
-    t = 0.0
-    while ctrl.phase == "approach" and t < 100:
-        ctrl.step(t, np.array([0.5, 0.0, 0.3]), 0.0)
-        t += 0.05
-    assert ctrl.failure.startswith("deadline")
-    assert t <= scene.press.approach_deadline_s + 0.1
 
 
 def test_adapter_images_roundtrip_and_rejects() -> None:

@@ -1,9 +1,6 @@
-import json
-
 import numpy as np
 import pytest
 
-from tactex_ros.cli import main
 from tactex_ros.core.config import LearnerConfig, preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine, TouchFailed
 from tactex_ros.core.errors import TactexError

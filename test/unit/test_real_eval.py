@@ -47,7 +47,7 @@ def test_parse_setting_names_what_is_wrong():
         "r", "default", "random", {"match_temperature": 0.1})
     with pytest.raises(TactexError, match="unknown preset"):
         parse_setting("x=nope")
-    with pytest.raises(TactexError, match="colour"):
+    with pytest.raises(TactexError, match="colour=1"):
         parse_setting("x=default:colour=1")
 
 

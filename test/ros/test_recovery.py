@@ -1,0 +1,92 @@
+"""Recovery after a robot error, against stand-in servers of both interface kinds.
+
+The mock arm goes into a reflex on the first contact (``reflex_force`` below the press force):
+the arm stops and its state stops, as franka_hardware deactivates the hardware component and
+its controllers. The motion node must notice the robot error, call the profile's recovery
+interface (an action, or a service), wait for its result, re-activate the hardware and then the
+controllers through the profile's service calls, wait for fresh state and press again. The
+stand-ins refuse a controller activation before the hardware is active, as ros2_control does.
+Stand-in types: tactex/action/Press for the action kind (franka_msgs is not installable here;
+the client code does not depend on the type), std_srvs Trigger / SetBool for services.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tactex_ros.graph import describe
+from tactex_ros.paths import config_dir
+from tactex_ros.runner import Graph
+
+pytestmark = pytest.mark.ros
+
+HW = {"service": "/tactex_test/set_hardware_active", "type": "std_srvs/srv/SetBool",
+      "request": {"data": True}, "ok_field": "success"}
+CTL = {"service": "/tactex_test/activate_controller", "type": "std_srvs/srv/SetBool",
+       "request": {"data": True}, "ok_field": "success"}
+
+
+def _profile(tmp_path: Path, recovery: dict) -> str:
+    prof = yaml.safe_load((config_dir() / "robots" / "sim.yaml").read_text())
+    prof["name"], prof["recovery"] = "sim_recovery", recovery
+    path = tmp_path / "sim_recovery.yaml"
+    path.write_text(yaml.safe_dump(prof))
+    return str(path)
+
+
+def _press(listener, platform_id: str, timeout: float = 90.0):
+    from rclpy.action import ActionClient
+    from tactex.action import Press
+    ac = ActionClient(listener.node, Press, "/tactex/press")
+    assert ac.wait_for_server(timeout_sec=30.0)
+    fut = ac.send_goal_async(Press.Goal(platform_id=platform_id))
+    end = time.monotonic() + timeout
+    while not fut.done() and time.monotonic() < end:
+        time.sleep(0.02)
+    rfut = fut.result().get_result_async()
+    while not rfut.done() and time.monotonic() < end:
+        time.sleep(0.02)
+    assert rfut.done(), "press did not finish before the test deadline"
+    return rfut.result().result
+
+
+def _graph(tmp_path: Path, kind: str, recovery: dict):
+    robot = _profile(tmp_path, recovery)
+    nodes = describe(True, robot=robot,
+                     motion={"recovery_timeout_s": 5.0},
+                     mock_arm={"reflex_force": 2.0, "reflex_limit": 1,
+                               "recovery_standin": kind,
+                               "recovery_name": "/tactex_test/error_recovery"})
+    return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
+
+
+@pytest.mark.parametrize("kind,rtype,ok_field", [
+    ("action", "tactex/action/Press", ""),
+    ("service", "std_srvs/srv/Trigger", "success"),
+])
+def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, kind, rtype,
+                                             ok_field) -> None:
+    rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL]}
+    if ok_field:
+        rec["ok_field"] = ok_field
+    with Graph(_graph(tmp_path, kind, rec), tmp_path / "logs", listener.domain_id):
+        res = _press(listener, "c1")
+    assert res.success, res.reason
+    # the first attempt ended in the reflex; a loaded machine may add a stale-state attempt
+    assert 2 <= res.attempts <= 3
+    assert res.touch.contact_force_n >= 0.9 * 4.0
+
+
+def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener) -> None:
+    rec = {"kind": "action", "name": "/tactex_test/error_recovery",
+           "type": "tactex/action/Press", "then": [CTL, HW]}
+    with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
+        res = _press(listener, "c1")
+    assert not res.success and res.attempts == 1
+    assert "robot stopped" in res.reason
+    assert "not retried: recovery failed" in res.reason
+    assert "/tactex_test/activate_controller" in res.reason
