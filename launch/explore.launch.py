@@ -1,6 +1,7 @@
 """ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
-sim|FILE] [motion_params:=FILE] [scene:=FILE] [strategy:=S] [model:=M] [rounds:=N] [seed:=N]
-[device:=/dev/videoN|'GelSight Mini'] [source:=sim|replay:DIR] [exit_when_done:=true]
+sim|FILE] [motion_params:=FILE] [scene:=FILE] [config:=P] [strategy:=S] [model:=M] [rounds:=N]
+[seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
+[device:=/dev/videoN|'GelSight Mini'] [source:=sim|replay:DIR]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -8,7 +9,10 @@ the robot stack, which must already run. ``sim:=true``: mock_arm_node and mock_i
 robot and camera at the same topics, and a static transform world -> base frame gives rviz its
 fixed frame. The nodes and their parameters come from ``tactex_ros.graph.describe`` -- the same
 description the ``tactex graph run`` runner uses -- and are all validated before anything starts:
-a bad value ends the launch with the argument or field named and no process started.
+a bad value ends the launch with the argument or field named and no process started. The node
+settings among the arguments (config ... source) are ``tactex_ros.graph.OPTIONS``: their types,
+ranges, choices and descriptions come from the nodes' settings schema, as for
+``tactex graph run``; '' (the default) leaves the node's own default.
 
 Any tactex node that exits ends the launch (a dead camera or robot interface stops the trial;
 with ``exit_when_done:=true`` the explorer's exit after the trial ends it). rviz2 is started only
@@ -17,10 +21,10 @@ when it is installed (checked before any node starts) and its exit does not end 
 
 from __future__ import annotations
 
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
-from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from typing import Any
+
+# launch and launch_ros are imported where the launch runs (generate_launch_description and
+# the OpaqueFunction), so the pure part below imports and is tested where they are absent
 
 _TRUE, _FALSE = ("true", "1", "yes", "on"), ("false", "0", "no", "off")
 
@@ -29,48 +33,68 @@ class LaunchArgumentError(ValueError):
     """A launch argument with a value that does not fit; the message names the argument."""
 
 
-def _nodes(context, *args, **kwargs):
-    from tactex_ros.core.errors import TactexError
-    from tactex_ros.graph import describe, fixed_frame
-    from tactex_ros.paths import config_dir
+def arguments() -> list[tuple[str, str, str]]:
+    """(name, default, description) of every launch argument: the graph's own, then one per
+    node setting of ``tactex_ros.graph.OPTIONS`` (description and choices from the schema)."""
+    from tactex_ros.graph import OPTIONS, option_spec
+    args = [("sim", "false", "mock arm + mock image instead of the hardware"),
+            ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
+                              "base frame)"),
+            ("robot", "", "robot profile: fr3_jazzy | panda_multipanda | sim | FILE "
+                          "('' = fr3_jazzy, sim: sim)"),
+            ("motion_params", "", "YAML of motion_node parameters (topics, stiffness, "
+                                  "force_sign, recovery_name, ...) over the profile's"),
+            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)")]
+    for name, (node, path) in OPTIONS.items():
+        spec = option_spec(name)
+        args.append((name, "", f"{node} {path}: {spec.description}"
+                               + (f" (one of {', '.join(map(str, spec.choices))})"
+                                  if spec.choices else "")
+                               + f" ('' = the node's default, {spec.default!r})"))
+    return args
 
-    def arg(name: str) -> str:
-        return LaunchConfiguration(name).perform(context)
+
+def plan(values: dict[str, str]) -> dict[str, Any]:
+    """The graph the launch arguments ``values`` ({name: text}) ask for: ``nodes``
+    (``graph.NodeSpec``), ``sim``, ``rviz``, the rviz ``frame`` and the ``pose_topic`` it
+    shows. Everything is checked here; LaunchArgumentError names the argument or field."""
+    from tactex_ros.core.errors import TactexError
+    from tactex_ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
+    from tactex_ros.robot import load_profile
 
     def flag(name: str) -> bool:
-        v = arg(name).strip().lower()
+        v = values.get(name, "false").strip().lower()
         if v not in _TRUE + _FALSE:
-            raise LaunchArgumentError(f"launch argument {name}:={arg(name)!r}: expected true "
+            raise LaunchArgumentError(f"launch argument {name}:={values[name]!r}: expected true "
                                       "or false")
         return v in _TRUE
 
-    def integer(name: str) -> int:
-        try:
-            return int(arg(name))
-        except ValueError:
-            raise LaunchArgumentError(f"launch argument {name}:={arg(name)!r}: expected an "
-                                      "integer") from None
-
     sim, rviz = flag("sim"), flag("rviz")
-    explorer = {"strategy": arg("strategy"), "rounds": integer("rounds"),
-                "seed": integer("seed")}
-    for name in ("model", "record_dir", "trial_id"):
-        if arg(name):
-            explorer[name] = arg(name)
-    if flag("exit_when_done"):
-        explorer["exit_when_done"] = True
     try:
-        nodes = describe(sim, arg("scene") or None, explorer=explorer,
-                         gelsight={"device": arg("device")} if not sim else None,
-                         mock_image={"source": arg("source")} if sim and arg("source") else None,
-                         robot=arg("robot") or None, motion_file=arg("motion_params") or None)
-        frame = fixed_frame(nodes)
-        from tactex_ros.robot import load_profile
+        given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
+                                  if values.get(name, "") != ""})
+        nodes = describe(sim, values.get("scene") or None, explorer=given.get("explorer"),
+                         gelsight=None if sim else given.get("gelsight"),
+                         mock_image=given.get("mock_image") if sim else None,
+                         robot=values.get("robot") or None,
+                         motion_file=values.get("motion_params") or None)
         motion = next(n for n in nodes if n.name == "motion")
-        profile = load_profile(motion.parameters["robot"])
-        pose_topic = motion.parameters.get("pose_topic") or profile.pose_topic
+        pose_topic = (motion.parameters.get("pose_topic")
+                      or load_profile(motion.parameters["robot"]).pose_topic)
+        return {"nodes": nodes, "sim": sim, "rviz": rviz, "frame": fixed_frame(nodes),
+                "pose_topic": pose_topic}
     except TactexError as exc:
-        raise LaunchArgumentError(str(exc)) from None
+        raise LaunchArgumentError(f"launch argument {exc}") from None
+
+
+def _nodes(context, *args, **kwargs):
+    from launch.actions import LogInfo, Shutdown
+    from launch.substitutions import LaunchConfiguration
+    from launch_ros.actions import Node
+
+    from tactex_ros.paths import config_dir
+    p = plan({name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()})
+    nodes, sim, rviz, frame = p["nodes"], p["sim"], p["rviz"], p["frame"]
     if rviz and not _installed("rviz2"):
         # a missing rviz2 must fail here, before any node starts, not after (orphans)
         raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
@@ -85,13 +109,12 @@ def _nodes(context, *args, **kwargs):
                             name="tactex_sim_world",
                             arguments=["--frame-id", "world", "--child-frame-id", frame]))
     elif sim:
-        from launch.actions import LogInfo
         actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
                                    f"{frame} for rviz"))
     if rviz:
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
                             arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",
-                                                              frame, pose_topic))]))
+                                                              frame, p["pose_topic"]))]))
     return actions
 
 
@@ -123,25 +146,8 @@ def _rviz_config(template, frame: str, pose_topic: str):
     return out
 
 
-def generate_launch_description() -> LaunchDescription:
-    args = [("sim", "false", "mock arm + mock image instead of the hardware"),
-            ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
-                              "base frame)"),
-            ("robot", "", "robot profile: fr3_jazzy | panda_multipanda | sim | FILE "
-                          "('' = fr3_jazzy, sim: sim)"),
-            ("motion_params", "", "YAML of motion_node parameters (topics, stiffness, "
-                                  "force_sign, recovery_name, ...) over the profile's"),
-            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)"),
-            ("strategy", "", "'' (the preset's) | infogain | variance | entropy | random | "
-                             "yoto | bald"),
-            ("model", "", "model variant ('' = the preset's; auto escalates)"),
-            ("rounds", "20", "decisions that request a touch"),
-            ("seed", "0", "learner / strategy seed"),
-            ("device", "GelSight Mini", "GelSight device path, camera name or video file"),
-            ("source", "", "sim only: sim[:difficulty] or replay:DIR for the mock image"),
-            ("record_dir", "", "where trial records go ('' = runs/trials)"),
-            ("trial_id", "", "record sub-folder ('' = time stamp)"),
-            ("exit_when_done", "false", "the explorer exits after the trial, which ends the "
-                                        "launch")]
+def generate_launch_description():
+    from launch import LaunchDescription
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
     return LaunchDescription([DeclareLaunchArgument(n, default_value=d, description=h)
-                              for n, d, h in args] + [OpaqueFunction(function=_nodes)])
+                              for n, d, h in arguments()] + [OpaqueFunction(function=_nodes)])

@@ -9,6 +9,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -34,22 +35,45 @@ def bounded(kind: type, lo: float, hi: float):
     return parse
 
 
+def add_setting_option(p: argparse.ArgumentParser, flag: str, spec: Any, help: str) -> None:
+    """An option for one schema field (``core.config.FieldSpec``): numbers out of the schema's
+    range are refused by the parser (exit status 2, the option named); a value not among the
+    choices by the schema check (exit status 2, the field named); not given = None."""
+    kw: dict = {"default": None, "help": help + (f" (one of {', '.join(spec.choices)})"
+                                                 if spec.choices else "")}
+    if spec.kind in (int, float):
+        kw["type"] = (bounded(spec.kind, spec.lo, spec.hi) if spec.lo is not None
+                      and spec.hi is not None else spec.kind)
+    p.add_argument(flag, **kw)
+
+
+def add_schema_options(p: argparse.ArgumentParser, cls: type, names: tuple[str, ...]) -> None:
+    """One option per dotted schema field of ``cls`` (``trial.stop_confidence`` ->
+    ``--stop-confidence``), help from its description; not given = the preset's."""
+    from .core.config import field_spec
+    for name in names:
+        spec = field_spec(cls, name)
+        add_setting_option(p, "--" + name.rsplit(".", 1)[-1].replace("_", "-"), spec,
+                           f"{spec.description} (default: the --config preset's)"
+                           if "." in name else spec.description)
+
+
+def schema_values(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
+    """The options of ``add_schema_options`` that were given, as nested settings."""
+    from .core.config import nest
+    values = {n: getattr(args, n.rsplit(".", 1)[-1]) for n in names}
+    return nest({n: v for n, v in values.items() if v is not None})
+
+
+# what `tactex trial` takes of a trial's settings (TrialSettings, core/config.py)
+TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
+                 "learner.representation", "trial.rounds", "trial.stop_confidence")
+
+
 def _write_json(path: str | None, obj: dict) -> None:
     if path:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Path(path).write_text(json.dumps(obj, indent=2))
-
-
-def _learner_config(args: argparse.Namespace):
-    from .core.config import preset
-    over = {}
-    if getattr(args, "model", None):
-        over["model"] = args.model
-    if getattr(args, "weights", None):
-        over["weights"] = args.weights
-    if getattr(args, "representation", None):
-        over["representation"] = args.representation
-    return preset(args.config, **over)
 
 
 def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,
@@ -78,10 +102,13 @@ def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | N
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
-    from .core.engine import TrialEngine, trial_preset
+    from .core.config import TrialSettings
+    from .core.engine import TrialEngine
     from .sources import open_source
+    settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
+                                   "tactex trial")
     src = open_source(args.source)
-    cfg = _learner_config(args)
+    cfg, tcfg = settings.learner, settings.trial
     chosen = args.classes.split(",") if args.classes else None
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
         raise TactexError(f"--classes: {len(chosen)} comparison classes; at most "
@@ -93,8 +120,6 @@ def cmd_trial(args: argparse.Namespace) -> int:
     platform_classes, truth = assign_platforms(list(getattr(src, "fabrics", src.classes)),
                                                args.comparisons, chosen, args.reference,
                                                args.seed)
-    tcfg = trial_preset(args.config, strategy=args.strategy, rounds=args.rounds,
-                        stop_confidence=args.stop_confidence)
     n = len(platform_classes) - 1
     ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
     engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
@@ -111,7 +136,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     out.update(classes={i: c for i, c in zip(ids, platform_classes)},
                prediction_class=platform_classes[res.prediction],
                truth_class=platform_classes[truth], strategy=tcfg.strategy,
-               model=cfg.model, config=args.config, seed=args.seed, source=args.source)
+               model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
     _write_json(args.json, out)
     verdict = "correct" if res.correct else "wrong"
     print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
@@ -185,9 +210,7 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .core.config import PRESETS
-    from .core.models import MODEL_NAMES
-    from .core.strategies import STRATEGIES
+    from .core.config import TrialSettings
     p = argparse.ArgumentParser(prog="tactex", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
 
@@ -197,21 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"comparison platforms, 2..{MAX_COMPARISONS}")
     t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
     t.add_argument("--reference", help="class of the reference platform")
-    t.add_argument("--strategy", help=f"one of {', '.join(STRATEGIES)} (default: the "
-                                        "configuration's: infogain for default, variance for "
-                                        "cnn and seed_faithful)")
-    t.add_argument("--model", help=f"one of {', '.join(MODEL_NAMES + ('auto',))}")
-    t.add_argument("--config", default="default",
-                   help=f"one of {', '.join(PRESETS)} (default: texture descriptor, "
-                        "information-gain touches, stop at belief 0.9)")
-    t.add_argument("--weights", help="torchvision-format checkpoint (.pth) for inception_v3")
-    t.add_argument("--representation",
-                   help="representation file made by `tactex prepare` (descriptor model)")
-    t.add_argument("--rounds", type=bounded(int, 0, 1000),
-                   help="most decisions that request a touch after the baseline (default 20)")
-    t.add_argument("--stop-confidence", type=bounded(float, 0.0, 1.0),
-                   help="stop once the belief in one platform reaches this (0 = never; "
-                        "default: the configuration's)")
+    add_schema_options(t, TrialSettings, ("config",) + TRIAL_OPTIONS)
     t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")

@@ -9,29 +9,34 @@ import time
 from pathlib import Path
 
 
-from .cli import bounded
+from .cli import add_setting_option, bounded
+from .core.config import flatten
 from .core.errors import TactexError
 
-# explorer settings a resumed trial takes from its record (config.json)
-RESUMED = ("strategy", "config", "model", "weights", "drift_norm", "rounds", "stop_confidence",
-           "seed", "threads")
+# the explorer settings that are `tactex graph` options (graph.OPTIONS)
+EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id")
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     """Explorer parameters that continue the trial recorded in ``folder``: its settings from
-    ``config.json``; an option that contradicts them is refused (named)."""
+    ``config.json`` (preset, seed, every learner and trial setting); an option that contradicts
+    them is refused (named)."""
+    from .graph import OPTIONS
     d = Path(folder).resolve()
     try:
-        cfg = json.loads((d / "config.json").read_text())["explorer"]
+        rec = json.loads((d / "config.json").read_text())
+        cfg = rec["explorer"]
+        ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
+              "trial": rec["trial"]}
     except (OSError, ValueError, KeyError) as exc:
         raise TactexError(f"--resume {str(folder)!r}: not a trial record with a config.json "
                           f"({exc})") from None
-    ex = {k: cfg[k] for k in RESUMED if k in cfg}
+    was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
-        v = getattr(args, k, None)
-        if v is not None and v != ex.get(k):
-            raise TactexError(f"--{k} {v!r}: the trial in {str(d)!r} ran with {ex.get(k)!r}; "
-                              "a resumed trial keeps its settings")
+        v, path = getattr(args, k, None), OPTIONS[k][1]
+        if v is not None and v != was.get(path):
+            raise TactexError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
+                              f"{was.get(path)!r}; a resumed trial keeps its settings")
     if args.record_dir is not None or args.trial_id is not None:
         raise TactexError("--resume names the record; --record-dir and --trial-id do not apply")
     ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
@@ -44,18 +49,13 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
 
 
 def _nodes(args: argparse.Namespace):
-    from .graph import describe
-    ex = {}
+    from .graph import describe, option_overrides
+    given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + ("device",
+                                                                              "source")})
     if getattr(args, "resume", None):
-        ex = resume_settings(args.resume, args)
-    else:
-        for k in ("strategy", "model", "rounds", "seed", "config", "record_dir", "trial_id"):
-            v = getattr(args, k, None)
-            if v is not None:
-                ex[k] = v
-    img = {"source": args.source} if getattr(args, "source", None) else {}
-    return describe(args.sim, args.scene, explorer=ex, mock_image=img,
-                    gelsight={"device": args.device} if args.device else None)
+        given["explorer"] = resume_settings(args.resume, args)
+    return describe(args.sim, args.scene, explorer=given.get("explorer"),
+                    mock_image=given.get("mock_image"), gelsight=given.get("gelsight"))
 
 
 def cmd_describe(args: argparse.Namespace) -> int:
@@ -138,6 +138,15 @@ def cmd_summary(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_option(p: argparse.ArgumentParser, name: str) -> None:
+    """``--name`` for option ``name`` of ``graph.OPTIONS``, from the node's settings schema;
+    not given = None (the node's default)."""
+    from .graph import OPTIONS, option_spec
+    spec = option_spec(name)
+    add_setting_option(p, "--" + name.replace("_", "-"), spec,
+                       f"{OPTIONS[name][0]} {spec.name}: {spec.description}")
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
     gsub = g.add_subparsers(dest="gcmd", required=True)
@@ -148,15 +157,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                                                           "the hardware")
         p.add_argument("--scene", help="scene YAML (default config/scene_sim.yaml or "
                                        "config/scene.yaml)")
-        p.add_argument("--source", help="mock image source: sim[:q] or replay:DIR")
-        p.add_argument("--device", help="GelSight device (hardware graph)")
-        p.add_argument("--strategy")
-        p.add_argument("--model")
-        p.add_argument("--config")
-        p.add_argument("--rounds", type=bounded(int, 0, 1000))
-        p.add_argument("--seed", type=bounded(int, 0, 2**31 - 1))
-        p.add_argument("--record-dir", dest="record_dir")
-        p.add_argument("--trial-id", dest="trial_id")
+        for option in EXPLORER_OPTIONS + ("source", "device"):
+            add_option(p, option)
         if name == "run":
             p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
                            help="deadline [s], 1..86400")

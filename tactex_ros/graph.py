@@ -8,14 +8,12 @@ and explorer_node run unchanged. Pure Python (no rclpy, no launch).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
-
-from .core.config import validate
+from .core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
 from .core.errors import TactexError
 from .node_settings import (ExplorerSettings, GelsightSettings, MockArmSettings,
                             MockImageSettings, MotionSettings)
@@ -34,14 +32,46 @@ class NodeSpec:
     package: str = PACKAGE
 
 
-def _checked(cls: type, params: dict[str, Any]) -> dict[str, Any]:
-    """Validate parameters against a node's schema; unknown names are refused."""
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = set(params) - names
-    if unknown:
-        raise TactexError(f"{cls.__name__}: unknown parameter(s) {sorted(unknown)}")
-    validate(cls(**params))
-    return dict(params)
+# every node's settings schema, by node name
+SETTINGS: dict[str, type] = {"gelsight": GelsightSettings, "motion": MotionSettings,
+                             "explorer": ExplorerSettings, "mock_arm": MockArmSettings,
+                             "mock_image": MockImageSettings}
+# the node settings `tactex graph describe|run` and the launch file take as options, by option
+# name: (node, dotted setting); type, range, choices, default and help come from the schema
+OPTIONS: dict[str, tuple[str, str]] = {
+    "config": ("explorer", "config"), "strategy": ("explorer", "trial.strategy"),
+    "model": ("explorer", "learner.model"), "rounds": ("explorer", "trial.rounds"),
+    "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
+    "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
+    "device": ("gelsight", "device"), "source": ("mock_image", "source")}
+
+
+def option_spec(name: str) -> FieldSpec:
+    """The schema field behind option ``name`` of ``OPTIONS``."""
+    node, path = OPTIONS[name]
+    return field_spec(SETTINGS[node], path)
+
+
+def parse_option(name: str, text: str) -> Any:
+    """Option ``name`` given as text (a launch argument), typed and checked by its schema;
+    TactexError names the option."""
+    node, path = OPTIONS[name]
+    return parse_text(SETTINGS[node], path, text, f"{name}:={text!r}")
+
+
+def option_overrides(values: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Options given (not None) -> ``{node: nested settings}`` for ``describe``."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, value in values.items():
+        if value is not None:
+            node, path = OPTIONS[name]
+            out[node] = merge(out.get(node), nest({path: value}))
+    return out
+
+
+def _checked(node: str, params: dict[str, Any]) -> dict[str, Any]:
+    """A node's given parameters checked against its schema and typed (unknown names refused)."""
+    return typed(SETTINGS[node], params, f"{node} parameters")
 
 
 def explorer_defaults(path: str | Path | None = None) -> dict[str, Any]:
@@ -49,10 +79,7 @@ def explorer_defaults(path: str | Path | None = None) -> dict[str, Any]:
     p = Path(path) if path else config_dir() / "explorer.yaml"
     if not p.is_file():
         raise TactexError(f"explorer settings file {str(p)!r} not found")
-    data = yaml.safe_load(p.read_text()) or {}
-    if not isinstance(data, dict):
-        raise TactexError(f"explorer settings file {str(p)!r}: expected a mapping")
-    return _checked(ExplorerSettings, data)
+    return _checked("explorer", params_from_file(p, "explorer"))
 
 
 def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
@@ -88,29 +115,34 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     scene_file = str(Path(scene_file) if scene_file else
                      config_dir() / ("scene_sim.yaml" if sim else "scene.yaml"))
     scene = load_scene(scene_file)
-    ex = {**explorer_defaults(explorer_file), "scene_file": scene_file, **(explorer or {})}
-    mo = {"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_jazzy"),
-          **(params_from_file(motion_file, "motion") if motion_file else {}), **(motion or {})}
-    mo = _checked(MotionSettings, mo)
+    ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
+    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_jazzy")},
+               params_from_file(motion_file, "motion") if motion_file else None, motion)
+    mo = _checked("motion", mo)
     prof = load_profile(mo["robot"])
     if prof.frame_id != scene.frame_id:
         raise TactexError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
                           f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
     check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}")
     nodes = [NodeSpec("motion_node", "motion", mo),
-             NodeSpec("explorer_node", "explorer", _checked(ExplorerSettings, ex))]
+             NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]
     if sim:
         start = scene.reference.position
-        arm = {"scene_file": scene_file, "robot": mo["robot"], "start_x": start[0],
-               "start_y": start[1], "start_z": min(scene.workspace_max[2], start[2] + 0.1),
-               **(mock_arm or {})}
-        img = {"scene_file": scene_file, "source": scene.source or "sim", **(mock_image or {})}
-        nodes = [NodeSpec("mock_arm_node", "mock_arm", _checked(MockArmSettings, arm)),
-                 NodeSpec("mock_image_node", "mock_image",
-                          _checked(MockImageSettings, img))] + nodes
+        arm = merge({"scene_file": scene_file, "robot": mo["robot"], "start_x": start[0],
+                     "start_y": start[1],
+                     "start_z": min(scene.workspace_max[2], start[2] + 0.1)}, mock_arm)
+        arm = _checked("mock_arm", arm)
+        # the mock camera follows the mock arm's state topics, so the two cannot disagree
+        arm_prof = load_profile(arm["robot"])
+        img = merge({"scene_file": scene_file, "source": scene.source or "sim",
+                     "pose_topic": arm.get("pose_topic") or arm_prof.pose_topic,
+                     "wrench_topic": arm.get("wrench_topic") or arm_prof.wrench_topic},
+                    mock_image)
+        nodes = [NodeSpec("mock_arm_node", "mock_arm", arm),
+                 NodeSpec("mock_image_node", "mock_image", _checked("mock_image", img))] + nodes
     else:
-        nodes = [NodeSpec("gelsight_node", "gelsight",
-                          _checked(GelsightSettings, dict(gelsight or {})))] + nodes
+        nodes = [NodeSpec("gelsight_node", "gelsight", _checked("gelsight", gelsight or {}))] \
+            + nodes
     return nodes
 
 

@@ -1,15 +1,18 @@
-"""Parameters of every node: one declarative schema per parameter (type, default, range,
-description), pure Python. The nodes declare their ROS parameters from these dataclasses
-(``nodes/common.declare_settings``); the graph description fills them; tests validate them
-without ROS.
+"""Parameters of every node, in the one schema system (``core/config.py``: type, default,
+range, choices, description), pure Python. The nodes declare their ROS parameters from these
+models (``nodes/common.declare_settings``); the graph description fills and checks them; tests
+validate them without ROS. Every topic, service and action name is a parameter.
+
+The explorer's settings are composed from the core's: ``ExplorerSettings`` is a
+``TrialSettings`` (preset ``config`` + ``learner.*`` + ``trial.*``, the preset's values where
+not given) plus the node's own parameters.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Literal
 
-from .core.config import PRESETS, param
-from .core.names import MODEL_NAMES, STRATEGY_NAMES
+from .core.config import Schema, TrialSettings, param
 
 IMAGE_TOPIC = "/tactex/gelsight/image_raw"
 CAPTURE_SERVICE = "/tactex/gelsight/capture"
@@ -17,16 +20,15 @@ PRESS_ACTION = "/tactex/press"
 STATE_TOPIC = "/tactex/state"
 MARKER_TOPIC = "/tactex/markers"
 TOUCH_IMAGE_TOPIC = "/tactex/touch_image"
-TOUCH_TOPIC = "/tactex/touch"
 POSE_TOPIC = "/franka_robot_state_broadcaster/current_pose"
 WRENCH_TOPIC = "/franka_robot_state_broadcaster/external_wrench_in_base_frame"
 TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
 
 
-@dataclass
-class GelsightSettings:
-    device: str = param("", "camera: /dev/videoN, a /dev/v4l/by-id path, a name the camera "
-                            "reports (e.g. 'GelSight Mini'), or a video file path")
+class GelsightSettings(Schema):
+    device: str = param("GelSight Mini", "camera: /dev/videoN, a /dev/v4l/by-id path, a name "
+                                         "the camera reports (e.g. 'GelSight Mini'), or a video "
+                                         "file path")
     fps: float = param(25.0, "frame rate to read and publish at [Hz]", 1.0, 120.0)
     warmup_frames: int = param(10, "frames dropped after opening (auto-exposure settling)",
                                0, 1000)
@@ -36,6 +38,8 @@ class GelsightSettings:
                                  0.0, 0.4)
     buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
+    image_topic: str = param(IMAGE_TOPIC, "where the camera images are published")
+    capture_service: str = param(CAPTURE_SERVICE, "the capture service this node serves")
     loop_file: bool = param(True, "restart a video file at its end (recordings only)")
     open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
     capture_width: int = param(320, "capture mode width requested from the camera [px] (the "
@@ -53,8 +57,7 @@ class GelsightSettings:
                                        "camera's)", -1.0, 15000.0)
 
 
-@dataclass
-class MotionSettings:
+class MotionSettings(Schema):
     scene_file: str = param("", "scene YAML (platforms, workspace, press settings)")
     robot: str = param("fr3_jazzy", "robot profile: a name from config/robots/ (fr3_jazzy, "
                                     "panda_multipanda, sim) or a path; gives the controller, "
@@ -66,9 +69,12 @@ class MotionSettings:
                                  "('' = the profile's)")
     target_topic: str = param("", "the impedance controller's equilibrium pose topic "
                                   "('' = the profile's)")
+    mode_topic: str = param("", "robot mode (reflex) topic, for profiles that read one "
+                                "('' = the profile's)")
     stiffness: float = param(0.0, "the impedance controller's translational stiffness [N/m] "
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
+    press_action: str = param(PRESS_ACTION, "the press action this node serves")
     recovery_name: str = param("", "error recovery action or service ('' = the profile's)")
     recovery_timeout_s: float = param(30.0, "deadline for error recovery and re-activation, "
                                             "each call [s]", 0.5, 600.0)
@@ -82,30 +88,21 @@ class MotionSettings:
                                    0.05, 30.0)
 
 
-@dataclass
-class ExplorerSettings:
+class ExplorerSettings(TrialSettings):
+    """The explorer: a trial's settings (``config``, ``learner.*``, ``trial.*``) + the node's."""
+
     scene_file: str = param("", "scene YAML (platform ids and order)")
-    strategy: str = param("", "exploration strategy ('' = the preset's: infogain for default, "
-                              "variance for cnn and seed_faithful)",
-                          choices=("",) + STRATEGY_NAMES)
-    config: str = param("default", "learner preset", choices=tuple(PRESETS))
-    model: str = param("", "model variant override ('' = the preset's)",
-                       choices=("", "descriptor") + MODEL_NAMES + ("auto",))
-    weights: str = param("", "torchvision-format checkpoint for inception_v3 ('' = none)")
-    drift_norm: bool = param(False, "remove each touch's mean colour before learning: turn on "
-                                    "where the lighting drifts between touches (measured: it "
-                                    "restores accuracy under drift in simulation, and cost 2 of "
-                                    "24 replayed octopi-dev scenes, docs/speed_stability.md)")
-    rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
-    stop_confidence: float = param(-1.0, "stop once the belief in one platform reaches this "
-                                         "(0 = never; < 0 = the preset's: 0.9 for default)",
-                                   -1.0, 1.0)
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")
     trial_id: str = param("", "record sub-folder ('' = time stamp)")
     resume: str = param("", "record folder of an interrupted trial to continue ('' = a new "
                             "trial); its settings must equal this node's")
     press_action: str = param(PRESS_ACTION, "press action served by the motion node")
+    state_topic: str = param(STATE_TOPIC, "where the exploration state is published after "
+                                          "each decision")
+    marker_topic: str = param(MARKER_TOPIC, "where the rviz markers are published")
+    touch_image_topic: str = param(TOUCH_IMAGE_TOPIC, "where the latest touch image is "
+                                                      "published")
     press_timeout_s: float = param(120.0, "deadline for one press (all attempts) [s]",
                                    1.0, 3600.0)
     server_timeout_s: float = param(30.0, "deadline for the press server to appear [s]",
@@ -114,14 +111,15 @@ class ExplorerSettings:
                                          "answer) for this long, or that leaves the ROS graph, "
                                          "is gone: the trial ends with that reason [s]",
                                    1.0, 600.0)
+    pause_timeout_s: float = param(600.0, "a trial paused by deactivating the node ends with "
+                                          "that reason when not re-activated within this [s]",
+                                   1.0, 86400.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
-    threads: int = param(0, "torch threads (0 = torch default)", 0, 256)
     nice: int = param(10, "CPU priority increment of this process, so training never starves "
                           "the control loop and the sensor (0 = unchanged)", 0, 19)
 
 
-@dataclass
-class MockArmSettings:
+class MockArmSettings(Schema):
     scene_file: str = param("", "scene YAML (platform surfaces)")
     robot: str = param("sim", "robot profile whose topics, target type, stiffness and wrench "
                               "sign the mock takes (PoseStamped + WrenchStamped state only)")
@@ -152,11 +150,10 @@ class MockArmSettings:
                                      "the arm stops and no state is published until recovered "
                                      "(0 = never) [N]", 0.0, 1000.0)
     reflex_limit: int = param(1, "reflexes injected at most (reflex_force)", 0, 1000)
-    recovery_standin: str = param("none", "serve stand-ins of the recovery interfaces: 'action' "
+    recovery_standin: Literal["none", "action", "service"] = param("none", "serve stand-ins of the recovery interfaces: 'action' "
                                           "(tactex/action/Press as the action type), 'service' "
                                           "(std_srvs/srv/Trigger), plus the re-activation "
-                                          "services (std_srvs/srv/SetBool) for tests",
-                                  choices=("none", "action", "service"))
+                                          "services (std_srvs/srv/SetBool) for tests")
     recovery_name: str = param("/tactex_test/error_recovery", "stand-in recovery name")
     hardware_service: str = param("/tactex_test/set_hardware_active",
                                   "stand-in hardware re-activation service (SetBool)")
@@ -164,12 +161,15 @@ class MockArmSettings:
                                     "stand-in controller re-activation service (SetBool)")
 
 
-@dataclass
-class MockImageSettings:
+class MockImageSettings(Schema):
     scene_file: str = param("", "scene YAML (what lies on each platform: sim_fabric or "
                                 "replay_class)")
     source: str = param("sim", "sim[:difficulty] or replay:DIR")
     pose_topic: str = param(POSE_TOPIC, "mock arm pose, to know what is under the sensor")
+    wrench_topic: str = param(WRENCH_TOPIC, "mock arm external wrench, to know the contact "
+                                            "force")
+    image_topic: str = param(IMAGE_TOPIC, "where the rendered images are published")
+    capture_service: str = param(CAPTURE_SERVICE, "the capture service this node serves")
     fps: float = param(25.0, "published frame rate [Hz]", 1.0, 120.0)
     depth_per_n: float = param(0.1, "gel indentation [mm] per newton of contact force (the "
                                     "GelSight Mini's gel takes about 0.4 mm at 4 N)", 0.0, 10.0)

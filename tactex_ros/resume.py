@@ -112,8 +112,9 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
 
 
 # settings that may change between the interrupted run and its resume (where, how long, how fast)
-_FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "threads", "nice",
+_FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nice",
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
+                      "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
                       "scene_file"},
          "learner": {"threads"}, "trial": set()}
 

@@ -20,55 +20,79 @@ platform; the robot application itself never reads them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from .core.config import FieldError, Schema, param
 from .core.errors import TactexError
 
 
-@dataclass(frozen=True)
-class PressSettings:
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+# a YAML list is taken for a tuple; its numbers are still checked strictly and must be finite
+Vec3 = Annotated[tuple[FiniteFloat, FiniteFloat, FiniteFloat], Field(strict=False)]
+Vec4 = Annotated[tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat], Field(strict=False)]
+
+
+class PressSettings(Schema):
     """How a press is made; every phase has a deadline [s]."""
 
-    approach_height: float = 0.05      # m above the surface where the descent starts
-    travel_speed: float = 0.15         # m/s, moves between platforms (also the speed cap)
-    descend_speed: float = 0.01        # m/s while descending onto the fabric
-    max_speed: float = 0.25            # m/s, never exceeded by any commanded motion
-    force_threshold: float = 5.0       # N, normal force that ends the descent
-    max_force: float = 15.0            # N, exceeded -> abort and retract
-    max_depth: float = 0.008           # m below the surface, descent stops here at the latest
-    settle_s: float = 0.3              # s held at the press before capturing
-    capture_window_s: float = 0.5      # s of frames the capture looks back over
-    retries: int = 2                   # extra attempts after a failed press
-    approach_deadline_s: float = 15.0
-    descend_deadline_s: float = 6.0
-    capture_deadline_s: float = 3.0
-    retract_deadline_s: float = 10.0
-    position_tolerance: float = 0.002  # m, "arrived" within this distance
+    model_config = ConfigDict(frozen=True)
 
-    _RANGES = {
-        "approach_height": (0.005, 0.3), "travel_speed": (0.001, 1.0),
-        "descend_speed": (0.0005, 0.1), "max_speed": (0.001, 1.0),
-        "force_threshold": (0.1, 50.0), "max_force": (0.2, 100.0), "max_depth": (0.0005, 0.05),
-        "settle_s": (0.0, 10.0), "capture_window_s": (0.0, 10.0), "retries": (0, 10),
-        "approach_deadline_s": (0.1, 600.0), "descend_deadline_s": (0.1, 600.0),
-        "capture_deadline_s": (0.1, 60.0), "retract_deadline_s": (0.1, 600.0),
-        "position_tolerance": (0.0001, 0.05),
-    }
+    approach_height: float = param(0.05, "height above the surface where the descent starts [m]",
+                                   0.005, 0.3)
+    travel_speed: float = param(0.15, "speed of moves between platforms (also the speed cap) "
+                                      "[m/s]", 0.001, 1.0)
+    descend_speed: float = param(0.01, "speed while descending onto the fabric [m/s]",
+                                 0.0005, 0.1)
+    max_speed: float = param(0.25, "never exceeded by any commanded motion [m/s]", 0.001, 1.0)
+    force_threshold: float = param(5.0, "normal force that ends the descent [N]", 0.1, 50.0)
+    max_force: float = param(15.0, "exceeded -> abort and retract [N]", 0.2, 100.0)
+    max_depth: float = param(0.008, "depth below the surface where the descent stops at the "
+                                    "latest [m]", 0.0005, 0.05)
+    settle_s: float = param(0.3, "held at the press before capturing [s]", 0.0, 10.0)
+    capture_window_s: float = param(0.5, "frames the capture looks back over [s]", 0.0, 10.0)
+    retries: int = param(2, "extra attempts after a failed press", 0, 10)
+    approach_deadline_s: float = param(15.0, "deadline of the approach [s]", 0.1, 600.0)
+    descend_deadline_s: float = param(6.0, "deadline of the descent [s]", 0.1, 600.0)
+    capture_deadline_s: float = param(3.0, "deadline of the capture [s]", 0.1, 60.0)
+    retract_deadline_s: float = param(10.0, "deadline of the retract [s]", 0.1, 600.0)
+    position_tolerance: float = param(0.002, "'arrived' within this distance [m]", 0.0001, 0.05)
+
+    @model_validator(mode="after")
+    def _limits(self) -> "PressSettings":
+        if self.force_threshold >= self.max_force:
+            raise FieldError("force_threshold", f"{self.force_threshold} N must be below "
+                                                f"max_force ({self.max_force} N)")
+        for name in ("travel_speed", "descend_speed"):
+            if getattr(self, name) > self.max_speed:
+                raise FieldError(name, f"{getattr(self, name)} m/s exceeds max_speed "
+                                       f"({self.max_speed} m/s)")
+        return self
 
 
-@dataclass(frozen=True)
-class Platform:
-    id: str
-    position: tuple[float, float, float]   # m, surface centre in the base frame
-    role: str = "comparison"               # reference | comparison
-    sim_fabric: str = ""
-    replay_class: str = ""
-    radius: float = 0.04                   # m, half the fabric's side (contact region)
+class Platform(Schema):
+    """One platform: ``position`` is the centre of its fabric surface in the base frame [m]."""
+
+    model_config = ConfigDict(frozen=True)
+
+    id: str = param(..., "name of letters, digits and _")
+    position: Vec3 = param(..., "surface centre in the base frame [m]")
+    role: Literal["reference", "comparison"] = param("comparison", "reference or comparison")
+    sim_fabric: str = param("", "catalogue fabric on this platform (simulated graph)")
+    replay_class: str = param("", "recorded class on this platform (replayed graph)")
+    radius: float = param(0.04, "half the fabric's side: the contact region [m]", 0.005, 0.2)
+
+    @field_validator("id")
+    @classmethod
+    def _name(cls, v: str) -> str:
+        if not v or not v.replace("_", "").isalnum():
+            raise ValueError(f"must be a non-empty name of letters, digits, _ (got {v!r})")
+        return v
 
 
 @dataclass(frozen=True)
@@ -113,115 +137,72 @@ class Scene:
         return np.clip(np.asarray(xyz, dtype=float), self.workspace_min, self.workspace_max)
 
 
-def _vec(value: Any, n: int, where: str) -> tuple[float, ...]:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise TactexError(f"{where}: expected {n} numbers, got {value!r}") from None
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise TactexError(f"{where}: expected {n} finite numbers, got {value!r}")
-    return tuple(float(v) for v in arr)
+class Workspace(Schema):
+    """The box every commanded position stays in [m]."""
+
+    min: Vec3 = param(..., "lower corner [x, y, z] in the base frame [m]")
+    max: Vec3 = param(..., "upper corner [x, y, z] in the base frame [m]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Workspace":
+        if not all(lo < hi for lo, hi in zip(self.min, self.max)):
+            raise FieldError("min", f"{list(self.min)} must be below max {list(self.max)} on "
+                                    "every axis")
+        return self
 
 
-def _press(d: Any, where: str) -> PressSettings:
-    if d is None:
-        return PressSettings()
-    if not isinstance(d, dict):
-        raise TactexError(f"{where}: expected a mapping, got {type(d).__name__}")
-    known = {f.name: f for f in fields(PressSettings)}
-    kw = {}
-    for k, v in d.items():
-        if k not in known or k.startswith("_"):
-            raise TactexError(f"{where}.{k}: unknown setting; known: "
-                              f"{', '.join(n for n in known if not n.startswith('_'))}")
-        want = int if k == "retries" else float
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or (want is int and
-                                                                      not isinstance(v, int)):
-            raise TactexError(f"{where}.{k}: expected {want.__name__}, got {v!r}")
-        lo, hi = PressSettings._RANGES[k]
-        if not lo <= v <= hi:
-            raise TactexError(f"{where}.{k} = {v} outside [{lo}, {hi}]")
-        kw[k] = want(v)
-    s = PressSettings(**kw)
-    if s.force_threshold >= s.max_force:
-        raise TactexError(f"{where}.force_threshold ({s.force_threshold} N) must be below "
-                          f"max_force ({s.max_force} N)")
-    if s.travel_speed > s.max_speed or s.descend_speed > s.max_speed:
-        raise TactexError(f"{where}: travel_speed and descend_speed must not exceed max_speed "
-                          f"({s.max_speed} m/s)")
-    return s
+class SceneFile(Schema):
+    """The scene file as written (``config/scene.yaml``); ``parse_scene`` makes the Scene."""
+
+    frame_id: str = param(..., "base frame of every position", min_length=1)
+    workspace: Workspace
+    tool_orientation: Vec4 = param((1.0, 0.0, 0.0, 0.0), "quaternion x y z w of the sensor "
+                                                         "(pointing down)")
+    press: PressSettings = Field(default_factory=PressSettings)
+    platforms: list[Platform] = param(..., "a reference and at least 2 comparisons")
+    source: str = param("", "touch source of the simulated graph: sim[:q] or replay:DIR")
+
+    @field_validator("tool_orientation")
+    @classmethod
+    def _unit(cls, q: tuple) -> tuple:
+        if abs(float(np.linalg.norm(q)) - 1.0) > 1e-3:
+            raise ValueError(f"must be a unit quaternion (x y z w), got {list(q)}")
+        return q
+
+    @model_validator(mode="after")
+    def _platforms(self) -> "SceneFile":
+        plats, ws, press = self.platforms, self.workspace, self.press
+        refs = [p for p in plats if p.role == "reference"]
+        if len(refs) != 1 or len(plats) - 1 < 2:
+            raise FieldError("platforms", f"need exactly one role: reference and at least 2 "
+                                          f"comparisons, got {len(refs)} reference(s) among "
+                                          f"{len(plats)} platforms")
+        seen: set[str] = set()
+        for i, p in enumerate(plats):
+            if p.id in seen:
+                raise FieldError(f"platforms.{i}.id", f"duplicate platform id {p.id!r}")
+            seen.add(p.id)
+            for high in (0.0, press.approach_height):
+                probe = np.asarray(p.position) + [0.0, 0.0, high]
+                if not (np.all(probe >= ws.min) and np.all(probe <= ws.max)):
+                    raise FieldError(f"platforms.{i}.position",
+                                     f"{list(p.position)} (approach height {high} m above) "
+                                     f"lies outside the workspace {list(ws.min)}..{list(ws.max)}")
+            if p.position[2] - press.max_depth < ws.min[2]:
+                raise FieldError(f"platforms.{i}.position",
+                                 f"the deepest press ({press.max_depth} m below z="
+                                 f"{p.position[2]}) lies below workspace.min z={ws.min[2]}")
+        return self
 
 
 def parse_scene(data: Any, origin: str = "scene") -> Scene:
-    """Validate a scene mapping; TactexError names the first bad field."""
+    """Validate a scene mapping; TactexError names every bad field (``platforms.2.position``)."""
     if not isinstance(data, dict):
         raise TactexError(f"{origin}: expected a mapping at the top level")
-    allowed = {"frame_id", "workspace", "tool_orientation", "press", "platforms", "source"}
-    for k in data:
-        if k not in allowed:
-            raise TactexError(f"{origin}: unknown field {k!r}; allowed: {sorted(allowed)}")
-    frame_id = data.get("frame_id")
-    if not isinstance(frame_id, str) or not frame_id:
-        raise TactexError(f"{origin}: frame_id must be a non-empty string")
-    ws = data.get("workspace")
-    if not isinstance(ws, dict) or "min" not in ws or "max" not in ws:
-        raise TactexError(f"{origin}: workspace needs min and max ([x, y, z] in metres)")
-    wmin, wmax = _vec(ws["min"], 3, f"{origin}: workspace.min"), _vec(ws["max"], 3,
-                                                                      f"{origin}: workspace.max")
-    if not np.all(np.asarray(wmin) < np.asarray(wmax)):
-        raise TactexError(f"{origin}: workspace.min must be below workspace.max on every axis")
-    quat = _vec(data.get("tool_orientation", [1.0, 0.0, 0.0, 0.0]), 4,
-                f"{origin}: tool_orientation")
-    if abs(np.linalg.norm(quat) - 1.0) > 1e-3:
-        raise TactexError(f"{origin}: tool_orientation must be a unit quaternion (x y z w)")
-    press = _press(data.get("press"), f"{origin}: press")
-    plats = data.get("platforms")
-    if not isinstance(plats, list) or len(plats) < 3:
-        raise TactexError(f"{origin}: platforms must list a reference and at least 2 "
-                          "comparison platforms")
-    out, seen = [], set()
-    for i, p in enumerate(plats):
-        where = f"{origin}: platforms[{i}]"
-        if not isinstance(p, dict):
-            raise TactexError(f"{where}: expected a mapping")
-        unknown = set(p) - {"id", "role", "position", "sim_fabric", "replay_class", "radius"}
-        if unknown:
-            raise TactexError(f"{where}: unknown field(s) {sorted(unknown)}")
-        pid = p.get("id")
-        if not isinstance(pid, str) or not pid or not pid.replace("_", "").isalnum():
-            raise TactexError(f"{where}.id: must be a non-empty name of letters, digits, _")
-        if pid in seen:
-            raise TactexError(f"{where}.id: duplicate platform id {pid!r}")
-        seen.add(pid)
-        role = p.get("role", "comparison")
-        if role not in ("reference", "comparison"):
-            raise TactexError(f"{where}.role: 'reference' or 'comparison', got {role!r}")
-        pos = _vec(p.get("position"), 3, f"{where}.position")
-        radius = p.get("radius", 0.04)
-        if not isinstance(radius, (int, float)) or not 0.005 <= radius <= 0.2:
-            raise TactexError(f"{where}.radius: metres in [0.005, 0.2], got {radius!r}")
-        for high in (0.0, press.approach_height):
-            probe = np.asarray(pos) + [0.0, 0.0, high]
-            if not (np.all(probe >= wmin) and np.all(probe <= wmax)):
-                raise TactexError(f"{where}.position {list(pos)} (approach height "
-                                  f"{high} m above) lies outside the workspace "
-                                  f"{list(wmin)}..{list(wmax)}")
-        if pos[2] - press.max_depth < wmin[2]:
-            raise TactexError(f"{where}.position: the deepest press ({press.max_depth} m below "
-                              f"z={pos[2]}) lies below workspace.min z={wmin[2]}")
-        out.append(Platform(id=pid, position=pos, role=role,
-                            sim_fabric=str(p.get("sim_fabric", "")),
-                            replay_class=str(p.get("replay_class", "")), radius=float(radius)))
-    refs = [p for p in out if p.role == "reference"]
-    if len(refs) != 1:
-        raise TactexError(f"{origin}: platforms need exactly one role: reference, got {len(refs)}")
-    if len(out) - 1 < 2:
-        raise TactexError(f"{origin}: at least 2 comparison platforms are needed")
-    source = data.get("source", "")
-    if not isinstance(source, str):
-        raise TactexError(f"{origin}: source must be a string (sim[:q] or replay:DIR)")
-    return Scene(frame_id=frame_id, workspace_min=wmin, workspace_max=wmax,
-                 tool_orientation=quat, press=press, platforms=tuple(out), source=source)
+    f = SceneFile.check(data, origin)
+    return Scene(frame_id=f.frame_id, workspace_min=f.workspace.min,
+                 workspace_max=f.workspace.max, tool_orientation=f.tool_orientation,
+                 press=f.press, platforms=tuple(f.platforms), source=f.source)
 
 
 def load_scene(path: str | Path) -> Scene:

@@ -1,35 +1,224 @@
-"""Learner and trial settings: one declarative schema per parameter, named presets.
+"""One schema system for every setting: learner, trial, scene and node parameters (pydantic v2).
 
-Each field carries ``type``, default, allowed range or choices and a description in its metadata
-(the idea of generate_parameter_library). ``validate`` checks a config against it and the ROS nodes
-declare their parameters from the same schema.
+A settings class derives from ``Schema``; each field carries its type, default, range
+(``param(..., lo, hi)``), choices (a ``Literal`` type) and description. The same declaration
+validates configs and files (errors located like ``platforms.2.position`` and naming the field),
+gives the ROS nodes their parameter descriptors (``nodes/common.declare_settings``), the
+command line its options and the launch file its arguments (``fields``).
+
+``LearnerConfig`` (how the learner trains and scores), ``TrialConfig`` (what a trial does) and
+the named presets live here; ``TrialSettings`` composes a preset with overrides of both, and is
+what the command line and the explorer node (``ExplorerSettings``) are made of.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
-from typing import Any
+import typing
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal
+
+import annotated_types
+from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
+                      model_validator)
 
 from .errors import TactexError
-from .names import MODEL_NAMES
+from .names import MODEL_NAMES, STRATEGY_NAMES
 
 
 def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,
-          choices: tuple | None = None) -> Any:
-    """A dataclass field with its schema (range [lo, hi] or choices, description)."""
-    return field(default=default, metadata={"description": description, "lo": lo, "hi": hi,
-                                            "choices": choices})
+          **kw: Any) -> Any:
+    """A schema field: default, description and optional inclusive range [lo, hi]. Choices are
+    the field's ``Literal`` type; ``read_only=True`` marks a ROS parameter fixed at start-up."""
+    extra = {"read_only": True} if kw.pop("read_only", False) else None
+    return Field(default, description=description, ge=lo, le=hi, json_schema_extra=extra, **kw)
 
 
-@dataclass
-class LearnerConfig:
+class FieldError(ValueError):
+    """Raised by a cross-field check: ``field`` is added to the error's location."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+class Schema(BaseModel):
+    """Base of every settings model. Strict types (an int is taken where a float is expected;
+    a bool or a string for a number is not), unknown names refused, assignments checked.
+    Constructing one with bad values raises TactexError naming the field."""
+
+    model_config = ConfigDict(strict=True, extra="forbid", validate_assignment=True,
+                              validate_default=True)
+
+    def __init__(self, **data: Any) -> None:
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            raise located(exc, type(self).__name__, type(self)) from None
+
+    @classmethod
+    def check(cls, data: Any, origin: str | None = None) -> Any:
+        """``data`` (a mapping) validated into ``cls``; TactexError names every bad field as
+        ``origin: location: problem``."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            raise located(exc, origin or cls.__name__, cls) from None
+
+    def replace(self, **kw: Any) -> Any:
+        """A validated copy with ``kw`` changed."""
+        return type(self).check({**self.model_dump(), **kw}, type(self).__name__)
+
+
+def _model_at(cls: type | None, loc: tuple) -> type | None:
+    """The schema class that holds the field at ``loc`` (None when not a schema)."""
+    for part in loc:
+        if cls is None or isinstance(part, int):
+            continue
+        f = cls.model_fields.get(part)
+        if f is None:
+            return None
+        ann = f.annotation
+        args = typing.get_args(ann)
+        cls = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else next(
+            (a for a in args if isinstance(a, type) and issubclass(a, BaseModel)), None)
+    return cls
+
+
+class SchemaError(TactexError):
+    """Bad settings: ``problems`` lists (location, problem) pairs; the message names them all."""
+
+    def __init__(self, origin: str, problems: list[tuple[tuple, str]]) -> None:
+        self.origin, self.problems = origin, problems
+        super().__init__(f"{origin}: " + "; ".join(
+            f"{'.'.join(map(str, loc))}: {msg}" if loc else msg for loc, msg in problems))
+
+
+def located(exc: ValidationError, origin: str, cls: type | None = None) -> SchemaError:
+    """A pydantic error as SchemaError: ``origin: a.2.b: problem (got value)``, every error."""
+    out: list[tuple[tuple, str]] = []
+    for e in exc.errors():
+        loc = tuple(e["loc"])
+        err = (e.get("ctx") or {}).get("error")
+        if isinstance(err, SchemaError):      # a nested schema's own check (its __init__)
+            out += [(loc + sub, msg) for sub, msg in err.problems]
+            continue
+        if isinstance(err, FieldError):
+            loc, msg = loc + (err.field,), str(err)
+        elif isinstance(err, Exception):
+            msg = str(err)
+        elif e["type"] == "extra_forbidden":
+            holder = _model_at(cls, loc[:-1])
+            msg = "unknown name" + (f"; known: {', '.join(holder.model_fields)}"
+                                    if holder is not None else "")
+        else:
+            msg = f"{e['msg']} (got {e['input']!r})" if e["type"] != "missing" else e["msg"]
+        out.append((loc, msg))
+    return SchemaError(origin, out)
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """One scalar schema field: dotted ``name``, Python ``kind`` (bool, int, float, str),
+    default, inclusive range, choices, description, read-only (a ROS parameter fixed at
+    start-up)."""
+
+    name: str
+    kind: type
+    default: Any
+    lo: float | None
+    hi: float | None
+    choices: tuple
+    description: str
+    read_only: bool
+
+
+def fields(cls: type, prefix: str = "") -> list[FieldSpec]:
+    """The scalar fields of a schema class, nested schemas as dotted names (``trial.rounds``),
+    in declaration order."""
+    out = []
+    for name, f in cls.model_fields.items():
+        ann = f.annotation
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            out += fields(ann, f"{prefix}{name}.")
+            continue
+        choices = typing.get_args(ann) if typing.get_origin(ann) is Literal else ()
+        kind = type(choices[0]) if choices else ann
+        lo = next((m.ge for m in f.metadata if isinstance(m, annotated_types.Ge)), None)
+        hi = next((m.le for m in f.metadata if isinstance(m, annotated_types.Le)), None)
+        extra = f.json_schema_extra if isinstance(f.json_schema_extra, dict) else {}
+        out.append(FieldSpec(f"{prefix}{name}", kind, f.get_default(call_default_factory=True),
+                             lo, hi, choices, f.description or "",
+                             bool(extra.get("read_only"))))
+    return out
+
+
+def field_spec(cls: type, name: str) -> FieldSpec:
+    """The ``FieldSpec`` of the dotted field ``name`` of ``cls``."""
+    for spec in fields(cls):
+        if spec.name == name:
+            return spec
+    raise TactexError(f"{cls.__name__} has no setting {name!r}")
+
+
+def parse_text(cls: type, name: str, text: str, origin: str) -> Any:
+    """The dotted field ``name`` of ``cls`` read from ``text`` (e.g. a launch argument) and
+    checked against its type, range and choices; TactexError names ``origin``."""
+    *heads, last = name.split(".")
+    for part in heads:
+        cls = cls.model_fields[part].annotation
+    info = cls.model_fields[last]
+    try:
+        return TypeAdapter(Annotated[info.annotation, info]).validate_strings(text)
+    except ValidationError as exc:
+        raise located(exc, origin) from None
+
+
+def nest(flat: dict[str, Any]) -> dict[str, Any]:
+    """``{"trial.rounds": 2}`` -> ``{"trial": {"rounds": 2}}``."""
+    out: dict[str, Any] = {}
+    for key, value in flat.items():
+        *heads, last = key.split(".")
+        d = out
+        for h in heads:
+            d = d.setdefault(h, {})
+        d[last] = value
+    return out
+
+
+def flatten(nested: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"trial": {"rounds": 2}}`` -> ``{"trial.rounds": 2}``."""
+    out: dict[str, Any] = {}
+    for key, value in nested.items():
+        if isinstance(value, dict):
+            out.update(flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def merge(*dicts: dict[str, Any] | None) -> dict[str, Any]:
+    """Nested mappings merged left to right (a later value wins; nested mappings merge)."""
+    return nest({k: v for d in dicts if d for k, v in flatten(d).items()})
+
+
+def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[str, Any]:
+    """``given`` (nested, a subset of ``cls``'s fields) checked against ``cls`` and returned with
+    the schema's types (an int given for a float comes back as a float), e.g. for a ROS
+    parameters file. TactexError names the field."""
+    model = cls.check(given, origin)
+    dumped = flatten(model.model_dump())
+    return nest({k: dumped[k] for k in flatten(given)})
+
+
+ModelName = Literal[("descriptor",) + MODEL_NAMES + ("auto",)]
+
+
+class LearnerConfig(Schema):
     """How the online learner trains and scores (units in the descriptions)."""
 
-    model: str = param("small_inception", "model: 'descriptor' (texture descriptor + Gaussian "
-                                          "match belief, no training), a CNN variant, or "
-                                          "'auto' (escalating CNN chooser)",
-                       choices=("descriptor",) + MODEL_NAMES + ("auto",))
+    model: ModelName = param("small_inception",
+                             "model: 'descriptor' (texture descriptor + Gaussian match belief, "
+                             "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
     epochs: int = param(10, "full passes over all stored views per round (when steps == 0)",
@@ -65,8 +254,11 @@ class LearnerConfig:
                                     "no-contact reference is below this [grey levels] (0 = off; "
                                     "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
-    drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the model "
-                                    "sees it (robust to lighting drift; off = absolute colour)")
+    drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the "
+                                    "model sees it: turn on where the lighting drifts between "
+                                    "touches (measured: it restores accuracy under drift in "
+                                    "simulation, and cost 2 of 24 replayed octopi-dev scenes, "
+                                    "docs/speed_stability.md)")
     # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto"). The first
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
     # (docs/speed_stability.md), and a 32 px start made auto 9 points worse than the default.
@@ -79,7 +271,7 @@ class LearnerConfig:
                                       "less than this fraction over the last auto_patience rounds",
                                  0.0, 1.0)
     auto_entropy: float = param(0.2, "model 'auto': ... and is still above this fraction of "
-                                      "log(C)", 0.0, 1.0)
+                                     "log(C)", 0.0, 1.0)
     auto_window: int = param(3, "model 'auto': held-back touches judged together", 1, 1000)
     auto_heldout_acc: float = param(0.5, "model 'auto': escalate when fewer than this share of "
                                          "the last auto_window touches were classified right "
@@ -103,17 +295,29 @@ class LearnerConfig:
     representation: str = param("", "model 'descriptor': a representation file made by "
                                     "`tactex prepare` (a metric learnt from presses of other "
                                     "materials; '' = none)")
-    match_units: str = param("scene", "model 'descriptor': units of the belief: 'scene' (each "
-                                      "dimension divided by its spread over this scene's "
-                                      "platforms) or 'fixed' (as given, e.g. by a "
-                                      "representation)", choices=("scene", "fixed"))
+    match_units: Literal["scene", "fixed"] = param(
+        "scene", "model 'descriptor': units of the belief: 'scene' (each dimension divided by "
+                 "its spread over this scene's platforms) or 'fixed' (as given, e.g. by a "
+                 "representation)")
     match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
                                            "(calibrates the belief)", 1e-4, 10.0)
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
     # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
 
-    def replace(self, **kw: Any) -> "LearnerConfig":
-        return validate(dataclasses.replace(self, **kw))
+
+class TrialConfig(Schema):
+    """What a trial does (the learner's settings live in LearnerConfig)."""
+
+    strategy: Literal[STRATEGY_NAMES] = param("variance", "exploration strategy")
+    rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
+    stop_confidence: float = param(0.0, "stop once the belief in one comparison reaches this "
+                                        "(0 = never: all rounds)", 0.0, 1.0)
+    max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
+    baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
+                                    "the trial gives up", 1, 100)
+    touch_retries: int = param(2, "a touch that fails or that the contact guard rejects is "
+                                  "repeated at once up to this many times before its round "
+                                  "counts as lost", 0, 20)
 
 
 # The thesis's setting, kept by name for reproductions; the CNN setting chosen by
@@ -138,41 +342,52 @@ TRIAL_PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def preset(name: str, **overrides: Any) -> LearnerConfig:
-    """A named configuration with optional overrides, validated."""
+def _known_preset(name: str) -> None:
     if name not in PRESETS:
         raise TactexError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
-    return validate(LearnerConfig(**{**PRESETS[name], **overrides}))
+
+
+def preset(name: str, **overrides: Any) -> LearnerConfig:
+    """A named configuration with optional overrides, validated."""
+    _known_preset(name)
+    return LearnerConfig.check({**PRESETS[name], **overrides}, f"configuration {name!r}")
+
+
+def trial_preset(name: str, **overrides: Any) -> TrialConfig:
+    """The TrialConfig of a named preset with overrides, validated.
+
+    Overrides whose value is None are ignored (an option the user did not give)."""
+    _known_preset(name)
+    kw = {**TRIAL_PRESETS[name], **{k: v for k, v in overrides.items() if v is not None}}
+    return TrialConfig.check(kw, f"configuration {name!r}")
 
 
 def validate(cfg: Any) -> Any:
-    """Check every field of a schema dataclass: type, range, choices. Returns ``cfg``."""
-    for f in dataclasses.fields(cfg):
-        v = getattr(cfg, f.name)
-        want = f.type if isinstance(f.type, type) else {"int": int, "float": float, "str": str,
-                                                         "bool": bool}.get(str(f.type), object)
-        if want is float and isinstance(v, int) and not isinstance(v, bool):
-            v = float(v)
-            setattr(cfg, f.name, v)
-        if want is not object and (not isinstance(v, want) or
-                                   (want is int and isinstance(v, bool))):
-            raise TactexError(f"{type(cfg).__name__}.{f.name}: expected {want.__name__}, "
-                              f"got {v!r}")
-        md = f.metadata
-        if md.get("choices") and v not in md["choices"]:
-            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is not one of "
-                              f"{', '.join(map(str, md['choices']))}")
-        if md.get("lo") is not None and v < md["lo"]:
-            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is below {md['lo']}")
-        if md.get("hi") is not None and v > md["hi"]:
-            raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is above {md['hi']}")
-    return cfg
+    """``cfg`` checked again against its schema (a copy made without validation, e.g. by
+    ``model_construct``, is caught here). Returns a validated instance."""
+    return type(cfg).check(cfg.model_dump(), type(cfg).__name__)
 
 
-def schema(cls: type) -> list[dict[str, Any]]:
-    """The declarative schema of a config dataclass, one dict per parameter."""
-    out = []
-    for f in dataclasses.fields(cls):
-        out.append({"name": f.name, "type": f.type if isinstance(f.type, str) else f.type.__name__,
-                    "default": f.default, **f.metadata})
-    return out
+class TrialSettings(Schema):
+    """What one trial runs with: a preset (``config``) and overrides of its learner and trial
+    settings. A field of ``learner`` / ``trial`` not given takes the preset's value."""
+
+    config: Literal[tuple(PRESETS)] = param(
+        "default", "named preset of learner and trial settings: default (texture descriptor, "
+                   "information-gain touches, stop at belief 0.9), cnn, seed_faithful",
+        read_only=True)
+    learner: LearnerConfig = Field(default_factory=LearnerConfig)
+    trial: TrialConfig = Field(default_factory=TrialConfig)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_preset(cls, data: Any) -> Any:
+        if not isinstance(data, dict) or data.get("config", "default") not in PRESETS:
+            return data           # the field checks name what is wrong
+        name = data.get("config", "default")
+        out = dict(data)
+        for key, presets in (("learner", PRESETS), ("trial", TRIAL_PRESETS)):
+            given = data.get(key)
+            if given is None or isinstance(given, dict):
+                out[key] = {**presets[name], **(given or {})}
+        return out

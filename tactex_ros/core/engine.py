@@ -45,7 +45,6 @@ then falls to the least-touched platform, ``strategies.break_ties``).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -53,14 +52,14 @@ from typing import Callable
 
 import numpy as np
 
-from .config import TRIAL_PRESETS, LearnerConfig, param, validate
+from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
 from .descriptor import DescriptorLearner
 from .errors import TactexError
 from .guards import ContactGuard
 from .learner import OnlineLearner
 from .models import MODEL_NAMES
 from .preprocess import validate_frame
-from .strategies import STRATEGIES, make_strategy
+from .strategies import make_strategy
 from .touch import Touch, as_touch
 from .uncertainty import predictive_entropy
 
@@ -102,33 +101,6 @@ def parse_ladder(text: str, default_size: int) -> list[tuple[str, int]]:
     if not out:
         raise TactexError("auto_ladder is empty")
     return out
-
-
-@dataclass
-class TrialConfig:
-    """What a trial does (the learner's settings live in LearnerConfig)."""
-
-    strategy: str = param("variance", "exploration strategy", choices=tuple(STRATEGIES))
-    rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
-    stop_confidence: float = param(0.0, "stop early when max mean probability >= this "
-                                        "(0 = fixed rounds)", 0.0, 1.0)
-    max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
-    baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
-                                    "the trial gives up", 1, 100)
-    touch_retries: int = param(2, "a touch that fails or that the contact guard rejects is "
-                                  "repeated at once up to this many times before its round "
-                                  "counts as lost", 0, 20)
-
-
-def trial_preset(name: str, **overrides: object) -> "TrialConfig":
-    """The TrialConfig of a named preset (``config.TRIAL_PRESETS``) with overrides, validated.
-
-    Overrides whose value is None are ignored (an option the user did not give)."""
-    if name not in TRIAL_PRESETS:
-        raise TactexError(f"unknown configuration {name!r}; choose one of "
-                          f"{', '.join(TRIAL_PRESETS)}")
-    kw = {**TRIAL_PRESETS[name], **{k: v for k, v in overrides.items() if v is not None}}
-    return validate(TrialConfig(**kw))
 
 
 @dataclass
@@ -252,7 +224,7 @@ class TrialEngine:
 
     def _stage_cfg(self, stage: int) -> LearnerConfig:
         name, size = self.ladder[stage]
-        return dataclasses.replace(self.learner_cfg, model=name, input_size=size)
+        return self.learner_cfg.replace(model=name, input_size=size)
 
     def _make_learner(self, model: str) -> "OnlineLearner | DescriptorLearner":
         """The learner of the current stage (model 'auto') or of ``model``."""

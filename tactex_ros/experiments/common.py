@@ -63,13 +63,11 @@ def git_commit() -> str | None:
 def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
     """``key=value`` items (values parsed as YAML scalars) -> LearnerConfig overrides; a key
     that is not a LearnerConfig field is refused, naming ``option`` and the valid keys."""
-    import dataclasses
-
     import yaml
 
     from ..core.config import LearnerConfig
     from ..core.errors import TactexError
-    names = {f.name for f in dataclasses.fields(LearnerConfig)}
+    names = set(LearnerConfig.model_fields)
     out: dict[str, Any] = {}
     for it in items or []:
         key, sep, val = it.partition("=")

@@ -95,7 +95,7 @@ def job_key(job: TrialJob) -> str:
     import json
 
     from ..core.config import preset
-    cfg = dataclasses.asdict(preset(job.preset, **job.overrides))
+    cfg = preset(job.preset, **job.overrides).model_dump()
     if cfg["model"] != "auto":      # the auto_* fields do not change a fixed model's run
         cfg = {k: v for k, v in cfg.items() if not k.startswith("auto_")}
     d = dataclasses.asdict(job)

@@ -27,15 +27,14 @@ from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
-from ..core.config import preset
-from ..core.engine import TouchFailed, TrialEngine, trial_preset
+from ..core.engine import TouchFailed, TrialEngine
 from ..core.errors import TactexError
 from ..core.touch import Touch
-from ..node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC, ExplorerSettings
+from ..node_settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
 from ..record import TrialRecord
 from ..scene import load_scene
-from .common import TactexNode, run
+from .common import TactexNode, run, wait_for
 
 
 class PressServerLost(TactexError):
@@ -45,8 +44,8 @@ class PressServerLost(TactexError):
 class ExplorerNode(TactexNode):
     settings_cls = ExplorerSettings
 
-    def __init__(self) -> None:
-        super().__init__("explorer")
+    def __init__(self, **kw) -> None:
+        super().__init__("explorer", **kw)
 
     # ------------------------------------------------------------------ lifecycle
     def configure(self) -> None:
@@ -57,18 +56,10 @@ class ExplorerNode(TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        over = {"threads": s.threads, "drift_norm": s.drift_norm}
-        if s.model:
-            over["model"] = s.model
-        if s.weights:
-            over["weights"] = s.weights
-        cfg = preset(s.config, **over)
-        tcfg = trial_preset(s.config, strategy=s.strategy or None, rounds=s.rounds,
-                            stop_confidence=None if s.stop_confidence < 0 else
-                            s.stop_confidence)
-        self.engine = TrialEngine(len(self.ids) - 1, cfg, tcfg, seed=s.seed,
+        self.engine = TrialEngine(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
                                   platform_ids=self.ids)
-        inputs = {"explorer": s.__dict__, "learner": cfg.__dict__, "trial": tcfg.__dict__}
+        inputs = {"explorer": s.model_dump(exclude={"learner", "trial"}),
+                  "learner": s.learner.model_dump(), "trial": s.trial.model_dump()}
         self.replay = None
         if s.resume:
             self._open_resume(s.resume, inputs)
@@ -78,12 +69,15 @@ class ExplorerNode(TactexNode):
             self.record.save_inputs(s.scene_file, inputs)
         self.bag = self._open_bag()
         self.press = ActionClient(self, Press, s.press_action)
-        self.state_pub = self.create_publisher(ExplorationState, STATE_TOPIC, 10)
-        self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, 10)
-        self.image_pub = self.create_publisher(Image, TOUCH_IMAGE_TOPIC, 10)
+        self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic, 10)
+        self.marker_pub = self.create_lifecycle_publisher(MarkerArray, s.marker_topic, 10)
+        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, 10)
         self.last_state = None
         self.result: dict | None = None
         self._feedback_t = time.monotonic()
+        self._stopping = False
+        self._running = threading.Event()   # set while active: the trial presses
+        self.worker: threading.Thread | None = None
 
     def _open_bag(self):
         """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
@@ -122,9 +116,33 @@ class ExplorerNode(TactexNode):
                          "decisions_on_disk": len(rec["decisions"]), "time": time.time()})
 
     def activate(self) -> None:
+        """Start the trial (first activation) or let a paused one press again."""
         self.create_timer(1.0, self._publish_markers)
-        self.worker = threading.Thread(target=self._trial, name="trial", daemon=True)
-        self.worker.start()
+        self._running.set()
+        if self.worker is None:
+            self.worker = threading.Thread(target=self._trial, name="trial", daemon=True)
+            self.worker.start()
+
+    def deactivate(self) -> None:
+        """Pause the trial: the press under way ends, the next waits for re-activation (up to
+        ``pause_timeout_s``)."""
+        self._running.clear()
+
+    def cleanup(self) -> None:
+        """Stopped mid-trial: let a touch being written finish, then write nothing more; give
+        the trial thread a moment to leave its wait before the action client goes away."""
+        self._stopping = True
+        if getattr(self, "_running", None) is not None:
+            self._running.set()             # a paused trial wakes up and sees the stop
+        record = getattr(self, "record", None)
+        if record is not None:
+            record.close()
+        if getattr(self, "bag", None) is not None:
+            self.bag.close()
+        worker = getattr(self, "worker", None)
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=3.0)
+        self.worker = None
 
     # ------------------------------------------------------------------ publishing
     def _now(self) -> float:
@@ -173,29 +191,36 @@ class ExplorerNode(TactexNode):
         return True
 
     # ------------------------------------------------------------------ the trial
-    def _wait(self, fut, deadline: float, watch: bool = False) -> bool:
-        """Wait for ``fut`` until ``deadline``; with ``watch``, raise PressServerLost once the
+    def _wait(self, fut, deadline: float) -> bool:
+        """Wait for ``fut`` until ``deadline`` (monotonic [s]); raise PressServerLost once the
         press server is gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
         absent_since = None
-        while not fut.done():
+
+        def watch() -> None:
+            nonlocal absent_since
             now = time.monotonic()
-            if now > deadline:
-                return False
-            if getattr(self, "_stopping", False) or not self.context.ok():
+            if self._stopping or not self.context.ok():
                 raise TactexError("the explorer is stopping")
-            if watch:
-                silent = now - self._feedback_t
-                if silent > self.settings.press_silence_s:
-                    raise PressServerLost(f"no answer or feedback from the press server for "
-                                          f"{silent:.1f} s (press_silence_s)")
-                if self.press.server_is_ready():
-                    absent_since = None
-                elif absent_since is None:
-                    absent_since = now
-                elif now - absent_since > 1.0:
-                    raise PressServerLost("the press server left the ROS graph")
-            time.sleep(0.01)
-        return True
+            silent = now - self._feedback_t
+            if silent > self.settings.press_silence_s:
+                raise PressServerLost(f"no answer or feedback from the press server for "
+                                      f"{silent:.1f} s (press_silence_s)")
+            if self.press.server_is_ready():
+                absent_since = None
+            elif absent_since is None:
+                absent_since = now
+            elif now - absent_since > 1.0:
+                raise PressServerLost("the press server left the ROS graph")
+        return wait_for(fut, deadline - time.monotonic(), watch)
+
+    def _wait_running(self) -> None:
+        """Before a press: wait while the node is deactivated (paused), up to
+        ``pause_timeout_s``; TactexError when stopping or paused too long."""
+        if not self._running.wait(timeout=self.settings.pause_timeout_s):
+            raise TactexError(f"the explorer stayed inactive longer than pause_timeout_s "
+                              f"({self.settings.pause_timeout_s} s)")
+        if self._stopping:
+            raise TactexError("the explorer is stopping")
 
     def _on_feedback(self, _msg) -> None:
         self._feedback_t = time.monotonic()
@@ -212,6 +237,7 @@ class ExplorerNode(TactexNode):
         it (contact image and the sensor's no-contact frame). A failed press (already retried by the motion node) or an unreadable image is
         recorded and raised as ``TouchFailed(retry=False)``."""
         from tactex.action import Press
+        self._wait_running()
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
@@ -219,13 +245,13 @@ class ExplorerNode(TactexNode):
         fut = self.press.send_goal_async(Press.Goal(platform_id=pid),
                                          feedback_callback=self._on_feedback)
         try:
-            if not self._wait(fut, deadline, watch=True):
+            if not self._wait(fut, deadline):
                 self._failed(platform, meta, "press goal not answered before the deadline")
             handle = fut.result()
             if not handle.accepted:
                 self._failed(platform, meta, "press goal rejected by the motion node")
             rfut = handle.get_result_async()
-            if not self._wait(rfut, deadline, watch=True):
+            if not self._wait(rfut, deadline):
                 handle.cancel_goal_async()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
                                              f"({self.settings.press_timeout_s} s)")
@@ -303,20 +329,6 @@ class ExplorerNode(TactexNode):
             self.bag.close()
             if self.settings.exit_when_done:
                 self.finished.set()
-
-    def destroy_node(self) -> None:
-        """Stopped mid-trial: let a touch being written finish, then write nothing more; give
-        the trial thread a moment to leave its wait before the action client goes away."""
-        self._stopping = True
-        record = getattr(self, "record", None)
-        if record is not None:
-            record.close()
-        if getattr(self, "bag", None) is not None:
-            self.bag.close()
-        worker = getattr(self, "worker", None)
-        if worker is not None and worker is not threading.current_thread():
-            worker.join(timeout=3.0)
-        super().destroy_node()
 
     def _run_trial(self) -> None:
         s = self.settings

@@ -32,7 +32,7 @@ from sensor_msgs.msg import Image
 from .. import adapter
 from ..core.contact import FrameRing, crop_border
 from ..core.errors import TactexError
-from ..node_settings import CAPTURE_SERVICE, IMAGE_TOPIC, GelsightSettings
+from ..node_settings import GelsightSettings
 from .capture import serve_capture
 from .common import TactexNode, run
 
@@ -99,8 +99,8 @@ def camera_setup(cap, s) -> dict[str, float]:
 class GelsightNode(TactexNode):
     settings_cls = GelsightSettings
 
-    def __init__(self) -> None:
-        super().__init__("gelsight")
+    def __init__(self, **kw) -> None:
+        super().__init__("gelsight", **kw)
 
     def configure(self) -> None:
         s = self.settings
@@ -119,18 +119,34 @@ class GelsightNode(TactexNode):
             self.get_logger().info(f"gelsight camera settings: {self.camera}")
         self.ring = FrameRing(max(2, int(round(s.buffer_s * s.fps))))
         self.lock = threading.Lock()
-        self.pub = self.create_publisher(Image, IMAGE_TOPIC, qos_profile_sensor_data)
-        serve_capture(self, self.ring, self.lock, s.frame_id, CAPTURE_SERVICE)
+        self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
+        serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
         self.frames_read = 0
         self.measured_fps = 0.0
         self._stop = threading.Event()
+        self._warm = False            # warm-up frames dropped (once per configuration)
+        self._refs: list[np.ndarray] = []
 
     def activate(self) -> None:
+        self._stop.clear()
         self.reader = threading.Thread(target=self._read_loop, name="gelsight", daemon=True)
         self.reader.start()
 
     def deactivate(self) -> None:
+        """Stop reading: the reader thread ends within a frame (joined with a deadline)."""
         self._stop.set()
+        reader = getattr(self, "reader", None)
+        if reader is not None:
+            reader.join(timeout=max(1.0, 3.0 / self.settings.fps))
+            if reader.is_alive():
+                self.get_logger().warning("gelsight reader did not stop within its deadline")
+
+    def cleanup(self) -> None:
+        """Release the camera (or video file)."""
+        cap = getattr(self, "cap", None)
+        if cap is not None:
+            cap.release()
+            self.cap = None
 
     def _read(self) -> np.ndarray | None:
         ok, bgr = self.cap.read()
@@ -144,9 +160,11 @@ class GelsightNode(TactexNode):
     def _read_loop(self) -> None:
         s = self.settings
         period = 1.0 / s.fps
-        for _ in range(s.warmup_frames):
-            self.cap.read()
-        refs = []
+        if not self._warm:
+            for _ in range(s.warmup_frames):
+                self.cap.read()
+            self._warm = True
+        refs = self._refs
         next_t = time.monotonic()
         misses = 0
         t_rate, n_rate = time.monotonic(), 0

@@ -36,8 +36,8 @@ from .common import TactexNode, run
 class MockArmNode(TactexNode):
     settings_cls = MockArmSettings
 
-    def __init__(self) -> None:
-        super().__init__("mock_arm")
+    def __init__(self, **kw) -> None:
+        super().__init__("mock_arm", **kw)
 
     def configure(self) -> None:
         s = self.settings
@@ -48,8 +48,8 @@ class MockArmNode(TactexNode):
         scene = load_scene(s.scene_file)
         if s.surface_offset:
             scene = replace(scene, platforms=tuple(
-                replace(p, position=(p.position[0], p.position[1],
-                                     p.position[2] + s.surface_offset))
+                p.replace(position=(p.position[0], p.position[1],
+                                    p.position[2] + s.surface_offset))
                 for p in scene.platforms))
         self.scene = scene
         k = s.stiffness or prof.stiffness
@@ -61,11 +61,10 @@ class MockArmNode(TactexNode):
                                              else s.target_filter_s))
         self.sign = s.wrench_sign or prof.force_sign
         self.quat = np.array(scene.tool_orientation)
-        self.pose_pub = self.create_publisher(PoseStamped, s.pose_topic or prof.pose_topic,
-                                              qos_profile_sensor_data)
-        self.wrench_pub = self.create_publisher(WrenchStamped,
-                                                s.wrench_topic or prof.wrench_topic,
-                                                qos_profile_sensor_data)
+        self.pose_pub = self.create_lifecycle_publisher(
+            PoseStamped, s.pose_topic or prof.pose_topic, qos_profile_sensor_data)
+        self.wrench_pub = self.create_lifecycle_publisher(
+            WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
         self.create_subscription(import_interface(prof.target_type),
                                  s.target_topic or prof.target_topic, self._on_target, 10)
         self.error = False            # reflex not yet cleared by the recovery

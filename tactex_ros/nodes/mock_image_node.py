@@ -19,7 +19,7 @@ from sensor_msgs.msg import Image
 from .. import adapter
 from ..core.contact import FrameRing
 from ..core.errors import TactexError
-from ..node_settings import CAPTURE_SERVICE, IMAGE_TOPIC, WRENCH_TOPIC, MockImageSettings
+from ..node_settings import MockImageSettings
 from ..scene import load_scene
 from .capture import serve_capture
 from .common import TactexNode, run
@@ -28,8 +28,8 @@ from .common import TactexNode, run
 class MockImageNode(TactexNode):
     settings_cls = MockImageSettings
 
-    def __init__(self) -> None:
-        super().__init__("mock_image")
+    def __init__(self, **kw) -> None:
+        super().__init__("mock_image", **kw)
 
     def configure(self) -> None:
         s = self.settings
@@ -75,12 +75,12 @@ class MockImageNode(TactexNode):
         self._in_contact = False
         self._press_frame = None
         self._blank = False
-        self.pub = self.create_publisher(Image, IMAGE_TOPIC, qos_profile_sensor_data)
+        self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
         self.create_subscription(PoseStamped, s.pose_topic, self._on_pose,
                                  qos_profile_sensor_data)
-        self.create_subscription(WrenchStamped, WRENCH_TOPIC, self._on_wrench,
+        self.create_subscription(WrenchStamped, s.wrench_topic, self._on_wrench,
                                  qos_profile_sensor_data)
-        serve_capture(self, self.ring, self.lock, s.frame_id, CAPTURE_SERVICE)
+        serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
 
     def activate(self) -> None:
         self.create_timer(1.0 / self.settings.fps, self._tick)

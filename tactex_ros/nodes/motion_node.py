@@ -31,10 +31,10 @@ from rclpy.qos import qos_profile_sensor_data
 from .. import adapter
 from ..core.errors import TactexError
 from ..core.press import PressController, check_press
-from ..node_settings import PRESS_ACTION, MotionSettings
+from ..node_settings import MotionSettings
 from ..robot import fill_message, import_interface, load_profile
 from ..scene import load_scene
-from .common import TactexNode, in_thread, run
+from .common import TactexNode, in_thread, run, wait_for
 
 
 class RobotError(Exception):
@@ -44,8 +44,8 @@ class RobotError(Exception):
 class MotionNode(TactexNode):
     settings_cls = MotionSettings
 
-    def __init__(self) -> None:
-        super().__init__("motion")
+    def __init__(self, **kw) -> None:
+        super().__init__("motion", **kw)
 
     def configure(self) -> None:
         from tactex.action import Press
@@ -78,17 +78,23 @@ class MotionNode(TactexNode):
                                      self._on_wrench, qos_profile_sensor_data)
         if prof.mode_topic:
             try:
-                self.create_subscription(import_interface(prof.mode_type), prof.mode_topic,
-                                         self._on_mode, 10)
+                self.create_subscription(import_interface(prof.mode_type),
+                                         s.mode_topic or prof.mode_topic, self._on_mode, 10)
             except TactexError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
         self.target_type = prof.target_type
-        self.target_pub = self.create_publisher(import_interface(prof.target_type),
-                                                s.target_topic or prof.target_topic, 10)
+        self.target_pub = self.create_lifecycle_publisher(import_interface(prof.target_type),
+                                                          s.target_topic or prof.target_topic,
+                                                          10)
         self.capture = self.create_client(Capture, s.capture_service)
         self._setup_recovery()
         self._Press = Press
+        self._abort = threading.Event()   # set on deactivation: the running press retracts
+        # created once; goals are accepted only while the node is active (``_on_goal``)
+        self.server = ActionServer(
+            self, Press, s.press_action, execute_callback=self._execute_async,
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
@@ -114,9 +120,17 @@ class MotionNode(TactexNode):
             self.get_logger().warning(self.recovery_off)
 
     def activate(self) -> None:
-        self.server = ActionServer(
-            self, self._Press, PRESS_ACTION, execute_callback=self._execute_async,
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+        self._abort.clear()
+
+    def deactivate(self) -> None:
+        """A running press is aborted: it retracts (targets still published) and ends; wait
+        for it up to the retract deadline before the publishers go off."""
+        self._abort.set()
+        s = self.scene.press
+        if self.busy.acquire(timeout=s.retract_deadline_s + s.capture_deadline_s + 1.0):
+            self.busy.release()
+        else:
+            self.get_logger().error("deactivated while a press did not end in time")
 
     # ------------------------------------------------------------------ robot state
     def _on_pose(self, msg: PoseStamped) -> None:
@@ -161,6 +175,9 @@ class MotionNode(TactexNode):
 
     # ------------------------------------------------------------------ action
     def _on_goal(self, goal) -> GoalResponse:
+        if not self.active:
+            self.get_logger().warning("press goal rejected: the node is not active")
+            return GoalResponse.REJECT
         try:
             self.scene.platform(goal.platform_id)
         except TactexError as exc:
@@ -204,7 +221,7 @@ class MotionNode(TactexNode):
                     return result
                 reasons.append(f"attempt {attempt}: {reason}")
                 self.get_logger().warning(f"press on {platform.id} failed: {reason}")
-                if goal_handle.is_cancel_requested:
+                if goal_handle.is_cancel_requested or self._abort.is_set():
                     break
             result.success, result.reason = False, "; ".join(reasons)
             if goal_handle.is_cancel_requested:
@@ -234,6 +251,8 @@ class MotionNode(TactexNode):
                 raise RobotError(f"{fault} (during {ctrl.phase})")
             if goal_handle.is_cancel_requested:
                 ctrl.abort("canceled", now)
+            elif self._abort.is_set():
+                ctrl.abort("the motion node was deactivated", now)
             target = ctrl.step(now, self.position, self.force, self.force_mag)
             self.target_pub.publish(adapter.target_msg(
                 self.target_type, target, self.quat, self.get_clock().now().nanoseconds * 1e-9,
@@ -261,12 +280,9 @@ class MotionNode(TactexNode):
         if not self.capture.wait_for_service(timeout_sec=deadline_s):
             return False, "capture service not available", None
         fut = self.capture.call_async(Capture.Request(window_s=window_s))
-        end = time.monotonic() + deadline_s
-        while not fut.done():
-            if time.monotonic() > end:
-                fut.cancel()
-                return False, f"no image within capture_deadline_s ({deadline_s} s)", None
-            time.sleep(0.005)
+        if not wait_for(fut, deadline_s):
+            self.capture.remove_pending_request(fut)
+            return False, f"no image within capture_deadline_s ({deadline_s} s)", None
         resp = fut.result()
         if not resp.success:
             return False, resp.reason, None
@@ -289,13 +305,10 @@ class MotionNode(TactexNode):
     def _wait(self, fut, deadline_s: float, what: str):
         """Wait for a future from this worker thread; its result, or TactexError at the
         deadline."""
-        end = time.monotonic() + deadline_s
-        while not fut.done():
-            if time.monotonic() > end:
-                fut.cancel()
-                raise TactexError(f"{what}: no answer within recovery_timeout_s "
-                                  f"({deadline_s} s)")
-            time.sleep(0.01)
+        if not wait_for(fut, deadline_s):
+            fut.cancel()
+            raise TactexError(f"{what}: no answer within recovery_timeout_s "
+                              f"({deadline_s} s)")
         return fut.result()
 
     def _recover(self) -> tuple[bool, str]:

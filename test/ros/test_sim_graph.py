@@ -22,9 +22,9 @@ pytestmark = pytest.mark.ros
 
 def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     from tactex.msg import ExplorationState
-    nodes = describe(True, explorer={"rounds": 2, "stop_confidence": 0.0, "seed": 0,
+    nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "t1", "threads": 1})
+                                     "trial_id": "t1", "learner": {"threads": 1}})
     scene = load_scene(nodes[0].parameters["scene_file"])
     states = listener.collect(ExplorationState, "/tactex/state")
     marks = listener.collect(MarkerArray, "/tactex/markers")
@@ -64,7 +64,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     assert all(t["force_n"] >= 0.9 * scene.press.force_threshold for t in accepted)
     assert rec["result"]["prediction"] == truth
     assert len(rec["decisions"]) == 3
-    assert json.loads((run.record / "config.json").read_text())["explorer"]["rounds"] == 2
+    assert json.loads((run.record / "config.json").read_text())["trial"]["rounds"] == 2
 
 
 def test_press_faults(tmp_path: Path, listener, press) -> None:
@@ -95,9 +95,9 @@ def test_press_faults(tmp_path: Path, listener, press) -> None:
 def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> None:
     """The mock camera shows no texture on some presses: the motion node sees no contact in the
     captured frames and retries the press; nothing blank reaches the learner; the trial ends."""
-    nodes = describe(True, explorer={"rounds": 1, "stop_confidence": 0.0, "seed": 0,
+    nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "blank", "threads": 1},
+                                     "trial_id": "blank", "learner": {"threads": 1}},
                      mock_image={"fault_blank": 0.2, "seed": 3})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
@@ -113,9 +113,9 @@ def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None
     """The motion node lets blank captures through (min_contact_score 0): the core's contact
     guard refuses them in the explorer, which presses the same platform again at once; the
     rejected image stays on disk, marked, and the round is not lost."""
-    nodes = describe(True, explorer={"rounds": 1, "stop_confidence": 0.0, "seed": 0,
+    nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "guard", "threads": 1},
+                                     "trial_id": "guard", "learner": {"threads": 1}},
                      mock_image={"fault_blank": 0.3, "seed": 3},
                      motion={"min_contact_score": 0.0})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)

@@ -31,7 +31,7 @@ def test_platform_outside_workspace_refused(tmp_path: Path, node: str, domain_id
     r = _start(node, [f"scene_file:={bad}", f"record_dir:={tmp_path}"]
                if node == "explorer_node" else [f"scene_file:={bad}"], domain_id)
     assert r.returncode == 2
-    assert b"platforms[2].position" in r.stdout + r.stderr
+    assert b"platforms.2.position" in r.stdout + r.stderr
 
 
 def test_missing_scene_refused(tmp_path: Path, domain_id) -> None:
@@ -41,6 +41,6 @@ def test_missing_scene_refused(tmp_path: Path, domain_id) -> None:
 
 def test_bad_strategy_refused(tmp_path: Path, domain_id) -> None:
     r = _start("explorer_node", [f"scene_file:={config_dir() / 'scene_sim.yaml'}",
-                                 "strategy:=greedy", f"record_dir:={tmp_path}"], domain_id)
+                                 "trial.strategy:=greedy", f"record_dir:={tmp_path}"], domain_id)
     assert r.returncode == 2
-    assert b"strategy" in r.stdout + r.stderr
+    assert b"trial.strategy" in r.stdout + r.stderr

@@ -18,7 +18,7 @@ from tactex_ros.scene import load_scene
 
 def _scene(name: str = "scene_sim.yaml", **press):
     sc = load_scene(config_dir() / name)
-    return replace(sc, press=replace(sc.press, **press)) if press else sc
+    return replace(sc, press=sc.press.replace(**press)) if press else sc
 
 
 def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
@@ -32,7 +32,7 @@ def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
     arm_scene = scene
     if surface_offset:
         arm_scene = replace(scene, platforms=tuple(
-            replace(p, position=(p.position[0], p.position[1], p.position[2] + surface_offset))
+            p.replace(position=(p.position[0], p.position[1], p.position[2] + surface_offset))
             for p in scene.platforms))
     arm = ArmModel(arm_scene, np.array([0.5, 0.0, 0.3]), stiffness=stiffness, mass=mass,
                    platform_stiffness=platform_stiffness, platform_damping=platform_damping,
