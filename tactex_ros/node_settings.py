@@ -114,6 +114,10 @@ class ExplorerSettings:
                                          "answer) for this long, or that leaves the ROS graph, "
                                          "is gone: the trial ends with that reason [s]",
                                    1.0, 600.0)
+    goal_answer_s: float = param(2.0, "a press goal not answered within this is sent again "
+                                      "(a lost goal response); the first one is followed by "
+                                      "its goal id if it runs [s] (< press_silence_s)",
+                                 0.1, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
     threads: int = param(0, "torch threads (0 = torch default)", 0, 256)
     nice: int = param(10, "CPU priority increment of this process, so training never starves "
