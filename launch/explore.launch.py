@@ -1,6 +1,7 @@
 """ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
 sim|FILE] [motion_params:=FILE] [scene:=FILE] [strategy:=S] [model:=M] [rounds:=N] [seed:=N]
-[device:=/dev/videoN|'GelSight Mini'] [source:=sim|replay:DIR] [exit_when_done:=true]
+[sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
+[source:=sim|replay:DIR] [exit_when_done:=true]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -61,7 +62,8 @@ def _nodes(context, *args, **kwargs):
         explorer["exit_when_done"] = True
     try:
         nodes = describe(sim, arg("scene") or None, explorer=explorer,
-                         gelsight={"device": arg("device")} if not sim else None,
+                         gelsight={"device": arg("device"), "sensor": arg("sensor")}
+                         if not sim else None,
                          mock_image={"source": arg("source")} if sim and arg("source") else None,
                          robot=arg("robot") or None, motion_file=arg("motion_params") or None)
         frame = fixed_frame(nodes)
@@ -137,7 +139,10 @@ def generate_launch_description() -> LaunchDescription:
             ("model", "", "model variant ('' = the preset's; auto escalates)"),
             ("rounds", "20", "decisions that request a touch"),
             ("seed", "0", "learner / strategy seed"),
-            ("device", "GelSight Mini", "GelSight device path, camera name or video file"),
+            ("sensor", "gelsight_mini", "sensor profile: gelsight_mini | digit | FILE "
+                                        "(config/sensors/)"),
+            ("device", "", "camera: device path, camera name, DIGIT serial, video file or "
+                           "folder of frames ('' = the sensor profile's camera name)"),
             ("source", "", "sim only: sim[:difficulty] or replay:DIR for the mock image"),
             ("record_dir", "", "where trial records go ('' = runs/trials)"),
             ("trial_id", "", "record sub-folder ('' = time stamp)"),
