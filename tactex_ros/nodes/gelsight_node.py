@@ -255,6 +255,20 @@ class GelsightNode(TactexNode):
     def deactivate(self) -> None:
         self._stop.set()
 
+    def destroy_node(self) -> None:
+        """Stop the reader thread before the publisher goes away (a publish racing rclpy's
+        shutdown aborted the process at 60 fps), then release the camera."""
+        stop = getattr(self, "_stop", None)
+        if stop is not None:
+            stop.set()
+        reader = getattr(self, "reader", None)
+        if reader is not None and reader is not threading.current_thread():
+            reader.join(timeout=2.0)
+        cap = getattr(self, "cap", None)
+        if cap is not None:
+            cap.release()
+        super().destroy_node()
+
     def _read(self) -> np.ndarray | None:
         try:
             return self._read_frame()
