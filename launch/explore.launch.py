@@ -1,7 +1,8 @@
 """ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
-sim|FILE] [motion_params:=FILE] [scene:=FILE] [config:=P] [strategy:=S] [model:=M] [rounds:=N]
-[seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
-[device:=/dev/videoN|'GelSight Mini'] [source:=sim|replay:DIR]
+sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:=S] [model:=M]
+[rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
+[sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
+[source:=sim|replay:DIR]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -44,7 +45,9 @@ def arguments() -> list[tuple[str, str, str]]:
                           "('' = fr3_jazzy, sim: sim)"),
             ("motion_params", "", "YAML of motion_node parameters (topics, stiffness, "
                                   "force_sign, recovery_name, ...) over the profile's"),
-            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)")]
+            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)"),
+            ("bag", "false", "also record the trial's topics with `ros2 bag record` (MCAP) "
+                             "into record_dir/bag_<time> (needs rosbag2)")]
     for name, (node, path) in OPTIONS.items():
         spec = option_spec(name)
         args.append((name, "", f"{node} {path}: {spec.description}"
@@ -56,8 +59,9 @@ def arguments() -> list[tuple[str, str, str]]:
 
 def plan(values: dict[str, str]) -> dict[str, Any]:
     """The graph the launch arguments ``values`` ({name: text}) ask for: ``nodes``
-    (``graph.NodeSpec``), ``sim``, ``rviz``, the rviz ``frame`` and the ``pose_topic`` it
-    shows. Everything is checked here; LaunchArgumentError names the argument or field."""
+    (``graph.NodeSpec``), ``sim``, ``rviz``, ``bag``, the rviz ``frame``, the robot's
+    ``pose_topic`` and ``wrench_topic``, the ``record_dir``. Everything is checked here;
+    LaunchArgumentError names the argument or field."""
     from tactex_ros.core.errors import TactexError
     from tactex_ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot import load_profile
@@ -69,7 +73,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                                       "or false")
         return v in _TRUE
 
-    sim, rviz = flag("sim"), flag("rviz")
+    sim, rviz, bag = flag("sim"), flag("rviz"), flag("bag")
     try:
         given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
                                   if values.get(name, "") != ""})
@@ -79,10 +83,13 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                          robot=values.get("robot") or None,
                          motion_file=values.get("motion_params") or None)
         motion = next(n for n in nodes if n.name == "motion")
-        pose_topic = (motion.parameters.get("pose_topic")
-                      or load_profile(motion.parameters["robot"]).pose_topic)
-        return {"nodes": nodes, "sim": sim, "rviz": rviz, "frame": fixed_frame(nodes),
-                "pose_topic": pose_topic}
+        profile = load_profile(motion.parameters["robot"])
+        explorer = next(n for n in nodes if n.name == "explorer")
+        return {"nodes": nodes, "sim": sim, "rviz": rviz, "bag": bag,
+                "frame": fixed_frame(nodes),
+                "pose_topic": motion.parameters.get("pose_topic") or profile.pose_topic,
+                "wrench_topic": motion.parameters.get("wrench_topic") or profile.wrench_topic,
+                "record_dir": explorer.parameters.get("record_dir") or "runs/trials"}
     except TactexError as exc:
         raise LaunchArgumentError(f"launch argument {exc}") from None
 
@@ -95,6 +102,10 @@ def _nodes(context, *args, **kwargs):
     from tactex_ros.paths import config_dir
     p = plan({name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()})
     nodes, sim, rviz, frame = p["nodes"], p["sim"], p["rviz"], p["frame"]
+    if p["bag"] and not _installed("rosbag2_storage_mcap"):
+        raise LaunchArgumentError("launch argument bag:=true: rosbag2 with MCAP storage is not "
+                                  "installed (apt install ros-$ROS_DISTRO-rosbag2 "
+                                  "ros-$ROS_DISTRO-rosbag2-storage-mcap), nothing started")
     if rviz and not _installed("rviz2"):
         # a missing rviz2 must fail here, before any node starts, not after (orphans)
         raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
@@ -111,6 +122,21 @@ def _nodes(context, *args, **kwargs):
     elif sim:
         actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
                                    f"{frame} for rviz"))
+    if p["bag"]:   # `ros2 bag record` of the trial's topics next to the records; its exit
+        #               does not end the launch (the fsync'ed record and topics.mcap stay the
+        #               ground truth)
+        import time
+        from pathlib import Path
+
+        from launch.actions import ExecuteProcess
+
+        from tactex_ros.node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC
+        out = Path(p["record_dir"]) / time.strftime("bag_%Y%m%d_%H%M%S")
+        topics = [t for t in (STATE_TOPIC, MARKER_TOPIC, TOUCH_IMAGE_TOPIC, p["pose_topic"],
+                              p["wrench_topic"]) if t]
+        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o",
+                                           str(out)] + topics, output="screen",
+                                      sigterm_timeout="10"))
     if rviz:
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
                             arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",

@@ -15,6 +15,7 @@ from .core.errors import TactexError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id")
+DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
@@ -50,8 +51,7 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
 
 def _nodes(args: argparse.Namespace):
     from .graph import describe, option_overrides
-    given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + ("device",
-                                                                              "source")})
+    given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
     return describe(args.sim, args.scene, explorer=given.get("explorer"),
@@ -157,7 +157,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                                                           "the hardware")
         p.add_argument("--scene", help="scene YAML (default config/scene_sim.yaml or "
                                        "config/scene.yaml)")
-        for option in EXPLORER_OPTIONS + ("source", "device"):
+        for option in EXPLORER_OPTIONS + DEVICE_OPTIONS:
             add_option(p, option)
         if name == "run":
             p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,

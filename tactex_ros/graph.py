@@ -43,7 +43,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "model": ("explorer", "learner.model"), "rounds": ("explorer", "trial.rounds"),
     "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
     "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
-    "device": ("gelsight", "device"), "source": ("mock_image", "source")}
+    "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
+    "source": ("mock_image", "source")}
 
 
 def option_spec(name: str) -> FieldSpec:
@@ -141,8 +142,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
         nodes = [NodeSpec("mock_arm_node", "mock_arm", arm),
                  NodeSpec("mock_image_node", "mock_image", _checked("mock_image", img))] + nodes
     else:
-        nodes = [NodeSpec("gelsight_node", "gelsight", _checked("gelsight", gelsight or {}))] \
-            + nodes
+        from .sensor import sensor_config
+        gs = _checked("gelsight", gelsight or {})
+        sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
+        nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
     return nodes
 
 

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from .core.config import Schema, TrialSettings, param
+from pydantic import model_validator
+
+from .core.config import FieldError, Schema, TrialSettings, param
 
 IMAGE_TOPIC = "/tactex/gelsight/image_raw"
 CAPTURE_SERVICE = "/tactex/gelsight/capture"
@@ -26,35 +28,43 @@ TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
 
 
 class GelsightSettings(Schema):
-    device: str = param("GelSight Mini", "camera: /dev/videoN, a /dev/v4l/by-id path, a name "
-                                         "the camera reports (e.g. 'GelSight Mini'), or a video "
-                                         "file path")
-    fps: float = param(25.0, "frame rate to read and publish at [Hz]", 1.0, 120.0)
+    sensor: str = param("gelsight_mini", "sensor profile: a name from config/sensors/ "
+                                         "(gelsight_mini, digit) or a path; gives the camera "
+                                         "name, capture mode, crop, exposure and LED set-up")
+    device: str = param("", "camera: /dev/videoN, a /dev/v4l/by-id path, a name the camera "
+                            "reports (e.g. 'GelSight Mini', 'DIGIT'), a DIGIT serial number, a "
+                            "video file or a folder of recorded frames ('' = the profile's "
+                            "camera name)")
+    fps: float = param(0.0, "frame rate to read and publish at [Hz] (0 = the profile's)",
+                       0.0, 1000.0)
     warmup_frames: int = param(10, "frames dropped after opening (auto-exposure settling)",
                                0, 1000)
     reference_frames: int = param(5, "frames after warm-up averaged into the no-contact frame",
                                   1, 100)
-    crop_fraction: float = param(0.15, "fraction of each border cropped before resizing",
-                                 0.0, 0.4)
+    crop_fraction: float = param(-1.0, "fraction of each border cropped before resizing "
+                                       "(< 0 = the profile's)", -1.0, 0.45)
     buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     image_topic: str = param(IMAGE_TOPIC, "where the camera images are published")
     capture_service: str = param(CAPTURE_SERVICE, "the capture service this node serves")
     loop_file: bool = param(True, "restart a video file at its end (recordings only)")
     open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
-    capture_width: int = param(320, "capture mode width requested from the camera [px] (the "
-                                    "GelSight SDK's 320x240; 0 = the camera's default)",
-                               0, 4096)
-    capture_height: int = param(240, "capture mode height [px] (0 = the camera's default)",
-                                0, 4096)
+    capture_width: int = param(-1, "capture mode width requested from the camera [px] (-1 = "
+                                   "the profile's, e.g. the GelSight SDK's 320x240; 0 = the "
+                                   "camera's default)", -1, 8192)
+    capture_height: int = param(-1, "capture mode height [px] (-1 = the profile's; 0 = the "
+                                    "camera's default)", -1, 8192)
     auto_exposure: bool = param(False, "leave the camera's auto exposure on (off: lighting "
                                        "drift of 10 grey levels broke every strategy in "
-                                       "`tactex experiment stability`)")
+                                       "`tactex experiment stability`); for sensors whose "
+                                       "profile has exposure_controls")
     exposure: float = param(-1.0, "manual exposure in the driver's units (V4L2: 100 us) "
                                   "(< 0 = keep the value the camera has)", -1.0, 100000.0)
     auto_white_balance: bool = param(False, "leave the camera's auto white balance on")
     white_balance: float = param(-1.0, "white balance temperature [K] (< 0 = keep the "
                                        "camera's)", -1.0, 15000.0)
+    led_intensity: int = param(-1, "DIGIT LED level on all channels, 0..15 (-1 = the "
+                                   "profile's)", -1, 15)
 
 
 class MotionSettings(Schema):
@@ -114,9 +124,22 @@ class ExplorerSettings(TrialSettings):
     pause_timeout_s: float = param(600.0, "a trial paused by deactivating the node ends with "
                                           "that reason when not re-activated within this [s]",
                                    1.0, 86400.0)
+    goal_answer_s: float = param(2.0, "a press goal not answered within this is sent again "
+                                      "(a lost goal response); the first one is followed by "
+                                      "its goal id if it runs [s] (< press_silence_s)",
+                                 0.1, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
     nice: int = param(10, "CPU priority increment of this process, so training never starves "
                           "the control loop and the sensor (0 = unchanged)", 0, 19)
+
+    @model_validator(mode="after")
+    def _goal_answer(self) -> "ExplorerSettings":
+        if self.goal_answer_s >= self.press_silence_s:
+            raise FieldError("goal_answer_s", f"{self.goal_answer_s} s must be below "
+                                              f"press_silence_s ({self.press_silence_s} s): an "
+                                              "unanswered goal is re-sent before the press "
+                                              "server counts as silent")
+        return self
 
 
 class MockArmSettings(Schema):

@@ -115,6 +115,7 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
 _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nice",
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
                       "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
+                      "goal_answer_s",
                       "scene_file"},
          "learner": {"threads"}, "trial": set()}
 
