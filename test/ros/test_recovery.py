@@ -70,7 +70,9 @@ def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
            "type": "tactex/action/Press", "then": [CTL, HW]}
     with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
         res = press("c1")
-    assert not res.success and res.attempts == 1
+    # the reflex attempt ends the goal; a loaded machine may add a stale-state attempt first
+    # (state resumed by itself: pressed again without recovery), as in the test above
+    assert not res.success and 1 <= res.attempts <= 2
     assert "robot stopped" in res.reason
     assert "not retried: recovery failed" in res.reason
     assert "/tactex_test/activate_controller" in res.reason
