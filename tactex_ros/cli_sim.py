@@ -92,69 +92,60 @@ def add_commands(sub, bench_sub) -> None:
     b.set_defaults(func=cmd_bench_sim)
 
 
-def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -> dict:
-    """Statistics of simulated vs real GelSight frames, and a side-by-side picture.
-
-    Per set: mean RGB of no-contact frames, mean |contact - no-contact| (grey levels), and the
-    share of spectral power above 0.1 cycles/px in the contact-minus-no-contact image (how much
-    fine detail the contact adds). Real frames: first frame and strongest-contact frame of each
-    press of the first ``n`` classes of ``real_dir``.
-    """
+def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
+                      real_per_class: int = 3, ranking: dict | None = None) -> dict:
+    """The sim-to-real report (``sim/compare.py``): frame statistics per family, a picture
+    (top: real presses, bottom: simulated, each with |contact - no contact| x8) and, with
+    ``ranking`` (keyword arguments of ``compare.run_ranking`` except the folder), the
+    ranking agreement of learner settings."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .core.contact import strongest_contact
-    from .sim.source import SimSource
-    from .sources.replay import ReplaySource, read_video
+    from .sim import compare
 
-    def hf_share(diff: np.ndarray) -> float:
-        g = diff.astype(np.float64).mean(axis=2)
-        p = np.abs(np.fft.fftshift(np.fft.fft2(g - g.mean()))) ** 2
-        fy = np.fft.fftshift(np.fft.fftfreq(g.shape[0]))[:, None]
-        fx = np.fft.fftshift(np.fft.fftfreq(g.shape[1]))[None, :]
-        return float(p[np.hypot(fx, fy) > 0.1].sum() / p.sum())
+    real = compare.real_presses(real_dir, real_per_class)
+    sim = compare.sim_presses(per_class, seed)
+    result = compare.frame_report(real, sim)
+    result["real_classes"] = sorted({p.name for p in real})
+    result["sim_fabrics"] = sorted({p.name for p in sim})
+    if ranking is not None:
+        result["ranking"] = compare.run_ranking(real_dir, seed=seed, **ranking)
 
-    rep = ReplaySource(real_dir)
-    real_pairs = []
-    for cls in rep.classes[:n]:
-        try:
-            arr = read_video(rep.presses(cls)[0])[..., ::-1]  # BGR -> RGB
-        except TactexError:
-            continue
-        idx, _ = strongest_contact(arr)
-        real_pairs.append((cls, arr[0], arr[idx]))
-    sim = SimSource()
-    rng = np.random.default_rng(seed)
-    sim_pairs = [(name, sim.renderer.no_contact(rng), sim.press(name, rng))
-                 for name in sim.classes[:: max(1, len(sim.classes) // n)][:n]]
-
-    def stats(pairs):
-        return {
-            "no_contact_mean_rgb": np.mean([p[1].reshape(-1, 3).mean(0) for p in pairs],
-                                           0).round(1).tolist(),
-            "no_contact_std_rgb": np.mean([p[1].reshape(-1, 3).std(0) for p in pairs],
-                                          0).round(1).tolist(),
-            "contact_minus_no_contact_mean_abs": float(np.mean(
-                [np.abs(p[2].astype(float) - p[1]).mean() for p in pairs])),
-            "high_frequency_share_of_difference": float(np.mean(
-                [hf_share(p[2].astype(float) - p[1]) for p in pairs])),
-        }
-
-    result = {"real": stats(real_pairs), "sim": stats(sim_pairs),
-              "real_classes": [p[0] for p in real_pairs], "sim_fabrics": [p[0] for p in sim_pairs]}
-    k = min(4, len(real_pairs), len(sim_pairs))
-    fig, axes = plt.subplots(2, 2 * k, figsize=(4 * k, 3.2))
+    picks = {"real": [], "sim": []}
+    for side, presses in (("real", real), ("sim", sim)):
+        for g in ("soft", "firm_textured", "smooth"):
+            picks[side] += [p for p in presses if p.group == g][:2]
+        picks[side] = picks[side][:4]
+    k = min(4, len(picks["real"]), len(picks["sim"]))
+    ncols = 2 * k + (1 if "ranking" in result else 0)
+    fig, axes = plt.subplots(2, ncols, figsize=(2 * ncols, 3.4), squeeze=False)
     for i in range(k):
-        for row, (pairs, label) in enumerate(((real_pairs, "real"), (sim_pairs, "sim"))):
-            name, nc, c = pairs[i]
-            axes[row, 2 * i].imshow(c)
-            axes[row, 2 * i].set_title(f"{label}: {name}", fontsize=7)
-            d = np.clip(np.abs(c.astype(float) - nc) * 8, 0, 255).astype(np.uint8)
-            axes[row, 2 * i + 1].imshow(d)
-            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=7)
-    for a in axes.ravel():
+        for row, side in enumerate(("real", "sim")):
+            p = picks[side][i]
+            axes[row, 2 * i].imshow(p.contact)
+            axes[row, 2 * i].set_title(f"{side}: {p.name} ({p.group})", fontsize=6)
+            d = np.clip(np.abs(p.contact.astype(float) - p.no_contact) * 8, 0, 255)
+            axes[row, 2 * i + 1].imshow(d.astype(np.uint8))
+            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=6)
+    for a in axes[:, :2 * k].ravel():
         a.axis("off")
+    if "ranking" in result:
+        rk = result["ranking"]
+        ax = axes[0, -1]
+        xs = [v["sim_accuracy"] for v in rk["settings"].values()]
+        ys = [v["real_accuracy"] for v in rk["settings"].values()]
+        ax.scatter(xs, ys, s=8)
+        for n, x, y in zip(rk["settings"], xs, ys):
+            ax.annotate(n, (x, y), fontsize=4)
+        ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
+        sp = rk["accuracy_spearman"]
+        ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
+                     fontsize=6)
+        ax.set_xlabel("sim accuracy", fontsize=6)
+        ax.set_ylabel("real accuracy", fontsize=6)
+        ax.tick_params(labelsize=5)
+        axes[1, -1].axis("off")
     fig.tight_layout()
     Path(out_png).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, dpi=110)
@@ -162,20 +153,71 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -
     return result
 
 
+def _print_report(res: dict) -> None:
+    print(f"{'group':<14} {'statistic':<20} {'real':>22} {'sim':>22} {'ratio':>18}  <=25%")
+    for c in res["checks"]:
+        def fmt(v):
+            return (", ".join(f"{x:.2f}" for x in v) if isinstance(v, list) else f"{v:.3f}")
+        print(f"{c['group']:<14} {c['statistic']:<20} {fmt(c['real']):>22} {fmt(c['sim']):>22} "
+              f"{fmt(c['ratio']):>18}  {'yes' if c['within_25pct'] else 'no'}")
+    print(f"{res['checks_passed']} of {len(res['checks'])} statistics within 25 % of real")
+    rk = res.get("ranking")
+    if rk:
+        print(f"\n{'setting':<12} {'sim acc':>8} {'real acc':>9} {'gap':>7}")
+        for n, v in rk["settings"].items():
+            print(f"{n:<12} {v['sim_accuracy']:>8.3f} {v['real_accuracy']:>9.3f} "
+                  f"{v['gap_real_minus_sim']:>+7.3f}")
+        for key in ("accuracy_spearman", "true_match_probability_spearman"):
+            sp = rk.get(key)
+            if sp:
+                print(f"{key}: rho {sp['rho']:.3f}, 95 % bootstrap interval "
+                      f"[{sp['ci95'][0]:.3f}, {sp['ci95'][1]:.3f}]")
+        print(f"mean accuracy gap real - sim {rk['mean_gap_real_minus_sim']:+.3f}; "
+              f"{rk['n_settings']} settings, {rk['sim_scenes']} sim + {rk['real_scenes']} real "
+              f"scenes of 1 + {rk['comparisons']}, {rk['rounds']} rounds, strategy "
+              f"{rk['strategy']}; failed trials {len(rk['failed_trials'])}")
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
-    res = compare_with_real(args.real, args.out, args.seed)
-    for k in ("real", "sim"):
-        print(k, json.dumps(res[k]))
+    from .sim.compare import SETTINGS
+    ranking = None
+    if args.scenes > 0:
+        names = args.settings.split(",") if args.settings else list(SETTINGS)
+        unknown = [n for n in names if n not in SETTINGS]
+        if unknown:
+            raise TactexError(f"--settings: unknown {unknown}; choose from {', '.join(SETTINGS)}")
+        if args.comparisons < 2:
+            raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
+        ranking = dict(settings={n: SETTINGS[n] for n in names}, scenes=args.scenes,
+                       comparisons=args.comparisons, rounds=args.rounds,
+                       strategy=args.strategy, workers=args.workers)
+    if args.presses < 1 or args.real_presses < 1:
+        raise TactexError("--presses and --real-presses must be >= 1")
+    res = compare_with_real(args.real, args.out, args.seed, args.presses, args.real_presses,
+                            ranking)
+    _print_report(res)
     if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(res, indent=2))
     print(f"wrote {args.out}")
     return 0
 
 
 def add_compare(ssub) -> None:
-    c = ssub.add_parser("compare", help="simulated vs real frames: statistics and a picture")
+    c = ssub.add_parser("compare", help="sim-to-real report: frame statistics per family and "
+                                        "the ranking of learner settings on both sides")
     c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
-    c.add_argument("--out", required=True, help="side-by-side PNG")
+    c.add_argument("--out", required=True, help="PNG: side-by-side frames (+ ranking)")
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--json")
+    c.add_argument("--presses", type=int, default=2, help="simulated presses per fabric")
+    c.add_argument("--real-presses", type=int, default=3, help="real presses per class")
+    c.add_argument("--scenes", type=int, default=0,
+                   help="scenes per side for the ranking of learner settings (0 = skip it)")
+    c.add_argument("--settings", default="",
+                   help="comma-separated setting names (default: all of sim/compare.SETTINGS)")
+    c.add_argument("--comparisons", type=int, default=4)
+    c.add_argument("--rounds", type=int, default=3, help="touches after the baseline")
+    c.add_argument("--strategy", default="random")
+    c.add_argument("--workers", type=int, default=1)
     c.set_defaults(func=cmd_compare)
