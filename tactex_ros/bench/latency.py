@@ -83,8 +83,8 @@ def run(touch_counts: tuple[int, ...] | list[int] = (5, 15, 25), repeats: int = 
     for n in touch_counts:
         vals = [out[c][str(n)] for c in configs]
         ratios = [v / vals[-1] if vals[-1] > 0 else float("inf") for v in vals[:-1]]
-        print(f"{n:>8}  " + "  ".join(f"{v:>14.3f}" for v in vals) + "   " +
-              "  ".join(f"{r:>19.1f}x" for r in ratios))
+        print(f"{n:>8}  " + "  ".join(f"{v:>14.4f}" for v in vals) + "   " +
+              "  ".join(f"{r:>19.3g}x" for r in ratios))
     print("adding one touch (descriptor / rotated views), median [s]: " +
           ", ".join(f"{c} {statistics.median(v):.3f}" for c, v in add.items()))
     out["add_touch_median_s"] = {c: statistics.median(v) for c, v in add.items()}

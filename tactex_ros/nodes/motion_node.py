@@ -10,7 +10,8 @@ the force threshold), hold the force during settle and capture (GelSight capture
 retract. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
 every phase. A failed attempt (no contact, no image, force limit) is retried up to
 ``press.retries`` times. A robot error (the state stops arriving during a press, or the franka
-state reports a reflex) ends the attempt at once; the node then runs the profile's recovery
+state reports a reflex) ends the attempt at once; if fresh state does not come back by itself
+within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the profile's recovery
 (error recovery action or service, waits for its result, re-activates hardware and controllers
 by the profile's service calls, waits for fresh state) and retries, or ends the goal with the
 reason (also when recovery is off, e.g. franka_msgs is not installed).
@@ -187,6 +188,10 @@ class MotionNode(TactexNode):
                 except RobotError as exc:
                     reasons.append(f"attempt {attempt}: {exc}")
                     self.get_logger().error(f"press on {platform.id}: {exc}")
+                    if self._state_resumes():
+                        self.get_logger().warning("robot state resumed without recovery (a "
+                                                  "gap, not a reflex); pressing again")
+                        continue
                     recovered, why = self._recover()
                     if not recovered:
                         reasons.append(f"not retried: {why}")
@@ -269,6 +274,17 @@ class MotionNode(TactexNode):
             return False, (f"no contact in the captured frames: score {resp.contact_score:.2f} < "
                            f"min_contact_score {self.settings.min_contact_score}"), None
         return True, "", resp
+
+    def _state_resumes(self) -> bool:
+        """After a robot error: does fresh state (not in reflex) come back by itself within
+        state_timeout_s? A stopped robot (reflex, controllers down) stays silent until
+        recovered; a loaded machine only delays messages."""
+        end = time.monotonic() + self.settings.state_timeout_s
+        while time.monotonic() < end:
+            if not self._robot_fault(time.monotonic()):
+                return True
+            time.sleep(0.02)
+        return False
 
     def _wait(self, fut, deadline_s: float, what: str):
         """Wait for a future from this worker thread; its result, or TactexError at the

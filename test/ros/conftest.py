@@ -55,3 +55,58 @@ def listener(domain_id):
     lst = Listener(domain_id)
     yield lst
     lst.close()
+
+
+def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
+               answer_s: float = 15.0):
+    """Send a Press goal to ``/tactex/press`` and return its result (``None``: rejected).
+
+    A goal request sent right after discovery can lose its response (the server may not have
+    matched the client's response reader yet). An attempt unanswered within ``answer_s`` is
+    re-sent; when the re-sent goal is rejected because the first one is running, the first
+    one's result is requested by its goal id. Fails the test at ``timeout`` seconds.
+    """
+    import time
+    import uuid
+
+    from rclpy.action import ActionClient
+    from rclpy.action.client import ClientGoalHandle
+    from tactex.action import Press
+    from unique_identifier_msgs.msg import UUID
+
+    ac = ActionClient(listener.node, Press, "/tactex/press")
+    if not ac.wait_for_server(timeout_sec=30.0):
+        pytest.fail("no /tactex/press server within 30 s")
+    end = time.monotonic() + timeout
+    sent: list = []   # (goal id, future of its goal response)
+    while True:
+        gid = UUID(uuid=list(uuid.uuid4().bytes))
+        sent.append((gid, ac.send_goal_async(Press.Goal(platform_id=platform_id),
+                                             goal_uuid=gid)))
+        until = min(end, time.monotonic() + answer_s)
+        while not any(f.done() for _, f in sent) and time.monotonic() < until:
+            time.sleep(0.02)
+        answered = [f.result() for _, f in sent if f.done()]
+        if answered:
+            break
+        if time.monotonic() >= end:
+            pytest.fail(f"press goal for {platform_id} not answered within {timeout} s")
+    handle = next((h for h in answered if h.accepted), None)
+    if handle is None:
+        lost = [gid for gid, f in sent if not f.done()]
+        if not lost:
+            return None
+        # the re-sent goal was refused while the unanswered one runs: follow that one
+        handle = ClientGoalHandle(ac, lost[0], Press.Impl.SendGoalService.Response(accepted=True))
+    rfut = handle.get_result_async()
+    while not rfut.done() and time.monotonic() < end:
+        time.sleep(0.02)
+    if not rfut.done():
+        pytest.fail(f"press of {platform_id} did not finish within {timeout} s")
+    return rfut.result().result
+
+
+@pytest.fixture
+def press(listener):
+    """``press(platform_id, timeout=90.0)``: :func:`press_goal` through the test's listener."""
+    return lambda platform_id, timeout=90.0: press_goal(listener, platform_id, timeout)

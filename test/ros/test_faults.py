@@ -233,3 +233,31 @@ def test_runner_signalled_leaves_no_node(tmp_path: Path, domain_id: int, sig: in
     assert code == (128 + sig if sig != signal.SIGKILL else -sig)
     print(f"\nrunner {signal.Signals(sig).name}: all nodes gone after {gone_s:.2f} s")
     _check_record(tmp_path / "t", [])
+
+
+def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listener) -> None:
+    """Without the runner's supervision (as under `launch`): the motion node is killed during a
+    press; the explorer ends the trial within press_silence_s (not press_timeout_s, 120 s) with
+    an error result, and the cut-off press is recorded as interrupted."""
+    from tactex_ros.runner import Graph
+    nodes = describe(True, explorer={"rounds": 2, "stop_confidence": 0.0, "threads": 1,
+                                     "record_dir": str(tmp_path), "trial_id": "gone",
+                                     "exit_when_done": True, "press_silence_s": 3.0})
+    record = tmp_path / "gone"
+    with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
+        end = time.monotonic() + 90
+        while _touches_on_disk(record) < 2 and time.monotonic() < end:
+            time.sleep(0.05)
+        time.sleep(0.3)                                 # the next press is under way
+        t0 = time.monotonic()
+        os.kill(g.procs["motion"].pid, signal.SIGKILL)
+        code = g.wait("explorer", 30.0)
+        gone_s = time.monotonic() - t0
+    assert code == 1, f"explorer still running {gone_s:.1f} s after the motion node died"
+    print(f"\nexplorer: press server gone -> error result after {gone_s:.2f} s")
+    assert gone_s < 3.0 + 10.0
+    res = read_result(record)
+    assert res is not None and "error" in res
+    last = read_record(record, images=False)["touches"][-1]
+    assert last["interrupted"] is True and last["accepted"] is False
+    _check_record(record, [])

@@ -12,7 +12,6 @@ the client code does not depend on the type), std_srvs Trigger / SetBool for ser
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
@@ -38,22 +37,6 @@ def _profile(tmp_path: Path, recovery: dict) -> str:
     return str(path)
 
 
-def _press(listener, platform_id: str, timeout: float = 90.0):
-    from rclpy.action import ActionClient
-    from tactex.action import Press
-    ac = ActionClient(listener.node, Press, "/tactex/press")
-    assert ac.wait_for_server(timeout_sec=30.0)
-    fut = ac.send_goal_async(Press.Goal(platform_id=platform_id))
-    end = time.monotonic() + timeout
-    while not fut.done() and time.monotonic() < end:
-        time.sleep(0.02)
-    rfut = fut.result().get_result_async()
-    while not rfut.done() and time.monotonic() < end:
-        time.sleep(0.02)
-    assert rfut.done(), "press did not finish before the test deadline"
-    return rfut.result().result
-
-
 def _graph(tmp_path: Path, kind: str, recovery: dict):
     robot = _profile(tmp_path, recovery)
     nodes = describe(True, robot=robot,
@@ -68,24 +51,25 @@ def _graph(tmp_path: Path, kind: str, recovery: dict):
     ("action", "tactex/action/Press", ""),
     ("service", "std_srvs/srv/Trigger", "success"),
 ])
-def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, kind, rtype,
+def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, press, kind, rtype,
                                              ok_field) -> None:
     rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL]}
     if ok_field:
         rec["ok_field"] = ok_field
     with Graph(_graph(tmp_path, kind, rec), tmp_path / "logs", listener.domain_id):
-        res = _press(listener, "c1")
+        res = press("c1")
     assert res.success, res.reason
     # the first attempt ended in the reflex; a loaded machine may add a stale-state attempt
     assert 2 <= res.attempts <= 3
     assert res.touch.contact_force_n >= 0.9 * 4.0
 
 
-def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener) -> None:
+def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
+                                                        press) -> None:
     rec = {"kind": "action", "name": "/tactex_test/error_recovery",
            "type": "tactex/action/Press", "then": [CTL, HW]}
     with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
-        res = _press(listener, "c1")
+        res = press("c1")
     assert not res.success and res.attempts == 1
     assert "robot stopped" in res.reason
     assert "not retried: recovery failed" in res.reason

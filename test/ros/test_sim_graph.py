@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -68,26 +67,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     assert json.loads((run.record / "config.json").read_text())["explorer"]["rounds"] == 2
 
 
-def _press(listener, platform_id: str, timeout: float = 60.0):
-    from rclpy.action import ActionClient
-    from tactex.action import Press
-    ac = ActionClient(listener.node, Press, "/tactex/press")
-    assert ac.wait_for_server(timeout_sec=30.0)
-    fut = ac.send_goal_async(Press.Goal(platform_id=platform_id))
-    end = time.monotonic() + timeout
-    while not fut.done() and time.monotonic() < end:
-        time.sleep(0.02)
-    handle = fut.result()
-    if not handle.accepted:
-        return None
-    rfut = handle.get_result_async()
-    while not rfut.done() and time.monotonic() < end:
-        time.sleep(0.02)
-    assert rfut.done(), "press did not finish before the test deadline"
-    return rfut.result().result
-
-
-def test_press_faults(tmp_path: Path, listener) -> None:
+def test_press_faults(tmp_path: Path, listener, press) -> None:
     """Unknown platform: goal rejected. Platforms lower than the scene says: no contact, the
     press is retried, then reported failed; the arm stays in the workspace meanwhile."""
     from tactex_ros.runner import Graph
@@ -96,17 +76,20 @@ def test_press_faults(tmp_path: Path, listener) -> None:
     scene = load_scene(nodes[0].parameters["scene_file"])
     poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
     with Graph(nodes, tmp_path / "logs", listener.domain_id):
-        assert _press(listener, "no_such_platform") is None
-        res = _press(listener, "c1")
+        assert press("no_such_platform") is None
+        res = press("c1")
         assert res is not None and not res.success
         assert res.attempts == scene.press.retries + 1
         assert res.reason.count("attempt") == scene.press.retries + 1
     xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in poses])
     assert len(xyz) > 50
     assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
-    # never below the deepest allowed press of the (scene's) surface, up to the impedance
-    # controller's overshoot after the no-contact decision (the arm lags its equilibrium)
-    assert xyz[:, 2].min() >= scene.platform("c1").position[2] - scene.press.max_depth - 0.002
+    # never below the deepest equilibrium of a press (the floor below the scene's surface at
+    # the profile's stiffness), up to 1 mm of the impedance controller's overshoot
+    from tactex_ros.core.press import equilibrium_floor
+    from tactex_ros.robot import load_profile
+    floor = equilibrium_floor(scene.press, load_profile("sim").stiffness)
+    assert xyz[:, 2].min() >= scene.platform("c1").position[2] - floor - 0.001
 
 
 def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> None:
