@@ -88,6 +88,7 @@ class GelSightRenderer:
         # one row per (channel, coefficient): (18, bins), gathered per pixel
         self._table = np.ascontiguousarray(c.table.reshape(-1, 18).T)
         self._buf = np.empty(self._hs * self._ws, np.float32)
+        self._ones = np.ones((self._hs, self._ws), np.float32)
         self._mag_scale = np.float32((c.num_bins - 1) / (0.5 * np.pi))
         self._dir_scale = np.float32((c.num_bins - 1) / (2 * np.pi))
         rng = np.random.default_rng(12345)
@@ -162,15 +163,15 @@ class GelSightRenderer:
             raise ValueError(f"indentation of shape {indent.shape}, expected "
                              f"{(self._hs, self._ws)}")
         step = np.float32(s.mm_per_px * k)
-        g_col = cv2.Sobel(indent, cv2.CV_32F, 1, 0, ksize=3) / (8 * step)
-        g_row = cv2.Sobel(indent, cv2.CV_32F, 0, 1, ksize=3) / (8 * step)
-        mag, ang = cv2.cartToPolar(g_col, g_row)          # ang = atan2(row, col) in [0, 2 pi)
+        # the negated gradient [mm/mm]: its angle is the calibration's direction atan2(row,
+        # col) + pi, in [0, 2 pi)
+        neg = -1.0 / (8.0 * float(step))
+        mag, ang = cv2.cartToPolar(cv2.Sobel(indent, cv2.CV_32F, 1, 0, ksize=3, scale=neg),
+                                   cv2.Sobel(indent, cv2.CV_32F, 0, 1, ksize=3, scale=neg))
         nb = self.calib.num_bins
-        bm = np.minimum(np.arctan(mag) * self._mag_scale, nb - 1).astype(np.int32)
-        # direction bin of atan2(row, col) + pi in [0, 2 pi]
-        shifted = ang + np.float32(np.pi)
-        shifted[shifted >= 2 * np.pi] -= np.float32(2 * np.pi)
-        bd = np.minimum(shifted * self._dir_scale, nb - 1).astype(np.int32)
+        slope = cv2.phase(self._ones, mag)                # atan(|grad|) in [0, pi/2]
+        bm = np.minimum(slope * self._mag_scale, nb - 1).astype(np.int32)
+        bd = np.minimum(ang * self._dir_scale, nb - 1).astype(np.int32)
         idx = (bm * nb + bd).ravel()
         out = -self._flat                      # (3, N): sum_k coef_k(bin) * feature_k(pixel)
         buf, f = self._buf, self._feats
