@@ -18,11 +18,11 @@ def cmd_fabrics(args: argparse.Namespace) -> int:
     from .sim.source import SimSource
     src = SimSource()
     print(f"{'#':>3} {'name':<18} {'family':<9} {'pitch':>6} {'width':>6} {'height':>7} "
-          f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4}")
+          f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4} {'soft':>5}")
     for i, (name, f) in enumerate(src.catalogue.items(), 1):
         print(f"{i:>3} {name:<18} {f.family:<9} {f.pitch_mm:>6.2f} {f.yarn_width:>6.2f} "
               f"{f.yarn_height_mm:>7.2f} {f.twist:>6.2f} {f.irregularity:>6.2f} "
-              f"{f.fuzz:>5.2f} {f.repeat:>4d}")
+              f"{f.fuzz:>5.2f} {f.repeat:>4d} {f.softness:>5.2f}")
     return 0
 
 
@@ -93,11 +93,13 @@ def add_commands(sub, bench_sub) -> None:
 
 
 def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
-                      real_per_class: int = 3, ranking: dict | None = None) -> dict:
+                      real_per_class: int = 3, ranking: dict | None = None,
+                      fabrics: list[str] | None = None) -> dict:
     """The sim-to-real report (``sim/compare.py``): frame statistics per family, a picture
     (top: real presses, bottom: simulated, each with |contact - no contact| x8) and, with
     ``ranking`` (keyword arguments of ``compare.run_ranking`` except the folder), the
-    ranking agreement of learner settings."""
+    ranking agreement of learner settings. ``fabrics``: simulated fabrics of the statistics
+    (default: the whole catalogue)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -105,7 +107,7 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
     from .sim import compare
 
     real = compare.real_presses(real_dir, real_per_class)
-    sim = compare.sim_presses(per_class, seed)
+    sim = compare.sim_presses(per_class, seed, fabrics)
     result = compare.frame_report(real, sim)
     result["real_classes"] = sorted({p.name for p in real})
     result["sim_fabrics"] = sorted({p.name for p in sim})
@@ -115,7 +117,8 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
     picks = {"real": [], "sim": []}
     for side, presses in (("real", real), ("sim", sim)):
         for g in ("soft", "firm_textured", "smooth"):
-            picks[side] += [p for p in presses if p.group == g][:2]
+            named = {p.name: p for p in reversed(presses) if p.group == g}  # first per name
+            picks[side] += list(named.values())[::-1][:2]
         picks[side] = picks[side][:4]
     k = min(4, len(picks["real"]), len(picks["sim"]))
     ncols = 2 * k + (1 if "ranking" in result else 0)
@@ -133,16 +136,17 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
     if "ranking" in result:
         rk = result["ranking"]
         ax = axes[0, -1]
-        xs = [v["sim_accuracy"] for v in rk["settings"].values()]
-        ys = [v["real_accuracy"] for v in rk["settings"].values()]
+        names = list(rk["settings"])
+        xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
+        ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
         ax.scatter(xs, ys, s=8)
-        for n, x, y in zip(rk["settings"], xs, ys):
+        for n, x, y in zip(names, xs, ys):
             ax.annotate(n, (x, y), fontsize=4)
         ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
         sp = rk["accuracy_spearman"]
         ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
                      fontsize=6)
-        ax.set_xlabel("sim accuracy", fontsize=6)
+        ax.set_xlabel(f"sim accuracy (+{rk['budget']} touches)", fontsize=6)
         ax.set_ylabel("real accuracy", fontsize=6)
         ax.tick_params(labelsize=5)
         axes[1, -1].axis("off")
@@ -163,38 +167,52 @@ def _print_report(res: dict) -> None:
     print(f"{res['checks_passed']} of {len(res['checks'])} statistics within 25 % of real")
     rk = res.get("ranking")
     if rk:
-        print(f"\n{'setting':<12} {'sim acc':>8} {'real acc':>9} {'gap':>7}")
+        print(f"\n{'setting':<15} {'sim acc':>8} {'real acc':>9} {'gap':>7} {'sim mean':>9} "
+              f"{'real mean':>10}   (accuracy after +{rk['budget']} touches; mean over "
+              f"0..{rk['budget']})")
         for n, v in rk["settings"].items():
-            print(f"{n:<12} {v['sim_accuracy']:>8.3f} {v['real_accuracy']:>9.3f} "
-                  f"{v['gap_real_minus_sim']:>+7.3f}")
-        for key in ("accuracy_spearman", "true_match_probability_spearman"):
-            sp = rk.get(key)
-            if sp:
-                print(f"{key}: rho {sp['rho']:.3f}, 95 % bootstrap interval "
-                      f"[{sp['ci95'][0]:.3f}, {sp['ci95'][1]:.3f}]")
-        print(f"mean accuracy gap real - sim {rk['mean_gap_real_minus_sim']:+.3f}; "
-              f"{rk['n_settings']} settings, {rk['sim_scenes']} sim + {rk['real_scenes']} real "
-              f"scenes of 1 + {rk['comparisons']}, {rk['rounds']} rounds, strategy "
-              f"{rk['strategy']}; failed trials {len(rk['failed_trials'])}")
+            print(f"{n:<15} {v['sim']['accuracy']:>8.3f} {v['real']['accuracy']:>9.3f} "
+                  f"{v['gap_real_minus_sim']:>+7.3f} {v['sim']['accuracy_mean_over_budgets']:>9.3f} "
+                  f"{v['real']['accuracy_mean_over_budgets']:>10.3f}")
+        for key in ("accuracy_spearman", "mean_over_budgets_spearman"):
+            sp = rk[key]
+            print(f"{key}: rho {sp['rho']:.3f}, 95 % bootstrap interval "
+                  f"[{sp['ci95'][0]:.3f}, {sp['ci95'][1]:.3f}] over {sp['settings']} settings")
+        print(f"mean accuracy gap real - sim {rk['mean_gap_real_minus_sim']:+.3f} (mean |gap| "
+              f"{rk['mean_abs_gap']:.3f}); {rk['scenes']} sim + {rk['scenes']} real scenes of "
+              f"1 + {rk['comparisons']}; failed trials: sim {rk['sim_failed_trials']}, real "
+              f"{rk['real_failed_trials']}")
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .sim.compare import SETTINGS
+    from .sim.compare import DEFAULT_SETTINGS
     ranking = None
-    if args.scenes > 0:
-        names = args.settings.split(",") if args.settings else list(SETTINGS)
-        unknown = [n for n in names if n not in SETTINGS]
-        if unknown:
-            raise TactexError(f"--settings: unknown {unknown}; choose from {', '.join(SETTINGS)}")
-        if args.comparisons < 2:
-            raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
-        ranking = dict(settings={n: SETTINGS[n] for n in names}, scenes=args.scenes,
-                       comparisons=args.comparisons, rounds=args.rounds,
-                       strategy=args.strategy, workers=args.workers)
     if args.presses < 1 or args.real_presses < 1:
         raise TactexError("--presses and --real-presses must be >= 1")
+    if args.scenes > 0:
+        if not 2 <= args.comparisons <= 24:
+            raise TactexError(f"--comparisons must be in 2..24, got {args.comparisons}")
+        if not 0 <= args.budget <= 100:
+            raise TactexError(f"--budget must be in 0..100, got {args.budget}")
+        if args.workers < 1:
+            raise TactexError(f"--workers must be >= 1, got {args.workers}")
+        from .experiments.real import parse_setting
+        for text in args.setting or []:
+            parse_setting(text)          # a bad setting is refused before any work
+        ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,
+                       comparisons=args.comparisons, budget=args.budget, workers=args.workers)
+    elif args.scenes < 0:
+        raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
+    fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
+    if fabrics:
+        from .sim.fabrics import load_catalogue
+        from .paths import config_dir
+        known = load_catalogue(config_dir() / "fabrics.yaml")
+        unknown = [f for f in fabrics if f not in known]
+        if unknown:
+            raise TactexError(f"--fabrics: unknown {unknown}; `tactex sim fabrics` lists them")
     res = compare_with_real(args.real, args.out, args.seed, args.presses, args.real_presses,
-                            ranking)
+                            ranking, fabrics)
     _print_report(res)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -212,12 +230,15 @@ def add_compare(ssub) -> None:
     c.add_argument("--json")
     c.add_argument("--presses", type=int, default=2, help="simulated presses per fabric")
     c.add_argument("--real-presses", type=int, default=3, help="real presses per class")
+    c.add_argument("--fabrics", help="comma-separated simulated fabrics for the statistics "
+                                     "(default: the whole catalogue)")
     c.add_argument("--scenes", type=int, default=0,
                    help="scenes per side for the ranking of learner settings (0 = skip it)")
-    c.add_argument("--settings", default="",
-                   help="comma-separated setting names (default: all of sim/compare.SETTINGS)")
+    c.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] as for `tactex experiment real` "
+                        "(repeat; default: sim/compare.py DEFAULT_SETTINGS)")
     c.add_argument("--comparisons", type=int, default=4)
-    c.add_argument("--rounds", type=int, default=3, help="touches after the baseline")
-    c.add_argument("--strategy", default="random")
+    c.add_argument("--budget", type=int, default=5,
+                   help="touches after the baseline; accuracy is ranked at this budget")
     c.add_argument("--workers", type=int, default=1)
     c.set_defaults(func=cmd_compare)

@@ -7,15 +7,18 @@ Two parts (``tactex sim compare``):
    the no-contact frame's mean and spatial std per RGB channel, the noise between two
    no-contact frames (mean |difference|), the contact difference's level (mean
    |contact - no contact| [grey levels]) and its spectrum (share of its power above
-   0.1 cycles/px). Real classes are grouped by how they press (``REAL_FAMILIES``: soft,
+   0.1 cycles/px, and its shares in the bands 0-0.02, 0.02-0.05, 0.05-0.1 cycles/px). Real
+   classes are grouped by how they press (``REAL_FAMILIES``: soft,
    firm textured, smooth), simulated fabrics by their softness (soft >= 0.5) and by
    construction family. Each shared group is compared as sim / real ratio with the 25 % target.
-2. **Ranking agreement.** A set of learner settings (``LearnerConfig`` overrides of the CNN
-   preset ``cnn``, ``SETTINGS``) runs the same kind of scene on both sides: 1 reference +
-   C comparisons of distinct classes (catalogue fabrics / real classes), seeded, the same
-   scenes for every setting. Per setting: accuracy on simulated scenes and on real scenes;
-   Spearman rho between the two rankings with a bootstrap interval (scenes resampled, paired
-   across settings) and the accuracy gap (real - sim).
+2. **Ranking agreement.** A set of learner settings (``DEFAULT_SETTINGS``, in the syntax of
+   ``tactex experiment real``) runs through the real-press evaluation
+   (``experiments/real.py``: scene draw, runner, belief after every touch) on simulated scenes
+   (catalogue fabrics) and on real scenes (the folder's classes): 1 reference + C comparisons
+   of distinct classes, seeded, the same scenes for every setting. Per setting: accuracy on
+   each side after a fixed number of touches; Spearman rho between the two rankings with a
+   bootstrap interval (scenes resampled, paired across settings) and the accuracy gap
+   (real - sim).
 """
 
 from __future__ import annotations
@@ -40,32 +43,53 @@ REAL_FAMILIES: dict[str, tuple[str, ...]] = {
 SOFT_THRESHOLD = 0.5          # simulated fabrics with softness >= this form the "soft" group
 TARGET_REL = 0.25             # every statistic within 25 % of the real value
 
-# Learner settings ranked on both sides: overrides of preset "cnn" (48 px, 8 steps, lr 3e-3,
-# batch 32, dropout 0.5, 10 rotations per touch).
-SETTINGS: dict[str, dict[str, Any]] = {
-    "cnn": {},
-    "input32": {"input_size": 32},
-    "input96": {"input_size": 96},
-    "steps4": {"steps": 4},
-    "steps16": {"steps": 16},
-    "lr1e-3": {"lr": 1e-3},
-    "lr1e-2": {"lr": 1e-2},
-    "batch8": {"batch_size": 8},
-    "dropout0.2": {"dropout": 0.2},
-    "augment3": {"augment": 3},
-    "fourier": {"fourier": True},
-}
+# Learner settings ranked on both sides, in ``tactex experiment real`` syntax
+# (label=preset[:key=value,...], ``experiments/real.parse_setting``): the shipped descriptor
+# model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
+DEFAULT_SETTINGS: tuple[str, ...] = (
+    "default=default",
+    "random=default:strategy=random",
+    "variance=default:strategy=variance",
+    "entropy=default:strategy=entropy",
+    "yoto=default:strategy=yoto",
+    "no_contact_off=default:descriptor_no_contact=false",
+    "prior0.5=default:match_prior_scale=0.5",
+    "prior3=default:match_prior_scale=3.0",
+    "cnn=cnn",
+    "cnn_random=cnn:strategy=random",
+)
+
+
+BAND_EDGES = (0.0, 0.02, 0.05, 0.1)   # cycles/px: the bands below the high-frequency share
+
+
+def _power(diff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Power spectrum of the grey, mean-removed (H, W, 3) difference image and the radial
+    frequency [cycles/px] of every bin."""
+    g = diff.astype(np.float64).mean(axis=2)
+    p = np.abs(np.fft.fft2(g - g.mean())) ** 2
+    f = np.hypot(np.fft.fftfreq(g.shape[0])[:, None], np.fft.fftfreq(g.shape[1])[None, :])
+    return p, f
 
 
 def hf_share(diff: np.ndarray, cutoff: float = 0.1) -> float:
     """Share of the (grey, mean-removed) power of a (H, W, 3) difference image above
     ``cutoff`` cycles/px."""
-    g = diff.astype(np.float64).mean(axis=2)
-    p = np.abs(np.fft.fft2(g - g.mean())) ** 2
-    fy = np.fft.fftfreq(g.shape[0])[:, None]
-    fx = np.fft.fftfreq(g.shape[1])[None, :]
+    p, f = _power(diff)
     total = p.sum()
-    return float(p[np.hypot(fx, fy) > cutoff].sum() / total) if total > 0 else 0.0
+    return float(p[f > cutoff].sum() / total) if total > 0 else 0.0
+
+
+def band_shares(diff: np.ndarray, edges: tuple[float, ...] = BAND_EDGES) -> np.ndarray:
+    """Shares of the difference image's power in the radial bands [edges[i], edges[i + 1])
+    cycles/px (with ``hf_share`` above the last edge they sum to 1)."""
+    p, f = _power(diff)
+    total = p.sum()
+    if total <= 0:
+        return np.zeros(len(edges) - 1)
+    last = len(edges) - 2        # the last band includes its top edge (hf_share is above it)
+    return np.array([p[(f >= a) & ((f < b) | ((f == b) & (i == last)))].sum()
+                     for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]) / total
 
 
 @dataclass
@@ -88,11 +112,11 @@ def press_stats(p: Press) -> dict[str, Any]:
             "no_contact_std_rgb": nc.reshape(-1, 3).std(0),
             "noise_mean_abs": float(np.abs(p.no_contact2.astype(np.float32) - nc).mean()),
             "diff_mean_abs": float(np.abs(d).mean()),
-            "hf_share": hf_share(d)}
+            "hf_share": hf_share(d), "band_shares": band_shares(d)}
 
 
 STAT_KEYS = ("no_contact_mean_rgb", "no_contact_std_rgb", "noise_mean_abs", "diff_mean_abs",
-             "hf_share")
+             "hf_share", "band_shares")
 
 
 def summarise(stats: list[dict[str, Any]]) -> dict[str, Any]:
@@ -137,7 +161,7 @@ def sim_presses(per_class: int, seed: int, classes: list[str] | None = None) -> 
     rng = np.random.default_rng([seed, 61])
     out = []
     for name in classes or sim.classes:
-        fab = sim.fabric(name)
+        fab = sim.fabric(name)          # an unknown name is an error naming it
         group = "soft" if fab.softness >= SOFT_THRESHOLD else "firm_textured"
         for _ in range(per_class):
             out.append(Press(group, fab.family, name, sim.renderer.no_contact(rng),
@@ -172,106 +196,91 @@ def frame_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
 
 # ------------------------------------------------------------------------------ ranking
 
-def scene_classes(classes: list[str], comparisons: int, seed: int) -> list[str]:
-    """[reference, comparison 1..C]: C distinct classes, the reference one of them."""
-    if len(classes) < comparisons:
-        raise TactexError(f"--comparisons {comparisons}: only {len(classes)} classes")
-    rng = np.random.default_rng([seed, 71])
-    comps = [str(c) for c in rng.choice(classes, comparisons, replace=False)]
-    return [comps[int(rng.integers(comparisons))]] + comps
+def spearman_interval(sim_scores: np.ndarray, real_scores: np.ndarray, boot: int = 2000,
+                      seed: int = 0) -> dict[str, Any]:
+    """Spearman rho between the settings' mean scores on the two sides, with a percentile
+    bootstrap 95 % interval (``scipy.stats.bootstrap``: the scenes of each side resampled,
+    paired across settings). ``*_scores``: (settings, scenes) per-scene scores."""
+    import warnings
+
+    from scipy.stats import ConstantInputWarning, bootstrap, spearmanr
+    a, b = np.asarray(sim_scores, float), np.asarray(real_scores, float)
+
+    def rho(ia: np.ndarray, ib: np.ndarray) -> float:
+        r = spearmanr(a[:, ia.astype(int)].mean(1), b[:, ib.astype(int)].mean(1)).statistic
+        return float(r) if np.isfinite(r) else 0.0     # a resample where one side ties all
+        # settings ranks nothing: counted as no agreement
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConstantInputWarning)   # handled: nan / 0 above
+        point = spearmanr(a.mean(1), b.mean(1)).statistic   # nan if one side ties all
+        if a.shape[1] < 2 or b.shape[1] < 2 or not np.isfinite(point):
+            ci = [float("nan"), float("nan")]
+        else:
+            res = bootstrap((np.arange(a.shape[1]), np.arange(b.shape[1])), rho,
+                            vectorized=False, n_resamples=boot, method="percentile",
+                            rng=np.random.default_rng(seed))
+            ci = [float(res.confidence_interval.low), float(res.confidence_interval.high)]
+    return {"rho": float(point), "ci95": ci, "settings": int(a.shape[0])}
 
 
-def spearman(a: np.ndarray, b: np.ndarray) -> float:
-    """Spearman's rho (average ranks for ties); nan if either side is constant."""
-    from scipy.stats import rankdata
-    ra, rb = rankdata(a), rankdata(b)
-    if np.std(ra) == 0 or np.std(rb) == 0:
-        return float("nan")
-    return float(np.corrcoef(ra, rb)[0, 1])
+def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
+                comparisons: int, budget: int, seed: int, workers: int) -> dict[str, Any]:
+    """Every setting on the same ``scenes`` simulated and real scenes (1 + ``comparisons``
+    distinct classes: catalogue fabrics / the folder's classes), through the real-press
+    evaluation (``experiments/real.py``: the same scene draw, runner and belief curves).
 
+    Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
+    interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
+    (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
+    a bootstrap interval, and the gaps real - sim."""
+    import argparse
 
-def ranking_report(sim_correct: np.ndarray, real_correct: np.ndarray, names: list[str],
-                   sim_p: np.ndarray | None = None, real_p: np.ndarray | None = None,
-                   boot: int = 2000, seed: int = 0) -> dict[str, Any]:
-    """``*_correct``: (settings, scenes) 0/1 per trial (same scenes for every setting);
-    ``*_p``: the same trials' final probability of the true match (a finer score).
-    Spearman rho of accuracy (and of mean true-match probability) with a bootstrap 95 %
-    interval (scenes resampled on each side, paired across settings) and the gaps."""
-    sim_correct, real_correct = np.asarray(sim_correct, float), np.asarray(real_correct, float)
-    if sim_correct.shape[0] != len(names) or real_correct.shape[0] != len(names):
-        raise TactexError("one row of trial outcomes per setting expected")
-    rng = np.random.default_rng([seed, 73])
-
-    def rho_ci(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
-        point = spearman(a.mean(1), b.mean(1))
-        draws = []
-        for _ in range(boot):
-            ia = rng.integers(0, a.shape[1], a.shape[1])
-            ib = rng.integers(0, b.shape[1], b.shape[1])
-            r = spearman(a[:, ia].mean(1), b[:, ib].mean(1))
-            if np.isfinite(r):
-                draws.append(r)
-        lo, hi = (np.percentile(draws, [2.5, 97.5]).tolist() if draws
-                  else [float("nan"), float("nan")])
-        return {"rho": point, "ci95": [lo, hi], "bootstrap_draws_defined": len(draws)}
-
-    acc_s, acc_r = sim_correct.mean(1), real_correct.mean(1)
-    out: dict[str, Any] = {
-        "settings": {n: {"sim_accuracy": float(a), "real_accuracy": float(b),
-                         "gap_real_minus_sim": float(b - a)}
-                     for n, a, b in zip(names, acc_s, acc_r)},
-        "accuracy_spearman": rho_ci(sim_correct, real_correct),
-        "mean_gap_real_minus_sim": float(np.mean(acc_r - acc_s)),
-        "mean_abs_gap": float(np.mean(np.abs(acc_r - acc_s))),
-        "sim_scenes": int(sim_correct.shape[1]), "real_scenes": int(real_correct.shape[1]),
-        "n_settings": len(names),
-    }
-    if sim_p is not None and real_p is not None:
-        out["true_match_probability_spearman"] = rho_ci(np.asarray(sim_p, float),
-                                                        np.asarray(real_p, float))
+    from ..experiments import real
+    from ..experiments.stats import wilson
+    from ..sources import open_source
+    if scenes < 2:
+        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
+    if budget < 0:
+        raise TactexError(f"--budget must be >= 0, got {budget}")
+    parsed = [real.parse_setting(s) for s in settings]
+    labels = [p[0] for p in parsed]
+    if len(labels) < 2 or len(set(labels)) != len(labels):
+        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
+    theta = 0.9
+    out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
+                           "budget": budget, "stop_theta": theta, "seed": seed,
+                           "setting_specs": list(settings)}
+    scores: dict[str, dict[str, np.ndarray]] = {}
+    for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
+        classes = sorted(open_source(spec).classes)
+        ns = argparse.Namespace(source=spec, seed=seed, budget=budget,
+                                comparisons=comparisons, workers=workers)
+        curves = real._run(real.draw_scenes(classes, scenes, comparisons, seed), parsed, ns,
+                           f"{side}-")
+        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
+        at_b = np.array([[real.at_budget(c, budget) for c in curves[lab]] for lab in labels],
+                        float)
+        mean_b = np.array([[np.mean([real.at_budget(c, k) for k in range(budget + 1)])
+                            for c in curves[lab]] for lab in labels], float)
+        stops = [[real.at_stop(c, theta) for c in curves[lab]] for lab in labels]
+        scores[side] = {"at_budget": at_b, "mean_over_budgets": mean_b}
+        for i, lab in enumerate(labels):
+            k = int(at_b[i].sum())
+            out["settings"].setdefault(lab, {})[side] = {
+                "accuracy": k / scenes, "ci95": list(wilson(k, scenes)),
+                "accuracy_mean_over_budgets": float(mean_b[i].mean()),
+                "accuracy_at_stop": float(np.mean([st[0] for st in stops[i]])),
+                "touches_at_stop": float(np.mean([st[1] for st in stops[i]]))}
+        out[f"{side}_failed_trials"] = errors
+    for lab in labels:
+        v = out["settings"][lab]
+        v["gap_real_minus_sim"] = v["real"]["accuracy"] - v["sim"]["accuracy"]
+    gaps = [out["settings"][lab]["gap_real_minus_sim"] for lab in labels]
+    out["accuracy_spearman"] = spearman_interval(scores["sim"]["at_budget"],
+                                                 scores["real"]["at_budget"], seed=seed)
+    out["mean_over_budgets_spearman"] = spearman_interval(
+        scores["sim"]["mean_over_budgets"], scores["real"]["mean_over_budgets"], seed=seed)
+    out["mean_gap_real_minus_sim"] = float(np.mean(gaps))
+    out["mean_abs_gap"] = float(np.mean(np.abs(gaps)))
     return out
-
-
-def run_ranking(real_dir: str, settings: dict[str, dict[str, Any]], scenes: int,
-                comparisons: int, rounds: int, strategy: str, seed: int, workers: int,
-                quiet: bool = False) -> dict[str, Any]:
-    """Run every setting on the same ``scenes`` simulated and real scenes; see
-    ``ranking_report``."""
-    from ..experiments.runner import TrialJob, run_jobs
-    from ..sources.replay import ReplaySource
-    from .source import SimSource
-    if scenes < 1:
-        raise TactexError(f"--scenes must be >= 1, got {scenes}")
-    if len(settings) < 2:
-        raise TactexError("the ranking needs at least 2 settings")
-    sides = {"sim": ("sim", SimSource().classes),
-             "real": (f"replay:{real_dir}", ReplaySource(real_dir).classes)}
-    jobs, keys = [], []
-    for side, (spec, classes) in sides.items():
-        for k in range(scenes):
-            pcs = scene_classes(classes, comparisons, seed + k)
-            for name, over in settings.items():
-                jobs.append(TrialJob(source=spec, seed=seed + k, strategy=strategy,
-                                     rounds=rounds, preset="cnn", overrides=dict(over),
-                                     platform_classes=pcs, comparisons=comparisons,
-                                     trial_id=f"{side}-{name}-{k}", catch_errors=True))
-                keys.append((side, name, k))
-    results = run_jobs(jobs, workers=workers, description="sim vs real trials", quiet=quiet)
-    names = list(settings)
-    corr = {s: np.zeros((len(names), scenes)) for s in sides}
-    prob = {s: np.zeros((len(names), scenes)) for s in sides}
-    errors = []
-    for (side, name, k), res in zip(keys, results):
-        i = names.index(name)
-        if res.get("error"):
-            errors.append(f"{side}/{name}/{k}: {res['error']}")
-            continue
-        corr[side][i, k] = float(bool(res["correct"]))
-        probs = np.asarray(res["final"]["probs"], float)
-        prob[side][i, k] = float(probs[res["truth_index"] - 1])
-    rep = ranking_report(corr["sim"], corr["real"], names, prob["sim"], prob["real"],
-                         seed=seed)
-    rep.update(comparisons=comparisons, rounds=rounds, strategy=strategy, preset="cnn",
-               overrides=settings, failed_trials=errors,
-               trial_wall_s=float(sum(r.get("wall_s", 0.0) for r in results)))
-    return rep
