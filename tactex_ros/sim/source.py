@@ -15,6 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..core.errors import TactexError
+from ..core.touch import Touch
 from ..paths import config_dir
 from .fabrics import FabricParams, height_tile, load_catalogue
 from .render import GelSightRenderer
@@ -94,15 +95,17 @@ class SimSource:
         heights = self.renderer.window(tile, rng)
         lo, hi = self.renderer.sensor.depth_mm
         d = rng.uniform(lo, hi) if depth_mm is None else depth_mm
-        return self.renderer.render(heights, d, rng)
+        return self.renderer.render(heights, d, rng, softness=fab.softness)
 
     def trial(self, platform_classes: list[str], seed: int):
         for c in set(platform_classes):
             self.fabric(c)
         rng = np.random.default_rng([seed, 23])
+        no_contact = self.renderer.no_contact(np.random.default_rng([seed, 37]))
 
-        def touch(platform: int) -> np.ndarray:
-            return self.press(platform_classes[platform], rng)
+        def touch(platform: int) -> Touch:
+            # the session's no-contact frame, as a real sensor records it before the trial
+            return Touch(frame=self.press(platform_classes[platform], rng), no_contact=no_contact)
 
         return touch
 

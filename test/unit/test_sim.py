@@ -32,7 +32,11 @@ def test_shape_dtype_and_determinism(src):
     np.testing.assert_array_equal(a, b)
     assert np.abs(a.astype(int) - c).mean() > 1.0  # every touch is a different press
     t1, t2 = src.trial(["denim", "satin"], seed=9), src.trial(["denim", "satin"], seed=9)
-    np.testing.assert_array_equal(t1(0), t2(0))
+    a1, a2 = t1(0), t2(0)
+    np.testing.assert_array_equal(a1.frame, a2.frame)
+    # every simulated touch carries the session's no-contact frame, as a real sensor's does
+    np.testing.assert_array_equal(a1.no_contact, a2.no_contact)
+    assert a1.no_contact.shape == (240, 320, 3) and a1.no_contact.dtype == np.uint8
 
 
 def test_every_catalogue_fabric_renders_with_contact(src):
