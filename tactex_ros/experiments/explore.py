@@ -2,7 +2,8 @@
 
 Every trial of a trial file (default ``config/trials/human_study.yaml``, the thesis's 32 trials)
 runs once per strategy x model x seed, ``--rounds`` decisions after the baseline (thesis: 20).
-Jobs run in ``--workers`` processes (``runner.run_jobs``), one torch thread each.
+Jobs run on the job runner (``runner.run_jobs``: ``--workers``, ``--backend joblib|ray``), one
+torch thread each.
 
 Seeds: a job's seed is ``1000 * seed + trial position`` — the same for every strategy and model,
 so strategies are compared on the same presses and initial weights (paired), and different trials
@@ -31,8 +32,8 @@ import numpy as np
 
 from ..core.errors import TactexError
 from . import charts, stats
-from .common import parse_set, results_dir, write_json
-from .runner import TrialJob, default_workers, run_jobs
+from .common import decision_at_budget, parse_set, results_dir, write_json
+from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from .trials import find_trial_file, load_trials, platform_classes
 
 STRATEGIES_DEFAULT = ["variance", "entropy", "random", "yoto"]
@@ -43,14 +44,6 @@ THESIS_MATCHED = {"humans": 0.6688, "variance": 0.9000, "entropy": 0.8813, "rand
 
 
 # ---------------------------------------------------------------------------------- helpers
-def decision_at_budget(decisions: list[dict], k: int) -> dict:
-    """The decision a run capped at ``k`` total touches would have ended with (see module doc)."""
-    for d in decisions:
-        if d["total"] >= k:
-            return d
-    return decisions[-1]
-
-
 def compact(res: dict) -> dict:
     """A runner result -> the record kept in runs.json."""
     job = res["job"]
@@ -73,8 +66,7 @@ def build_jobs(trials: list[dict], source: str, strategies: list[str], models: l
                seeds: list[int], rounds: int, preset_name: str, overrides: dict[str, Any],
                weights: str | None) -> list[TrialJob]:
     from ..core.config import preset
-    from .runner import _source
-    src = _source(source)
+    src = cached_source(source)
     jobs = []
     for model in models:
         over = dict(overrides, model=model)
@@ -260,18 +252,19 @@ def run(args: argparse.Namespace) -> dict:
     overrides = parse_set(args.set)
     jobs = build_jobs(trials, args.source, args.strategies, args.models, args.seeds,
                       args.rounds, args.config, overrides, args.weights)
-    workers = args.workers or default_workers()
+    backend = backend_of(args).resolved()
+    workers = backend.workers
     config = {"trial_file": tf["path"], "trials": [t["id"] for t in trials],
               "source": args.source, "strategies": args.strategies, "models": args.models,
               "seeds": args.seeds, "rounds": args.rounds, "budgets": budgets,
               "preset": args.config, "overrides": overrides, "weights": args.weights,
-              "workers": workers, "jobs": len(jobs)}
+              "workers": workers, "backend": backend.name, "jobs": len(jobs)}
     outdir = results_dir(args.out, "explore", config)
     if not args.quiet:
         print(f"explore: {len(trials)} trials x {len(args.strategies)} strategies x "
               f"{len(args.models)} models x {len(args.seeds)} seeds = {len(jobs)} trials, "
               f"{workers} workers -> {outdir}", flush=True)
-    results = run_jobs(jobs, workers=workers, threads=args.threads, description="explore",
+    results = run_jobs(jobs, backend, threads=args.threads, description="explore",
                        quiet=args.quiet)
     runs = [compact(r) for r in results]
     write_json(outdir / "runs.json", runs)
@@ -336,8 +329,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="learner override, e.g. --set input_size=32 (repeatable)")
-    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
-    p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
     p.add_argument("--out", help="results folder (default results/explore)")
-    p.add_argument("--quiet", action="store_true")
+    add_runner_args(p)
     p.set_defaults(func=cmd)

@@ -14,7 +14,7 @@ Computed:
   the test sample), so including it would measure that design choice, not where attention goes.
   The robot's counterpart is its touches per comparison platform, normalised — at the end of
   the run (``final``) and, as a second view, at the decision where its total touches equal the
-  person's number of visits (``matched``; see ``explore.decision_at_budget``).
+  person's number of visits (``matched``; see ``common.decision_at_budget``).
 - Jensen–Shannon distance (base 2, in [0, 1]) between those distributions: human–human (every
   pair of participants who did the trial) and human–robot per strategy (every participant x
   robot seed), averaged per trial, then over trials (trials that both sides ran).
@@ -36,8 +36,7 @@ import yaml
 from ..core.errors import TactexError
 from ..paths import config_dir
 from . import charts, stats
-from .common import results_dir, write_json
-from .explore import decision_at_budget
+from .common import decision_at_budget, results_dir, write_json
 from .trials import find_trial_file, load_trials, platform_classes
 
 
@@ -144,8 +143,8 @@ def _mean(xs: list[float]) -> float:
 
 def analyse(humans: dict, robot: list[dict] | None, source: str = "sim",
             model: str | None = None) -> dict:
-    from .runner import _source
-    src = _source(source)
+    from .runner import cached_source
+    src = cached_source(source)
     tf = humans["trial_file"]
     tids = [t["id"] for t in tf["trials"]]
     classes = {t["id"]: platform_classes(src, t) for t in tf["trials"]}

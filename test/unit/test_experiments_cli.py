@@ -8,7 +8,7 @@ import yaml
 
 from tactex_ros.cli import main
 from tactex_ros.core.errors import TactexError
-from tactex_ros.experiments.explore import decision_at_budget
+from tactex_ros.experiments.common import decision_at_budget
 from tactex_ros.experiments.humans import load_humans
 from tactex_ros.experiments.runner import TrialJob, run_job
 from tactex_ros.experiments.trials import find_trial_file, load_trials

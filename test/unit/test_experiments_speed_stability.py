@@ -7,7 +7,8 @@ import pytest
 
 from tactex_ros.cli import main
 from tactex_ros.experiments.common import parse_set
-from tactex_ros.experiments.pareto import correct_at, pareto_front
+from tactex_ros.experiments.pareto import correct_at
+from tactex_ros.experiments.stats import pareto_front
 from tactex_ros.experiments.stats import mcnemar_exact as mcnemar
 from tactex_ros.experiments.stats import wilson
 from tactex_ros.experiments.stability import condition, failure_mode
