@@ -140,3 +140,11 @@ def decision_at_budget(decisions: Sequence[dict], k: int) -> dict:
     if not decisions:
         raise ValueError("no decisions to read a budget from")
     return decisions[budget_index([d["total"] for d in decisions], k)]
+
+
+def correct_at(decisions: Sequence[dict], truth: int, k: int) -> bool:
+    """Was the decision a run capped at ``k`` total touches ends with right (argmax of its
+    ``probs`` is comparison ``truth``, 1..C)? False for no decisions."""
+    if not decisions:
+        return False
+    return int(np.argmax(decision_at_budget(decisions, k)["probs"])) + 1 == truth

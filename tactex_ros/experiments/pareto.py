@@ -36,7 +36,7 @@ import numpy as np
 
 from ..core.errors import TactexError
 from . import charts
-from .common import decision_at_budget, parse_set, results_dir, write_json
+from .common import correct_at, parse_set, results_dir, write_json
 from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from .stats import mcnemar_exact as mcnemar
 from .stats import pareto_front, wilson
@@ -144,13 +144,6 @@ def decisions_of(res: dict) -> list[dict]:
     return out
 
 
-def correct_at(decisions: list[dict], truth: int, k: int) -> bool:
-    """Was the decision a run capped at ``k`` total touches would end with right?"""
-    if not decisions:
-        return False
-    return int(np.argmax(decision_at_budget(decisions, k)["probs"])) + 1 == truth
-
-
 def compact(res: dict) -> dict:
     job = res["job"]
     return {"setting": job["tags"].get("setting"), "trial": job["trial_id"],
@@ -194,6 +187,26 @@ def _trial_scenes(trials_file: str, source: str) -> list[tuple[str, list[str]]]:
     return [(t["id"], platform_classes(src, t)) for t in doc["trials"]]
 
 
+def _grid_jobs(args, grid: list[tuple], scenes: list[tuple], heavy_n: int,
+               heavy_seeds: list[int]) -> list[TrialJob]:
+    """Every (seed, scene, setting) of the grid; heavy settings only on the first ``heavy_n``
+    scenes and ``heavy_seeds``; heavy jobs first so the long ones do not trail at the end."""
+    jobs = []
+    for seed in args.seeds:
+        for pos, (tid, classes) in enumerate(scenes):
+            for label, pre, over, heavy in grid:
+                if heavy and (pos >= heavy_n or seed not in heavy_seeds):
+                    continue
+                jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
+                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
+                                     overrides={**over, **args.overrides},
+                                     platform_classes=classes,
+                                     trial_id=tid, catch_errors=True,
+                                     tags={"setting": label, "seed": seed, "pos": pos}))
+    jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
+    return jobs
+
+
 def run_grid(args, out: Path) -> dict:
     grid = GRIDS[args.grid]
     if args.settings:
@@ -207,20 +220,7 @@ def run_grid(args, out: Path) -> dict:
         scenes = scenes[:args.max_trials]
     heavy_n = min(args.heavy_trials, len(scenes))
     heavy_seeds = args.seeds[:args.heavy_seeds]
-    jobs = []
-    for seed in args.seeds:
-        for pos, (tid, classes) in enumerate(scenes):
-            for label, pre, over, heavy in grid:
-                if heavy and (pos >= heavy_n or seed not in heavy_seeds):
-                    continue
-                jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
-                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
-                                     overrides={**over, **args.overrides},
-                                     platform_classes=classes,
-                                     trial_id=tid, catch_errors=True,
-                                     tags={"setting": label, "seed": seed, "pos": pos}))
-    # heavy jobs first so the long ones do not trail at the end
-    jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
+    jobs = _grid_jobs(args, grid, scenes, heavy_n, heavy_seeds)
     t0 = time.perf_counter()
     res = run_cached(jobs, args, f"pareto grid ({len(grid)} settings)")
     wall = time.perf_counter() - t0

@@ -172,83 +172,97 @@ def build_jobs(args) -> list[TrialJob]:
     return jobs, models
 
 
-def summarise(runs: list[dict], args, models: dict) -> dict:
-    axes = {a: (args.difficulties if a == "difficulty" and args.difficulties else AXES[a])
-            for a in args.axes}
+def _select(runs: list[dict], **kw: Any) -> list[dict]:
+    return [r for r in runs if all(r.get(k) == v for k, v in kw.items())]
 
-    def sel(**kw):
-        return [r for r in runs if all(r.get(k) == v for k, v in kw.items())]
-    table: dict = {}
-    failure_points: dict = {}
-    for axis, values in axes.items():
-        table[axis] = {}
-        for s in args.strategies:
-            blocks = [acc_block(sel(axis=axis, value=v, strategy=s, model="default",
-                                    guards=True)) for v in values]
-            table[axis][f"{s}/default"] = dict(zip(map(str, values), blocks))
-            fail = next((v for v, b in zip(values, blocks) if b["accuracy"] < args.threshold),
-                        None)
-            modes = None
-            if fail is not None:
-                b = blocks[values.index(fail)]
-                modes = {m: n for m, n in b["modes"].items() if n}
-            failure_points.setdefault(axis, {})[f"{s}/default"] = {"fails_at": fail,
-                                                                    "modes_there": modes}
-        if axis == "difficulty":
-            for m in args.models:
-                blocks = [acc_block(sel(axis=axis, value=v, strategy="variance", model=m,
-                                        guards=True)) for v in values]
-                table[axis][f"variance/{m}"] = dict(zip(map(str, values), blocks))
-                fail = next((v for v, b in zip(values, blocks)
-                             if b["accuracy"] < args.threshold), None)
-                failure_points[axis][f"variance/{m}"] = {
-                    "fails_at": fail, "modes_there": None if fail is None else
-                    {k: n for k, n in blocks[values.index(fail)]["modes"].items() if n}}
-    # per-seed spread at the base condition
-    per_seed = {}
-    for s in args.strategies:
-        rr = sel(axis="difficulty", value=args.base_q, strategy=s, model="default", guards=True)
-        per_seed[s] = {"accuracy": float(np.mean([r["correct"] for r in rr])) if rr else None,
-                       "n_seeds": len(rr)}
-    guards = []
+
+def _sweep(runs: list[dict], axis: str, values: list[float], strategy: str, model: str,
+           threshold: float) -> tuple[dict, dict]:
+    """Accuracy blocks along one axis (guards on) and where accuracy first drops below
+    ``threshold``, with the failure modes there."""
+    blocks = [acc_block(_select(runs, axis=axis, value=v, strategy=strategy, model=model,
+                                guards=True)) for v in values]
+    fail = next((v for v, b in zip(values, blocks) if b["accuracy"] < threshold), None)
+    modes = (None if fail is None else
+             {m: n for m, n in blocks[values.index(fail)]["modes"].items() if n})
+    return dict(zip(map(str, values), blocks)), {"fails_at": fail, "modes_there": modes}
+
+
+def _guards_before_after(runs: list[dict], axes: dict, strategies: list[str]) -> list[dict]:
+    """Every guarded condition: the same seeds with guards on and off, exact McNemar."""
+    out = []
     for (ga, gv) in GUARDED:
         if ga not in axes:
             continue
-        for s in args.guard_strategies:
-            on = sorted(sel(axis=ga, value=gv, strategy=s, model="default", guards=True),
-                        key=lambda r: r["seed"])
-            off = sorted(sel(axis=ga, value=gv, strategy=s, model="default", guards=False),
-                         key=lambda r: r["seed"])
+        for s in strategies:
+            on = sorted(_select(runs, axis=ga, value=gv, strategy=s, model="default",
+                                guards=True), key=lambda r: r["seed"])
+            off = sorted(_select(runs, axis=ga, value=gv, strategy=s, model="default",
+                                 guards=False), key=lambda r: r["seed"])
             if not on or not off:
                 continue
-            guards.append({"axis": ga, "value": gv, "strategy": s, "with": acc_block(on),
-                           "without": acc_block(off),
-                           "mcnemar_with_vs_without": mcnemar([r["correct"] for r in on],
-                                                              [r["correct"] for r in off])})
-    auto = {}
-    if "difficulty" in axes and {"auto", "top"} <= set(args.models):
-        a_runs = sel(axis="difficulty", strategy="variance", model="auto", guards=True)
-        t_runs = sel(axis="difficulty", strategy="variance", model="top", guards=True)
-        key = lambda r: (r["value"], r["seed"])  # noqa: E731
-        ta = {key(r): r for r in t_runs}
-        pairs = [(r, ta[key(r)]) for r in a_runs if key(r) in ta]
-        auto = {"top_model": models["top"], "pairs": len(pairs),
-                "accuracy_auto": float(np.mean([a["correct"] for a, _ in pairs])),
-                "accuracy_top": float(np.mean([t["correct"] for _, t in pairs])),
-                "cpu_auto_s": float(sum(a["cpu_s"] for a, _ in pairs)),
-                "cpu_top_s": float(sum(t["cpu_s"] for _, t in pairs)),
-                "mcnemar_auto_vs_top": mcnemar([a["correct"] for a, _ in pairs],
-                                               [t["correct"] for _, t in pairs]),
-                "escalated_trials": sum(1 for a, _ in pairs
-                                        if any(x.get("escalation") for x in a["rounds"])),
-                "escalation_reasons": sorted({x["escalation"].split(":")[0] for a, _ in pairs
-                                              for x in a["rounds"] if x.get("escalation")})}
-        auto["cpu_saved_share"] = (1 - auto["cpu_auto_s"] / auto["cpu_top_s"]
-                                   if auto["cpu_top_s"] else None)
+            out.append({"axis": ga, "value": gv, "strategy": s, "with": acc_block(on),
+                        "without": acc_block(off),
+                        "mcnemar_with_vs_without": mcnemar([r["correct"] for r in on],
+                                                           [r["correct"] for r in off])})
+    return out
+
+
+def _auto_vs_top(runs: list[dict], top_model: dict) -> dict:
+    """Model ``auto`` against the largest ladder stage on the difficulty axis, paired by
+    (difficulty, seed): accuracy, decision CPU, escalations."""
+    a_runs = _select(runs, axis="difficulty", strategy="variance", model="auto", guards=True)
+    t_runs = _select(runs, axis="difficulty", strategy="variance", model="top", guards=True)
+    key = lambda r: (r["value"], r["seed"])  # noqa: E731
+    ta = {key(r): r for r in t_runs}
+    pairs = [(r, ta[key(r)]) for r in a_runs if key(r) in ta]
+    auto = {"top_model": top_model, "pairs": len(pairs),
+            "accuracy_auto": float(np.mean([a["correct"] for a, _ in pairs])),
+            "accuracy_top": float(np.mean([t["correct"] for _, t in pairs])),
+            "cpu_auto_s": float(sum(a["cpu_s"] for a, _ in pairs)),
+            "cpu_top_s": float(sum(t["cpu_s"] for _, t in pairs)),
+            "mcnemar_auto_vs_top": mcnemar([a["correct"] for a, _ in pairs],
+                                           [t["correct"] for _, t in pairs]),
+            "escalated_trials": sum(1 for a, _ in pairs
+                                    if any(x.get("escalation") for x in a["rounds"])),
+            "escalation_reasons": sorted({x["escalation"].split(":")[0] for a, _ in pairs
+                                          for x in a["rounds"] if x.get("escalation")})}
+    auto["cpu_saved_share"] = (1 - auto["cpu_auto_s"] / auto["cpu_top_s"]
+                               if auto["cpu_top_s"] else None)
+    return auto
+
+
+def summarise(runs: list[dict], args, models: dict) -> dict:
+    """Accuracy tables per axis, failure points, the base condition, guards before/after and
+    auto against the largest model."""
+    axes = {a: (args.difficulties if a == "difficulty" and args.difficulties else AXES[a])
+            for a in args.axes}
+    table: dict = {}
+    failure_points: dict = {}
+    for axis, values in axes.items():
+        table[axis], failure_points[axis] = {}, {}
+        series = [(s, "default") for s in args.strategies]
+        if axis == "difficulty":
+            series += [("variance", m) for m in args.models]
+        for strategy, model in series:
+            key = f"{strategy}/{model}"
+            table[axis][key], failure_points[axis][key] = _sweep(
+                runs, axis, values, strategy, model, args.threshold)
+    # per-seed spread at the base condition
+    per_seed = {}
+    for s in args.strategies:
+        rr = _select(runs, axis="difficulty", value=args.base_q, strategy=s, model="default",
+                     guards=True)
+        per_seed[s] = {"accuracy": float(np.mean([r["correct"] for r in rr])) if rr else None,
+                       "n_seeds": len(rr)}
+    auto = ({} if "difficulty" not in axes or not {"auto", "top"} <= set(args.models)
+            else _auto_vs_top(runs, models["top"]))
     return {"threshold": args.threshold, "base_q": args.base_q, "rounds": args.rounds,
             "seeds": args.seeds, "strategies": args.strategies, "models": args.models,
             "axes": axes, "table": table, "failure_points": failure_points,
-            "base_condition": per_seed, "guards_before_after": guards, "auto_vs_top": auto}
+            "base_condition": per_seed,
+            "guards_before_after": _guards_before_after(runs, axes, args.guard_strategies),
+            "auto_vs_top": auto}
 
 
 def figures(out: Path, summary: dict, args) -> None:
