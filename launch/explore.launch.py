@@ -1,6 +1,7 @@
 """ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
 sim|FILE] [motion_params:=FILE] [scene:=FILE] [strategy:=S] [model:=M] [rounds:=N] [seed:=N]
-[device:=/dev/videoN|'GelSight Mini'] [source:=sim|replay:DIR] [exit_when_done:=true]
+[sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
+[source:=sim|replay:DIR] [bag:=true] [exit_when_done:=true]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -61,7 +62,8 @@ def _nodes(context, *args, **kwargs):
         explorer["exit_when_done"] = True
     try:
         nodes = describe(sim, arg("scene") or None, explorer=explorer,
-                         gelsight={"device": arg("device")} if not sim else None,
+                         gelsight={"device": arg("device"), "sensor": arg("sensor")}
+                         if not sim else None,
                          mock_image={"source": arg("source")} if sim and arg("source") else None,
                          robot=arg("robot") or None, motion_file=arg("motion_params") or None)
         frame = fixed_frame(nodes)
@@ -71,6 +73,11 @@ def _nodes(context, *args, **kwargs):
         pose_topic = motion.parameters.get("pose_topic") or profile.pose_topic
     except TactexError as exc:
         raise LaunchArgumentError(str(exc)) from None
+    bag = flag("bag")
+    if bag and not _installed("rosbag2_storage_mcap"):
+        raise LaunchArgumentError("launch argument bag:=true: rosbag2 with MCAP storage is not "
+                                  "installed (apt install ros-$ROS_DISTRO-rosbag2 "
+                                  "ros-$ROS_DISTRO-rosbag2-storage-mcap), nothing started")
     if rviz and not _installed("rviz2"):
         # a missing rviz2 must fail here, before any node starts, not after (orphans)
         raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
@@ -88,6 +95,20 @@ def _nodes(context, *args, **kwargs):
         from launch.actions import LogInfo
         actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
                                    f"{frame} for rviz"))
+    if bag:   # `ros2 bag record` of the trial's topics next to the records; its exit does
+        #         not end the launch (the fsync'ed record and topics.mcap stay the ground truth)
+        import time
+        from pathlib import Path
+
+        from launch.actions import ExecuteProcess
+        from tactex_ros.node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC
+        out = Path(arg("record_dir") or "runs/trials") / time.strftime("bag_%Y%m%d_%H%M%S")
+        wrench = motion.parameters.get("wrench_topic") or profile.wrench_topic
+        topics = [t for t in (STATE_TOPIC, MARKER_TOPIC, TOUCH_IMAGE_TOPIC, pose_topic,
+                              wrench) if t]
+        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o",
+                                           str(out)] + topics, output="screen",
+                                      sigterm_timeout="10"))
     if rviz:
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
                             arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",
@@ -137,10 +158,15 @@ def generate_launch_description() -> LaunchDescription:
             ("model", "", "model variant ('' = the preset's; auto escalates)"),
             ("rounds", "20", "decisions that request a touch"),
             ("seed", "0", "learner / strategy seed"),
-            ("device", "GelSight Mini", "GelSight device path, camera name or video file"),
+            ("sensor", "gelsight_mini", "sensor profile: gelsight_mini | digit | FILE "
+                                        "(config/sensors/)"),
+            ("device", "", "camera: device path, camera name, DIGIT serial, video file or "
+                           "folder of frames ('' = the sensor profile's camera name)"),
             ("source", "", "sim only: sim[:difficulty] or replay:DIR for the mock image"),
             ("record_dir", "", "where trial records go ('' = runs/trials)"),
             ("trial_id", "", "record sub-folder ('' = time stamp)"),
+            ("bag", "false", "also record the trial's topics with `ros2 bag record` (MCAP) "
+                             "into record_dir/bag_<time> (needs rosbag2)"),
             ("exit_when_done", "false", "the explorer exits after the trial, which ends the "
                                         "launch")]
     return LaunchDescription([DeclareLaunchArgument(n, default_value=d, description=h)

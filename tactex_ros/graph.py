@@ -109,8 +109,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                  NodeSpec("mock_image_node", "mock_image",
                           _checked(MockImageSettings, img))] + nodes
     else:
-        nodes = [NodeSpec("gelsight_node", "gelsight",
-                          _checked(GelsightSettings, dict(gelsight or {})))] + nodes
+        from .sensor import sensor_config
+        gs = _checked(GelsightSettings, dict(gelsight or {}))
+        sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
+        nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
     return nodes
 
 

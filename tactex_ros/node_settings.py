@@ -24,32 +24,41 @@ TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
 
 @dataclass
 class GelsightSettings:
+    sensor: str = param("gelsight_mini", "sensor profile: a name from config/sensors/ "
+                                         "(gelsight_mini, digit) or a path; gives the camera "
+                                         "name, capture mode, crop, exposure and LED set-up")
     device: str = param("", "camera: /dev/videoN, a /dev/v4l/by-id path, a name the camera "
-                            "reports (e.g. 'GelSight Mini'), or a video file path")
-    fps: float = param(25.0, "frame rate to read and publish at [Hz]", 1.0, 120.0)
+                            "reports (e.g. 'GelSight Mini', 'DIGIT'), a DIGIT serial number, a "
+                            "video file or a folder of recorded frames ('' = the profile's "
+                            "camera name)")
+    fps: float = param(0.0, "frame rate to read and publish at [Hz] (0 = the profile's)",
+                       0.0, 1000.0)
     warmup_frames: int = param(10, "frames dropped after opening (auto-exposure settling)",
                                0, 1000)
     reference_frames: int = param(5, "frames after warm-up averaged into the no-contact frame",
                                   1, 100)
-    crop_fraction: float = param(0.15, "fraction of each border cropped before resizing",
-                                 0.0, 0.4)
+    crop_fraction: float = param(-1.0, "fraction of each border cropped before resizing "
+                                       "(< 0 = the profile's)", -1.0, 0.45)
     buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
     frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
     loop_file: bool = param(True, "restart a video file at its end (recordings only)")
     open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
-    capture_width: int = param(320, "capture mode width requested from the camera [px] (the "
-                                    "GelSight SDK's 320x240; 0 = the camera's default)",
-                               0, 4096)
-    capture_height: int = param(240, "capture mode height [px] (0 = the camera's default)",
-                                0, 4096)
+    capture_width: int = param(-1, "capture mode width requested from the camera [px] (-1 = "
+                                   "the profile's, e.g. the GelSight SDK's 320x240; 0 = the "
+                                   "camera's default)", -1, 8192)
+    capture_height: int = param(-1, "capture mode height [px] (-1 = the profile's; 0 = the "
+                                    "camera's default)", -1, 8192)
     auto_exposure: bool = param(False, "leave the camera's auto exposure on (off: lighting "
                                        "drift of 10 grey levels broke every strategy in "
-                                       "`tactex experiment stability`)")
+                                       "`tactex experiment stability`); for sensors whose "
+                                       "profile has exposure_controls")
     exposure: float = param(-1.0, "manual exposure in the driver's units (V4L2: 100 us) "
                                   "(< 0 = keep the value the camera has)", -1.0, 100000.0)
     auto_white_balance: bool = param(False, "leave the camera's auto white balance on")
     white_balance: float = param(-1.0, "white balance temperature [K] (< 0 = keep the "
                                        "camera's)", -1.0, 15000.0)
+    led_intensity: int = param(-1, "DIGIT LED level on all channels, 0..15 (-1 = the "
+                                   "profile's)", -1, 15)
 
 
 @dataclass
@@ -113,6 +122,10 @@ class ExplorerSettings:
                                          "answer) for this long, or that leaves the ROS graph, "
                                          "is gone: the trial ends with that reason [s]",
                                    1.0, 600.0)
+    goal_answer_s: float = param(2.0, "a press goal not answered within this is sent again "
+                                      "(a lost goal response); the first one is followed by "
+                                      "its goal id if it runs [s] (< press_silence_s)",
+                                 0.1, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
     threads: int = param(0, "torch threads (0 = torch default)", 0, 256)
     nice: int = param(10, "CPU priority increment of this process, so training never starves "

@@ -114,6 +114,7 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
 # settings that may change between the interrupted run and its resume (where, how long, how fast)
 _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "threads", "nice",
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
+                      "goal_answer_s",
                       "scene_file"},
          "learner": {"threads"}, "trial": set()}
 

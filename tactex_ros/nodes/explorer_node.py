@@ -10,7 +10,9 @@ on; a failed press is recorded with its reason and the trial goes on.
 
 A press server that leaves the ROS graph, or sends no feedback for ``press_silence_s``, ends
 the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
-than waiting out ``press_timeout_s``. With ``resume`` (a record folder) the trial continues an
+than waiting out ``press_timeout_s``. A press goal whose answer is lost (Fast DDS can drop a
+response sent before the server matched the client's reader) is re-sent after
+``goal_answer_s`` and the first one followed by its goal id (``nodes/goal.py``). With ``resume`` (a record folder) the trial continues an
 interrupted one: the recorded touches are handed to the engine again in order
 (``resume.Replay``), then live presses take over.
 """
@@ -22,6 +24,7 @@ import threading
 import time
 
 import numpy as np
+from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
@@ -36,6 +39,7 @@ from ..bag import TOUCH_TOPIC
 from ..record import TrialRecord
 from ..scene import load_scene
 from .common import TactexNode, run
+from .goal import GoalRequest
 
 
 class PressServerLost(TactexError):
@@ -55,6 +59,10 @@ class ExplorerNode(TactexNode):
         s = self.settings
         if s.nice:
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
+        if s.goal_answer_s >= s.press_silence_s:
+            raise TactexError(f"goal_answer_s ({s.goal_answer_s} s) must be below "
+                              f"press_silence_s ({s.press_silence_s} s): an unanswered goal is "
+                              "re-sent before the press server counts as silent")
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
         over = {"threads": s.threads, "drift_norm": s.drift_norm}
@@ -173,11 +181,12 @@ class ExplorerNode(TactexNode):
         return True
 
     # ------------------------------------------------------------------ the trial
-    def _wait(self, fut, deadline: float, watch: bool = False) -> bool:
-        """Wait for ``fut`` until ``deadline``; with ``watch``, raise PressServerLost once the
-        press server is gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+    def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
+        """Poll ``ready()`` until it is True or ``deadline``; with ``watch``, raise
+        PressServerLost once the press server is gone (left the graph for 1 s, or silent for
+        ``press_silence_s``)."""
         absent_since = None
-        while not fut.done():
+        while not ready():
             now = time.monotonic()
             if now > deadline:
                 return False
@@ -216,24 +225,31 @@ class ExplorerNode(TactexNode):
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
         self._feedback_t = time.monotonic()
-        fut = self.press.send_goal_async(Press.Goal(platform_id=pid),
-                                         feedback_callback=self._on_feedback)
+        # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
+        # followed by its id when it runs (nodes/goal.py): a lost response costs no touch
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+                          answer_s=self.settings.goal_answer_s,
+                          feedback_callback=self._on_feedback)
         try:
-            if not self._wait(fut, deadline, watch=True):
+            if not self._wait(req.answered, deadline, watch=True):
                 self._failed(platform, meta, "press goal not answered before the deadline")
-            handle = fut.result()
-            if not handle.accepted:
+            if req.refused:
                 self._failed(platform, meta, "press goal rejected by the motion node")
-            rfut = handle.get_result_async()
-            if not self._wait(rfut, deadline, watch=True):
-                handle.cancel_goal_async()
+            if not self._wait(req.finished, deadline, watch=True):
+                req.cancel()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
                                              f"({self.settings.press_timeout_s} s)")
         except PressServerLost as exc:   # the press never ended: a resume makes it again
             self.record.add_touch(None, dict(meta, accepted=False, reason=str(exc),
                                              interrupted=True))
             raise
-        res = rfut.result().result
+        if req.resent:
+            meta["goal_resent"] = req.resent
+            self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
+                                      "its answer was lost")
+        if req.result.status == GoalStatus.STATUS_UNKNOWN:
+            self._failed(platform, meta, "press goal lost: the motion node never took it")
+        res = req.result.result
         if not res.success:
             self._failed(platform, meta, res.reason or "press failed", res.attempts)
         touch = res.touch

@@ -58,52 +58,38 @@ def listener(domain_id):
 
 
 def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
-               answer_s: float = 15.0):
+               answer_s: float = 2.0, client=None):
     """Send a Press goal to ``/tactex/press`` and return its result (``None``: rejected).
 
-    A goal request sent right after discovery can lose its response (the server may not have
-    matched the client's response reader yet). An attempt unanswered within ``answer_s`` is
-    re-sent; when the re-sent goal is rejected because the first one is running, the first
-    one's result is requested by its goal id. Fails the test at ``timeout`` seconds.
+    Through ``tactex_ros.nodes.goal.GoalRequest``, as the explorer does: a goal whose response
+    is lost (right after discovery) is re-sent after ``answer_s`` and the first one followed by
+    its goal id. ``client``: an ActionClient to use (default: a new one on the listener).
+    Fails the test at ``timeout`` seconds.
     """
     import time
-    import uuid
 
+    from action_msgs.msg import GoalStatus
     from rclpy.action import ActionClient
-    from rclpy.action.client import ClientGoalHandle
     from tactex.action import Press
-    from unique_identifier_msgs.msg import UUID
 
-    ac = ActionClient(listener.node, Press, "/tactex/press")
+    from tactex_ros.nodes.goal import GoalRequest
+
+    ac = client or ActionClient(listener.node, Press, "/tactex/press")
     if not ac.wait_for_server(timeout_sec=30.0):
         pytest.fail("no /tactex/press server within 30 s")
     end = time.monotonic() + timeout
-    sent: list = []   # (goal id, future of its goal response)
-    while True:
-        gid = UUID(uuid=list(uuid.uuid4().bytes))
-        sent.append((gid, ac.send_goal_async(Press.Goal(platform_id=platform_id),
-                                             goal_uuid=gid)))
-        until = min(end, time.monotonic() + answer_s)
-        while not any(f.done() for _, f in sent) and time.monotonic() < until:
-            time.sleep(0.02)
-        answered = [f.result() for _, f in sent if f.done()]
-        if answered:
-            break
-        if time.monotonic() >= end:
-            pytest.fail(f"press goal for {platform_id} not answered within {timeout} s")
-    handle = next((h for h in answered if h.accepted), None)
-    if handle is None:
-        lost = [gid for gid, f in sent if not f.done()]
-        if not lost:
-            return None
-        # the re-sent goal was refused while the unanswered one runs: follow that one
-        handle = ClientGoalHandle(ac, lost[0], Press.Impl.SendGoalService.Response(accepted=True))
-    rfut = handle.get_result_async()
-    while not rfut.done() and time.monotonic() < end:
+    req = GoalRequest(ac, Press.Goal(platform_id=platform_id), answer_s=answer_s)
+    while not req.finished() and time.monotonic() < end:
         time.sleep(0.02)
-    if not rfut.done():
+    if not req.answered():
+        pytest.fail(f"press goal for {platform_id} not answered within {timeout} s")
+    if req.refused:
+        return None
+    if not req.finished():
         pytest.fail(f"press of {platform_id} did not finish within {timeout} s")
-    return rfut.result().result
+    if req.result.status == GoalStatus.STATUS_UNKNOWN:
+        pytest.fail(f"press goal for {platform_id} lost: the server never took it")
+    return req.result.result
 
 
 @pytest.fixture

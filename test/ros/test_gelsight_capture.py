@@ -79,3 +79,66 @@ def test_unknown_device_refused(tmp_path: Path, listener) -> None:
     g = Graph([node], tmp_path / "logs", listener.domain_id).start()
     assert g.wait("gelsight", 60.0) == 2
     g.stop()
+
+
+def _digit_press(folder: Path, n: int = 24, peak: int = 15) -> list[np.ndarray]:
+    """A DIGIT press recorded as digit-interface's ``get_frame()`` saves it (portrait PNGs,
+    240 wide, 320 high): gel background, then a textured contact that grows and fades.
+    Returns the frames in the sensor's landscape orientation, RGB."""
+    rng = np.random.default_rng(7)
+    yy, xx = np.mgrid[0:240, 0:320].astype(np.float32)
+    bg = np.stack([90 + 30 * xx / 320, 120 + 20 * yy / 240, 150 - 25 * xx / 320], axis=-1)
+    tex = 25 * np.sin(xx / 3.0) * np.cos(yy / 5.0)
+    frames = []
+    for i in range(n):
+        depth = max(0.0, 1.0 - abs(i - peak) / 6.0) if i >= 3 else 0.0
+        f = bg + depth * tex[..., None] + rng.normal(0, 1.5, bg.shape)
+        frames.append(np.clip(f, 0, 255).astype(np.uint8))
+        portrait = cv2.flip(cv2.transpose(np.ascontiguousarray(frames[-1][:, :, ::-1])), 0)
+        cv2.imwrite(str(folder / f"frame_{i}.png"), portrait)
+    return frames
+
+
+def test_digit_profile_on_recorded_frames(tmp_path: Path, listener) -> None:
+    """sensor:=digit on a folder of recorded DIGIT frames: the same node and capture service
+    return the strongest-contact frame, turned to landscape, 320x240."""
+    from tactex.srv import Capture
+    rec = tmp_path / "digit_press"
+    rec.mkdir()
+    frames = _digit_press(rec)
+    n_ref = 3
+    ref_b = blur(np.mean([f.astype(np.float32) for f in frames[:n_ref]], axis=0)
+                 .round().astype(np.uint8))
+    scores = np.array([contact_score(f, ref_b) for f in frames])
+    images = listener.collect(Image, "/tactex/gelsight/image_raw", qos_profile_sensor_data)
+    node = NodeSpec("gelsight_node", "gelsight", {
+        "sensor": "digit", "device": str(rec), "fps": 30.0, "warmup_frames": 0,
+        "reference_frames": n_ref, "buffer_s": len(frames) / 30.0, "loop_file": True})
+    client = listener.node.create_client(Capture, "/tactex/gelsight/capture")
+    with Graph([node], tmp_path / "logs", listener.domain_id):
+        assert client.wait_for_service(timeout_sec=30.0)
+        end = time.monotonic() + 60.0
+        while len(images) < len(frames) and time.monotonic() < end:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        fut = client.call_async(Capture.Request(window_s=0.0))
+        while not fut.done() and time.monotonic() < end:
+            time.sleep(0.02)
+        resp = fut.result()
+    assert len(images) >= len(frames)
+    assert (images[0].height, images[0].width, images[0].encoding) == (240, 320, "rgb8")
+    assert resp.success
+    best = int(np.argmax(scores))
+    assert best == 15
+    assert np.array_equal(adapter.image_to_array(resp.image), frames[best])
+    assert resp.contact_score == pytest.approx(scores[best], rel=1e-4)
+    no_contact = adapter.image_to_array(resp.no_contact)
+    assert np.abs(no_contact.astype(int) - frames[0].astype(int)).mean() < 2.0
+
+
+def test_digit_camera_not_found_refused(tmp_path: Path, listener) -> None:
+    """No DIGIT attached: the node refuses with exit status 2 (nothing reports 'DIGIT')."""
+    node = NodeSpec("gelsight_node", "gelsight", {"sensor": "digit", "device": "D20001"})
+    g = Graph([node], tmp_path / "logs", listener.domain_id).start()
+    assert g.wait("gelsight", 60.0) == 2
+    g.stop()

@@ -44,3 +44,11 @@ def test_bad_strategy_refused(tmp_path: Path, domain_id) -> None:
                                  "strategy:=greedy", f"record_dir:={tmp_path}"], domain_id)
     assert r.returncode == 2
     assert b"strategy" in r.stdout + r.stderr
+
+
+def test_goal_answer_not_below_press_silence_refused(tmp_path: Path, domain_id) -> None:
+    r = _start("explorer_node", [f"scene_file:={config_dir() / 'scene_sim.yaml'}",
+                                 "goal_answer_s:=12.0", "press_silence_s:=10.0",
+                                 f"record_dir:={tmp_path}"], domain_id)
+    assert r.returncode == 2
+    assert b"goal_answer_s" in r.stdout + r.stderr

@@ -11,6 +11,12 @@ from tactex_ros.core.errors import TactexError
 from tactex_ros.node_settings import GelsightSettings
 from tactex_ros.nodes.gelsight_node import (V4L2_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL,
                                             _video_number, camera_setup)
+from tactex_ros.sensor import sensor_config
+
+
+def cfg(**kw):
+    """The GelSight Mini profile with these node parameters."""
+    return sensor_config(GelsightSettings(**kw))
 
 
 class RecordingCapture:
@@ -36,7 +42,7 @@ class RecordingCapture:
 
 def test_defaults_fix_mode_exposure_and_white_balance() -> None:
     cap = RecordingCapture()
-    got = camera_setup(cap, GelsightSettings(device="x"))
+    got = camera_setup(cap, cfg(device="x"))
     assert cap.props[cv2.CAP_PROP_FRAME_WIDTH] == 320
     assert cap.props[cv2.CAP_PROP_FRAME_HEIGHT] == 240
     assert cap.props[cv2.CAP_PROP_AUTO_EXPOSURE] == V4L2_EXPOSURE_MANUAL
@@ -47,11 +53,11 @@ def test_defaults_fix_mode_exposure_and_white_balance() -> None:
 
 def test_values_and_auto_modes() -> None:
     cap = RecordingCapture()
-    camera_setup(cap, GelsightSettings(device="x", exposure=150.0, white_balance=4500.0))
+    camera_setup(cap, cfg(device="x", exposure=150.0, white_balance=4500.0))
     assert cap.props[cv2.CAP_PROP_EXPOSURE] == 150.0
     assert cap.props[cv2.CAP_PROP_WB_TEMPERATURE] == 4500.0
     cap = RecordingCapture()
-    camera_setup(cap, GelsightSettings(device="x", auto_exposure=True, auto_white_balance=True,
+    camera_setup(cap, cfg(device="x", auto_exposure=True, auto_white_balance=True,
                                        exposure=150.0))
     assert cap.props[cv2.CAP_PROP_AUTO_EXPOSURE] == V4L2_EXPOSURE_AUTO
     assert cv2.CAP_PROP_EXPOSURE not in cap.props
@@ -60,9 +66,9 @@ def test_values_and_auto_modes() -> None:
 def test_refusals_name_the_parameter() -> None:
     with pytest.raises(TactexError, match="auto_exposure"):
         camera_setup(RecordingCapture(refuse={cv2.CAP_PROP_AUTO_EXPOSURE}),
-                     GelsightSettings(device="x"))
+                     cfg(device="x"))
     with pytest.raises(TactexError, match="capture_width x capture_height = 320x240.*640x480"):
-        camera_setup(RecordingCapture(mode=(640, 480)), GelsightSettings(device="x"))
+        camera_setup(RecordingCapture(mode=(640, 480)), cfg(device="x"))
 
 
 def test_devices_in_numeric_order() -> None:

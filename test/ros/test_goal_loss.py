@@ -1,0 +1,76 @@
+"""A lost Press goal response or request costs no touch (nodes/goal.py against the real
+motion node, mock arm and mock camera over DDS).
+
+The loss is made on the client side: the goal request goes out and the motion node takes it,
+but its response never reaches GoalRequest (as when Fast DDS drops a response sent before the
+server matched the client's response reader); or the request is never sent."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from action_msgs.msg import GoalStatus
+from rclpy.task import Future
+
+from tactex_ros.graph import describe
+from tactex_ros.nodes.goal import GoalRequest
+from tactex_ros.runner import Graph
+
+pytestmark = pytest.mark.ros
+
+
+class LossyClient:
+    """An ActionClient whose goal responses numbered in ``lose_response`` never come back
+    and whose goal requests numbered in ``lose_request`` are never sent."""
+
+    def __init__(self, client, lose_response=(), lose_request=()) -> None:
+        self.client, self.n = client, 0
+        self.lose_response, self.lose_request = set(lose_response), set(lose_request)
+
+    def send_goal_async(self, goal, feedback_callback=None, goal_uuid=None):
+        i, self.n = self.n, self.n + 1
+        if i in self.lose_request:
+            return Future()
+        fut = self.client.send_goal_async(goal, feedback_callback=feedback_callback,
+                                          goal_uuid=goal_uuid)
+        return Future() if i in self.lose_response else fut
+
+    def __getattr__(self, name):
+        return getattr(self.client, name)
+
+
+def _press(client, platform: str, timeout: float = 90.0):
+    from tactex.action import Press
+    fb: list = []
+    req = GoalRequest(client, Press.Goal(platform_id=platform), answer_s=1.0,
+                      feedback_callback=fb.append)
+    end = time.monotonic() + timeout
+    while not req.finished() and time.monotonic() < end:
+        time.sleep(0.02)
+    assert req.finished(), f"press of {platform} not finished within {timeout} s"
+    return req, {bytes(m.goal_id.uuid) for m in fb}
+
+
+def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener) -> None:
+    from rclpy.action import ActionClient
+    from tactex.action import Press
+    nodes = [n for n in describe(True) if n.name in ("mock_arm", "mock_image", "motion")]
+    ac = ActionClient(listener.node, Press, "/tactex/press")
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        assert ac.wait_for_server(timeout_sec=30.0)
+        # the motion node takes the goal, its response is lost: the re-sent goal is refused
+        # (a press runs) and the first one is followed by its id to its result
+        req, fb_ids = _press(LossyClient(ac, lose_response={0}), "c1")
+        first = bytes(req.sent[0].gid.uuid)
+        assert req.resent >= 1 and req.result.status == GoalStatus.STATUS_SUCCEEDED
+        assert req.result.result.success, req.result.result.reason
+        assert req.result.result.touch.image.width == 320
+        assert bytes(req.handle.goal_id.uuid) == first
+        assert fb_ids == {first}               # one press made, by the first goal
+        # the goal request is lost: the re-sent goal is taken and makes the only press
+        req, fb_ids = _press(LossyClient(ac, lose_request={0}), "c2")
+        assert req.resent == 1 and req.result.status == GoalStatus.STATUS_SUCCEEDED
+        assert req.result.result.success, req.result.result.reason
+        assert fb_ids == {bytes(req.sent[1].gid.uuid)}
