@@ -356,14 +356,14 @@ def run_touches(args, out: Path) -> dict:
 def run(args) -> int:
     if args.grid not in GRIDS:
         raise TactexError(f"unknown grid {args.grid!r}; choose one of {', '.join(GRIDS)}")
-    args.workers = backend_of(args).resolved().workers
-    args.overrides = parse_set(args.set)
-    cfg = {k: v for k, v in vars(args).items() if k != "func"}
-    out = results_dir(args.out, "pareto", cfg)
     parts = set(args.parts)
     if "faithful" in parts and not args.faithful_source:
         raise TactexError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
                           "presses)")
+    args.workers = backend_of(args).resolved().workers
+    args.overrides = parse_set(args.set)
+    cfg = {k: v for k, v in vars(args).items() if k != "func"}
+    out = results_dir(args.out, "pareto", cfg)
     done = {}
     if "grid" in parts:
         done["grid"] = run_grid(args, out)

@@ -103,7 +103,10 @@ def _ray_ready(address: str | None) -> None:
         raise TactexError(f"--backend ray needs the ray package ({exc}); pip install "
                           "-r requirements.txt") from None
     if not ray.is_initialized():
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        if address:     # an existing cluster: its own settings hold
+            ray.init(address=address)
+        else:           # a local instance for this run: no dashboard, quiet workers
+            ray.init(include_dashboard=False, log_to_driver=False)
     register_ray()
 
 

@@ -187,3 +187,9 @@ def test_experiment_bad_inputs_exit_2(tmp_path):
     assert main(["experiment", "classify", "--classes", "4,nope", "--out", str(tmp_path)]) == 2
     assert main(["experiment", "classify", "--models", "inception_v3_random",
                  "--inception-input-size", "64", "--out", str(tmp_path)]) == 2
+    # the faithful part names the source it needs (no default data path); nothing is written
+    out = tmp_path / "pareto"
+    assert main(["experiment", "pareto", "--parts", "faithful", "--out", str(out)]) == 2
+    assert not out.exists()
+    # the job runner's options are checked before any job runs
+    assert main(["experiment", "explore", "--address", "auto", "--out", str(tmp_path)]) == 2
