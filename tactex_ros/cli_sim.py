@@ -15,8 +15,8 @@ from .core.errors import TactexError
 
 
 def cmd_fabrics(args: argparse.Namespace) -> int:
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     print(f"{'#':>3} {'name':<18} {'family':<9} {'pitch':>6} {'width':>6} {'height':>7} "
           f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4} {'soft':>5}")
     for i, (name, f) in enumerate(src.catalogue.items(), 1):
@@ -27,8 +27,8 @@ def cmd_fabrics(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     if args.depth is not None and not 0.0 < args.depth <= 3.0:
         raise TactexError(f"--depth {args.depth} mm outside (0, 3]")
     rng = np.random.default_rng(args.seed)
@@ -45,8 +45,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 def bench_sim(frames: int = 400, repeats: int = 5) -> dict:
     """Frames per second for 320x240 contact frames on one thread (tiles cached first)."""
     cv2.setNumThreads(1)
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     names = src.classes
     rng = np.random.default_rng(0)
     for n in names:

@@ -167,12 +167,3 @@ def validate(cfg: Any) -> Any:
         if md.get("hi") is not None and v > md["hi"]:
             raise TactexError(f"{type(cfg).__name__}.{f.name}: {v!r} is above {md['hi']}")
     return cfg
-
-
-def schema(cls: type) -> list[dict[str, Any]]:
-    """The declarative schema of a config dataclass, one dict per parameter."""
-    out = []
-    for f in dataclasses.fields(cls):
-        out.append({"name": f.name, "type": f.type if isinstance(f.type, str) else f.type.__name__,
-                    "default": f.default, **f.metadata})
-    return out

@@ -24,17 +24,22 @@ from ..core.errors import TactexError
 from ..paths import config_dir
 
 
-def find_trial_file(spec: str | None) -> Path:
-    """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
-    spec = spec or "human_study"
+def find_config_file(spec: str, folder: str, what: str) -> Path:
+    """``spec`` as a path, else as a name (with or without ``.yaml``) under ``config/<folder>``;
+    TactexError naming ``what`` and where it looked."""
     p = Path(spec)
     if p.is_file():
         return p
-    for cand in (config_dir() / "trials" / spec, config_dir() / "trials" / f"{spec}.yaml"):
+    for cand in (config_dir() / folder / spec, config_dir() / folder / f"{spec}.yaml"):
         if cand.is_file():
             return cand
-    raise TactexError(f"trial file {spec!r} not found (a path, or a name in "
-                      f"{config_dir() / 'trials'})")
+    raise TactexError(f"{what} {spec!r} not found (a path, or a name in "
+                      f"{config_dir() / folder})")
+
+
+def find_trial_file(spec: str | None) -> Path:
+    """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
+    return find_config_file(spec or "human_study", "trials", "trial file")
 
 
 def load_trials(path: str | Path) -> dict[str, Any]:

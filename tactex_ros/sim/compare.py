@@ -156,8 +156,8 @@ def real_presses(real_dir: str, per_class: int) -> list[Press]:
 
 def sim_presses(per_class: int, seed: int, classes: list[str] | None = None) -> list[Press]:
     """``per_class`` simulated presses of every catalogue fabric (or of ``classes``)."""
-    from .source import SimSource
-    sim = SimSource()
+    from ..sources import open_source
+    sim = open_source("sim")
     rng = np.random.default_rng([seed, 61])
     out = []
     for name in classes or sim.classes:

@@ -103,11 +103,6 @@ class FabricParams:
         return FabricParams(family=family, **kw)
 
 
-def distance(a: FabricParams, b: FabricParams) -> float:
-    """Parameter distance: Euclidean on normalised parameters, +1 across families."""
-    return float(np.linalg.norm(a.vector() - b.vector()) + (a.family != b.family))
-
-
 # ------------------------------------------------------------------------------ catalogue
 
 def load_catalogue(path: str | Path) -> dict[str, FabricParams]:

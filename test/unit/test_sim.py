@@ -4,12 +4,13 @@ import pytest
 from tactex_ros.cli import main
 from tactex_ros.core.errors import TactexError
 from tactex_ros.sim.fabrics import FabricParams, load_catalogue
-from tactex_ros.sim.source import SimSource, parse_difficulty
+from tactex_ros.sim.source import parse_difficulty
+from tactex_ros.sources import open_source
 
 
 @pytest.fixture(scope="module")
 def src():
-    return SimSource("medium")
+    return open_source("sim:medium")
 
 
 def radial_spectrum(img: np.ndarray, bins: int = 24) -> np.ndarray:
@@ -56,7 +57,7 @@ def test_fabrics_differ_more_than_presses_and_gap_shrinks_with_difficulty():
     both as distances between means of two presses (equal noise on both sides)."""
     ratios = {}
     for q in (0.2, 0.9, 1.0):
-        s = SimSource(q)
+        s = open_source(f"sim:{q}")
         between, within = [], []
         for seed in range(10):
             names = s.draw_scene(3, seed)

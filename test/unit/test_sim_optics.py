@@ -10,7 +10,7 @@ import pytest
 from tactex_ros.core.errors import TactexError
 from tactex_ros.sim.calibration import calibration_dir, load_calibration
 from tactex_ros.sim.render import GelSightRenderer, SensorModel
-from tactex_ros.sim.source import SimSource
+from tactex_ros.sources import open_source
 
 
 def hf_share(diff: np.ndarray) -> float:
@@ -76,7 +76,7 @@ def test_flat_gel_renders_as_the_no_contact_frame():
 
 @pytest.fixture(scope="module")
 def src():
-    return SimSource("medium")
+    return open_source("sim:medium")
 
 
 def _stats(src, names, presses=2, seed=0):
