@@ -162,7 +162,11 @@ def _jobs(scenes: list[list[str]], settings: list[tuple], args, tag: str) -> lis
     return jobs
 
 
-def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+def run_settings(scenes: list[list[str]], settings: list[tuple], args: argparse.Namespace,
+                 tag: str) -> dict[str, list[dict]]:
+    """Every setting (``parse_setting`` tuples) on every scene (class lists) of ``args.source``,
+    through the job runner (``args``: source, seed, budget, comparisons and the runner's
+    options); returns each setting's curves (see ``curve``) in scene order."""
     res = run_jobs(_jobs(scenes, settings, args, tag), backend_of(args), threads=args.threads,
                    description=f"{tag} scenes x settings", quiet=args.quiet)
     out: dict[str, list[dict]] = {s[0]: [] for s in settings}
@@ -228,7 +232,7 @@ def run(args: argparse.Namespace) -> dict:
     for k, fold in enumerate(folds):
         if args.folds >= 2:
             rest = sorted(set(classes) - set(fold))
-            choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
+            choose_curves = run_settings(draw_scenes(rest, args.scenes, args.comparisons,
                                              args.seed + 1000 * (k + 1)),
                                  settings, args, f"choose{k}-")
             rows = score_pairs(choose_curves, thresholds)
@@ -236,8 +240,8 @@ def run(args: argparse.Namespace) -> dict:
             per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
         else:
             rest, rows, best, per_setting = [], [], None, {}
-        rep = _run(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
-                   settings, args, f"report{k}-")
+        report_scenes = draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k)
+        rep = run_settings(report_scenes, settings, args, f"report{k}-")
         for lab, cs in rep.items():
             report_curves[lab].extend(cs)
         fold_info.append({"fold": k, "report_classes": fold, "choose_classes": rest,

@@ -255,8 +255,9 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
         classes = sorted(open_source(spec).classes)
         ns = argparse.Namespace(source=spec, seed=seed, budget=budget,
-                                comparisons=comparisons, workers=workers)
-        curves = real._run(real.draw_scenes(classes, scenes, comparisons, seed), parsed, ns,
+                                comparisons=comparisons, workers=workers, threads=1,
+                                backend="joblib", address=None, quiet=True)
+        curves = real.run_settings(real.draw_scenes(classes, scenes, comparisons, seed), parsed, ns,
                            f"{side}-")
         errors = sum(1 for cs in curves.values() for c in cs if c["error"])
         at_b = np.array([[real.at_budget(c, budget) for c in curves[lab]] for lab in labels],
