@@ -232,9 +232,9 @@ def run(args: argparse.Namespace) -> dict:
     for k, fold in enumerate(folds):
         if args.folds >= 2:
             rest = sorted(set(classes) - set(fold))
-            choose_curves = run_settings(draw_scenes(rest, args.scenes, args.comparisons,
-                                             args.seed + 1000 * (k + 1)),
-                                 settings, args, f"choose{k}-")
+            choose_scenes = draw_scenes(rest, args.scenes, args.comparisons,
+                                        args.seed + 1000 * (k + 1))
+            choose_curves = run_settings(choose_scenes, settings, args, f"choose{k}-")
             rows = score_pairs(choose_curves, thresholds)
             best = choose(rows, args.target_touches)
             per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
