@@ -43,7 +43,7 @@ import numpy as np
 from ..core.errors import TactexError
 from . import charts
 from .common import budget_index, parse_set, results_dir, write_json
-from .runner import TrialJob, add_runner_args, backend_of, run_jobs
+from .runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
 from .stats import mcnemar_exact, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
@@ -147,30 +147,37 @@ def choose(rows: list[dict], target: float, settings: list[str] | None = None) -
     return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
 
 
-def _jobs(scenes: list[list[str]], settings: list[tuple], args, tag: str) -> list[TrialJob]:
+def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
+                  budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
+                  quiet: bool = False) -> dict[str, list[dict]]:
+    """Run every scene (``[reference, comparisons...]`` classes) with every setting of
+    ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
+    i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
+    (see ``curve``, plus the scene's ``classes``)."""
+    from ..core.engine import trial_preset
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
-            from ..core.engine import trial_preset
             st = strategy or trial_preset(pre).strategy
-            jobs.append(TrialJob(source=args.source, seed=args.seed + i, strategy=st,
-                                 rounds=args.budget, stop_confidence=0.0, preset=pre,
+            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
+                                 rounds=budget, stop_confidence=0.0, preset=pre,
                                  overrides=over, platform_classes=classes,
-                                 comparisons=args.comparisons, catch_errors=True,
+                                 comparisons=len(classes) - 1, catch_errors=True,
                                  no_contact_reference=False,
                                  trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
-    return jobs
-
-
-def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
-    res = run_jobs(_jobs(scenes, settings, args, tag), backend_of(args), threads=args.threads,
-                   description=f"{tag} scenes x settings", quiet=args.quiet)
+    res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
+                   quiet=quiet)
     out: dict[str, list[dict]] = {s[0]: [] for s in settings}
     for r in res:
         c = curve(r)
         c["classes"] = r["classes"]
         out[r["job"]["tags"]["setting"]].append(c)
     return out
+
+
+def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+    return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
+                         backend_of(args), args.threads, args.quiet)
 
 
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
