@@ -31,17 +31,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..core.errors import TactexError
+from ..paths import config_file, read_yaml
 from . import charts, stats
 from .common import decision_at_budget, results_dir, write_json
-from .trials import find_config_file, find_trial_file, load_trials, platform_classes
+from .trials import find_trial_file, load_trials, platform_classes
 
 
 def find_humans_file(spec: str | None) -> Path:
     """A path, or a name under ``config/humans`` (``example`` = the default)."""
-    return find_config_file(spec or "example", "humans", "human trial file")
+    return config_file(spec or "example", "humans", "human trial file")
 
 
 def _record(e: dict, pid: str, tid: str, trial: dict, where: str) -> dict:
@@ -78,10 +78,7 @@ def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, An
     visits: [(platform, seconds)], answer, time (C,), reference_s, n_visits, truth}, ...]}.
     """
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise TactexError(f"human trial file {path}: {exc}") from None
+    doc = read_yaml(path, "human trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("participants"), list):
         raise TactexError(f"human trial file {path}: needs a list 'participants'")
     tf = load_trials(find_trial_file(trial_file or doc.get("trial_file")))

@@ -43,7 +43,7 @@ import numpy as np
 from ..core.errors import TactexError
 from . import charts
 from .common import budget_index, parse_set, results_dir, write_json
-from .runner import TrialJob, add_runner_args, backend_of, run_jobs
+from .runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
 from .stats import mcnemar_exact, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
@@ -147,34 +147,37 @@ def choose(rows: list[dict], target: float, settings: list[str] | None = None) -
     return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
 
 
-def _jobs(scenes: list[list[str]], settings: list[tuple], args, tag: str) -> list[TrialJob]:
+def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
+                  budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
+                  quiet: bool = False) -> dict[str, list[dict]]:
+    """Run every scene (``[reference, comparisons...]`` classes) with every setting of
+    ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
+    i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
+    (see ``curve``, plus the scene's ``classes``)."""
+    from ..core.engine import trial_preset
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
-            from ..core.engine import trial_preset
             st = strategy or trial_preset(pre).strategy
-            jobs.append(TrialJob(source=args.source, seed=args.seed + i, strategy=st,
-                                 rounds=args.budget, stop_confidence=0.0, preset=pre,
+            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
+                                 rounds=budget, stop_confidence=0.0, preset=pre,
                                  overrides=over, platform_classes=classes,
-                                 comparisons=args.comparisons, catch_errors=True,
+                                 comparisons=len(classes) - 1, catch_errors=True,
                                  no_contact_reference=False,
                                  trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
-    return jobs
-
-
-def run_settings(scenes: list[list[str]], settings: list[tuple], args: argparse.Namespace,
-                 tag: str) -> dict[str, list[dict]]:
-    """Every setting (``parse_setting`` tuples) on every scene (class lists) of ``args.source``,
-    through the job runner (``args``: source, seed, budget, comparisons and the runner's
-    options); returns each setting's curves (see ``curve``) in scene order."""
-    res = run_jobs(_jobs(scenes, settings, args, tag), backend_of(args), threads=args.threads,
-                   description=f"{tag} scenes x settings", quiet=args.quiet)
+    res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
+                   quiet=quiet)
     out: dict[str, list[dict]] = {s[0]: [] for s in settings}
     for r in res:
         c = curve(r)
         c["classes"] = r["classes"]
         out[r["job"]["tags"]["setting"]].append(c)
     return out
+
+
+def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+    return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
+                         backend_of(args), args.threads, args.quiet)
 
 
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
@@ -232,16 +235,16 @@ def run(args: argparse.Namespace) -> dict:
     for k, fold in enumerate(folds):
         if args.folds >= 2:
             rest = sorted(set(classes) - set(fold))
-            choose_scenes = draw_scenes(rest, args.scenes, args.comparisons,
-                                        args.seed + 1000 * (k + 1))
-            choose_curves = run_settings(choose_scenes, settings, args, f"choose{k}-")
+            choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
+                                             args.seed + 1000 * (k + 1)),
+                                 settings, args, f"choose{k}-")
             rows = score_pairs(choose_curves, thresholds)
             best = choose(rows, args.target_touches)
             per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
         else:
             rest, rows, best, per_setting = [], [], None, {}
-        report_scenes = draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k)
-        rep = run_settings(report_scenes, settings, args, f"report{k}-")
+        rep = _run(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
+                   settings, args, f"report{k}-")
         for lab, cs in rep.items():
             report_curves[lab].extend(cs)
         fold_info.append({"fold": k, "report_classes": fold, "choose_classes": rest,

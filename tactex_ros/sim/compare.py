@@ -234,9 +234,8 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
     (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
     a bootstrap interval, and the gaps real - sim."""
-    import argparse
-
     from ..experiments import real
+    from ..experiments.runner import Backend
     from ..experiments.stats import wilson
     from ..sources import open_source
     if scenes < 2:
@@ -254,11 +253,9 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     scores: dict[str, dict[str, np.ndarray]] = {}
     for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
         classes = sorted(open_source(spec).classes)
-        ns = argparse.Namespace(source=spec, seed=seed, budget=budget,
-                                comparisons=comparisons, workers=workers, threads=1,
-                                backend="joblib", address=None, quiet=True)
-        curves = real.run_settings(real.draw_scenes(classes, scenes, comparisons, seed), parsed, ns,
-                           f"{side}-")
+        curves = real.belief_curves(real.draw_scenes(classes, scenes, comparisons, seed),
+                                    parsed, spec, seed, budget, f"{side}-",
+                                    Backend("joblib", workers))
         errors = sum(1 for cs in curves.values() for c in cs if c["error"])
         at_b = np.array([[real.at_budget(c, budget) for c in curves[lab]] for lab in labels],
                         float)

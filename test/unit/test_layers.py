@@ -103,3 +103,28 @@ def test_no_machine_path_in_the_package():
             if isinstance(s, ast.Constant) and isinstance(s.value, str)
             and s.value.startswith(("/work/", "/home/", "/root/", "/tmp/"))]
     assert hits == []
+
+
+def test_no_module_uses_a_private_member_of_another_module():
+    """``mod._helper`` where ``mod`` is an imported tactex module (e.g. ``real._run``)."""
+    hits = []
+    for p in _files():
+        tree = ast.parse(p.read_text())
+        modules = {}       # local name -> module it names
+        for _, mod, names in imports(p):
+            for n in names:
+                modules[n] = f"{mod}.{n}"
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    modules[a.asname or a.name.split(".")[0]] = a.name
+        own = _module(p)
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.attr.startswith("_") and not node.attr.startswith("__")):
+                target = modules.get(node.value.id, "")
+                if target.startswith("tactex_ros") and target != own \
+                        and (PKG.parent / (target.replace(".", "/") + ".py")).is_file():
+                    hits.append(f"{p.relative_to(PKG.parent)}:{node.lineno}: "
+                                f"{node.value.id}.{node.attr}")
+    assert hits == []
