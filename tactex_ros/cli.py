@@ -76,35 +76,10 @@ def _write_json(path: str | None, obj: dict) -> None:
         Path(path).write_text(json.dumps(obj, indent=2))
 
 
-def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,
-                     reference: str | None, seed: int) -> tuple[list[str], int]:
-    """Classes of [reference, comparison 1..N] and the index (1..N) of the true match."""
-    rng = np.random.default_rng([seed, 5])
-    if chosen:
-        unknown = [c for c in chosen if c not in classes]
-        if unknown:
-            raise TactexError(f"--classes: unknown class(es) {unknown}; available: "
-                              f"{', '.join(classes)}")
-        comps = list(chosen)
-    else:
-        if len(classes) < comparisons:
-            raise TactexError(f"--comparisons {comparisons}: the source has only "
-                              f"{len(classes)} classes")
-        comps = [str(c) for c in rng.choice(classes, comparisons, replace=False)]
-    if len(comps) < 2:
-        raise TactexError("--classes: a trial needs at least 2 comparison platforms")
-    if reference is None:
-        reference = comps[int(rng.integers(len(comps)))]
-    if reference not in comps:
-        raise TactexError(f"--reference {reference!r} is not one of the comparison classes "
-                          f"{comps}")
-    return [reference] + comps, comps.index(reference) + 1
-
-
 def cmd_trial(args: argparse.Namespace) -> int:
     from .core.config import TrialSettings
     from .core.engine import TrialEngine
-    from .sources import open_source
+    from .sources import open_source, trial_scene
     settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
                                    "tactex trial")
     src = open_source(args.source)
@@ -115,11 +90,8 @@ def cmd_trial(args: argparse.Namespace) -> int:
                           f"{MAX_COMPARISONS}")
     if chosen is None and args.comparisons < 2:
         raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
-    if chosen is None and hasattr(src, "draw_scene"):
-        chosen = src.draw_scene(args.comparisons, args.seed)
-    platform_classes, truth = assign_platforms(list(getattr(src, "fabrics", src.classes)),
-                                               args.comparisons, chosen, args.reference,
-                                               args.seed)
+    platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
+                                          args.reference)
     n = len(platform_classes) - 1
     ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
     engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)

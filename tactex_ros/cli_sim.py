@@ -15,20 +15,20 @@ from .core.errors import TactexError
 
 
 def cmd_fabrics(args: argparse.Namespace) -> int:
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     print(f"{'#':>3} {'name':<18} {'family':<9} {'pitch':>6} {'width':>6} {'height':>7} "
-          f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4}")
+          f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4} {'soft':>5}")
     for i, (name, f) in enumerate(src.catalogue.items(), 1):
         print(f"{i:>3} {name:<18} {f.family:<9} {f.pitch_mm:>6.2f} {f.yarn_width:>6.2f} "
               f"{f.yarn_height_mm:>7.2f} {f.twist:>6.2f} {f.irregularity:>6.2f} "
-              f"{f.fuzz:>5.2f} {f.repeat:>4d}")
+              f"{f.fuzz:>5.2f} {f.repeat:>4d} {f.softness:>5.2f}")
     return 0
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     if args.depth is not None and not 0.0 < args.depth <= 3.0:
         raise TactexError(f"--depth {args.depth} mm outside (0, 3]")
     rng = np.random.default_rng(args.seed)
@@ -45,8 +45,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 def bench_sim(frames: int = 400, repeats: int = 5) -> dict:
     """Frames per second for 320x240 contact frames on one thread (tiles cached first)."""
     cv2.setNumThreads(1)
-    from .sim.source import SimSource
-    src = SimSource()
+    from .sources import open_source
+    src = open_source("sim")
     names = src.classes
     rng = np.random.default_rng(0)
     for n in names:
@@ -92,69 +92,64 @@ def add_commands(sub, bench_sub) -> None:
     b.set_defaults(func=cmd_bench_sim)
 
 
-def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -> dict:
-    """Statistics of simulated vs real GelSight frames, and a side-by-side picture.
-
-    Per set: mean RGB of no-contact frames, mean |contact - no-contact| (grey levels), and the
-    share of spectral power above 0.1 cycles/px in the contact-minus-no-contact image (how much
-    fine detail the contact adds). Real frames: first frame and strongest-contact frame of each
-    press of the first ``n`` classes of ``real_dir``.
-    """
+def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
+                      real_per_class: int = 3, ranking: dict | None = None,
+                      fabrics: list[str] | None = None) -> dict:
+    """The sim-to-real report (``sim/compare.py``): frame statistics per family, a picture
+    (top: real presses, bottom: simulated, each with |contact - no contact| x8) and, with
+    ``ranking`` (keyword arguments of ``compare.run_ranking`` except the folder), the
+    ranking agreement of learner settings. ``fabrics``: simulated fabrics of the statistics
+    (default: the whole catalogue)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .core.contact import strongest_contact
-    from .sim.source import SimSource
-    from .sources.replay import ReplaySource, read_video
+    from .sim import compare
 
-    def hf_share(diff: np.ndarray) -> float:
-        g = diff.astype(np.float64).mean(axis=2)
-        p = np.abs(np.fft.fftshift(np.fft.fft2(g - g.mean()))) ** 2
-        fy = np.fft.fftshift(np.fft.fftfreq(g.shape[0]))[:, None]
-        fx = np.fft.fftshift(np.fft.fftfreq(g.shape[1]))[None, :]
-        return float(p[np.hypot(fx, fy) > 0.1].sum() / p.sum())
+    real = compare.real_presses(real_dir, real_per_class)
+    sim = compare.sim_presses(per_class, seed, fabrics)
+    result = compare.frame_report(real, sim)
+    result["real_classes"] = sorted({p.name for p in real})
+    result["sim_fabrics"] = sorted({p.name for p in sim})
+    if ranking is not None:
+        result["ranking"] = compare.run_ranking(real_dir, seed=seed, **ranking)
 
-    rep = ReplaySource(real_dir)
-    real_pairs = []
-    for cls in rep.classes[:n]:
-        try:
-            arr = read_video(rep.presses(cls)[0])[..., ::-1]  # BGR -> RGB
-        except TactexError:
-            continue
-        idx, _ = strongest_contact(arr)
-        real_pairs.append((cls, arr[0], arr[idx]))
-    sim = SimSource()
-    rng = np.random.default_rng(seed)
-    sim_pairs = [(name, sim.renderer.no_contact(rng), sim.press(name, rng))
-                 for name in sim.classes[:: max(1, len(sim.classes) // n)][:n]]
-
-    def stats(pairs):
-        return {
-            "no_contact_mean_rgb": np.mean([p[1].reshape(-1, 3).mean(0) for p in pairs],
-                                           0).round(1).tolist(),
-            "no_contact_std_rgb": np.mean([p[1].reshape(-1, 3).std(0) for p in pairs],
-                                          0).round(1).tolist(),
-            "contact_minus_no_contact_mean_abs": float(np.mean(
-                [np.abs(p[2].astype(float) - p[1]).mean() for p in pairs])),
-            "high_frequency_share_of_difference": float(np.mean(
-                [hf_share(p[2].astype(float) - p[1]) for p in pairs])),
-        }
-
-    result = {"real": stats(real_pairs), "sim": stats(sim_pairs),
-              "real_classes": [p[0] for p in real_pairs], "sim_fabrics": [p[0] for p in sim_pairs]}
-    k = min(4, len(real_pairs), len(sim_pairs))
-    fig, axes = plt.subplots(2, 2 * k, figsize=(4 * k, 3.2))
+    picks = {"real": [], "sim": []}
+    for side, presses in (("real", real), ("sim", sim)):
+        for g in ("soft", "firm_textured", "smooth"):
+            named = {p.name: p for p in reversed(presses) if p.group == g}  # first per name
+            picks[side] += list(named.values())[::-1][:2]
+        picks[side] = picks[side][:4]
+    k = min(4, len(picks["real"]), len(picks["sim"]))
+    ncols = 2 * k + (1 if "ranking" in result else 0)
+    fig, axes = plt.subplots(2, ncols, figsize=(2 * ncols, 3.4), squeeze=False)
     for i in range(k):
-        for row, (pairs, label) in enumerate(((real_pairs, "real"), (sim_pairs, "sim"))):
-            name, nc, c = pairs[i]
-            axes[row, 2 * i].imshow(c)
-            axes[row, 2 * i].set_title(f"{label}: {name}", fontsize=7)
-            d = np.clip(np.abs(c.astype(float) - nc) * 8, 0, 255).astype(np.uint8)
-            axes[row, 2 * i + 1].imshow(d)
-            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=7)
-    for a in axes.ravel():
+        for row, side in enumerate(("real", "sim")):
+            p = picks[side][i]
+            axes[row, 2 * i].imshow(p.contact)
+            axes[row, 2 * i].set_title(f"{side}: {p.name} ({p.group})", fontsize=6)
+            d = np.clip(np.abs(p.contact.astype(float) - p.no_contact) * 8, 0, 255)
+            axes[row, 2 * i + 1].imshow(d.astype(np.uint8))
+            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=6)
+    for a in axes[:, :2 * k].ravel():
         a.axis("off")
+    if "ranking" in result:
+        rk = result["ranking"]
+        ax = axes[0, -1]
+        names = list(rk["settings"])
+        xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
+        ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
+        ax.scatter(xs, ys, s=8)
+        for n, x, y in zip(names, xs, ys):
+            ax.annotate(n, (x, y), fontsize=4)
+        ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
+        sp = rk["accuracy_spearman"]
+        ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
+                     fontsize=6)
+        ax.set_xlabel(f"sim accuracy (+{rk['budget']} touches)", fontsize=6)
+        ax.set_ylabel("real accuracy", fontsize=6)
+        ax.tick_params(labelsize=5)
+        axes[1, -1].axis("off")
     fig.tight_layout()
     Path(out_png).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, dpi=110)
@@ -162,20 +157,88 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, n: int = 12) -
     return result
 
 
+def _print_report(res: dict) -> None:
+    print(f"{'group':<14} {'statistic':<20} {'real':>22} {'sim':>22} {'ratio':>18}  <=25%")
+    for c in res["checks"]:
+        def fmt(v):
+            return (", ".join(f"{x:.2f}" for x in v) if isinstance(v, list) else f"{v:.3f}")
+        print(f"{c['group']:<14} {c['statistic']:<20} {fmt(c['real']):>22} {fmt(c['sim']):>22} "
+              f"{fmt(c['ratio']):>18}  {'yes' if c['within_25pct'] else 'no'}")
+    print(f"{res['checks_passed']} of {len(res['checks'])} statistics within 25 % of real")
+    rk = res.get("ranking")
+    if rk:
+        print(f"\n{'setting':<15} {'sim acc':>8} {'real acc':>9} {'gap':>7} {'sim mean':>9} "
+              f"{'real mean':>10}   (accuracy after +{rk['budget']} touches; mean over "
+              f"0..{rk['budget']})")
+        for n, v in rk["settings"].items():
+            print(f"{n:<15} {v['sim']['accuracy']:>8.3f} {v['real']['accuracy']:>9.3f} "
+                  f"{v['gap_real_minus_sim']:>+7.3f} {v['sim']['accuracy_mean_over_budgets']:>9.3f} "
+                  f"{v['real']['accuracy_mean_over_budgets']:>10.3f}")
+        for key in ("accuracy_spearman", "mean_over_budgets_spearman"):
+            sp = rk[key]
+            print(f"{key}: rho {sp['rho']:.3f}, 95 % bootstrap interval "
+                  f"[{sp['ci95'][0]:.3f}, {sp['ci95'][1]:.3f}] over {sp['settings']} settings")
+        print(f"mean accuracy gap real - sim {rk['mean_gap_real_minus_sim']:+.3f} (mean |gap| "
+              f"{rk['mean_abs_gap']:.3f}); {rk['scenes']} sim + {rk['scenes']} real scenes of "
+              f"1 + {rk['comparisons']}; failed trials: sim {rk['sim_failed_trials']}, real "
+              f"{rk['real_failed_trials']}")
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
-    res = compare_with_real(args.real, args.out, args.seed)
-    for k in ("real", "sim"):
-        print(k, json.dumps(res[k]))
+    from .sim.compare import DEFAULT_SETTINGS
+    ranking = None
+    if args.presses < 1 or args.real_presses < 1:
+        raise TactexError("--presses and --real-presses must be >= 1")
+    if args.scenes > 0:
+        if not 2 <= args.comparisons <= 24:
+            raise TactexError(f"--comparisons must be in 2..24, got {args.comparisons}")
+        if not 0 <= args.budget <= 100:
+            raise TactexError(f"--budget must be in 0..100, got {args.budget}")
+        if args.workers < 1:
+            raise TactexError(f"--workers must be >= 1, got {args.workers}")
+        from .experiments.real import parse_setting
+        for text in args.setting or []:
+            parse_setting(text)          # a bad setting is refused before any work
+        ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,
+                       comparisons=args.comparisons, budget=args.budget, workers=args.workers)
+    elif args.scenes < 0:
+        raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
+    fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
+    if fabrics:
+        from .sim.fabrics import load_catalogue
+        from .paths import config_dir
+        known = load_catalogue(config_dir() / "fabrics.yaml")
+        unknown = [f for f in fabrics if f not in known]
+        if unknown:
+            raise TactexError(f"--fabrics: unknown {unknown}; `tactex sim fabrics` lists them")
+    res = compare_with_real(args.real, args.out, args.seed, args.presses, args.real_presses,
+                            ranking, fabrics)
+    _print_report(res)
     if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(res, indent=2))
     print(f"wrote {args.out}")
     return 0
 
 
 def add_compare(ssub) -> None:
-    c = ssub.add_parser("compare", help="simulated vs real frames: statistics and a picture")
+    c = ssub.add_parser("compare", help="sim-to-real report: frame statistics per family and "
+                                        "the ranking of learner settings on both sides")
     c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
-    c.add_argument("--out", required=True, help="side-by-side PNG")
+    c.add_argument("--out", required=True, help="PNG: side-by-side frames (+ ranking)")
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--json")
+    c.add_argument("--presses", type=int, default=2, help="simulated presses per fabric")
+    c.add_argument("--real-presses", type=int, default=3, help="real presses per class")
+    c.add_argument("--fabrics", help="comma-separated simulated fabrics for the statistics "
+                                     "(default: the whole catalogue)")
+    c.add_argument("--scenes", type=int, default=0,
+                   help="scenes per side for the ranking of learner settings (0 = skip it)")
+    c.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] as for `tactex experiment real` "
+                        "(repeat; default: sim/compare.py DEFAULT_SETTINGS)")
+    c.add_argument("--comparisons", type=int, default=4)
+    c.add_argument("--budget", type=int, default=5,
+                   help="touches after the baseline; accuracy is ranked at this budget")
+    c.add_argument("--workers", type=int, default=1)
     c.set_defaults(func=cmd_compare)

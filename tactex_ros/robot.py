@@ -27,13 +27,10 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import yaml
-
 from .core.errors import TactexError
-from .paths import config_dir
+from .paths import config_file, read_yaml
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
@@ -177,31 +174,10 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
         notes=str(d.get("notes", "")), **state)
 
 
-def profile_path(name_or_path: str) -> Path:
-    """``config/robots/<name>.yaml`` for a profile name, else the path given."""
-    if not name_or_path:
-        raise TactexError("robot profile: empty; give a name from config/robots/ or a path")
-    p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") or "/" in name_or_path:
-        return p
-    return config_dir() / "robots" / f"{name_or_path}.yaml"
-
-
-def profile_names() -> list[str]:
-    return sorted(p.stem for p in (config_dir() / "robots").glob("*.yaml"))
-
-
 def load_profile(name_or_path: str) -> RobotProfile:
     """Read and validate a robot profile by name (``config/robots/``) or path."""
-    p = profile_path(name_or_path)
-    if not p.is_file():
-        raise TactexError(f"robot profile {name_or_path!r}: {str(p)!r} not found; profiles: "
-                          f"{profile_names()}")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise TactexError(f"robot profile {str(p)!r}: not valid YAML ({exc})") from None
-    return parse_profile(data, origin=f"robot profile {p.name}")
+    p = config_file(name_or_path, "robots", "robot profile")
+    return parse_profile(read_yaml(p, "robot profile"), origin=f"robot profile {p.name}")
 
 
 def import_interface(name: str) -> type:

@@ -20,7 +20,7 @@ platform; the robot application itself never reads them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -104,7 +104,6 @@ class Scene:
     press: PressSettings
     platforms: tuple[Platform, ...]
     source: str = ""
-    extra: dict = field(default_factory=dict)
 
     @property
     def reference(self) -> Platform:
@@ -126,15 +125,6 @@ class Scene:
         raise TactexError(f"unknown platform {pid!r}; the scene has "
                           f"{[p.id for p in self.platforms]}")
 
-    def inside(self, xyz: np.ndarray, margin: float = 0.0) -> bool:
-        """Whether a position [m] lies inside the workspace box (shrunk by ``margin``)."""
-        xyz = np.asarray(xyz, dtype=float)
-        return bool(np.all(xyz >= np.asarray(self.workspace_min) + margin) and
-                    np.all(xyz <= np.asarray(self.workspace_max) - margin))
-
-    def clamp(self, xyz: np.ndarray) -> np.ndarray:
-        """Position clipped into the workspace box [m]."""
-        return np.clip(np.asarray(xyz, dtype=float), self.workspace_min, self.workspace_max)
 
 
 class Workspace(Schema):

@@ -26,13 +26,10 @@ Pure Python (no rclpy, no OpenCV). A profile says:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-import yaml
-
 from .core.errors import TactexError
-from .paths import config_dir
+from .paths import config_file, read_yaml
 
 SERIAL_LOOKUPS = ("", "digit_interface")
 LED_MAX = 15
@@ -156,31 +153,10 @@ def check_mode(prof: SensorProfile, width: int, height: int, fps: float, where: 
                           f"{prof.name!r} ({prof.mode_text()})")
 
 
-def sensor_path(name_or_path: str) -> Path:
-    """``config/sensors/<name>.yaml`` for a profile name, else the path given."""
-    if not name_or_path:
-        raise TactexError("sensor profile: empty; give a name from config/sensors/ or a path")
-    p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") or "/" in name_or_path:
-        return p
-    return config_dir() / "sensors" / f"{name_or_path}.yaml"
-
-
-def sensor_names() -> list[str]:
-    return sorted(p.stem for p in (config_dir() / "sensors").glob("*.yaml"))
-
-
 def load_sensor(name_or_path: str) -> SensorProfile:
     """Read and validate a sensor profile by name (``config/sensors/``) or path."""
-    p = sensor_path(name_or_path)
-    if not p.is_file():
-        raise TactexError(f"sensor profile {name_or_path!r}: {str(p)!r} not found; profiles: "
-                          f"{sensor_names()}")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise TactexError(f"sensor profile {str(p)!r}: not valid YAML ({exc})") from None
-    return parse_sensor(data, origin=f"sensor profile {p.name}")
+    p = config_file(name_or_path, "sensors", "sensor profile")
+    return parse_sensor(read_yaml(p, "sensor profile"), origin=f"sensor profile {p.name}")
 
 
 def sensor_config(s: Any, camera: bool = True) -> SensorConfig:

@@ -25,11 +25,11 @@ import torch
 from ..core.config import preset
 from ..core.engine import TrialEngine, trial_preset
 from ..core.texture import clear_cache
-from ..sim.source import SimSource
+from ..sources import open_source
 
 
 def _frames(n: int, seed: int = 0) -> list[np.ndarray]:
-    src = SimSource("medium")
+    src = open_source("sim:medium")
     touch = src.trial(src.classes[:5], seed)
     return [touch(i % 5) for i in range(n)]
 

@@ -21,9 +21,15 @@ def blur(frame: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(frame, _BLUR, 0).astype(np.float32)
 
 
-def contact_score(frame: np.ndarray, reference_blurred: np.ndarray) -> float:
-    """Mean absolute difference (grey levels) of a blurred frame to a blurred reference."""
-    return float(np.abs(blur(frame) - reference_blurred).mean())
+def contact_score(frame: np.ndarray, reference_blurred: np.ndarray,
+                  drift_robust: bool = False) -> float:
+    """Mean absolute difference (grey levels) of a blurred (H, W, 3) uint8 frame to a blurred
+    (float32) reference; ``drift_robust``: the per-channel mean difference is removed first, so
+    a lighting drift does not count as contact."""
+    d = blur(frame) - reference_blurred
+    if drift_robust:
+        d -= d.reshape(-1, d.shape[-1]).mean(axis=0)
+    return float(np.abs(d).mean())
 
 
 def contact_scores(frames: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
@@ -94,9 +100,6 @@ class FrameRing:
         self._frames.append((stamp, frame))
         if len(self._frames) > self.capacity:
             del self._frames[0]
-
-    def latest(self) -> tuple[float, np.ndarray] | None:
-        return self._frames[-1] if self._frames else None
 
     def best(self, window_s: float, now: float) -> tuple[np.ndarray, float]:
         """Strongest-contact frame in the window and its score; ValueError if none/no reference."""

@@ -25,19 +25,14 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .contact import blur, contact_score
+
 
 def flatness_score(frame: np.ndarray) -> float:
     """Texture between noise and vignetting scale, grey levels (low = flat frame)."""
-    a = cv2.GaussianBlur(frame, (5, 5), 0).astype(np.float32)
+    a = blur(frame)
     b = cv2.GaussianBlur(frame, (0, 0), 8).astype(np.float32)
     return float(np.abs(a - b).mean())
-
-
-def reference_contact_score(frame: np.ndarray, reference_blurred: np.ndarray) -> float:
-    """Drift-robust contact score against a blurred (float32) no-contact reference."""
-    d = cv2.GaussianBlur(frame, (5, 5), 0).astype(np.float32) - reference_blurred
-    d -= d.reshape(-1, d.shape[-1]).mean(axis=0)
-    return float(np.abs(d).mean())
 
 
 class ContactGuard:
@@ -50,8 +45,7 @@ class ContactGuard:
 
     def set_reference(self, frame: np.ndarray | None) -> None:
         """No-contact frame of the same sensor session (None = flatness check only)."""
-        self._ref = (None if frame is None else
-                     cv2.GaussianBlur(frame, (5, 5), 0).astype(np.float32))
+        self._ref = None if frame is None else blur(frame)
 
     @property
     def has_reference(self) -> bool:
@@ -63,7 +57,7 @@ class ContactGuard:
             if f < self.flat_min:
                 return False, f"blank frame: texture {f:.2f} < {self.flat_min:g} grey levels"
         if self._ref is not None and self.contact_min > 0:
-            c = reference_contact_score(frame, self._ref)
+            c = contact_score(frame, self._ref, drift_robust=True)
             if c < self.contact_min:
                 return False, (f"no contact: {c:.2f} < {self.contact_min:g} grey levels "
                                "against the no-contact reference")

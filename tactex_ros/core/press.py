@@ -32,14 +32,55 @@ the reason. Units: m, s, N.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, Sequence
 
 import numpy as np
 
-from ..scene import Platform, PressSettings, Scene
 from .errors import TactexError
 
 APPROACH, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = ("approach", "descend", "settle", "capture",
                                                     "retract", "done")
+
+
+class PressSettings(Protocol):
+    """How a press is made (the scene file's ``press``, ``scene.PressSettings``): m, m/s, N, s."""
+
+    approach_height: float
+    travel_speed: float
+    descend_speed: float
+    max_speed: float
+    force_threshold: float
+    max_force: float
+    max_depth: float
+    settle_s: float
+    approach_deadline_s: float
+    descend_deadline_s: float
+    capture_deadline_s: float
+    retract_deadline_s: float
+    position_tolerance: float
+
+
+class Platform(Protocol):
+    """A platform: ``id``, surface centre ``position`` [m] in the base frame, ``radius`` [m]."""
+
+    id: str
+    position: tuple[float, float, float]
+    radius: float
+
+
+class Workspace(Protocol):
+    """What a press needs of the scene (``scene.Scene``): the workspace box [m], the press
+    settings and the platforms."""
+
+    workspace_min: tuple[float, float, float]
+    workspace_max: tuple[float, float, float]
+    press: PressSettings
+    platforms: Sequence[Platform]
+
+
+def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
+    """Position [m] clipped into the workspace box."""
+    return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
 
 
 @dataclass
@@ -56,7 +97,7 @@ def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
     return max(press.max_depth, 0.5 * (press.force_threshold + press.max_force) / stiffness)
 
 
-def check_press(scene: Scene, stiffness: float, origin: str = "scene") -> None:
+def check_press(scene: Workspace, stiffness: float, origin: str = "scene") -> None:
     """Refuse press settings a controller of ``stiffness`` [N/m] cannot carry out in time or
     inside the workspace; TactexError names the field."""
     s = scene.press
@@ -87,7 +128,7 @@ class PressController:
     position-controlled robot: a large value such as 1e5, the equilibrium is then the pose).
     """
 
-    def __init__(self, scene: Scene, platform: Platform, start: np.ndarray, now: float,
+    def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
                  stiffness: float = 1e5) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
@@ -95,8 +136,8 @@ class PressController:
         surface = np.asarray(platform.position, dtype=float)
         self.surface_z = surface[2]
         self.approach_point = surface + [0.0, 0.0, self.s.approach_height]
-        self.bottom = scene.clamp(surface - [0.0, 0.0, equilibrium_floor(self.s, stiffness)])
-        start = scene.clamp(np.asarray(start, dtype=float))
+        self.bottom = clamp(scene, surface - [0.0, 0.0, equilibrium_floor(self.s, stiffness)])
+        start = clamp(scene, start)
         safe_z = max(start[2], self.approach_point[2])
         self._waypoints = [np.array([start[0], start[1], safe_z]),
                            np.array([surface[0], surface[1], safe_z]), self.approach_point]
@@ -137,7 +178,7 @@ class PressController:
         d = goal - self.target
         dist = float(np.linalg.norm(d))
         self.target = goal.copy() if dist <= step else self.target + d * (step / dist)
-        self.target = self.scene.clamp(self.target)
+        self.target = clamp(self.scene, self.target)
         return dist <= step
 
     # ------------------------------------------------------------------ API
@@ -191,7 +232,7 @@ class PressController:
                 # measured now (>= threshold), never deeper than the one that reached it
                 hold = self.target.copy()
                 hold[2] = max(position[2] - force_n / self.k, self.target[2])
-                self.target = self.scene.clamp(hold)
+                self.target = clamp(self.scene, hold)
                 self._enter(SETTLE, now)
             elif self.surface_z - position[2] >= s.max_depth:
                 self.abort(f"no contact: {force_n:.2f} N < force_threshold "
@@ -243,7 +284,7 @@ class ArmModel:
     Positions in m, time in s, forces in N.
     """
 
-    def __init__(self, scene: Scene, start: np.ndarray, *, stiffness: float = 1000.0,
+    def __init__(self, scene: Workspace, start: np.ndarray, *, stiffness: float = 1000.0,
                  damping: float | None = None, mass: float = 3.0,
                  platform_stiffness: float = 2e4, platform_damping: float = 50.0,
                  target_filter_s: float = 0.0, substep: float = 5e-4) -> None:

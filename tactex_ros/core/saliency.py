@@ -89,20 +89,3 @@ def display_image(x: torch.Tensor, fourier: bool = False) -> np.ndarray:
         return np.repeat((g[..., None] * 255).astype(np.uint8), 3, axis=3)
     rgb = a * IMAGENET_STD + IMAGENET_MEAN
     return (np.clip(rgb, 0, 1) * 255).astype(np.uint8)
-
-
-def saliency_panel(ax_row, img: np.ndarray, ixg: np.ndarray, cam: np.ndarray,
-                   titles: tuple[str, str, str] = ("input", "Input x Gradient", "Grad-CAM"),
-                   label: str | None = None) -> None:
-    """Draw one row: input, Input x Gradient (heat map), Grad-CAM overlaid on the input."""
-    ax_row[0].imshow(img)
-    ax_row[1].imshow(ixg, cmap="inferno", vmin=0, vmax=1)
-    ax_row[2].imshow(img)
-    ax_row[2].imshow(cam, cmap="jet", alpha=0.45, vmin=0, vmax=1)
-    for a, t in zip(ax_row, titles):
-        a.set_xticks([])
-        a.set_yticks([])
-        if t:
-            a.set_title(t, fontsize=8)
-    if label:
-        ax_row[0].set_ylabel(label, fontsize=7)

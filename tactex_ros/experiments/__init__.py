@@ -2,5 +2,8 @@
 
 Every experiment writes a results folder (``--out``, default ``results/<name>``) holding
 ``config.json`` (arguments, versions, seeds), JSON results and PNG figures, and shows progress
-for anything longer than a few seconds. Shared helpers live in ``common``.
+for anything longer than a few seconds. Each command module imports only the shared helpers,
+never another command: ``runner`` (the one job runner: joblib, or Ray with ``--backend ray``),
+``stats`` (statistics), ``charts`` (every figure), ``trials`` (trial files) and ``common``
+(results folder, ``--set`` parser, progress display, accuracy-at-budget reader).
 """

@@ -6,9 +6,12 @@ Each helper draws one figure, writes it and returns the path; none keeps global 
 from __future__ import annotations
 
 from pathlib import Path
+import math
 from typing import Sequence
 
 import numpy as np
+
+from .stats import pareto_front
 
 
 def _plt():
@@ -147,3 +150,244 @@ def heatmap(path: Path, values: np.ndarray, rows: Sequence[str], cols: Sequence[
     ax.set_title(title)
     fig.colorbar(im, ax=ax, fraction=0.04)
     return _save(fig, path)
+
+
+def pareto(path: Path, rows: dict[str, dict], title: str, mark: str | None = None,
+           reference: str = "default", xkey: str = "median_cpu_s") -> Path:
+    """Accuracy (Wilson interval) against decision time (log) per setting; the Pareto front,
+    ``mark`` (e.g. the thesis's setting) and ``reference`` highlighted."""
+    plt = _plt()
+    labels = [k for k, v in rows.items() if not math.isnan(v[xkey])]
+    pts = [(rows[k][xkey], rows[k]["accuracy"]) for k in labels]
+    front = pareto_front(pts)
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for i, k in enumerate(labels):
+        t, a = pts[i]
+        lo, hi = rows[k]["ci95"]
+        color = ("tab:red" if k == mark else "tab:green" if k == reference
+                 else "tab:blue" if i in front else "tab:gray")
+        ax.errorbar([t], [a], yerr=[[a - lo], [hi - a]], fmt="o", color=color, ms=6,
+                    capsize=2, alpha=0.9)
+        ax.annotate(k, (t, a), textcoords="offset points", xytext=(5, 4 - 9 * (i % 3)),
+                    fontsize=7)
+    if front:
+        ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], where="post",
+                color="tab:blue", lw=1, alpha=0.6, label="Pareto front")
+    if mark in labels:
+        ax.plot([], [], "o", color="tab:red", label=f"thesis setting ({mark})")
+    ax.plot([], [], "o", color="tab:green", label=reference)
+    ax.set_xscale("log")
+    ax.set_xlabel("decision time per round, median CPU seconds (log scale; 1 torch thread per "
+                  "process)")
+    ax.set_ylabel("trial accuracy (95 % Wilson interval)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="lower right")
+    return _save(fig, path)
+
+
+def touch_curves(path: Path, curves: dict[str, dict], title: str) -> Path:
+    """Accuracy against total touches, one line per strategy."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for s, c in curves.items():
+        ax.plot(c["touches"], c["accuracy"], marker="o", ms=3, label=s)
+    ax.set_xlabel("total touches (baseline of 5 included)")
+    ax.set_ylabel("trial accuracy")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def faithful(path: Path, summary: dict, title: str, mark: str) -> Path:
+    """Accuracy and median decision time of ``mark`` (red) against the other settings."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(8, 3.6))
+    labels = list(summary)
+    acc = [summary[k]["accuracy_final"] for k in labels]
+    a1.bar(labels, acc, color=["tab:red" if k == mark else "tab:green" for k in labels])
+    for i, k in enumerate(labels):
+        a1.text(i, acc[i] + 0.02, f"{summary[k]['correct']}/{summary[k]['n']}", ha="center")
+    a1.set_ylim(0, 1.1)
+    a1.set_ylabel("trial accuracy")
+    a2.bar(labels, [summary[k]["median_decision_s"] for k in labels],
+           color=["tab:red" if k == mark else "tab:green" for k in labels])
+    a2.set_yscale("log")
+    a2.set_ylabel("median decision time [s]")
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def accuracy_axis(path: Path, axis: str, values: list[float], series: dict[str, list[float]],
+                  threshold: float, title: str) -> Path:
+    """Accuracy of each series along one perturbation axis; failure threshold and chance."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for name, acc in series.items():
+        ax.plot(values, acc, marker="o", ms=4, label=name)
+    ax.axhline(threshold, color="k", ls="--", lw=0.8, label=f"threshold {threshold:g}")
+    ax.axhline(0.25, color="gray", ls=":", lw=0.8, label="chance (4 platforms)")
+    ax.set_xlabel(axis)
+    ax.set_ylabel("trial accuracy")
+    ax.set_ylim(0, 1.05)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def failure_modes(path: Path, rows: list[tuple[str, dict]], title: str) -> Path:
+    """Stacked share of failed trials by mode per condition (``row["modes"]``: {mode: count},
+    the same modes in the same order in every row)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(rows) + 2), 4.5))
+    bottom = np.zeros(len(rows))
+    modes = list(rows[0][1]["modes"])
+    colors = dict(zip(modes, ["black", "tab:red", "tab:purple", "tab:orange", "tab:brown",
+                              "tab:gray"]))
+    for m in modes:
+        v = np.array([r["modes"][m] / max(1, r["n"]) for _, r in rows])
+        ax.bar(range(len(rows)), v, bottom=bottom, color=colors[m], label=m)
+        bottom += v
+    ax.set_xticks(range(len(rows)))
+    ax.set_xticklabels([k for k, _ in rows], rotation=70, fontsize=7)
+    ax.set_ylabel("share of trials that failed, by mode")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def guards(path: Path, rows: list[dict], title: str) -> Path:
+    """Accuracy with guards off and on per (axis, value, strategy)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(rows) + 2), 4))
+    x = np.arange(len(rows))
+    ax.bar(x - 0.2, [r["without"]["accuracy"] for r in rows], 0.4, label="guards off",
+           color="tab:gray")
+    ax.bar(x + 0.2, [r["with"]["accuracy"] for r in rows], 0.4, label="guards on",
+           color="tab:green")
+    ax.set_xticks(x)
+    ax.set_xticklabels([f"{r['axis']}={r['value']:g}\n{r['strategy']}" for r in rows],
+                       fontsize=7)
+    ax.set_ylabel("trial accuracy")
+    ax.set_ylim(0, 1.05)
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def auto_compute(path: Path, values: list[float], rows: dict[str, list[dict]], title: str
+                 ) -> Path:
+    """Accuracy and CPU seconds per trial against difficulty, one line per model."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    for name, blocks in rows.items():
+        a1.plot(values, [b["accuracy"] for b in blocks], marker="o", label=name)
+        a2.plot(values, [b["cpu_per_trial_s"] for b in blocks], marker="o", label=name)
+    a1.set_xlabel("difficulty q")
+    a1.set_ylabel("trial accuracy")
+    a1.set_ylim(0, 1.05)
+    a2.set_xlabel("difficulty q")
+    a2.set_ylabel("CPU seconds per trial (decisions)")
+    a2.set_yscale("log")
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def stop_sweep(path: Path, rows: list[dict], labels: Sequence[str]) -> Path:
+    """Accuracy at the stop against mean touches until the stop, one line per setting over its
+    stop thresholds (``rows``: {"setting", "touches", "accuracy"})."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for lab in labels:
+        mine = [r for r in rows if r["setting"] == lab]
+        ax.plot([r["touches"] for r in mine], [r["accuracy"] for r in mine], marker="o",
+                ms=3, label=lab)
+    ax.set_xlabel("touches after the baseline until the stop (mean)")
+    ax.set_ylabel("accuracy at the stop")
+    ax.set_title("stop threshold sweep (report scenes)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def save_small(fig, path: Path, dpi: int = 80) -> Path:
+    """Write a figure as a 128-colour palette PNG (maps of textures compress badly); closes it."""
+    import io
+
+    from PIL import Image
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    _plt().close(fig)
+    buf.seek(0)
+    Image.open(buf).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
+        path, optimize=True)
+    return path
+
+
+def saliency_panel(ax_row, img: np.ndarray, ixg: np.ndarray, cam: np.ndarray,
+                   titles: tuple[str, str, str] = ("input", "Input x Gradient", "Grad-CAM"),
+                   label: str | None = None) -> None:
+    """Draw one row: input, Input x Gradient (heat map), Grad-CAM overlaid on the input."""
+    ax_row[0].imshow(img)
+    ax_row[1].imshow(ixg, cmap="inferno", vmin=0, vmax=1)
+    ax_row[2].imshow(img)
+    ax_row[2].imshow(cam, cmap="jet", alpha=0.45, vmin=0, vmax=1)
+    for a, t in zip(ax_row, titles):
+        a.set_xticks([])
+        a.set_yticks([])
+        if t:
+            a.set_title(t, fontsize=8)
+    if label:
+        ax_row[0].set_ylabel(label, fontsize=7)
+
+
+def saliency_rows(path: Path, labels: Sequence[str], imgs, ixg, cam, probs,
+                  targets: Sequence[int], title: str) -> Path:
+    """One row per image (N, S, S, 3): input, Input x Gradient, Grad-CAM; the row's label with
+    the probability of its target (and "wrong" when another class wins)."""
+    plt = _plt()
+    n = len(labels)
+    fig, axes = plt.subplots(n, 3, figsize=(5.4, 1.75 * n + 0.5), squeeze=False)
+    for i in range(n):
+        pred = int(np.argmax(probs[i]))
+        saliency_panel(axes[i], imgs[i], ixg[i], cam[i],
+                       titles=("input", "Input x Gradient", "Grad-CAM") if i == 0
+                       else ("", "", ""),
+                       label=f"{labels[i][:18]}\np={probs[i][targets[i]]:.2f}"
+                             f"{'' if pred == targets[i] else ' (wrong)'}")
+    fig.suptitle(title, fontsize=8)
+    return save_small(fig, path)
+
+
+def gradcam_rounds(path: Path, labels: Sequence[str], maps: list[tuple], title: str) -> Path:
+    """Grad-CAM overlays of one image per class (rows) after up to 7 decisions (columns).
+
+    ``maps``: per decision (round, images (N, S, S, 3), ixg, cam (N, S, S), probs (N, N))."""
+    plt = _plt()
+    show = [m for i, m in enumerate(maps) if i % max(1, len(maps) // 6) == 0 or
+            i == len(maps) - 1][:7]
+    fig, axes = plt.subplots(len(labels), len(show) + 1,
+                             figsize=(1.45 * (len(show) + 1), 1.5 * len(labels) + 0.5),
+                             squeeze=False)
+    for i in range(len(labels)):
+        axes[i][0].imshow(show[0][1][i])
+        axes[i][0].set_ylabel(labels[i][:14], fontsize=6)
+        for j, (rnd, imgs, _, cam, probs) in enumerate(show):
+            a = axes[i][j + 1]
+            a.imshow(imgs[i])
+            a.imshow(cam[i], cmap="jet", alpha=0.45, vmin=0, vmax=1)
+            a.set_title(f"r{rnd} p={probs[i][i]:.2f}", fontsize=6)
+        for a in axes[i]:
+            a.set_xticks([])
+            a.set_yticks([])
+    axes[0][0].set_title("input", fontsize=6)
+    fig.suptitle(title, fontsize=8)
+    return save_small(fig, path)

@@ -24,24 +24,24 @@ and ``inception_v3`` (needs ``--weights``; included by default only when given).
 network needs at least 75 px; it runs at ``--inception-input-size`` (default 80). ``--fourier``
 trains on log-magnitude Fourier spectra (``LearnerConfig.fourier``).
 
-Each (model, seed) is one job; jobs run in ``--workers`` processes with one torch thread each.
+Each (model, seed) is one job; jobs run on the job runner (``--workers``, ``--backend``) with
+one torch thread each.
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
-import queue
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from ..core.errors import TactexError
 from . import charts, stats
 from .common import parse_set, results_dir, write_json
-from .runner import default_workers
+from .runner import add_runner_args, backend_of, cached_source, run_parallel
 
 # thesis Table 5.1 (test accuracy)
 THESIS = {"inception_v3": 0.9682, "inception_v3_random": 0.9432, "small_inception": 0.9426}
@@ -108,16 +108,15 @@ def _eval(learner: Any, x: list, y: np.ndarray) -> tuple[np.ndarray, float, floa
     return pred, float(np.mean(pred == y)), loss
 
 
-def run_one(spec: dict, tick: Callable[[], None] | None = None) -> dict:
+def run_one(spec: dict) -> dict:
     """Train and evaluate one (model, seed); ``spec`` is plain data (see ``build_specs``)."""
     import torch
 
     from ..core.config import preset
     from ..core.learner import OnlineLearner
-    from .runner import _source
     torch.set_num_threads(spec["threads"])
     t0 = time.perf_counter()
-    src = _source(spec["source"])
+    src = cached_source(spec["source"])
     classes = spec["classes"]
     if spec["source"].startswith("replay:"):
         data, files = replay_split(src, classes, tuple(spec["replay_split"]), spec["seed"])
@@ -143,8 +142,6 @@ def run_one(spec: dict, tick: Callable[[], None] | None = None) -> dict:
             curves[k].append(float(v))
         if va_acc > best[0]:
             best = (va_acc, epoch, copy.deepcopy(learner.model.state_dict()))
-        if tick:
-            tick()
     last_pred, last_acc, _ = _eval(learner, *evals["test"])
     learner.model.load_state_dict(best[2])
     pred, acc, loss = _eval(learner, *evals["test"])
@@ -156,74 +153,10 @@ def run_one(spec: dict, tick: Callable[[], None] | None = None) -> dict:
             "files": files, "data_s": t_data, "wall_s": time.perf_counter() - t0}
 
 
-# ---------------------------------------------------------------------------------- running
-_QUEUE = None
-
-
-def _init_worker(q) -> None:
-    global _QUEUE
-    _QUEUE = q
-
-
-def _worker(spec: dict) -> dict:
-    return run_one(spec, (lambda: _QUEUE.put(1)) if _QUEUE is not None else None)
-
-
-def run_specs(specs: list[dict], workers: int, quiet: bool) -> list[dict]:
-    """Run the jobs (in processes when workers > 1), with a progress bar over epochs."""
-    total = sum(s["epochs"] for s in specs)
-    bar = _Bar(total, "classify (epochs)", quiet)
-    try:
-        if workers == 1:
-            return [run_one(s, bar.advance) for s in specs]
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-        ctx = mp.get_context("spawn")
-        manager = ctx.Manager()
-        q = manager.Queue()
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                                 initargs=(q,)) as pool:
-            futs = [pool.submit(_worker, s) for s in specs]
-            while not all(f.done() for f in futs):
-                try:
-                    q.get(timeout=0.5)
-                    bar.advance()
-                except queue.Empty:
-                    pass
-            out = [f.result() for f in futs]
-        manager.shutdown()
-        return out
-    finally:
-        bar.close()
-
-
-class _Bar:
-    def __init__(self, total: int, description: str, quiet: bool) -> None:
-        self.p = None
-        if not quiet:
-            from rich.console import Console
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                       TimeElapsedColumn, TimeRemainingColumn)
-            self.p = Progress(TextColumn("{task.description}"), BarColumn(),
-                              MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn(),
-                              console=Console(stderr=True))
-            self.p.start()
-            self.task = self.p.add_task(description, total=total)
-
-    def advance(self) -> None:
-        if self.p:
-            self.p.advance(self.task)
-
-    def close(self) -> None:
-        if self.p:
-            self.p.stop()
-
-
 def build_specs(args: argparse.Namespace) -> tuple[list[dict], list[str], dict]:
     from ..core.config import preset
     from ..core.models import MODEL_NAMES
-    from .runner import _source
-    src = _source(args.source)
+    src = cached_source(args.source)
     all_classes = list(src.classes)
     if args.classes:
         want = [c.strip() for c in args.classes.split(",") if c.strip()]
@@ -330,18 +263,20 @@ def figures(outdir: Path, summary: dict) -> list[str]:
 def cmd(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     specs, classes, sizes = build_specs(args)
-    workers = min(len(specs), args.workers or default_workers())
+    backend = backend_of(args).resolved()
+    workers = min(len(specs), backend.workers)   # 0 (ray): every CPU of the cluster
     config = {"source": args.source, "classes": classes, "models": list(sizes),
               "input_sizes": sizes, "seeds": args.seeds, "epochs": args.epochs,
               "split": {"train": args.train, "val": args.val, "test": args.test}
               if not args.source.startswith("replay:") else {"replay_split": args.replay_split},
               "preset": args.config, "overrides": specs[0]["overrides"] if specs else {},
-              "fourier": args.fourier, "weights": args.weights, "workers": workers}
+              "fourier": args.fourier, "weights": args.weights, "workers": workers,
+              "backend": backend.name}
     outdir = results_dir(args.out, "classify", config)
     if not args.quiet:
         print(f"classify: {len(classes)} classes, models {', '.join(sizes)}, seeds "
               f"{args.seeds}, {args.epochs} epochs, {workers} workers -> {outdir}", flush=True)
-    results = run_specs(specs, workers, args.quiet)
+    results = run_parallel(run_one, specs, backend, "classify (model x seed)", args.quiet)
     summary = summarise(results, classes)
     doc = {"experiment": "classify", "settings": config, "models": summary,
            "thesis_reference": THESIS, "wall_s": time.perf_counter() - t0,
@@ -382,8 +317,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fourier", action="store_true", help="train on Fourier spectra")
     p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="learner override")
-    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
-    p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
     p.add_argument("--out", help="results folder (default results/classify)")
-    p.add_argument("--quiet", action="store_true")
+    add_runner_args(p)
     p.set_defaults(func=cmd)

@@ -1,4 +1,5 @@
-"""Shared experiment plumbing: results folder, reproducibility record, progress bars."""
+"""Shared experiment plumbing: results folder, reproducibility record, progress display, the
+``--set`` parser and the accuracy-at-budget reader."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable, Iterator, TypeVar
+from typing import Any, Iterable, Iterator, Sequence, TypeVar
 
 import numpy as np
 
@@ -116,3 +117,32 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
         for it in items:
             yield it
             bar.advance(task)
+
+
+def budget_index(counts: Sequence[int], k: int) -> int:
+    """Which decision a run capped at ``k`` touches ends with, from the touch counts at which the
+    full run made its decisions (non-decreasing): the first made with ``>= k`` touches, or the
+    last one when the run ended first. -1 for no decisions.
+
+    A capped run is, touch for touch, the full run until it reaches ``k`` touches, where it
+    makes its final decision."""
+    for i, n in enumerate(counts):
+        if n >= k:
+            return i
+    return len(counts) - 1
+
+
+def decision_at_budget(decisions: Sequence[dict], k: int) -> dict:
+    """The decision (``{"total": touches, ...}``) a run capped at ``k`` total touches ends with
+    (see ``budget_index``); ``decisions`` must not be empty."""
+    if not decisions:
+        raise ValueError("no decisions to read a budget from")
+    return decisions[budget_index([d["total"] for d in decisions], k)]
+
+
+def correct_at(decisions: Sequence[dict], truth: int, k: int) -> bool:
+    """Was the decision a run capped at ``k`` total touches ends with right (argmax of its
+    ``probs`` is comparison ``truth``, 1..C)? False for no decisions."""
+    if not decisions:
+        return False
+    return int(np.argmax(decision_at_budget(decisions, k)["probs"])) + 1 == truth

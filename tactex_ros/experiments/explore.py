@@ -2,7 +2,8 @@
 
 Every trial of a trial file (default ``config/trials/human_study.yaml``, the thesis's 32 trials)
 runs once per strategy x model x seed, ``--rounds`` decisions after the baseline (thesis: 20).
-Jobs run in ``--workers`` processes (``runner.run_jobs``), one torch thread each.
+Jobs run on the job runner (``runner.run_jobs``: ``--workers``, ``--backend joblib|ray``), one
+torch thread each.
 
 Seeds: a job's seed is ``1000 * seed + trial position`` — the same for every strategy and model,
 so strategies are compared on the same presses and initial weights (paired), and different trials
@@ -31,8 +32,8 @@ import numpy as np
 
 from ..core.errors import TactexError
 from . import charts, stats
-from .common import parse_set, results_dir, write_json
-from .runner import TrialJob, default_workers, run_jobs
+from .common import correct_at, parse_set, results_dir, write_json
+from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from .trials import find_trial_file, load_trials, platform_classes
 
 STRATEGIES_DEFAULT = ["variance", "entropy", "random", "yoto"]
@@ -43,14 +44,6 @@ THESIS_MATCHED = {"humans": 0.6688, "variance": 0.9000, "entropy": 0.8813, "rand
 
 
 # ---------------------------------------------------------------------------------- helpers
-def decision_at_budget(decisions: list[dict], k: int) -> dict:
-    """The decision a run capped at ``k`` total touches would have ended with (see module doc)."""
-    for d in decisions:
-        if d["total"] >= k:
-            return d
-    return decisions[-1]
-
-
 def compact(res: dict) -> dict:
     """A runner result -> the record kept in runs.json."""
     job = res["job"]
@@ -73,8 +66,7 @@ def build_jobs(trials: list[dict], source: str, strategies: list[str], models: l
                seeds: list[int], rounds: int, preset_name: str, overrides: dict[str, Any],
                weights: str | None) -> list[TrialJob]:
     from ..core.config import preset
-    from .runner import _source
-    src = _source(source)
+    src = cached_source(source)
     jobs = []
     for model in models:
         over = dict(overrides, model=model)
@@ -96,6 +88,68 @@ def build_jobs(trials: list[dict], source: str, strategies: list[str], models: l
 
 
 # ---------------------------------------------------------------------------------- summary
+def _acc_block(correct: list[bool], seeds_of: list[int]) -> dict:
+    """Accuracy of paired runs, its spread over seeds and over runs, Wilson interval."""
+    c = np.asarray(correct, dtype=float)
+    per_seed = [float(c[np.asarray(seeds_of) == s].mean()) for s in sorted(set(seeds_of))]
+    lo, hi = stats.wilson(int(c.sum()), c.size)
+    return {"accuracy": float(c.mean()) if c.size else float("nan"),
+            "std_over_seeds": stats.mean_std(per_seed)["std"],
+            "std_over_trials_and_seeds": float(c.std(ddof=1)) if c.size > 1 else 0.0,
+            "ci95": [lo, hi], "correct": int(c.sum()), "n": int(c.size)}
+
+
+def _budget_block(runs_s: list[dict], budgets: list[int]) -> tuple[dict, list[float]]:
+    """Accuracy at every budget and at the matched budget (mean correctness over the budgets);
+    also the per-run matched correctness (for the paired tests)."""
+    seeds_of = [r["seed"] for r in runs_s]
+    per_k = {}
+    matched = np.zeros(len(runs_s))
+    for k in budgets:
+        ck = [correct_at(r["decisions"], r["truth"], k) for r in runs_s]
+        per_k[str(k)] = _acc_block(ck, seeds_of)
+        matched += np.asarray(ck, dtype=float)
+    matched /= max(1, len(budgets))
+    per_seed = [float(matched[np.asarray(seeds_of) == sd].mean())
+                for sd in sorted(set(seeds_of))]
+    block = {"per_budget": per_k, "matched": {
+        "accuracy": float(matched.mean()) if matched.size else float("nan"),
+        "std_over_seeds": stats.mean_std(per_seed)["std"],
+        "std_over_trials_and_seeds": float(matched.std(ddof=1)) if matched.size > 1
+        else 0.0, "budgets": budgets, "n": int(matched.size)}}
+    return block, matched.tolist()
+
+
+def _curves(runs_s: list[dict]) -> dict:
+    """Mean accuracy, entropy, p(true match) and touches per decision over the runs."""
+    n_dec = min(len(r["decisions"]) for r in runs_s)
+    acc_r = np.array([[np.argmax(r["decisions"][j]["probs"]) + 1 == r["truth"]
+                       for j in range(n_dec)] for r in runs_s], dtype=float)
+    ent_r = np.array([[r["decisions"][j]["entropy"] for j in range(n_dec)] for r in runs_s])
+    ptrue = np.array([[r["decisions"][j]["probs"][r["truth"] - 1] for j in range(n_dec)]
+                      for r in runs_s])
+    tot = np.array([[r["decisions"][j]["total"] for j in range(n_dec)] for r in runs_s])
+    return {"decision": list(range(1, n_dec + 1)), "accuracy": acc_r.mean(0).tolist(),
+            "entropy_mean": ent_r.mean(0).tolist(), "entropy_std": ent_r.std(0).tolist(),
+            "p_true_mean": ptrue.mean(0).tolist(), "touches_mean": tot.mean(0).tolist()}
+
+
+def _paired_tests(by_s: dict[str, list[dict]], matched: dict[str, list[float]],
+                  budgets: list[int]) -> dict:
+    strategies = list(by_s)
+    return {
+        "fixed_rounds": stats.pairwise_tests({s: [r["correct"] for r in by_s[s]]
+                                              for s in strategies}, "mcnemar"),
+        "matched_budget": stats.pairwise_tests(matched, "wilcoxon"),
+        "per_budget": {str(k): stats.pairwise_tests(
+            {s: [correct_at(r["decisions"], r["truth"], k) for r in by_s[s]]
+             for s in strategies}, "mcnemar") for k in budgets},
+        "note": "pairs are (trial, seed); fixed rounds and each budget: exact McNemar on "
+                "correct/incorrect; matched budget (mean correctness over the budgets): "
+                "Wilcoxon signed-rank; p_holm: Holm-adjusted over the strategy pairs",
+    }
+
+
 def summarise(runs: list[dict], strategies: list[str], budgets: list[int],
               trial_ids: list[str]) -> dict:
     """Accuracies, curves, per-trial table, confusions and paired tests per model."""
@@ -109,52 +163,12 @@ def summarise(runs: list[dict], strategies: list[str], budgets: list[int],
         keys = {s: [(r["trial"], r["seed"]) for r in by_s[s]] for s in strategies}
         if len({tuple(k) for k in keys.values()}) > 1:
             raise TactexError("strategies ran on different trials/seeds; cannot pair them")
-
-        def acc_block(correct: list[bool], seeds_of: list[int]) -> dict:
-            c = np.asarray(correct, dtype=float)
-            per_seed = [float(c[np.asarray(seeds_of) == s].mean()) for s in sorted(set(seeds_of))]
-            lo, hi = stats.wilson(int(c.sum()), c.size)
-            return {"accuracy": float(c.mean()) if c.size else float("nan"),
-                    "std_over_seeds": stats.mean_std(per_seed)["std"],
-                    "std_over_trials_and_seeds": float(c.std(ddof=1)) if c.size > 1 else 0.0,
-                    "ci95": [lo, hi], "correct": int(c.sum()), "n": int(c.size)}
-
-        fixed, budget, curves, per_trial, conf, shares = {}, {}, {}, {}, {}, {}
+        fixed, budget, matched, curves, per_trial, conf, shares = {}, {}, {}, {}, {}, {}, {}
         fabrics = sorted({c for r in rr for c in r["classes"][1:]})
-        for s in strategies:
-            runs_s = by_s[s]
-            seeds_of = [r["seed"] for r in runs_s]
-            fixed[s] = acc_block([r["correct"] for r in runs_s], seeds_of)
-            per_k = {}
-            matched = np.zeros(len(runs_s))
-            for k in budgets:
-                ck = [int(np.argmax(decision_at_budget(r["decisions"], k)["probs"])) + 1
-                      == r["truth"] for r in runs_s]
-                per_k[str(k)] = acc_block(ck, seeds_of)
-                matched += np.asarray(ck, dtype=float)
-            matched /= max(1, len(budgets))
-            per_seed = [float(matched[np.asarray(seeds_of) == sd].mean())
-                        for sd in sorted(set(seeds_of))]
-            budget[s] = {"per_budget": per_k, "matched": {
-                "accuracy": float(matched.mean()) if matched.size else float("nan"),
-                "std_over_seeds": stats.mean_std(per_seed)["std"],
-                "std_over_trials_and_seeds": float(matched.std(ddof=1)) if matched.size > 1
-                else 0.0, "budgets": budgets, "n": int(matched.size)}}
-            budget[s]["_matched_vector"] = matched.tolist()
-            n_dec = min(len(r["decisions"]) for r in runs_s)
-            acc_r = np.array([[np.argmax(r["decisions"][j]["probs"]) + 1 == r["truth"]
-                               for j in range(n_dec)] for r in runs_s], dtype=float)
-            ent_r = np.array([[r["decisions"][j]["entropy"] for j in range(n_dec)]
-                              for r in runs_s])
-            ptrue = np.array([[r["decisions"][j]["probs"][r["truth"] - 1] for j in range(n_dec)]
-                              for r in runs_s])
-            tot = np.array([[r["decisions"][j]["total"] for j in range(n_dec)] for r in runs_s])
-            curves[s] = {"decision": list(range(1, n_dec + 1)),
-                         "accuracy": acc_r.mean(0).tolist(),
-                         "entropy_mean": ent_r.mean(0).tolist(),
-                         "entropy_std": ent_r.std(0).tolist(),
-                         "p_true_mean": ptrue.mean(0).tolist(),
-                         "touches_mean": tot.mean(0).tolist()}
+        for s, runs_s in by_s.items():
+            fixed[s] = _acc_block([r["correct"] for r in runs_s], [r["seed"] for r in runs_s])
+            budget[s], matched[s] = _budget_block(runs_s, budgets)
+            curves[s] = _curves(runs_s)
             per_trial[s] = {t: float(np.mean([r["correct"] for r in runs_s if r["trial"] == t]))
                             for t in trial_ids if any(r["trial"] == t for r in runs_s)}
             truth_f = [r["classes"][0] for r in runs_s]
@@ -165,21 +179,7 @@ def summarise(runs: list[dict], strategies: list[str], budgets: list[int],
             sh = [r["final_touches"][r["truth"] - 1] / max(1, sum(r["final_touches"]))
                   for r in runs_s]
             shares[s] = stats.mean_std(sh)
-        tests = {
-            "fixed_rounds": stats.pairwise_tests({s: [r["correct"] for r in by_s[s]]
-                                                  for s in strategies}, "mcnemar"),
-            "matched_budget": stats.pairwise_tests({s: budget[s]["_matched_vector"]
-                                                    for s in strategies}, "wilcoxon"),
-            "per_budget": {str(k): stats.pairwise_tests(
-                {s: [int(np.argmax(decision_at_budget(r["decisions"], k)["probs"])) + 1
-                     == r["truth"] for r in by_s[s]] for s in strategies}, "mcnemar")
-                for k in budgets},
-            "note": "pairs are (trial, seed); fixed rounds and each budget: exact McNemar on "
-                    "correct/incorrect; matched budget (mean correctness over the budgets): "
-                    "Wilcoxon signed-rank; p_holm: Holm-adjusted over the strategy pairs",
-        }
-        for s in strategies:
-            budget[s].pop("_matched_vector")
+        tests = _paired_tests(by_s, matched, budgets)
         out[model] = {"fixed_rounds": fixed, "budget": budget, "curves": curves,
                       "per_trial": per_trial, "confusion": conf, "tests": tests,
                       "touch_share_on_match": shares,
@@ -260,18 +260,19 @@ def run(args: argparse.Namespace) -> dict:
     overrides = parse_set(args.set)
     jobs = build_jobs(trials, args.source, args.strategies, args.models, args.seeds,
                       args.rounds, args.config, overrides, args.weights)
-    workers = args.workers or default_workers()
+    backend = backend_of(args).resolved()
+    workers = backend.workers
     config = {"trial_file": tf["path"], "trials": [t["id"] for t in trials],
               "source": args.source, "strategies": args.strategies, "models": args.models,
               "seeds": args.seeds, "rounds": args.rounds, "budgets": budgets,
               "preset": args.config, "overrides": overrides, "weights": args.weights,
-              "workers": workers, "jobs": len(jobs)}
+              "workers": workers, "backend": backend.name, "jobs": len(jobs)}
     outdir = results_dir(args.out, "explore", config)
     if not args.quiet:
         print(f"explore: {len(trials)} trials x {len(args.strategies)} strategies x "
               f"{len(args.models)} models x {len(args.seeds)} seeds = {len(jobs)} trials, "
               f"{workers} workers -> {outdir}", flush=True)
-    results = run_jobs(jobs, workers=workers, threads=args.threads, description="explore",
+    results = run_jobs(jobs, backend, threads=args.threads, description="explore",
                        quiet=args.quiet)
     runs = [compact(r) for r in results]
     write_json(outdir / "runs.json", runs)
@@ -336,8 +337,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="learner override, e.g. --set input_size=32 (repeatable)")
-    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
-    p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
     p.add_argument("--out", help="results folder (default results/explore)")
-    p.add_argument("--quiet", action="store_true")
+    add_runner_args(p)
     p.set_defaults(func=cmd)

@@ -14,7 +14,7 @@ Computed:
   the test sample), so including it would measure that design choice, not where attention goes.
   The robot's counterpart is its touches per comparison platform, normalised — at the end of
   the run (``final``) and, as a second view, at the decision where its total touches equal the
-  person's number of visits (``matched``; see ``explore.decision_at_budget``).
+  person's number of visits (``matched``; see ``common.decision_at_budget``).
 - Jensen–Shannon distance (base 2, in [0, 1]) between those distributions: human–human (every
   pair of participants who did the trial) and human–robot per strategy (every participant x
   robot seed), averaged per trial, then over trials (trials that both sides ran).
@@ -31,26 +31,44 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..core.errors import TactexError
-from ..paths import config_dir
+from ..paths import config_file, read_yaml
 from . import charts, stats
-from .common import results_dir, write_json
-from .explore import decision_at_budget
+from .common import decision_at_budget, results_dir, write_json
 from .trials import find_trial_file, load_trials, platform_classes
 
 
 def find_humans_file(spec: str | None) -> Path:
-    spec = spec or "example"
-    p = Path(spec)
-    if p.is_file():
-        return p
-    for cand in (config_dir() / "humans" / spec, config_dir() / "humans" / f"{spec}.yaml"):
-        if cand.is_file():
-            return cand
-    raise TactexError(f"human trial file {spec!r} not found (a path, or a name in "
-                      f"{config_dir() / 'humans'})")
+    """A path, or a name under ``config/humans`` (``example`` = the default)."""
+    return config_file(spec or "example", "humans", "human trial file")
+
+
+def _record(e: dict, pid: str, tid: str, trial: dict, where: str) -> dict:
+    """One participant's trial: answer and visits checked, time per comparison summed [s]."""
+    C = len(trial["comparisons"])
+    ans = e["answer"]
+    if not isinstance(ans, int) or isinstance(ans, bool) or not 1 <= ans <= C:
+        raise TactexError(f"{where}: answer {ans!r} must be a platform 1..{C}")
+    time_c = np.zeros(C)
+    ref_s = 0.0
+    visits = []
+    if not isinstance(e["visits"], list) or not e["visits"]:
+        raise TactexError(f"{where}: visits must be a non-empty list of [platform, seconds]")
+    for v in e["visits"]:
+        if (not isinstance(v, (list, tuple)) or len(v) != 2 or
+                not isinstance(v[0], int) or not 0 <= v[0] <= C or
+                not isinstance(v[1], (int, float)) or v[1] < 0):
+            raise TactexError(f"{where}: visit {v!r} must be [platform 0..{C}, seconds >= 0]")
+        visits.append((int(v[0]), float(v[1])))
+        if v[0] == 0:
+            ref_s += float(v[1])
+        else:
+            time_c[v[0] - 1] += float(v[1])
+    truth = trial["comparisons"].index(trial["reference"]) + 1
+    return {"participant": pid, "trial": tid, "visits": visits, "answer": ans,
+            "time": time_c.tolist(), "reference_s": ref_s, "n_visits": len(visits),
+            "truth": truth, "correct": ans == truth}
 
 
 def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, Any]:
@@ -60,10 +78,7 @@ def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, An
     visits: [(platform, seconds)], answer, time (C,), reference_s, n_visits, truth}, ...]}.
     """
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise TactexError(f"human trial file {path}: {exc}") from None
+    doc = read_yaml(path, "human trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("participants"), list):
         raise TactexError(f"human trial file {path}: needs a list 'participants'")
     tf = load_trials(find_trial_file(trial_file or doc.get("trial_file")))
@@ -90,33 +105,7 @@ def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, An
             if tid in done:
                 raise TactexError(f"{where}: listed twice")
             done.add(tid)
-            C = len(trials[tid]["comparisons"])
-            ans = e["answer"]
-            if not isinstance(ans, int) or isinstance(ans, bool) or not 1 <= ans <= C:
-                raise TactexError(f"{where}: answer {ans!r} must be a platform 1..{C}")
-            time_c = np.zeros(C)
-            ref_s = 0.0
-            visits = []
-            if not isinstance(e["visits"], list) or not e["visits"]:
-                raise TactexError(f"{where}: visits must be a non-empty list of "
-                                  "[platform, seconds]")
-            for v in e["visits"]:
-                if (not isinstance(v, (list, tuple)) or len(v) != 2 or
-                        not isinstance(v[0], int) or not 0 <= v[0] <= C or
-                        not isinstance(v[1], (int, float)) or v[1] < 0):
-                    raise TactexError(f"{where}: visit {v!r} must be [platform 0..{C}, "
-                                      "seconds >= 0]")
-                visits.append((int(v[0]), float(v[1])))
-                if v[0] == 0:
-                    ref_s += float(v[1])
-                else:
-                    time_c[v[0] - 1] += float(v[1])
-            t = trials[tid]
-            records.append({"participant": pid, "trial": tid, "visits": visits, "answer": ans,
-                            "time": time_c.tolist(), "reference_s": ref_s,
-                            "n_visits": len(visits),
-                            "truth": t["comparisons"].index(t["reference"]) + 1,
-                            "correct": ans == t["comparisons"].index(t["reference"]) + 1})
+            records.append(_record(e, pid, tid, trials[tid], where))
     if not records:
         raise TactexError(f"{path}: no human trials")
     return {"path": str(path), "trial_file": tf, "records": records}
@@ -142,10 +131,61 @@ def _mean(xs: list[float]) -> float:
     return float(np.mean(xs)) if xs else float("nan")
 
 
+def _robot_js(rob: list[dict], recs: list[dict], strategies: list[str], h_trials: list[str],
+              kind: str) -> dict:
+    """Per strategy: JS distance of each person's time to the robot's touches per comparison,
+    averaged per trial and over trials; the robot's touches at the end of its run (``final``)
+    or at the decision with the person's number of visits (``matched``)."""
+    per_s = {}
+    for s in strategies:
+        per_t = {}
+        for t in h_trials:
+            rr = [r for r in rob if r["strategy"] == s and r["trial"] == t]
+            if not rr:
+                continue
+            d = []
+            for h in (r for r in recs if r["trial"] == t):
+                for r in rr:
+                    tc = (r["final_touches"] if kind == "final" else
+                          decision_at_budget(r["decisions"], h["n_visits"])["touches"])
+                    d.append(stats.js_distance(h["time"], tc))
+            per_t[t] = _mean(d)
+        per_s[s] = {"per_trial": per_t, "mean": _mean(list(per_t.values())),
+                    "std": stats.mean_std(per_t.values())["std"]}
+    return per_s
+
+
+def _compare_robot(out: dict, js: dict, recs: list[dict], robot: list[dict],
+                   model: str | None, tids: list[str], h_trials: list[str],
+                   hh: dict[str, float]) -> None:
+    """Add the robot's runs of ``model`` (default: the first) to ``out`` and ``js``."""
+    models = sorted({r["model"] for r in robot})
+    model = model or models[0]
+    if model not in models:
+        raise TactexError(f"--model {model!r} not in the robot runs ({', '.join(models)})")
+    rob = [r for r in robot if r["model"] == model]
+    strategies = list(dict.fromkeys(r["strategy"] for r in rob))
+    out["robot"] = {"model": model, "strategies": strategies,
+                    "trials": sorted({r["trial"] for r in rob}, key=tids.index)}
+    for kind in ("final", "matched"):
+        js[f"human_robot_{kind}"] = _robot_js(rob, recs, strategies, h_trials, kind)
+    common = [t for t in hh if t in js["human_robot_final"][strategies[0]]["per_trial"]]
+    js["human_human_on_robot_trials"] = _mean([hh[t] for t in common])
+    mt = {}
+    for s in strategies:
+        rr = [r for r in rob if r["strategy"] == s]
+        mt[s] = _mean([stats.tie_share(r["final_touches"], r["prediction"] - 1) for r in rr])
+    out["most_touched_is_answer"]["robot"] = mt
+    out["robot"]["accuracy"] = {s: _mean([float(r["correct"]) for r in rob
+                                          if r["strategy"] == s]) for s in strategies}
+
+
 def analyse(humans: dict, robot: list[dict] | None, source: str = "sim",
             model: str | None = None) -> dict:
-    from .runner import _source
-    src = _source(source)
+    """Humans' accuracy, confusion, visits, JS distances of their time per comparison among
+    themselves and (with ``robot`` runs) to the robot's touches; most-touched = answer."""
+    from .runner import cached_source
+    src = cached_source(source)
     tf = humans["trial_file"]
     tids = [t["id"] for t in tf["trials"]]
     classes = {t["id"]: platform_classes(src, t) for t in tf["trials"]}
@@ -187,43 +227,8 @@ def analyse(humans: dict, robot: list[dict] | None, source: str = "sim",
     js: dict[str, Any] = {"human_human": {"per_trial": hh, "mean": _mean(list(hh.values())),
                                           "std": stats.mean_std(hh.values())["std"]}}
 
-    # ---- robot
     if robot:
-        models = sorted({r["model"] for r in robot})
-        model = model or models[0]
-        if model not in models:
-            raise TactexError(f"--model {model!r} not in the robot runs ({', '.join(models)})")
-        rob = [r for r in robot if r["model"] == model]
-        strategies = list(dict.fromkeys(r["strategy"] for r in rob))
-        out["robot"] = {"model": model, "strategies": strategies,
-                        "trials": sorted({r["trial"] for r in rob}, key=tids.index)}
-        for kind in ("final", "matched"):
-            per_s = {}
-            for s in strategies:
-                per_t = {}
-                for t in h_trials:
-                    rr = [r for r in rob if r["strategy"] == s and r["trial"] == t]
-                    if not rr:
-                        continue
-                    d = []
-                    for h in (r for r in recs if r["trial"] == t):
-                        for r in rr:
-                            tc = (r["final_touches"] if kind == "final" else
-                                  decision_at_budget(r["decisions"], h["n_visits"])["touches"])
-                            d.append(stats.js_distance(h["time"], tc))
-                    per_t[t] = _mean(d)
-                per_s[s] = {"per_trial": per_t, "mean": _mean(list(per_t.values())),
-                            "std": stats.mean_std(per_t.values())["std"]}
-            js[f"human_robot_{kind}"] = per_s
-        common = [t for t in hh if t in js["human_robot_final"][strategies[0]]["per_trial"]]
-        js["human_human_on_robot_trials"] = _mean([hh[t] for t in common])
-        mt = {}
-        for s in strategies:
-            rr = [r for r in rob if r["strategy"] == s]
-            mt[s] = _mean([stats.tie_share(r["final_touches"], r["prediction"] - 1) for r in rr])
-        out["most_touched_is_answer"]["robot"] = mt
-        out["robot"]["accuracy"] = {s: _mean([float(r["correct"]) for r in rob
-                                              if r["strategy"] == s]) for s in strategies}
+        _compare_robot(out, js, recs, robot, model, tids, h_trials, hh)
     out["js_distance"] = js
     out["notes"] = {
         "distribution": "time (humans) or touches (robot) per comparison platform, normalised;"

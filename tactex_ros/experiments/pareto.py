@@ -13,8 +13,8 @@ Parts (each can be switched off; all write into one results folder):
   Heavy settings (``seed_faithful``: 299 px, 10 epochs per round; the full Inception v3) run on the
   first ``--heavy-trials`` trials only, and their accuracy is compared with the default's on
   exactly those trials and seeds.
-- **faithful**: seed-faithful against the default on ``--faithful-source`` (default: the replayed
-  octopi-dev presses), ``--faithful-trials`` scenes drawn from seeds 0..N-1, ``--faithful-rounds``
+- **faithful**: seed-faithful against the default on ``--faithful-source`` (e.g. the replayed
+  octopi-dev presses: ``replay:../shared/datasets/octopi-dev``; needed for this part), ``--faithful-trials`` scenes drawn from seeds 0..N-1, ``--faithful-rounds``
   rounds, variance strategy: accuracy and time, paired.
 - **touches**: accuracy against the number of touches for every strategy of ``--strategies`` with
   the default setting, ``--touch-rounds`` rounds, read at every budget from one run per trial
@@ -28,7 +28,6 @@ thesis's setting marked), ``pareto_heavy.png`` (the heavy subset), ``touches.png
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from pathlib import Path
 from typing import Any
@@ -36,12 +35,11 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from .common import parse_set, results_dir, write_json
-from .runner import TrialJob, default_workers, run_jobs
+from . import charts
+from .common import correct_at, parse_set, results_dir, write_json
+from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from .stats import mcnemar_exact as mcnemar
-from .stats import wilson
-
-OCTOPI = "/work/shared/datasets/octopi-dev"
+from .stats import pareto_front, wilson
 
 # The settings are spelled out in full around the pre-issue-5 default ("base": 64 px, 12 Adam
 # steps of 32 per round, 20 MC passes, BN recalibration on 64 views) so the grid does not move
@@ -121,9 +119,10 @@ def run_cached(jobs: list[TrialJob], args, description: str) -> list[dict]:
             todo.append(i)
     # with a cache, run in chunks so finished jobs are stored as they come
     step = len(todo) if cache is None else max(16, 6 * args.workers)
+    backend = backend_of(args)
     for c0 in range(0, len(todo), max(1, step)):
         chunk = todo[c0:c0 + step]
-        res = run_jobs([jobs[i] for i in chunk], workers=args.workers, threads=args.threads,
+        res = run_jobs([jobs[i] for i in chunk], backend, threads=args.threads,
                        description=f"{description}: {c0 + len(chunk)}/{len(todo)} to run, "
                                    f"{len(jobs) - len(todo)} cached", quiet=args.quiet)
         for i, r in zip(chunk, res):
@@ -145,14 +144,6 @@ def decisions_of(res: dict) -> list[dict]:
     return out
 
 
-def correct_at(decisions: list[dict], truth: int, k: int) -> bool:
-    """Was the decision a run capped at ``k`` total touches would end with right?"""
-    if not decisions:
-        return False
-    d = next((d for d in decisions if d["total"] >= k), decisions[-1])
-    return int(np.argmax(d["probs"])) + 1 == truth
-
-
 def compact(res: dict) -> dict:
     job = res["job"]
     return {"setting": job["tags"].get("setting"), "trial": job["trial_id"],
@@ -161,17 +152,6 @@ def compact(res: dict) -> dict:
             "correct": bool(res["correct"]), "error": res.get("error"),
             "decisions": decisions_of(res), "wall_s": res["wall_s"],
             "failed_touches": len(res["failed_touches"])}
-
-
-def pareto_front(points: list[tuple[float, float]]) -> list[int]:
-    """Indices of the points no other point beats (<= time and >= accuracy, one strictly)."""
-    front = []
-    for i, (t, a) in enumerate(points):
-        dominated = any((t2 <= t and a2 >= a and (t2 < t or a2 > a))
-                        for j, (t2, a2) in enumerate(points) if j != i)
-        if not dominated:
-            front.append(i)
-    return sorted(front, key=lambda i: points[i][0])
 
 
 def summarise_setting(runs: list[dict], budget: int) -> dict:
@@ -199,93 +179,32 @@ def summarise_setting(runs: list[dict], budget: int) -> dict:
             "models": sorted({d["model"] for r in runs for d in r["decisions"]})}
 
 
-# ------------------------------------------------------------------------------ figures
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def plot_pareto(path: Path, rows: dict[str, dict], title: str, mark: str | None = THESIS_LABEL,
-                reference: str = "default", xkey: str = "median_cpu_s") -> Path:
-    plt = _plt()
-    labels = [k for k, v in rows.items() if not math.isnan(v[xkey])]
-    pts = [(rows[k][xkey], rows[k]["accuracy"]) for k in labels]
-    front = pareto_front(pts)
-    fig, ax = plt.subplots(figsize=(7.5, 5))
-    for i, k in enumerate(labels):
-        t, a = pts[i]
-        lo, hi = rows[k]["ci95"]
-        color = ("tab:red" if k == mark else "tab:green" if k == reference
-                 else "tab:blue" if i in front else "tab:gray")
-        ax.errorbar([t], [a], yerr=[[a - lo], [hi - a]], fmt="o", color=color, ms=6,
-                    capsize=2, alpha=0.9)
-        ax.annotate(k, (t, a), textcoords="offset points", xytext=(5, 4 - 9 * (i % 3)),
-                    fontsize=7)
-    if front:
-        ax.step([pts[i][0] for i in front], [pts[i][1] for i in front], where="post",
-                color="tab:blue", lw=1, alpha=0.6, label="Pareto front")
-    if mark in labels:
-        ax.plot([], [], "o", color="tab:red", label=f"thesis setting ({mark})")
-    ax.plot([], [], "o", color="tab:green", label=reference)
-    ax.set_xscale("log")
-    ax.set_xlabel("decision time per round, median CPU seconds (log scale; 1 torch thread per "
-                  "process)")
-    ax.set_ylabel("trial accuracy (95 % Wilson interval)")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_touches(path: Path, curves: dict[str, dict], title: str) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for s, c in curves.items():
-        ax.plot(c["touches"], c["accuracy"], marker="o", ms=3, label=s)
-    ax.set_xlabel("total touches (baseline of 5 included)")
-    ax.set_ylabel("trial accuracy")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_faithful(path: Path, summary: dict, title: str) -> Path:
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(8, 3.6))
-    labels = list(summary)
-    acc = [summary[k]["accuracy_final"] for k in labels]
-    a1.bar(labels, acc, color=["tab:red" if k == THESIS_LABEL else "tab:green" for k in labels])
-    for i, k in enumerate(labels):
-        a1.text(i, acc[i] + 0.02, f"{summary[k]['correct']}/{summary[k]['n']}", ha="center")
-    a1.set_ylim(0, 1.1)
-    a1.set_ylabel("trial accuracy")
-    a2.bar(labels, [summary[k]["median_decision_s"] for k in labels],
-           color=["tab:red" if k == THESIS_LABEL else "tab:green" for k in labels])
-    a2.set_yscale("log")
-    a2.set_ylabel("median decision time [s]")
-    fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 # ------------------------------------------------------------------------------ parts
 def _trial_scenes(trials_file: str, source: str) -> list[tuple[str, list[str]]]:
-    from .runner import _source
     from .trials import find_trial_file, load_trials, platform_classes
     doc = load_trials(find_trial_file(trials_file))
-    src = _source(source)
+    src = cached_source(source)
     return [(t["id"], platform_classes(src, t)) for t in doc["trials"]]
+
+
+def _grid_jobs(args, grid: list[tuple], scenes: list[tuple], heavy_n: int,
+               heavy_seeds: list[int]) -> list[TrialJob]:
+    """Every (seed, scene, setting) of the grid; heavy settings only on the first ``heavy_n``
+    scenes and ``heavy_seeds``; heavy jobs first so the long ones do not trail at the end."""
+    jobs = []
+    for seed in args.seeds:
+        for pos, (tid, classes) in enumerate(scenes):
+            for label, pre, over, heavy in grid:
+                if heavy and (pos >= heavy_n or seed not in heavy_seeds):
+                    continue
+                jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
+                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
+                                     overrides={**over, **args.overrides},
+                                     platform_classes=classes,
+                                     trial_id=tid, catch_errors=True,
+                                     tags={"setting": label, "seed": seed, "pos": pos}))
+    jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
+    return jobs
 
 
 def run_grid(args, out: Path) -> dict:
@@ -301,20 +220,7 @@ def run_grid(args, out: Path) -> dict:
         scenes = scenes[:args.max_trials]
     heavy_n = min(args.heavy_trials, len(scenes))
     heavy_seeds = args.seeds[:args.heavy_seeds]
-    jobs = []
-    for seed in args.seeds:
-        for pos, (tid, classes) in enumerate(scenes):
-            for label, pre, over, heavy in grid:
-                if heavy and (pos >= heavy_n or seed not in heavy_seeds):
-                    continue
-                jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
-                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
-                                     overrides={**over, **args.overrides},
-                                     platform_classes=classes,
-                                     trial_id=tid, catch_errors=True,
-                                     tags={"setting": label, "seed": seed, "pos": pos}))
-    # heavy jobs first so the long ones do not trail at the end
-    jobs.sort(key=lambda j: 0 if any(g[0] == j.tags["setting"] and g[3] for g in grid) else 1)
+    jobs = _grid_jobs(args, grid, scenes, heavy_n, heavy_seeds)
     t0 = time.perf_counter()
     res = run_cached(jobs, args, f"pareto grid ({len(grid)} settings)")
     wall = time.perf_counter() - t0
@@ -350,14 +256,15 @@ def run_grid(args, out: Path) -> dict:
     write_json(out / "grid.json", summary)
     write_json(out / "grid_runs.json", runs)
     light = {k: v for k, v in rows.items() if k not in heavy_labels}
-    plot_pareto(out / "pareto.png", {**light, **{k: rows_heavy[k] for k in heavy_labels}},
-                f"{args.source}, {len(scenes)} trials x {len(args.seeds)} seeds, "
-                f"{args.strategy}, accuracy at {args.budget} touches "
-                f"(heavy settings: first {heavy_n} trials, seeds {heavy_seeds})")
+    charts.pareto(out / "pareto.png", {**light, **{k: rows_heavy[k] for k in heavy_labels}},
+                  f"{args.source}, {len(scenes)} trials x {len(args.seeds)} seeds, "
+                  f"{args.strategy}, accuracy at {args.budget} touches "
+                  f"(heavy settings: first {heavy_n} trials, seeds {heavy_seeds})",
+                  mark=THESIS_LABEL)
     if heavy_labels:
-        plot_pareto(out / "pareto_heavy.png", rows_heavy,
-                    f"same {heavy_n} trials x seeds {heavy_seeds} for every setting, "
-                    f"accuracy at {args.budget} touches")
+        charts.pareto(out / "pareto_heavy.png", rows_heavy,
+                      f"same {heavy_n} trials x seeds {heavy_seeds} for every setting, "
+                      f"accuracy at {args.budget} touches", mark=THESIS_LABEL)
     return summary
 
 
@@ -400,10 +307,10 @@ def run_faithful(args, out: Path) -> dict:
            "threads": args.threads, "workers": args.workers}
     write_json(out / "faithful.json", doc)
     write_json(out / "faithful_runs.json", runs)
-    plot_faithful(out / "faithful.png", summary,
-                  f"seed_faithful vs default: {Path(args.faithful_source).name}, "
-                  f"{args.faithful_trials} trials (seeds 0-{args.faithful_trials - 1}), "
-                  f"{args.faithful_rounds} rounds, variance")
+    charts.faithful(out / "faithful.png", summary,
+                    f"seed_faithful vs default: {Path(args.faithful_source).name}, "
+                    f"{args.faithful_trials} trials (seeds 0-{args.faithful_trials - 1}), "
+                    f"{args.faithful_rounds} rounds, variance", mark=THESIS_LABEL)
     return doc
 
 
@@ -438,10 +345,10 @@ def run_touches(args, out: Path) -> dict:
            "cpu_total_s": float(sum(d["cpu_s"] for r in runs for d in r["decisions"])),
            "trial_wall_total_s": float(sum(r["wall_s"] for r in runs))}
     write_json(out / "touches.json", doc)
-    plot_touches(out / "touches.png", curves,
-                 f"default setting, {args.source}, {len(scenes)} trials x "
-                 f"{len(args.touch_seeds)} seed(s); wall {wall:.0f} s with {args.workers} "
-                 f"workers")
+    charts.touch_curves(out / "touches.png", curves,
+                        f"default setting, {args.source}, {len(scenes)} trials x "
+                        f"{len(args.touch_seeds)} seed(s); wall {wall:.0f} s with {args.workers} "
+                        f"workers")
     return doc
 
 
@@ -449,11 +356,14 @@ def run_touches(args, out: Path) -> dict:
 def run(args) -> int:
     if args.grid not in GRIDS:
         raise TactexError(f"unknown grid {args.grid!r}; choose one of {', '.join(GRIDS)}")
-    args.workers = args.workers or default_workers()
+    parts = set(args.parts)
+    if "faithful" in parts and not args.faithful_source:
+        raise TactexError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
+                          "presses)")
+    args.workers = backend_of(args).resolved().workers
     args.overrides = parse_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "pareto", cfg)
-    parts = set(args.parts)
     done = {}
     if "grid" in parts:
         done["grid"] = run_grid(args, out)
@@ -501,7 +411,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="trials for the heavy settings (seed_faithful, inception_v3_random)")
     p.add_argument("--heavy-seeds", type=int, default=1,
                    help="the heavy settings run the first N of --seeds")
-    p.add_argument("--faithful-source", default=f"replay:{OCTOPI}")
+    p.add_argument("--faithful-source",
+                   help="touch source of the faithful part (needed for it), e.g. replay:DIR")
     p.add_argument("--faithful-trials", type=int, default=8)
     p.add_argument("--faithful-rounds", type=int, default=3)
     p.add_argument("--strategies", nargs="+", default=["variance", "entropy", "random", "yoto"])
@@ -509,10 +420,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--touch-seeds", type=int, nargs="+", default=[0])
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="learner override for every job (after the setting's own)")
-    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
-    p.add_argument("--threads", type=int, default=1, help="torch threads per worker")
     p.add_argument("--out", help="results folder (default results/pareto)")
     p.add_argument("--cache", help="per-job result cache folder (re-runs skip finished jobs; "
                                    "the touches part's wall time then counts only new jobs)")
-    p.add_argument("--quiet", action="store_true")
+    add_runner_args(p)
     p.set_defaults(func=run)

@@ -3,7 +3,7 @@
 Every default of tactex is justified by this command on recorded real presses (a replay folder,
 e.g. ``../shared/datasets/octopi-dev``); the simulator is a second opinion.
 
-Scenes: 1 reference + C comparisons drawn from a set of classes with ``cli.assign_platforms``
+Scenes: 1 reference + C comparisons drawn from a set of classes with ``sources.assign_platforms``
 (the same draw as ``tactex trial --seed S``), the same scenes for every setting (paired).
 Each setting runs every scene *without* a stop rule up to ``--budget`` touches after the
 baseline and records the belief after every touch. From that one run:
@@ -42,8 +42,8 @@ import numpy as np
 
 from ..core.errors import TactexError
 from . import charts
-from .common import parse_set, results_dir, write_json
-from .runner import TrialJob, default_workers, run_jobs
+from .common import budget_index, parse_set, results_dir, write_json
+from .runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
 from .stats import mcnemar_exact, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
@@ -80,7 +80,7 @@ def class_folds(classes: list[str], k: int, seed: int) -> list[list[str]]:
 
 def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> list[list[str]]:
     """``n`` scenes [reference, comparisons...] from ``classes`` (seeds seed0 ..)."""
-    from ..cli import assign_platforms
+    from ..sources import assign_platforms
     if len(classes) < comparisons:
         raise TactexError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
     return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
@@ -110,9 +110,9 @@ def curve(res: dict) -> dict:
 
 
 def at_budget(c: dict, k: int) -> bool:
-    """Correct after at most ``k`` touches after the baseline (the last decision <= k)."""
-    idx = max(i for i, e in enumerate(c["extra"]) if e <= k) if c["extra"] else None
-    return bool(idx is not None and c["correct"][idx])
+    """Correct after ``k`` touches after the baseline (``common.budget_index``)."""
+    idx = budget_index(c["extra"], k)
+    return bool(idx >= 0 and c["correct"][idx])
 
 
 def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
@@ -147,30 +147,37 @@ def choose(rows: list[dict], target: float, settings: list[str] | None = None) -
     return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
 
 
-def _jobs(scenes: list[list[str]], settings: list[tuple], args, tag: str) -> list[TrialJob]:
+def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
+                  budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
+                  quiet: bool = False) -> dict[str, list[dict]]:
+    """Run every scene (``[reference, comparisons...]`` classes) with every setting of
+    ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
+    i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
+    (see ``curve``, plus the scene's ``classes``)."""
+    from ..core.engine import trial_preset
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
-            from ..core.engine import trial_preset
             st = strategy or trial_preset(pre).strategy
-            jobs.append(TrialJob(source=args.source, seed=args.seed + i, strategy=st,
-                                 rounds=args.budget, stop_confidence=0.0, preset=pre,
+            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
+                                 rounds=budget, stop_confidence=0.0, preset=pre,
                                  overrides=over, platform_classes=classes,
-                                 comparisons=args.comparisons, catch_errors=True,
+                                 comparisons=len(classes) - 1, catch_errors=True,
                                  no_contact_reference=False,
                                  trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
-    return jobs
-
-
-def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
-    res = run_jobs(_jobs(scenes, settings, args, tag), workers=args.workers,
-                   description=f"{tag} scenes x settings")
+    res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
+                   quiet=quiet)
     out: dict[str, list[dict]] = {s[0]: [] for s in settings}
     for r in res:
         c = curve(r)
         c["classes"] = r["classes"]
         out[r["job"]["tags"]["setting"]].append(c)
     return out
+
+
+def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+    return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
+                         backend_of(args), args.threads, args.quiet)
 
 
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
@@ -303,18 +310,7 @@ def _charts(out: Path, summary: dict, labels: list[str], budget: int) -> None:
     charts.lines(out / "accuracy_vs_touches.png", list(range(budget + 1)), series,
                  "touches after the baseline", "accuracy (report scenes)",
                  "real presses: accuracy against touches (no stop rule)", ylim=(0.0, 1.02))
-    plt = charts._plt()
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for lab in labels:
-        rows = [r for r in summary["report_rows"] if r["setting"] == lab]
-        ax.plot([r["touches"] for r in rows], [r["accuracy"] for r in rows], marker="o",
-                ms=3, label=lab)
-    ax.set_xlabel("touches after the baseline until the stop (mean)")
-    ax.set_ylabel("accuracy at the stop")
-    ax.set_title("stop threshold sweep (report scenes)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    charts._save(fig, out / "pareto.png")
+    charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
 
 
 def _print(summary: dict, labels: list[str], args) -> None:
@@ -354,8 +350,8 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="choose the most accurate (setting, theta) with at most this many "
                         "touches after the baseline on average")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--workers", type=int, default=default_workers())
     p.add_argument("--out")
+    add_runner_args(p)
 
     def func(args: argparse.Namespace) -> int:
         for name in ("comparisons", "scenes", "budget", "folds"):

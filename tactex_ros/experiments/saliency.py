@@ -1,7 +1,7 @@
 """``tactex experiment saliency``: Input x Gradient and Grad-CAM maps (thesis 2.4, 5.5, A.2).
 
-Two parts, both on ``--source`` (default: the replayed octopi-dev presses when present, else the
-simulator), spatial inputs and, with ``--fourier both|on``, log-magnitude Fourier inputs
+Two parts, both on ``--source`` (default: the simulator; ``replay:DIR`` for recorded presses),
+spatial inputs and, with ``--fourier both|on``, log-magnitude Fourier inputs
 (``LearnerConfig.fourier``; thesis appendix A.2):
 
 - **classify**: a classifier over ``--classes`` classes trained from scratch on all presses of a
@@ -32,29 +32,9 @@ from ..core.config import preset
 from ..core.engine import TrialConfig, TrialEngine
 from ..core.errors import TactexError
 from ..core.learner import OnlineLearner
-from ..core.saliency import display_image, grad_cam, input_x_gradient, saliency_panel
+from ..core.saliency import display_image, grad_cam, input_x_gradient
+from . import charts
 from .common import progress, results_dir, write_json
-from .pareto import OCTOPI
-
-
-def _save_small(fig, path: Path, dpi: int = 80) -> Path:
-    """Write a figure as a 128-colour palette PNG (maps of textures compress badly)."""
-    import io
-
-    from PIL import Image
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    buf.seek(0)
-    Image.open(buf).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
-        path, optimize=True)
-    return path
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 class Pool:
@@ -104,25 +84,6 @@ def maps_for(learner: OnlineLearner, frames: list[np.ndarray], targets: list[int
     return display_image(x, learner.cfg.fourier), ixg, cam, probs
 
 
-def figure_rows(path: Path, labels: list[str], imgs, ixg, cam, probs, targets, title: str
-                ) -> Path:
-    plt = _plt()
-    n = len(labels)
-    fig, axes = plt.subplots(n, 3, figsize=(5.4, 1.75 * n + 0.5), squeeze=False)
-    for i in range(n):
-        pred = int(np.argmax(probs[i]))
-        saliency_panel(axes[i], imgs[i], ixg[i], cam[i],
-                       titles=("input", "Input x Gradient", "Grad-CAM") if i == 0
-                       else ("", "", ""),
-                       label=f"{labels[i][:18]}\np={probs[i][targets[i]]:.2f}"
-                             f"{'' if pred == targets[i] else ' (wrong)'}")
-    fig.suptitle(title, fontsize=8)
-    fig.tight_layout()
-    _save_small(fig, path)
-    plt.close(fig)
-    return path
-
-
 def run_classify(args, pool: Pool, kind: str, out: Path) -> dict:
     fourier = kind == "fourier"
     cfg = preset(args.config, fourier=fourier, **({"input_size": args.input_size}
@@ -147,7 +108,7 @@ def run_classify(args, pool: Pool, kind: str, out: Path) -> dict:
         correct += int(sum(int(np.argmax(p)) == t for p, t in zip(probs, targets)))
         n += len(targets)
     imgs, ixg, cam, probs = fold0
-    figure_rows(out / f"classify_{kind}.png", pool.classes, imgs, ixg, cam, probs,
+    charts.saliency_rows(out / f"classify_{kind}.png", pool.classes, imgs, ixg, cam, probs,
                 list(range(len(pool.classes))),
                 f"classifier, {kind} inputs ({cfg.input_size} px); held-out press per class "
                 f"(fold 0)")
@@ -165,7 +126,6 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
     ref_cls = comps[args.reference % len(comps)]
     train, held = pool.split(0)
     val = [held[c] for c in comps]
-    rng = np.random.default_rng([args.seed, 43])
     used = {c: 0 for c in comps}
 
     def touch(p: int) -> np.ndarray:
@@ -190,43 +150,20 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
                           "ixg_concentration_top10": concentration(ixg),
                           "reference_probs": rec.probs, "next": rec.platform})
         maps.append((rec.round, imgs, ixg, cam, probs))
-    del rng
     res = eng.run(touch, truth=comps.index(ref_cls) + 1, on_round=on_round)
     for r_i in (0, len(maps) - 1):
         rnd, imgs, ixg, cam, probs = maps[r_i]
-        figure_rows(out / f"explore_{kind}_round{rnd}.png", comps, imgs, ixg, cam, probs,
+        charts.saliency_rows(out / f"explore_{kind}_round{rnd}.png", comps, imgs, ixg, cam, probs,
                     list(range(len(comps))),
                     f"exploration, {kind} inputs, after decision {rnd}: fixed validation set "
                     f"(one untouched press per class)")
-    plt = _plt()
-    show = [m for i, m in enumerate(maps) if i % max(1, len(maps) // 6) == 0 or
-            i == len(maps) - 1][:7]
-    fig, axes = plt.subplots(len(comps), len(show) + 1,
-                             figsize=(1.45 * (len(show) + 1), 1.5 * len(comps) + 0.5),
-                             squeeze=False)
-    for i in range(len(comps)):
-        axes[i][0].imshow(show[0][1][i])
-        axes[i][0].set_ylabel(comps[i][:14], fontsize=6)
-        for j, (rnd, imgs, ixg, cam, probs) in enumerate(show):
-            a = axes[i][j + 1]
-            a.imshow(imgs[i])
-            a.imshow(cam[i], cmap="jet", alpha=0.45, vmin=0, vmax=1)
-            a.set_title(f"r{rnd} p={probs[i][i]:.2f}" if True else "", fontsize=6)
-        for a in axes[i]:
-            a.set_xticks([])
-            a.set_yticks([])
-    axes[0][0].set_title("input", fontsize=6)
-    fig.suptitle(f"Grad-CAM on the validation set after each decision ({kind})", fontsize=8)
-    fig.tight_layout()
-    _save_small(fig, out / f"explore_{kind}_rounds.png")
-    plt.close(fig)
+    charts.gradcam_rounds(out / f"explore_{kind}_rounds.png", comps, maps,
+                          f"Grad-CAM on the validation set after each decision ({kind})")
     return {"kind": kind, "comparisons": comps, "reference": ref_cls, "correct": res.correct,
             "touches": res.touches, "rounds": per_round}
 
 
 def run(args) -> int:
-    if args.source is None:
-        args.source = f"replay:{OCTOPI}" if Path(OCTOPI).is_dir() else "sim"
     kinds = {"off": ["spatial"], "on": ["fourier"], "both": ["spatial", "fourier"]}[args.fourier]
     torch.set_num_threads(args.threads)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
@@ -256,7 +193,7 @@ def run(args) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("saliency", help="Input x Gradient and Grad-CAM maps; Fourier inputs")
-    p.add_argument("--source", help="replay:DIR or sim[:q] (default: octopi-dev if present)")
+    p.add_argument("--source", default="sim", help="replay:DIR or sim[:q] (default sim)")
     p.add_argument("--parts", nargs="+", default=["classify", "explore"],
                    choices=["classify", "explore"])
     p.add_argument("--classes", type=int, default=6)

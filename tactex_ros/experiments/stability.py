@@ -43,8 +43,9 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
+from . import charts
 from .common import parse_set, results_dir, write_json
-from .runner import TrialJob, default_workers, run_jobs
+from .runner import TrialJob, add_runner_args, backend_of, run_jobs
 from .stats import mcnemar_exact as mcnemar
 from .stats import wilson
 
@@ -131,98 +132,6 @@ def acc_block(runs: list[dict]) -> dict:
             "escalated": sum(1 for r in runs if any(x.get("escalation") for x in r["rounds"]))}
 
 
-# ------------------------------------------------------------------------------ figures
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def plot_axis(path: Path, axis: str, values: list[float], series: dict[str, list[float]],
-              threshold: float, title: str) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    for name, acc in series.items():
-        ax.plot(values, acc, marker="o", ms=4, label=name)
-    ax.axhline(threshold, color="k", ls="--", lw=0.8, label=f"threshold {threshold:g}")
-    ax.axhline(0.25, color="gray", ls=":", lw=0.8, label="chance (4 platforms)")
-    ax.set_xlabel(axis)
-    ax.set_ylabel("trial accuracy")
-    ax.set_ylim(0, 1.05)
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_modes(path: Path, rows: list[tuple[str, dict]], title: str) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(rows) + 2), 4.5))
-    bottom = np.zeros(len(rows))
-    colors = dict(zip(MODES, ["black", "tab:red", "tab:purple", "tab:orange", "tab:brown",
-                              "tab:gray"]))
-    for m in MODES:
-        v = np.array([r["modes"][m] / max(1, r["n"]) for _, r in rows])
-        ax.bar(range(len(rows)), v, bottom=bottom, color=colors[m], label=m)
-        bottom += v
-    ax.set_xticks(range(len(rows)))
-    ax.set_xticklabels([k for k, _ in rows], rotation=70, fontsize=7)
-    ax.set_ylabel("share of trials that failed, by mode")
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_guards(path: Path, rows: list[dict], title: str) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(rows) + 2), 4))
-    x = np.arange(len(rows))
-    ax.bar(x - 0.2, [r["without"]["accuracy"] for r in rows], 0.4, label="guards off",
-           color="tab:gray")
-    ax.bar(x + 0.2, [r["with"]["accuracy"] for r in rows], 0.4, label="guards on",
-           color="tab:green")
-    ax.set_xticks(x)
-    ax.set_xticklabels([f"{r['axis']}={r['value']:g}\n{r['strategy']}" for r in rows],
-                       fontsize=7)
-    ax.set_ylabel("trial accuracy")
-    ax.set_ylim(0, 1.05)
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_auto(path: Path, values: list[float], rows: dict[str, list[dict]], title: str) -> Path:
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for name, blocks in rows.items():
-        a1.plot(values, [b["accuracy"] for b in blocks], marker="o", label=name)
-        a2.plot(values, [b["cpu_per_trial_s"] for b in blocks], marker="o", label=name)
-    a1.set_xlabel("difficulty q")
-    a1.set_ylabel("trial accuracy")
-    a1.set_ylim(0, 1.05)
-    a2.set_xlabel("difficulty q")
-    a2.set_ylabel("CPU seconds per trial (decisions)")
-    a2.set_yscale("log")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=8)
-    fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 # ------------------------------------------------------------------------------ command
 def build_jobs(args) -> list[TrialJob]:
     jobs = []
@@ -263,92 +172,106 @@ def build_jobs(args) -> list[TrialJob]:
     return jobs, models
 
 
-def summarise(runs: list[dict], args, models: dict) -> dict:
-    axes = {a: (args.difficulties if a == "difficulty" and args.difficulties else AXES[a])
-            for a in args.axes}
+def _select(runs: list[dict], **kw: Any) -> list[dict]:
+    return [r for r in runs if all(r.get(k) == v for k, v in kw.items())]
 
-    def sel(**kw):
-        return [r for r in runs if all(r.get(k) == v for k, v in kw.items())]
-    table: dict = {}
-    failure_points: dict = {}
-    for axis, values in axes.items():
-        table[axis] = {}
-        for s in args.strategies:
-            blocks = [acc_block(sel(axis=axis, value=v, strategy=s, model="default",
-                                    guards=True)) for v in values]
-            table[axis][f"{s}/default"] = dict(zip(map(str, values), blocks))
-            fail = next((v for v, b in zip(values, blocks) if b["accuracy"] < args.threshold),
-                        None)
-            modes = None
-            if fail is not None:
-                b = blocks[values.index(fail)]
-                modes = {m: n for m, n in b["modes"].items() if n}
-            failure_points.setdefault(axis, {})[f"{s}/default"] = {"fails_at": fail,
-                                                                    "modes_there": modes}
-        if axis == "difficulty":
-            for m in args.models:
-                blocks = [acc_block(sel(axis=axis, value=v, strategy="variance", model=m,
-                                        guards=True)) for v in values]
-                table[axis][f"variance/{m}"] = dict(zip(map(str, values), blocks))
-                fail = next((v for v, b in zip(values, blocks)
-                             if b["accuracy"] < args.threshold), None)
-                failure_points[axis][f"variance/{m}"] = {
-                    "fails_at": fail, "modes_there": None if fail is None else
-                    {k: n for k, n in blocks[values.index(fail)]["modes"].items() if n}}
-    # per-seed spread at the base condition
-    per_seed = {}
-    for s in args.strategies:
-        rr = sel(axis="difficulty", value=args.base_q, strategy=s, model="default", guards=True)
-        per_seed[s] = {"accuracy": float(np.mean([r["correct"] for r in rr])) if rr else None,
-                       "n_seeds": len(rr)}
-    guards = []
+
+def _sweep(runs: list[dict], axis: str, values: list[float], strategy: str, model: str,
+           threshold: float) -> tuple[dict, dict]:
+    """Accuracy blocks along one axis (guards on) and where accuracy first drops below
+    ``threshold``, with the failure modes there."""
+    blocks = [acc_block(_select(runs, axis=axis, value=v, strategy=strategy, model=model,
+                                guards=True)) for v in values]
+    fail = next((v for v, b in zip(values, blocks) if b["accuracy"] < threshold), None)
+    modes = (None if fail is None else
+             {m: n for m, n in blocks[values.index(fail)]["modes"].items() if n})
+    return dict(zip(map(str, values), blocks)), {"fails_at": fail, "modes_there": modes}
+
+
+def _guards_before_after(runs: list[dict], axes: dict, strategies: list[str]) -> list[dict]:
+    """Every guarded condition: the same seeds with guards on and off, exact McNemar."""
+    out = []
     for (ga, gv) in GUARDED:
         if ga not in axes:
             continue
-        for s in args.guard_strategies:
-            on = sorted(sel(axis=ga, value=gv, strategy=s, model="default", guards=True),
-                        key=lambda r: r["seed"])
-            off = sorted(sel(axis=ga, value=gv, strategy=s, model="default", guards=False),
-                         key=lambda r: r["seed"])
+        for s in strategies:
+            on = sorted(_select(runs, axis=ga, value=gv, strategy=s, model="default",
+                                guards=True), key=lambda r: r["seed"])
+            off = sorted(_select(runs, axis=ga, value=gv, strategy=s, model="default",
+                                 guards=False), key=lambda r: r["seed"])
             if not on or not off:
                 continue
-            guards.append({"axis": ga, "value": gv, "strategy": s, "with": acc_block(on),
-                           "without": acc_block(off),
-                           "mcnemar_with_vs_without": mcnemar([r["correct"] for r in on],
-                                                              [r["correct"] for r in off])})
-    auto = {}
-    if "difficulty" in axes and {"auto", "top"} <= set(args.models):
-        a_runs = sel(axis="difficulty", strategy="variance", model="auto", guards=True)
-        t_runs = sel(axis="difficulty", strategy="variance", model="top", guards=True)
-        key = lambda r: (r["value"], r["seed"])  # noqa: E731
-        ta = {key(r): r for r in t_runs}
-        pairs = [(r, ta[key(r)]) for r in a_runs if key(r) in ta]
-        auto = {"top_model": models["top"], "pairs": len(pairs),
-                "accuracy_auto": float(np.mean([a["correct"] for a, _ in pairs])),
-                "accuracy_top": float(np.mean([t["correct"] for _, t in pairs])),
-                "cpu_auto_s": float(sum(a["cpu_s"] for a, _ in pairs)),
-                "cpu_top_s": float(sum(t["cpu_s"] for _, t in pairs)),
-                "mcnemar_auto_vs_top": mcnemar([a["correct"] for a, _ in pairs],
-                                               [t["correct"] for _, t in pairs]),
-                "escalated_trials": sum(1 for a, _ in pairs
-                                        if any(x.get("escalation") for x in a["rounds"])),
-                "escalation_reasons": sorted({x["escalation"].split(":")[0] for a, _ in pairs
-                                              for x in a["rounds"] if x.get("escalation")})}
-        auto["cpu_saved_share"] = (1 - auto["cpu_auto_s"] / auto["cpu_top_s"]
-                                   if auto["cpu_top_s"] else None)
+            out.append({"axis": ga, "value": gv, "strategy": s, "with": acc_block(on),
+                        "without": acc_block(off),
+                        "mcnemar_with_vs_without": mcnemar([r["correct"] for r in on],
+                                                           [r["correct"] for r in off])})
+    return out
+
+
+def _auto_vs_top(runs: list[dict], top_model: dict) -> dict:
+    """Model ``auto`` against the largest ladder stage on the difficulty axis, paired by
+    (difficulty, seed): accuracy, decision CPU, escalations."""
+    a_runs = _select(runs, axis="difficulty", strategy="variance", model="auto", guards=True)
+    t_runs = _select(runs, axis="difficulty", strategy="variance", model="top", guards=True)
+    key = lambda r: (r["value"], r["seed"])  # noqa: E731
+    ta = {key(r): r for r in t_runs}
+    pairs = [(r, ta[key(r)]) for r in a_runs if key(r) in ta]
+    auto = {"top_model": top_model, "pairs": len(pairs),
+            "accuracy_auto": float(np.mean([a["correct"] for a, _ in pairs])),
+            "accuracy_top": float(np.mean([t["correct"] for _, t in pairs])),
+            "cpu_auto_s": float(sum(a["cpu_s"] for a, _ in pairs)),
+            "cpu_top_s": float(sum(t["cpu_s"] for _, t in pairs)),
+            "mcnemar_auto_vs_top": mcnemar([a["correct"] for a, _ in pairs],
+                                           [t["correct"] for _, t in pairs]),
+            "escalated_trials": sum(1 for a, _ in pairs
+                                    if any(x.get("escalation") for x in a["rounds"])),
+            "escalation_reasons": sorted({x["escalation"].split(":")[0] for a, _ in pairs
+                                          for x in a["rounds"] if x.get("escalation")})}
+    auto["cpu_saved_share"] = (1 - auto["cpu_auto_s"] / auto["cpu_top_s"]
+                               if auto["cpu_top_s"] else None)
+    return auto
+
+
+def summarise(runs: list[dict], args, models: dict) -> dict:
+    """Accuracy tables per axis, failure points, the base condition, guards before/after and
+    auto against the largest model."""
+    axes = {a: (args.difficulties if a == "difficulty" and args.difficulties else AXES[a])
+            for a in args.axes}
+    table: dict = {}
+    failure_points: dict = {}
+    for axis, values in axes.items():
+        table[axis], failure_points[axis] = {}, {}
+        series = [(s, "default") for s in args.strategies]
+        if axis == "difficulty":
+            series += [("variance", m) for m in args.models]
+        for strategy, model in series:
+            key = f"{strategy}/{model}"
+            table[axis][key], failure_points[axis][key] = _sweep(
+                runs, axis, values, strategy, model, args.threshold)
+    # per-seed spread at the base condition
+    per_seed = {}
+    for s in args.strategies:
+        rr = _select(runs, axis="difficulty", value=args.base_q, strategy=s, model="default",
+                     guards=True)
+        per_seed[s] = {"accuracy": float(np.mean([r["correct"] for r in rr])) if rr else None,
+                       "n_seeds": len(rr)}
+    auto = ({} if "difficulty" not in axes or not {"auto", "top"} <= set(args.models)
+            else _auto_vs_top(runs, models["top"]))
     return {"threshold": args.threshold, "base_q": args.base_q, "rounds": args.rounds,
             "seeds": args.seeds, "strategies": args.strategies, "models": args.models,
             "axes": axes, "table": table, "failure_points": failure_points,
-            "base_condition": per_seed, "guards_before_after": guards, "auto_vs_top": auto}
+            "base_condition": per_seed,
+            "guards_before_after": _guards_before_after(runs, axes, args.guard_strategies),
+            "auto_vs_top": auto}
 
 
 def figures(out: Path, summary: dict, args) -> None:
     for axis, values in summary["axes"].items():
         series = {k: [v[str(x)]["accuracy"] for x in values]
                   for k, v in summary["table"][axis].items()}
-        plot_axis(out / f"axis_{axis}.png", axis, values, series, args.threshold,
-                  f"{axis} (others at q={args.base_q:g}); {len(args.seeds)} seeds, "
-                  f"{args.rounds} rounds")
+        charts.accuracy_axis(out / f"axis_{axis}.png", axis, values, series, args.threshold,
+                             f"{axis} (others at q={args.base_q:g}); {len(args.seeds)} seeds, "
+                             f"{args.rounds} rounds")
     rows = []
     for axis, values in summary["axes"].items():
         for x in values:
@@ -357,16 +280,16 @@ def figures(out: Path, summary: dict, args) -> None:
                     rows.append((f"{axis}={x:g} {k.split('/')[0]}",
                                  summary["table"][axis][k][str(x)]))
     if rows:
-        plot_modes(out / "failure_modes.png", rows,
-                   "how trials fail (share of all trials at each condition)")
+        charts.failure_modes(out / "failure_modes.png", rows,
+                             "how trials fail (share of all trials at each condition)")
     if summary["guards_before_after"]:
-        plot_guards(out / "guards.png", summary["guards_before_after"],
-                    f"guards off vs on, same seeds ({len(args.seeds)})")
+        charts.guards(out / "guards.png", summary["guards_before_after"],
+                      f"guards off vs on, same seeds ({len(args.seeds)})")
     if "difficulty" in summary["table"]:
         blocks = {k.split("/")[1]: [v[str(x)] for x in summary["axes"]["difficulty"]]
                   for k, v in summary["table"]["difficulty"].items() if k.startswith("variance/")}
-        plot_auto(out / "auto_compute.png", summary["axes"]["difficulty"], blocks,
-                  "variance strategy: model auto vs default vs the largest ladder stage")
+        charts.auto_compute(out / "auto_compute.png", summary["axes"]["difficulty"], blocks,
+                            "variance strategy: model auto vs default vs the largest ladder stage")
 
 
 def run(args) -> int:
@@ -375,7 +298,8 @@ def run(args) -> int:
             raise TactexError(f"unknown axis {a!r}; choose from {', '.join(AXES)}")
     if len(args.seeds) < 1:
         raise TactexError("need at least one seed")
-    args.workers = args.workers or default_workers()
+    backend = backend_of(args).resolved()
+    args.workers = backend.workers
     args.overrides = parse_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "stability", cfg)
@@ -389,7 +313,7 @@ def run(args) -> int:
             unique[k] = len(todo)
             todo.append(j)
     t0 = time.perf_counter()
-    res = run_jobs(todo, workers=args.workers, threads=args.threads,
+    res = run_jobs(todo, backend, threads=args.threads,
                    description=f"stability ({len(todo)} trials)", quiet=args.quiet)
     runs = []
     for j in jobs:
@@ -437,8 +361,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--threshold", type=float, default=0.6,
                    help="a method fails where its accuracy drops below this")
-    p.add_argument("--workers", type=int, default=0, help="processes (default: CPU count)")
-    p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", help="results folder (default results/stability)")
-    p.add_argument("--quiet", action="store_true")
+    add_runner_args(p)
     p.set_defaults(func=run)

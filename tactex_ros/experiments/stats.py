@@ -12,6 +12,7 @@
 - ``holm``: Holm–Bonferroni adjustment of a family of p-values.
 - ``js_distance``: Jensen–Shannon *distance* (square root of the divergence) in bits, so it lies
   in [0, 1]; inputs are normalised to sum 1 first.
+- ``pareto_front``: the (time, accuracy) points no other point beats.
 """
 
 from __future__ import annotations
@@ -141,3 +142,14 @@ def tie_share(weights: Sequence[float], index: int) -> float:
     w = np.asarray(weights, dtype=np.float64)
     top = np.flatnonzero(np.isclose(w, w.max(), rtol=1e-9, atol=1e-12))
     return 1.0 / top.size if index in top else 0.0
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats (<= time and >= accuracy, one strictly)."""
+    front = []
+    for i, (t, a) in enumerate(points):
+        dominated = any((t2 <= t and a2 >= a and (t2 < t or a2 > a))
+                        for j, (t2, a2) in enumerate(points) if j != i)
+        if not dominated:
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])

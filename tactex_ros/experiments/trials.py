@@ -18,32 +18,20 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
 
 from ..core.errors import TactexError
-from ..paths import config_dir
+from ..paths import config_file, read_yaml
 
 
 def find_trial_file(spec: str | None) -> Path:
     """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
-    spec = spec or "human_study"
-    p = Path(spec)
-    if p.is_file():
-        return p
-    for cand in (config_dir() / "trials" / spec, config_dir() / "trials" / f"{spec}.yaml"):
-        if cand.is_file():
-            return cand
-    raise TactexError(f"trial file {spec!r} not found (a path, or a name in "
-                      f"{config_dir() / 'trials'})")
+    return config_file(spec or "human_study", "trials", "trial file")
 
 
 def load_trials(path: str | Path) -> dict[str, Any]:
     """{"name", "path", "trials": [{"id": str, "reference", "comparisons": [...]}, ...]}."""
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise TactexError(f"trial file {path}: {exc}") from None
+    doc = read_yaml(path, "trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
         raise TactexError(f"trial file {path}: needs a non-empty list 'trials'")
     seen: set[str] = set()

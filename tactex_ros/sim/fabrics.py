@@ -11,6 +11,8 @@ interlacing matrix of period ``repeat``), ``rib`` and ``jersey`` (knits: wales o
 - ``irregularity``: random variation of yarn position, width and height [0, 1]
 - ``fuzz``: hairiness: fine random fibres over the structure [0, 1]
 - ``repeat``: weave repeat (twill >= 3, satin >= 5, basket = yarns per group) [1, 8]
+- ``softness``: share of the relief a press flattens [0, 1] (0 = rigid weave, ~0.9 = fleece:
+  it presses almost flat and leaves a faint contact image)
 
 ``height_tile`` renders a square tile at the sensor's scale (mm per pixel); the simulator caches
 it per fabric and cuts every touch out of it at a random position and rotation.
@@ -34,13 +36,14 @@ WOVEN = ("plain", "twill", "satin", "basket")
 
 # (lo, hi) of every numeric parameter; also the scale used for parameter distances.
 RANGES: dict[str, tuple[float, float]] = {
-    "pitch_mm": (0.1, 3.0),
+    "pitch_mm": (0.1, 4.5),
     "yarn_width": (0.2, 1.2),
     "yarn_height_mm": (0.02, 1.0),
     "twist": (0.0, 1.0),
     "irregularity": (0.0, 1.0),
     "fuzz": (0.0, 1.0),
     "repeat": (1, 8),
+    "softness": (0.0, 1.0),
 }
 
 
@@ -54,6 +57,7 @@ class FabricParams:
     irregularity: float = 0.2
     fuzz: float = 0.1
     repeat: int = 1
+    softness: float = 0.2
 
     def validate(self, where: str = "fabric") -> "FabricParams":
         if self.family not in FAMILIES:
@@ -97,11 +101,6 @@ class FabricParams:
         if family == "satin":
             kw["repeat"] = max(5, kw["repeat"])
         return FabricParams(family=family, **kw)
-
-
-def distance(a: FabricParams, b: FabricParams) -> float:
-    """Parameter distance: Euclidean on normalised parameters, +1 across families."""
-    return float(np.linalg.norm(a.vector() - b.vector()) + (a.family != b.family))
 
 
 # ------------------------------------------------------------------------------ catalogue

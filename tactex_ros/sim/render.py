@@ -1,64 +1,70 @@
-"""GelSight-Mini-like rendering of a fabric pressed into the gel.
+"""GelSight Mini rendering of a fabric pressed into the gel, from a real sensor's calibration.
 
 Model (per touch):
 
 1. Cut a 320x240 window out of the fabric's cached height tile at a random position and
    in-plane rotation (one affine warp) -> heights H [mm] at 0.0634 mm/px.
-2. Press: loose fibres and rare peaks are squashed: H is clipped at its ``crush_percentile``
-   (top T). The gel is a slightly domed surface (curvature ``dome_per_mm2``); at press depth d
-   the gel indentation is D = max(0, min(H, T) - (T - d) - dome * r^2). The contact area grows
-   with d.
-3. Gel smoothing: the elastomer cannot follow detail finer than its thickness: Gaussian blur of
-   D with ``gel_sigma_mm``.
-4. Photometric stereo: surface normals from the gradient of D, lit by three coloured lights
-   from distinct azimuths; the change in shading against the flat gel is added to the gel's own
-   background (base colour, radial vignetting, tint).
-5. Per touch: small lighting drift (light gains, background offset), sensor noise.
+2. Lie and press: the fabric undulates on its platform (a smooth random field) and the sensor
+   meets it slightly tilted; loose fibres and rare peaks are squashed (H clipped at its ``crush_percentile``, top
+   T); a soft fabric's relief is compressed by the press (scaled by
+   1 - softness * min(1, depth / ``soft_depth_mm``)). At press depth d the gel's indentation is
+   D = max(0, min(H, T) - (T - d)).
+3. Gel mechanics: the elastomer bridges narrow gaps between yarns instead of following them
+   down (D <- max(D, ``elastic_fill`` * blur(D, ``elastic_sigma_mm``))) and cannot follow
+   detail finer than its skin (Gaussian blur ``gel_sigma_mm``).
+4. Optics from the real GelSight Mini calibration shipped by PyPI's ``taxim``
+   (``sim/calibration.py``): the slope angle and direction of the indented gel select a bin of
+   the calibration's table, whose quadratic in the pixel position gives each channel's
+   intensity; the change against the flat gel is added to the calibration's recorded
+   no-contact frame (``shade_step`` > 1 evaluates it on a coarser grid, faster but it loses
+   weaves finer than ~4 px).
+5. Per touch: light-gain drift, background brightness drift, sensor noise.
 
 Output: uint8 RGB (240, 320, 3). ``no_contact`` gives the same sensor without contact.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from ..core.names import FRAME_H, FRAME_W
+from .calibration import OpticalCalibration, load_calibration
 
 MM_PER_PX = 0.0634
 
 
 @dataclass
 class SensorModel:
-    """GelSight Mini look; the defaults were fitted by eye and by colour statistics to real
-    no-contact / contact frames of octopi-dev (see README, "Simulator vs real frames")."""
+    """GelSight Mini: optics from the taxim calibration; gel mechanics and noise tuned so that
+    contact differences match real octopi-dev presses in level and spatial spectrum (README,
+    "Simulator vs real frames", ``tactex sim compare``)."""
 
     mm_per_px: float = MM_PER_PX
-    base_rgb: tuple[float, float, float] = (30.0, 112.0, 104.0)
-    center_tint_rgb: tuple[float, float, float] = (70.0, 8.0, 40.0)   # added at the centre
-    vignette: float = 0.55           # relative darkening at the corners
-    dome_per_mm2: float = 0.004      # gel dome curvature [mm / mm^2]
-    gel_sigma_mm: float = 0.08       # gel smoothing [mm]
-    # three lights: azimuth [deg], elevation [deg], RGB weight of the light's colour
-    lights: tuple = ((90.0, 35.0, (1.0, 0.15, 0.25)),
-                     (210.0, 35.0, (0.15, 1.0, 0.3)),
-                     (330.0, 35.0, (0.2, 0.35, 1.0)))
-    gain: float = 60.0               # grey levels per unit of shading change
-    noise_std: float = 1.6           # grey levels
-    drift: float = 0.04              # relative light gain drift per touch (std)
+    calibration: str = "gelsight_mini"   # folder of taxim's calibrations
+    # Units differ in LED colour and crop: the calibration unit's no-contact frame is recoloured
+    # per channel (gain, offset) to the mean and spread of octopi-dev's no-contact frames
+    # (RGB 58.7/97.0/106.6, spread 32.0/15.4/26.2): those two statistics match by construction.
+    background_gain_rgb: tuple[float, float, float] = (0.985, 1.612, 1.214)
+    background_offset_rgb: tuple[float, float, float] = (-23.1, -62.9, -30.7)
+    elastic_sigma_mm: float = 0.25       # reach of the gel bridging gaps [mm]
+    elastic_fill: float = 0.8            # how far it fills them (0 = follows every valley)
+    gel_sigma_mm: float = 0.14           # gel skin smoothing [mm]
+    shading_gain: float = 1.0            # multiplier on the calibrated intensity change
+    noise_std: float = 0.35              # sensor noise per frame [grey levels]
+    noise_sigma_px: float = 1.3          # its spatial correlation (video compression) [px]
+    brightness_drift: float = 0.5        # per-touch background offset (std) [grey levels]
+    drift: float = 0.04                  # relative light gain drift per touch (std)
     depth_mm: tuple[float, float] = (0.25, 0.6)   # uniform press depth range [mm]
-    crush_percentile: float = 97.0   # heights above this percentile are pressed flat
-
-
-@dataclass
-class _Cache:
-    background: np.ndarray
-    r2_mm: np.ndarray
-    noise: np.ndarray
-    light_dirs: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
-    light_rgb: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    crush_percentile: float = 97.0       # heights above this percentile are pressed flat
+    tilt_deg: float = 1.0                # sensor tilt against the fabric per press (std) [deg]
+    drape_mm: float = 0.3                # fabric undulation on the platform (std) [mm]
+    drape_len_mm: float = 3.0            # its correlation length [mm]
+    soft_depth_mm: float = 0.3           # depth at which a soft fabric is fully compressed
+    compression: float = 0.3             # share of every fabric's relief a full press flattens
+    shade_step: int = 1                  # table evaluated on every shade_step-th pixel
 
 
 class GelSightRenderer:
@@ -66,22 +72,42 @@ class GelSightRenderer:
 
     def __init__(self, sensor: SensorModel | None = None) -> None:
         self.sensor = s = sensor or SensorModel()
-        yy, xx = np.mgrid[0:FRAME_H, 0:FRAME_W].astype(np.float32)
-        cx, cy = (FRAME_W - 1) / 2, (FRAME_H - 1) / 2
-        rn2 = ((xx - cx) / cx) ** 2 + ((yy - cy) / cy) ** 2          # 0 centre, 2 corners
-        base = np.array(s.base_rgb, np.float32)
-        tint = np.array(s.center_tint_rgb, np.float32)
-        bg = base * (1 - s.vignette * rn2[..., None] / 2) + tint * np.exp(-rn2)[..., None]
-        r2_mm = (((xx - cx) ** 2 + (yy - cy) ** 2) * s.mm_per_px ** 2).astype(np.float32)
+        if s.shade_step not in (1, 2, 4):
+            raise ValueError(f"shade_step {s.shade_step}: use 1, 2 or 4")
+        self.calib: OpticalCalibration = load_calibration(s.calibration, (FRAME_H, FRAME_W))
+        c = self.calib
+        bg = (c.background * np.array(s.background_gain_rgb, np.float32) +
+              np.array(s.background_offset_rgb, np.float32))
+        self._background = np.clip(bg, 0, 255).astype(np.float32)
+        k = s.shade_step
+        self._hs, self._ws = FRAME_H // k, FRAME_W // k
+        feats = c.features.reshape(FRAME_H, FRAME_W, 6)[k // 2::k, k // 2::k]
+        flat = c.flat.reshape(FRAME_H, FRAME_W, 3)[k // 2::k, k // 2::k]
+        self._feats = np.ascontiguousarray(feats.reshape(-1, 6).T)          # (6, N)
+        self._flat = np.ascontiguousarray(flat.reshape(-1, 3).T)            # (3, N)
+        # one row per (channel, coefficient): (18, bins), gathered per pixel
+        self._table = np.ascontiguousarray(c.table.reshape(-1, 18).T)
+        self._buf = np.empty(self._hs * self._ws, np.float32)
+        self._ones = np.ones((self._hs, self._ws), np.float32)
+        self._mag_scale = np.float32((c.num_bins - 1) / (0.5 * np.pi))
+        self._dir_scale = np.float32((c.num_bins - 1) / (2 * np.pi))
         rng = np.random.default_rng(12345)
         noise = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2, 3)).astype(np.float32)
-        dirs, rgb = [], []
-        for az, el, col in s.lights:
-            a, e = np.deg2rad(az), np.deg2rad(el)
-            dirs.append([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-            rgb.append(col)
-        self._c = _Cache(bg.astype(np.float32), r2_mm, noise, np.array(dirs, np.float32),
-                         np.array(rgb, np.float32))
+        if s.noise_sigma_px > 0:
+            noise = cv2.GaussianBlur(noise, (0, 0), s.noise_sigma_px)
+        self._noise = noise / noise.std()
+        drape = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2)).astype(np.float32)
+        drape = cv2.GaussianBlur(drape, (0, 0), s.drape_len_mm / s.mm_per_px)
+        self._drape = drape / drape.std()
+        yy, xx = np.mgrid[0:FRAME_H, 0:FRAME_W].astype(np.float32)
+        self._xmm = (xx - (FRAME_W - 1) / 2) * np.float32(s.mm_per_px)
+        self._ymm = (yy - (FRAME_H - 1) / 2) * np.float32(s.mm_per_px)
+
+    @property
+    def background(self) -> np.ndarray:
+        """(240, 320, 3) float32 RGB: the sensor's no-contact frame (the calibration's,
+        recoloured)."""
+        return self._background
 
     def window(self, tile: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Random position + rotation: (S, S) tile -> (240, 320) heights."""
@@ -97,37 +123,90 @@ class GelSightRenderer:
         return cv2.warpAffine(tile, m, (FRAME_W, FRAME_H), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REFLECT)
 
-    def render(self, heights: np.ndarray, depth_mm: float,
-               rng: np.random.Generator) -> np.ndarray:
-        """(240, 320) heights [mm] pressed to ``depth_mm`` -> uint8 RGB (240, 320, 3)."""
-        s, c = self.sensor, self._c
-        # Loose fibres and rare high spots are squashed flat by the press: the surface the gel
-        # meets is the height map clipped at its ``crush_percentile``.
-        top = float(np.percentile(heights[::4, ::4], s.crush_percentile))
-        d = (np.minimum(heights, np.float32(top)) - np.float32(top - depth_mm) -
-             np.float32(s.dome_per_mm2) * c.r2_mm)
-        np.maximum(d, 0, out=d)
-        sig = s.gel_sigma_mm / s.mm_per_px
-        d = cv2.GaussianBlur(d, (0, 0), sig)
-        k = np.float32(1.0 / (8.0 * s.mm_per_px))
-        gx = cv2.Sobel(d, cv2.CV_32F, 1, 0, ksize=3) * k
-        gy = cv2.Sobel(d, cv2.CV_32F, 0, 1, ksize=3) * k
-        inv = 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
-        # shading change per light: (n . l) - l_z, n = (-gx, -gy, 1) / |.|
-        gains = 1.0 + s.drift * rng.standard_normal(3).astype(np.float32)
-        shade = np.empty((FRAME_H, FRAME_W, 3), np.float32)
-        for i, (lx, ly, lz) in enumerate(c.light_dirs):
-            shade[..., i] = ((lz - gx * lx - gy * ly) * inv - lz) * (s.gain * gains[i])
-        img = cv2.transform(shade, c.light_rgb.T.copy())
-        img += c.background
+    def lie(self, heights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """How the fabric lies under this press: + undulation (a window of a smooth random
+        field, ``drape_mm``) + the sensor's tilt (``tilt_deg``). (240, 320) [mm]."""
+        s = self.sensor
         oy, ox = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
-        img += c.noise[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.noise_std)
-        img += np.float32(rng.normal(0, 1.0))      # background brightness drift
-        return np.clip(img, 0, 255).astype(np.uint8)
+        tx, ty = np.tan(np.deg2rad(rng.normal(0, s.tilt_deg, 2))).astype(np.float32)
+        out = heights + self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.drape_mm)
+        out += self._xmm * tx
+        out += self._ymm * ty
+        return out
 
-    def no_contact(self, rng: np.random.Generator) -> np.ndarray:
-        """The same sensor with nothing pressed on it."""
-        c, s = self._c, self.sensor
+    def indentation(self, heights: np.ndarray, depth_mm: float, softness: float = 0.0
+                    ) -> np.ndarray:
+        """(240, 320) heights [mm] pressed to ``depth_mm`` -> gel indentation [mm] on the
+        shading grid, (240 / shade_step, 320 / shade_step)."""
+        s, k = self.sensor, self.sensor.shade_step
+        top = np.float32(np.percentile(heights[::4, ::4], s.crush_percentile))
+        h = np.minimum(heights, top)
+        if k > 1:
+            h = cv2.resize(h, (self._ws, self._hs), interpolation=cv2.INTER_AREA)
+        px = s.mm_per_px * k
+        soft = 1.0 - (1.0 - float(np.clip(softness, 0.0, 1.0))) * (1.0 - s.compression)
+        squeeze = 1.0 - soft * min(1.0, depth_mm / s.soft_depth_mm)
+        if squeeze < 1.0:          # a soft fabric's relief is compressed around its top
+            h = top - (top - h) * np.float32(squeeze)
+        d = h - np.float32(top - depth_mm)
+        np.maximum(d, 0, out=d)
+        if s.elastic_fill > 0:
+            bridge = cv2.GaussianBlur(d, (0, 0), s.elastic_sigma_mm / px)
+            np.maximum(d, bridge * np.float32(s.elastic_fill), out=d)
+        return cv2.GaussianBlur(d, (0, 0), max(0.3, s.gel_sigma_mm / px))
+
+    def shading(self, indent: np.ndarray) -> np.ndarray:
+        """Gel indentation on the shading grid [mm] (``indentation``) -> calibrated intensity
+        change (240, 320, 3) float32 [grey levels] against the flat gel."""
+        s, k = self.sensor, self.sensor.shade_step
+        if indent.shape != (self._hs, self._ws):
+            raise ValueError(f"indentation of shape {indent.shape}, expected "
+                             f"{(self._hs, self._ws)}")
+        step = np.float32(s.mm_per_px * k)
+        # the negated gradient [mm/mm]: its angle is the calibration's direction atan2(row,
+        # col) + pi, in [0, 2 pi)
+        neg = -1.0 / (8.0 * float(step))
+        mag, ang = cv2.cartToPolar(cv2.Sobel(indent, cv2.CV_32F, 1, 0, ksize=3, scale=neg),
+                                   cv2.Sobel(indent, cv2.CV_32F, 0, 1, ksize=3, scale=neg))
+        nb = self.calib.num_bins
+        slope = cv2.phase(self._ones, mag)                # atan(|grad|) in [0, pi/2]
+        bm = np.minimum(slope * self._mag_scale, nb - 1).astype(np.int32)
+        bd = np.minimum(ang * self._dir_scale, nb - 1).astype(np.int32)
+        idx = (bm * nb + bd).ravel()
+        out = -self._flat                      # (3, N): sum_k coef_k(bin) * feature_k(pixel)
+        buf, f = self._buf, self._feats
+        for ch in range(3):
+            o = out[ch]
+            for j in range(6):
+                np.multiply(self._table[ch * 6 + j].take(idx), f[j], out=buf)
+                o += buf
+        out = cv2.merge([out[0].reshape(self._hs, self._ws), out[1].reshape(self._hs, self._ws),
+                         out[2].reshape(self._hs, self._ws)])
+        if k > 1:
+            out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)
+        return out
+
+    def render(self, heights: np.ndarray, depth_mm: float, rng: np.random.Generator,
+               softness: float = 0.0) -> np.ndarray:
+        """(240, 320) heights [mm] pressed to ``depth_mm`` -> uint8 RGB (240, 320, 3).
+
+        ``softness`` in [0, 1]: share of the fabric's relief the press flattens."""
+        s = self.sensor
+        delta = self.shading(self.indentation(self.lie(heights, rng), depth_mm, softness))
+        gains = s.shading_gain * (1.0 + s.drift * rng.standard_normal(3))
+        img = cv2.multiply(delta, (*gains.tolist(), 0.0))
+        cv2.add(img, self._background, dst=img)
+        return self._finish(img, rng, drift=True)
+
+    def no_contact(self, rng: np.random.Generator, drift: bool = False) -> np.ndarray:
+        """The same sensor with nothing pressed on it (``drift``: with a per-touch
+        brightness offset, as a contact frame has)."""
+        return self._finish(self._background.copy(), rng, drift=drift)
+
+    def _finish(self, img: np.ndarray, rng: np.random.Generator, drift: bool) -> np.ndarray:
+        """float32 image + noise (+ brightness drift) -> rounded, saturated uint8."""
+        s = self.sensor
         oy, ox = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
-        img = c.background + c.noise[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.noise_std)
-        return np.clip(img, 0, 255).astype(np.uint8)
+        offset = float(rng.normal(0, s.brightness_drift)) if drift else 0.0
+        return cv2.addWeighted(img, 1.0, self._noise[oy:oy + FRAME_H, ox:ox + FRAME_W],
+                               float(s.noise_std), offset, dtype=cv2.CV_8U)

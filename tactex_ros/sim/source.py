@@ -1,21 +1,23 @@
 """Simulated touch source: every touch is a new random press of a procedural fabric.
 
 Spec ``sim[:difficulty]`` with difficulty ``easy`` (0.2), ``medium`` (0.5), ``hard`` (0.8) or a
-number in [0, 1]. Classes are the catalogue's fabric names (``config/fabrics.yaml``). A scene
-drawn at difficulty q (``draw_scene``) takes a random catalogue fabric as the base and places the
-comparison fabrics around it at parameter distance (1 - q) * 0.6 from the base (normalised
-parameter units, ``fabrics.distance``), in different random directions, same family — q = 1
-makes them identical, q = 0 far apart; the reference is one of them.
+number in [0, 1]. Classes are the names of the fabric catalogue the source is given (the
+package's is ``config/fabrics.yaml``: ``sources.open_source("sim")`` passes it). A scene drawn
+at difficulty q (``draw_scene``) takes a random catalogue fabric as the base and places the
+comparison fabrics around it at parameter distance (1 - q) * 0.6 from the base (Euclidean on the
+normalised parameters, ``FabricParams.vector``), in different random directions, same family —
+q = 1 makes them identical, q = 0 far apart; the reference is one of them.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import TactexError
-from ..paths import config_dir
+from ..core.touch import Touch
 from .fabrics import FabricParams, height_tile, load_catalogue
 from .render import GelSightRenderer
 
@@ -46,10 +48,11 @@ def cached_tile(fab: FabricParams, seed: int) -> np.ndarray:
 class SimSource:
     """Fabric simulator as a touch source (same interface as ReplaySource)."""
 
-    def __init__(self, difficulty: str | float = "medium", catalogue: str | None = None) -> None:
+    def __init__(self, difficulty: str | float = "medium", *, catalogue: str | Path) -> None:
+        """``catalogue``: the fabric catalogue file (YAML); ``difficulty``: see the module."""
         self.difficulty = (parse_difficulty(difficulty) if isinstance(difficulty, str)
                            else float(difficulty))
-        self.catalogue = load_catalogue(catalogue or config_dir() / "fabrics.yaml")
+        self.catalogue = load_catalogue(catalogue)
         self.fabrics: dict[str, FabricParams] = dict(self.catalogue)
         self.renderer = GelSightRenderer()
 
@@ -94,15 +97,17 @@ class SimSource:
         heights = self.renderer.window(tile, rng)
         lo, hi = self.renderer.sensor.depth_mm
         d = rng.uniform(lo, hi) if depth_mm is None else depth_mm
-        return self.renderer.render(heights, d, rng)
+        return self.renderer.render(heights, d, rng, softness=fab.softness)
 
     def trial(self, platform_classes: list[str], seed: int):
         for c in set(platform_classes):
             self.fabric(c)
         rng = np.random.default_rng([seed, 23])
+        no_contact = self.renderer.no_contact(np.random.default_rng([seed, 37]))
 
-        def touch(platform: int) -> np.ndarray:
-            return self.press(platform_classes[platform], rng)
+        def touch(platform: int) -> Touch:
+            # the session's no-contact frame, as a real sensor records it before the trial
+            return Touch(frame=self.press(platform_classes[platform], rng), no_contact=no_contact)
 
         return touch
 

@@ -7,6 +7,10 @@ returns a touch function ``touch(platform) -> RGB uint8 (240, 320, 3)``, platfor
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
 from ..core.errors import TactexError
 
 
@@ -19,6 +23,46 @@ def open_source(spec: str):
         from .replay import ReplaySource
         return ReplaySource(arg)
     if kind == "sim":
+        from ..paths import config_dir
         from ..sim.source import SimSource
-        return SimSource(arg or "medium")
+        return SimSource(arg or "medium", catalogue=config_dir() / "fabrics.yaml")
     raise TactexError(f"unknown source {spec!r}; use replay:DIR or sim[:easy|medium|hard|<number>]")
+
+
+def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,
+                     reference: str | None, seed: int) -> tuple[list[str], int]:
+    """Classes of [reference, comparison 1..N] and the index (1..N) of the true match.
+
+    ``chosen``: the comparison classes in platform order (None: ``comparisons`` drawn from
+    ``classes``, seeded); ``reference``: its class (None: one of the comparisons, seeded)."""
+    rng = np.random.default_rng([seed, 5])
+    if chosen:
+        unknown = [c for c in chosen if c not in classes]
+        if unknown:
+            raise TactexError(f"--classes: unknown class(es) {unknown}; available: "
+                              f"{', '.join(classes)}")
+        comps = list(chosen)
+    else:
+        if len(classes) < comparisons:
+            raise TactexError(f"--comparisons {comparisons}: the source has only "
+                              f"{len(classes)} classes")
+        comps = [str(c) for c in rng.choice(classes, comparisons, replace=False)]
+    if len(comps) < 2:
+        raise TactexError("--classes: a trial needs at least 2 comparison platforms")
+    if reference is None:
+        reference = comps[int(rng.integers(len(comps)))]
+    if reference not in comps:
+        raise TactexError(f"--reference {reference!r} is not one of the comparison classes "
+                          f"{comps}")
+    return [reference] + comps, comps.index(reference) + 1
+
+
+def trial_scene(src: Any, comparisons: int, seed: int, chosen: list[str] | None = None,
+                reference: str | None = None) -> tuple[list[str], int]:
+    """The scene of a trial on source ``src``: platform classes [reference, comparisons...] and
+    the true match (1..N). Without ``chosen``, a source that draws its own scenes (the
+    simulator at its difficulty) draws the comparisons from ``seed``; others draw classes."""
+    if chosen is None and hasattr(src, "draw_scene"):
+        chosen = src.draw_scene(comparisons, seed)
+    return assign_platforms(list(getattr(src, "fabrics", src.classes)), comparisons, chosen,
+                            reference, seed)

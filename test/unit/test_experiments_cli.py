@@ -8,7 +8,7 @@ import yaml
 
 from tactex_ros.cli import main
 from tactex_ros.core.errors import TactexError
-from tactex_ros.experiments.explore import decision_at_budget
+from tactex_ros.experiments.common import decision_at_budget
 from tactex_ros.experiments.humans import load_humans
 from tactex_ros.experiments.runner import TrialJob, run_job
 from tactex_ros.experiments.trials import find_trial_file, load_trials
@@ -70,14 +70,26 @@ def test_explore_outputs(explore_out):
     assert json.loads((explore_out / "config.json").read_text())["config"]["rounds"] == 3
     m = s["models"]["small_inception"]
     strategies = ["variance", "random", "yoto"]
+    def right(d, truth):
+        return int(np.argmax(d["probs"])) + 1 == truth
+
     for st in strategies:
-        assert 0 <= m["fixed_rounds"][st]["accuracy"] <= 1
+        mine = [r for r in runs if r["strategy"] == st]
         assert m["fixed_rounds"][st]["n"] == 2
+        assert m["fixed_rounds"][st]["accuracy"] == np.mean([r["correct"] for r in mine])
         assert set(m["budget"][st]["per_budget"]) == {"5", "6", "7"}
-        assert 0 <= m["budget"][st]["matched"]["accuracy"] <= 1
+        # budget k: the first decision made with >= k touches (the last one past the run)
+        at = {k: [right(next((d for d in r["decisions"] if d["total"] >= k),
+                             r["decisions"][-1]), r["truth"]) for r in mine] for k in (5, 6, 7)}
+        for k in (5, 6, 7):
+            assert m["budget"][st]["per_budget"][str(k)]["accuracy"] == np.mean(at[k])
+        assert m["budget"][st]["matched"]["accuracy"] == pytest.approx(
+            np.mean([np.mean([at[k][i] for k in (5, 6, 7)]) for i in range(2)]))
         assert len(m["curves"][st]["accuracy"]) == 4        # 3 rounds + the final decision
-        assert all(0 <= a <= 1 for a in m["curves"][st]["accuracy"])
-        assert all(e >= 0 for e in m["curves"][st]["entropy_mean"])
+        assert m["curves"][st]["accuracy"] == [
+            np.mean([right(r["decisions"][j], r["truth"]) for r in mine]) for j in range(4)]
+        assert m["curves"][st]["entropy_mean"] == pytest.approx(
+            [np.mean([r["decisions"][j]["entropy"] for r in mine]) for j in range(4)], abs=1e-5)
         assert set(m["per_trial"][st]) == {"1", "2"}
         cm = np.array(m["confusion"][st]["matrix"])
         assert cm.shape == (7, 7) and cm.sum() == 2
@@ -140,7 +152,8 @@ def test_classify_sim(tmp_path):
                  "--quiet", "--set", "bn_recalibrate=8"]) == 0
     s = json.loads((out / "summary.json").read_text())
     m = s["models"]["small_inception"]
-    assert m["test_acc"]["n"] == 2 and 0 <= m["test_acc"]["mean"] <= 1
+    assert m["test_acc"]["n"] == 2
+    assert m["test_acc"]["mean"] == pytest.approx(np.mean([r["test_acc"] for r in s["runs"]]))
     assert m["n"] == {"train": 6, "val": 6, "test": 9}
     assert len(m["curves"]["val_acc"]["mean"]) == 2
     cm = np.array(m["confusion"]["matrix"])
@@ -174,3 +187,9 @@ def test_experiment_bad_inputs_exit_2(tmp_path):
     assert main(["experiment", "classify", "--classes", "4,nope", "--out", str(tmp_path)]) == 2
     assert main(["experiment", "classify", "--models", "inception_v3_random",
                  "--inception-input-size", "64", "--out", str(tmp_path)]) == 2
+    # the faithful part names the source it needs (no default data path); nothing is written
+    out = tmp_path / "pareto"
+    assert main(["experiment", "pareto", "--parts", "faithful", "--out", str(out)]) == 2
+    assert not out.exists()
+    # the job runner's options are checked before any job runs
+    assert main(["experiment", "explore", "--address", "auto", "--out", str(tmp_path)]) == 2

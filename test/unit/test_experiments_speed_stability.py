@@ -6,10 +6,9 @@ import math
 import pytest
 
 from tactex_ros.cli import main
-from tactex_ros.experiments.common import parse_set
-from tactex_ros.experiments.pareto import correct_at, pareto_front
+from tactex_ros.experiments.common import correct_at, parse_set
 from tactex_ros.experiments.stats import mcnemar_exact as mcnemar
-from tactex_ros.experiments.stats import wilson
+from tactex_ros.experiments.stats import pareto_front, wilson
 from tactex_ros.experiments.stability import condition, failure_mode
 from tactex_ros.core.errors import TactexError
 
@@ -23,11 +22,15 @@ def test_pareto_front_keeps_only_undominated_points():
 
 
 def test_wilson_and_mcnemar():
-    lo, hi = wilson(8, 10)
-    assert 0.44 < lo < 0.5 and 0.94 < hi < 0.97
+    # Wilson score interval by hand: (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)
+    z, n, p = 1.959963984540054, 10, 0.8
+    mid, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    assert wilson(8, 10) == pytest.approx(((mid - half) / (1 + z * z / n),
+                                           (mid + half) / (1 + z * z / n)), abs=1e-9)
     assert all(math.isnan(v) for v in wilson(0, 0))
     r = mcnemar([True] * 10 + [False] * 5, [False] * 10 + [False] * 5)
-    assert r["a_only"] == 10 and r["b_only"] == 0 and r["p"] < 0.01
+    assert r["a_only"] == 10 and r["b_only"] == 0
+    assert r["p"] == pytest.approx(2 * 0.5 ** 10)        # 2 * P(X = 0), X ~ Bin(10, 1/2)
     assert mcnemar([True, False], [True, False])["p"] == 1.0
 
 
@@ -83,7 +86,12 @@ def test_pareto_command_tiny(tmp_path):
     g = json.loads((out / "grid.json").read_text())
     assert set(g["all_trials"]) == {"default", "32px"}
     row = g["all_trials"]["32px"]
-    assert row["n"] == 1 and row["median_cpu_s"] > 0 and 0 <= row["accuracy"] <= 1
+    run, = [r for r in json.loads((out / "grid_runs.json").read_text())
+            if r["setting"] == "32px"]
+    assert row["n"] == 1 and row["accuracy"] == float(correct_at(run["decisions"],
+                                                                run["truth"], 6))
+    cpu = sorted(d["cpu_s"] for d in run["decisions"])      # 2 decisions: median = mean
+    assert len(cpu) == 2 and row["median_cpu_s"] == pytest.approx(sum(cpu) / 2)
     t = json.loads((out / "touches.json").read_text())
     assert t["curves"]["yoto"]["touches"] == [5, 6]
     for f in ("pareto.png", "touches.png", "config.json"):

@@ -12,7 +12,7 @@ import pytest
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TouchFailed, TrialEngine, trial_preset
 from tactex_ros.core.errors import TactexError
-from tactex_ros.core.touch import Touch
+from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.record import TrialRecord, read_record
 from tactex_ros.resume import Replay, load_replay
 from tactex_ros.sources import open_source
@@ -49,7 +49,7 @@ def _recording(rec: TrialRecord, src_fn, no_contact: np.ndarray, start: int = 0,
         if n[0] == FAIL_AT:
             rec.add_touch(None, dict(meta, accepted=False, reason="no contact"))
             raise TouchFailed("no contact", retry=False)
-        img = src_fn(platform)
+        img = as_touch(src_fn(platform)).frame          # the simulator gives a Touch
         rec.add_touch(img, dict(meta, accepted=True), no_contact=no_contact)
         return Touch(frame=img, no_contact=no_contact)
     return touch

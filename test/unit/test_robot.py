@@ -11,9 +11,8 @@ import yaml
 from tactex_ros import adapter
 from tactex_ros.core.errors import TactexError
 from tactex_ros.graph import describe, fixed_frame
-from tactex_ros.paths import config_dir
-from tactex_ros.robot import (fill_message, import_interface, load_profile, parse_profile,
-                              profile_names)
+from tactex_ros.paths import config_dir, config_names
+from tactex_ros.robot import fill_message, import_interface, load_profile, parse_profile
 
 
 def _fr3() -> dict:
@@ -21,7 +20,7 @@ def _fr3() -> dict:
 
 
 def test_shipped_profiles_load() -> None:
-    assert {"fr3_jazzy", "panda_multipanda", "sim"} <= set(profile_names())
+    assert {"fr3_jazzy", "panda_multipanda", "sim"} <= set(config_names("robots"))
     fr3, panda = load_profile("fr3_jazzy"), load_profile("panda_multipanda")
     assert fr3.frame_id == "fr3_link0" and panda.frame_id == "panda_link0"
     assert fr3.recovery.kind == "action" and [c.ok_field for c in fr3.recovery.then] == \
@@ -54,7 +53,7 @@ def test_profile_errors_name_the_field(path, value, field) -> None:
 
 
 def test_missing_profile_and_interface() -> None:
-    with pytest.raises(TactexError, match="not found; profiles"):
+    with pytest.raises(TactexError, match="robot profile .ur5. not found.*fr3_jazzy"):
         load_profile("ur5")
     with pytest.raises(TactexError, match="franka_msgs"):
         import_interface("franka_msgs/action/ErrorRecovery")

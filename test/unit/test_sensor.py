@@ -16,14 +16,14 @@ from tactex_ros.core.errors import TactexError
 from tactex_ros.node_settings import GelsightSettings
 from tactex_ros.nodes.gelsight_node import (FrameFolder, camera_setup, landscape,
                                             resolve_device)
-from tactex_ros.sensor import (digit_led_value, load_sensor, parse_sensor, sensor_config,
-                               sensor_names)
+from tactex_ros.paths import config_names
+from tactex_ros.sensor import digit_led_value, load_sensor, parse_sensor, sensor_config
 
 from test_gelsight_setup import RecordingCapture
 
 
 def test_shipped_profiles() -> None:
-    assert {"gelsight_mini", "digit"} <= set(sensor_names())
+    assert {"gelsight_mini", "digit"} <= set(config_names("sensors"))
     g = load_sensor("gelsight_mini")
     assert (g.capture_width, g.capture_height, g.crop_fraction) == (320, 240, 0.15)
     assert g.exposure_controls and g.led_intensity is None

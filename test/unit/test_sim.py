@@ -4,12 +4,13 @@ import pytest
 from tactex_ros.cli import main
 from tactex_ros.core.errors import TactexError
 from tactex_ros.sim.fabrics import FabricParams, load_catalogue
-from tactex_ros.sim.source import SimSource, parse_difficulty
+from tactex_ros.sim.source import parse_difficulty
+from tactex_ros.sources import open_source
 
 
 @pytest.fixture(scope="module")
 def src():
-    return SimSource("medium")
+    return open_source("sim:medium")
 
 
 def radial_spectrum(img: np.ndarray, bins: int = 24) -> np.ndarray:
@@ -32,7 +33,11 @@ def test_shape_dtype_and_determinism(src):
     np.testing.assert_array_equal(a, b)
     assert np.abs(a.astype(int) - c).mean() > 1.0  # every touch is a different press
     t1, t2 = src.trial(["denim", "satin"], seed=9), src.trial(["denim", "satin"], seed=9)
-    np.testing.assert_array_equal(t1(0), t2(0))
+    a1, a2 = t1(0), t2(0)
+    np.testing.assert_array_equal(a1.frame, a2.frame)
+    # every simulated touch carries the session's no-contact frame, as a real sensor's does
+    np.testing.assert_array_equal(a1.no_contact, a2.no_contact)
+    assert a1.no_contact.shape == (240, 320, 3) and a1.no_contact.dtype == np.uint8
 
 
 def test_every_catalogue_fabric_renders_with_contact(src):
@@ -52,7 +57,7 @@ def test_fabrics_differ_more_than_presses_and_gap_shrinks_with_difficulty():
     both as distances between means of two presses (equal noise on both sides)."""
     ratios = {}
     for q in (0.2, 0.9, 1.0):
-        s = SimSource(q)
+        s = open_source(f"sim:{q}")
         between, within = [], []
         for seed in range(10):
             names = s.draw_scene(3, seed)

@@ -1,0 +1,130 @@
+"""The layers hold: read every module's imports (``ast``, nothing is imported) and check the
+rules of the package's layering. A violation names the module, the line and the import."""
+
+import ast
+from pathlib import Path
+
+import tactex_ros
+
+PKG = Path(tactex_ros.__file__).resolve().parent
+EXPERIMENTS = PKG / "experiments"
+# shared helpers of the experiments; every other module there is one command
+SHARED = {"__init__", "common", "stats", "charts", "runner", "trials"}
+
+
+def _module(path: Path) -> str:
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path) -> list[tuple[int, str, list[str]]]:
+    """(line, absolute module, imported names) of every import in a file, relative ones
+    resolved against the file's package; names are [] for ``import x``."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = _module(path) if path.name == "__init__.py" else _module(path).rpartition(".")[0]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name, []) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                pkg = package.split(".")
+                pkg = pkg[:len(pkg) - (node.level - 1)]
+                base = ".".join(pkg + ([base] if base else []))
+            out.append((node.lineno, base, [a.name for a in node.names]))
+    return out
+
+
+def _files(folder: Path = PKG) -> list[Path]:
+    return sorted(p for p in folder.rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def _violations(files, bad) -> list[str]:
+    return [f"{p.relative_to(PKG.parent)}:{line}: {mod} {names or ''}"
+            for p in files for line, mod, names in imports(p) if bad(p, mod, names)]
+
+
+def test_the_import_reader_resolves_relative_imports():
+    # a file inside the package: relative imports are resolved against its own package
+    got = imports(PKG / "experiments" / "runner.py")
+    mods = {m for _, m, _ in got}
+    assert "tactex_ros.core.engine" in mods and "tactex_ros.experiments.common" in mods
+    assert (PKG / "core" / "__init__.py").is_file()
+
+
+def test_core_imports_nothing_outside_core():
+    def bad(p, mod, names):
+        return mod.startswith("tactex_ros") and not mod.startswith("tactex_ros.core") \
+            or mod.split(".")[0] in ("rclpy", "matplotlib")
+    assert _violations(_files(PKG / "core"), bad) == []
+
+
+def test_sim_takes_its_paths_and_knows_no_ros():
+    def bad(p, mod, names):
+        return mod in ("tactex_ros.paths", "tactex_ros.cli") or mod.split(".")[0] == "rclpy"
+    assert _violations(_files(PKG / "sim"), bad) == []
+
+
+def test_experiments_import_no_command_module_no_private_name_and_no_cli():
+    commands = {f"tactex_ros.experiments.{p.stem}" for p in _files(EXPERIMENTS)
+                if p.stem not in SHARED}
+
+    def bad(p, mod, names):
+        own = f"tactex_ros.experiments.{p.stem}"
+        return (mod.startswith("tactex_ros.cli") or mod.split(".")[0] == "rclpy"
+                or (mod in commands and mod != own)
+                or (mod.startswith("tactex_ros") and any(n.startswith("_") for n in names)))
+    assert _violations(_files(EXPERIMENTS), bad) == []
+
+
+def test_one_chart_module_one_statistics_module_one_progress_display():
+    def bad(p, mod, names):
+        top = mod.split(".")[0]
+        return ((top == "matplotlib" and p.name != "charts.py")
+                or (mod == "scipy.stats" and p.name != "stats.py")
+                or (top == "rich" and p.name != "common.py"))
+    assert _violations(_files(EXPERIMENTS) + _files(PKG / "core"), bad) == []
+
+
+def test_no_module_imports_a_private_name_of_another_package():
+    """``from x import _y`` across packages: private helpers stay in their package."""
+    def bad(p, mod, names):
+        pkg = _module(p).rpartition(".")[0]
+        return (mod.startswith("tactex_ros") and mod.rpartition(".")[0] != pkg
+                and mod != pkg and any(n.startswith("_") for n in names))
+    assert _violations(_files(), bad) == []
+
+
+def test_no_machine_path_in_the_package():
+    hits = [f"{p.relative_to(PKG.parent)}: {s.value}" for p in _files()
+            for s in ast.walk(ast.parse(p.read_text()))
+            if isinstance(s, ast.Constant) and isinstance(s.value, str)
+            and s.value.startswith(("/work/", "/home/", "/root/", "/tmp/"))]
+    assert hits == []
+
+
+def test_no_module_uses_a_private_member_of_another_module():
+    """``mod._helper`` where ``mod`` is an imported tactex module (e.g. ``real._run``)."""
+    hits = []
+    for p in _files():
+        tree = ast.parse(p.read_text())
+        modules = {}       # local name -> module it names
+        for _, mod, names in imports(p):
+            for n in names:
+                modules[n] = f"{mod}.{n}"
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    modules[a.asname or a.name.split(".")[0]] = a.name
+        own = _module(p)
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.attr.startswith("_") and not node.attr.startswith("__")):
+                target = modules.get(node.value.id, "")
+                if target.startswith("tactex_ros") and target != own \
+                        and (PKG.parent / (target.replace(".", "/") + ".py")).is_file():
+                    hits.append(f"{p.relative_to(PKG.parent)}:{node.lineno}: "
+                                f"{node.value.id}.{node.attr}")
+    assert hits == []
