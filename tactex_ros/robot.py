@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .core.errors import TactexError
-from .paths import config_file, read_yaml
+from .paths import check_mapping, config_file, read_yaml
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
@@ -95,21 +95,11 @@ def _interface_name(v: str, where: str, kinds: tuple[str, ...]) -> str:
     return v
 
 
-def _mapping(d: Any, where: str, allowed: set[str]) -> dict:
-    if not isinstance(d, dict):
-        raise TactexError(f"{where}: expected a mapping, got {type(d).__name__}")
-    unknown = set(d) - allowed
-    if unknown:
-        raise TactexError(f"{where}: unknown field(s) {sorted(unknown)}; allowed: "
-                          f"{sorted(allowed)}")
-    return d
-
-
 def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
     """Validate a profile mapping; TactexError names the first bad field."""
-    d = _mapping(data, origin, {"name", "frame_id", "controller", "target", "state",
+    d = check_mapping(data, origin, {"name", "frame_id", "controller", "target", "state",
                                 "force_sign", "recovery", "notes"})
-    ctl = _mapping(d.get("controller"), f"{origin}: controller",
+    ctl = check_mapping(d.get("controller"), f"{origin}: controller",
                    {"name", "stiffness", "target_filter_s"})
     k = ctl.get("stiffness")
     if isinstance(k, bool) or not isinstance(k, (int, float)) or not 10.0 <= k <= 1e6:
@@ -117,11 +107,11 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
     filt = ctl.get("target_filter_s", 0.0)
     if isinstance(filt, bool) or not isinstance(filt, (int, float)) or not 0 <= filt <= 5:
         raise TactexError(f"{origin}: controller.target_filter_s: s in [0, 5], got {filt!r}")
-    tgt = _mapping(d.get("target"), f"{origin}: target", {"topic", "type"})
+    tgt = check_mapping(d.get("target"), f"{origin}: target", {"topic", "type"})
     ttype = _str(tgt, "type", f"{origin}: target")
     if ttype not in TARGET_TYPES:
         raise TactexError(f"{origin}: target.type: one of {list(TARGET_TYPES)}, got {ttype!r}")
-    st = _mapping(d.get("state"), f"{origin}: state",
+    st = check_mapping(d.get("state"), f"{origin}: state",
                   {"pose_topic", "wrench_topic", "topic", "type", "mode_topic", "mode_type"})
     if "topic" in st or "type" in st:
         if "pose_topic" in st or "wrench_topic" in st:
@@ -140,7 +130,7 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
     sign = d.get("force_sign", 1.0)
     if sign not in (1, -1, 1.0, -1.0) or isinstance(sign, bool):
         raise TactexError(f"{origin}: force_sign: 1 or -1, got {sign!r}")
-    rec = _mapping(d.get("recovery", {"kind": "none"}), f"{origin}: recovery",
+    rec = check_mapping(d.get("recovery", {"kind": "none"}), f"{origin}: recovery",
                    {"kind", "name", "type", "ok_field", "then"})
     kind = rec.get("kind", "none")
     if kind not in RECOVERY_KINDS:
@@ -151,7 +141,7 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
         then = []
         for i, c in enumerate(rec.get("then", []) or []):
             w = f"{origin}: recovery.then[{i}]"
-            c = _mapping(c, w, {"service", "type", "request", "ok_field"})
+            c = check_mapping(c, w, {"service", "type", "request", "ok_field"})
             req = c.get("request", {})
             if not isinstance(req, dict):
                 raise TactexError(f"{w}.request: expected a mapping of request fields")

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .core.errors import TactexError
-from .paths import config_file, read_yaml
+from .paths import check_mapping, config_file, read_yaml
 
 SERIAL_LOOKUPS = ("", "digit_interface")
 LED_MAX = 15
@@ -88,19 +88,9 @@ def _num(d: dict, key: str, where: str, lo: float, hi: float, integer: bool = Fa
     return int(v) if integer else float(v)
 
 
-def _mapping(d: Any, where: str, allowed: set[str]) -> dict:
-    if not isinstance(d, dict):
-        raise TactexError(f"{where}: expected a mapping, got {type(d).__name__}")
-    unknown = set(d) - allowed
-    if unknown:
-        raise TactexError(f"{where}: unknown field(s) {sorted(unknown)}; allowed: "
-                          f"{sorted(allowed)}")
-    return d
-
-
 def parse_sensor(data: Any, origin: str = "sensor profile") -> SensorProfile:
     """Validate a sensor profile mapping; TactexError names the first bad field."""
-    d = _mapping(data, origin, {"name", "device", "serial_lookup", "modes", "capture",
+    d = check_mapping(data, origin, {"name", "device", "serial_lookup", "modes", "capture",
                                 "crop_fraction", "exposure_controls", "led_intensity",
                                 "portrait_recordings", "notes"})
     for key in ("name", "device"):
@@ -117,14 +107,14 @@ def parse_sensor(data: Any, origin: str = "sensor profile") -> SensorProfile:
     modes = []
     for i, m in enumerate(raw_modes):
         w = f"{origin}.modes[{i}]"
-        m = _mapping(m, w, {"width", "height", "fps"})
+        m = check_mapping(m, w, {"width", "height", "fps"})
         fps = m.get("fps")
         if not isinstance(fps, list) or not fps:
             raise TactexError(f"{w}.fps: expected a non-empty list of frame rates, got {fps!r}")
         rates = tuple(_num({"fps": f}, "fps", w, 1, 1000) for f in fps)
         modes.append(Mode(_num(m, "width", w, 1, 8192, True),
                           _num(m, "height", w, 1, 8192, True), rates))
-    cap = _mapping(d.get("capture"), f"{origin}.capture", {"width", "height", "fps"})
+    cap = check_mapping(d.get("capture"), f"{origin}.capture", {"width", "height", "fps"})
     cw = _num(cap, "width", f"{origin}.capture", 0, 8192, True)
     ch = _num(cap, "height", f"{origin}.capture", 0, 8192, True)
     fps = _num(cap, "fps", f"{origin}.capture", 1, 1000)

@@ -28,10 +28,25 @@ def _video(octopi_dir: Path) -> Path:
     pytest.skip("no .mov press in octopi-dev")
 
 
+
+def _capture(listener, node, tmp_path: Path, images: list, n_frames: int, settle_s: float):
+    """Run ``node`` alone, wait until ``n_frames`` images arrived (60 s deadline), wait
+    ``settle_s``, call the capture service once and return its response."""
+    from tactex.srv import Capture
+    client = listener.node.create_client(Capture, "/tactex/gelsight/capture")
+    with Graph([node], tmp_path / "logs", listener.domain_id):
+        assert client.wait_for_service(timeout_sec=30.0)
+        end = time.monotonic() + 60.0
+        while len(images) < n_frames and time.monotonic() < end:
+            time.sleep(0.05)
+        time.sleep(settle_s)
+        fut = client.call_async(Capture.Request(window_s=0.0))
+        while not fut.done() and time.monotonic() < end:
+            time.sleep(0.02)
+        return fut.result()
+
 def test_capture_returns_strongest_contact_frame(octopi_dir: Path, tmp_path: Path,
                                                  listener) -> None:
-    from rclpy.action import ActionClient  # noqa: F401  (rclpy import check)
-    from tactex.srv import Capture
     video = _video(octopi_dir)
     # offline: the same pipeline over every frame of the recording
     cap = cv2.VideoCapture(str(video))
@@ -51,17 +66,7 @@ def test_capture_returns_strongest_contact_frame(octopi_dir: Path, tmp_path: Pat
     node = NodeSpec("gelsight_node", "gelsight", {
         "device": str(video), "fps": 50.0, "warmup_frames": 0, "reference_frames": n_ref,
         "buffer_s": len(frames) / 50.0, "loop_file": True})
-    client = listener.node.create_client(Capture, "/tactex/gelsight/capture")
-    with Graph([node], tmp_path / "logs", listener.domain_id):
-        assert client.wait_for_service(timeout_sec=30.0)
-        end = time.monotonic() + 60.0
-        while len(images) < len(frames) and time.monotonic() < end:
-            time.sleep(0.05)
-        time.sleep(0.5)
-        fut = client.call_async(Capture.Request(window_s=0.0))
-        while not fut.done() and time.monotonic() < end:
-            time.sleep(0.02)
-        resp = fut.result()
+    resp = _capture(listener, node, tmp_path, images, len(frames), 0.5)
     assert len(images) >= len(frames)          # the recording plays on a loop
     im0 = images[0]
     assert (im0.height, im0.width, im0.encoding) == (240, 320, "rgb8")
@@ -102,7 +107,6 @@ def _digit_press(folder: Path, n: int = 24, peak: int = 15) -> list[np.ndarray]:
 def test_digit_profile_on_recorded_frames(tmp_path: Path, listener) -> None:
     """sensor:=digit on a folder of recorded DIGIT frames: the same node and capture service
     return the strongest-contact frame, turned to landscape, 320x240."""
-    from tactex.srv import Capture
     rec = tmp_path / "digit_press"
     rec.mkdir()
     frames = _digit_press(rec)
@@ -114,17 +118,7 @@ def test_digit_profile_on_recorded_frames(tmp_path: Path, listener) -> None:
     node = NodeSpec("gelsight_node", "gelsight", {
         "sensor": "digit", "device": str(rec), "fps": 30.0, "warmup_frames": 0,
         "reference_frames": n_ref, "buffer_s": len(frames) / 30.0, "loop_file": True})
-    client = listener.node.create_client(Capture, "/tactex/gelsight/capture")
-    with Graph([node], tmp_path / "logs", listener.domain_id):
-        assert client.wait_for_service(timeout_sec=30.0)
-        end = time.monotonic() + 60.0
-        while len(images) < len(frames) and time.monotonic() < end:
-            time.sleep(0.05)
-        time.sleep(0.3)
-        fut = client.call_async(Capture.Request(window_s=0.0))
-        while not fut.done() and time.monotonic() < end:
-            time.sleep(0.02)
-        resp = fut.result()
+    resp = _capture(listener, node, tmp_path, images, len(frames), 0.3)
     assert len(images) >= len(frames)
     assert (images[0].height, images[0].width, images[0].encoding) == (240, 320, "rgb8")
     assert resp.success
