@@ -8,10 +8,10 @@ Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``
 config/robots/) names the impedance controller, topics, message types and recovery interface of
 the robot stack, which must already run. ``sim:=true``: mock_arm_node and mock_image_node replace
 robot and camera at the same topics, and a static transform world -> base frame gives rviz its
-fixed frame. The nodes and their parameters come from ``tactex_ros.graph.describe`` -- the same
+fixed frame. The nodes and their parameters come from ``tactex_ros.ros.graph.describe`` -- the same
 description the ``tactex graph run`` runner uses -- and are all validated before anything starts:
 a bad value ends the launch with the argument or field named and no process started. The node
-settings among the arguments (config ... source) are ``tactex_ros.graph.OPTIONS``: their types,
+settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
 ranges, choices and descriptions come from the nodes' settings schema, as for
 ``tactex graph run``; '' (the default) leaves the node's own default.
 
@@ -36,8 +36,8 @@ class LaunchArgumentError(ValueError):
 
 def arguments() -> list[tuple[str, str, str]]:
     """(name, default, description) of every launch argument: the graph's own, then one per
-    node setting of ``tactex_ros.graph.OPTIONS`` (description and choices from the schema)."""
-    from tactex_ros.graph import OPTIONS, option_spec
+    node setting of ``tactex_ros.ros.graph.OPTIONS`` (description and choices from the schema)."""
+    from tactex_ros.ros.graph import OPTIONS, option_spec
     args = [("sim", "false", "mock arm + mock image instead of the hardware"),
             ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
                               "base frame)"),
@@ -63,8 +63,8 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``pose_topic`` and ``wrench_topic``, the ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
     from tactex_ros.core.errors import TactexError
-    from tactex_ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
-    from tactex_ros.robot import load_profile
+    from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
+    from tactex_ros.robot.robots import load_profile
 
     def flag(name: str) -> bool:
         v = values.get(name, "false").strip().lower()
@@ -130,7 +130,7 @@ def _nodes(context, *args, **kwargs):
 
         from launch.actions import ExecuteProcess
 
-        from tactex_ros.node_settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC
+        from tactex_ros.ros.settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC
         out = Path(p["record_dir"]) / time.strftime("bag_%Y%m%d_%H%M%S")
         topics = [t for t in (STATE_TOPIC, MARKER_TOPIC, TOUCH_IMAGE_TOPIC, p["pose_topic"],
                               p["wrench_topic"]) if t]

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from . import charts, stats
+from ..analysis import charts, stats
 from .common import parse_set, results_dir, write_json
 from .runner import add_runner_args, backend_of, cached_source, run_parallel
 

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from . import charts, stats
+from ..analysis import charts, stats
 from .common import correct_at, parse_set, results_dir, write_json
 from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from .trials import find_trial_file, load_trials, platform_classes

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core.errors import TactexError
 from ..paths import config_file, read_yaml
-from . import charts, stats
+from ..analysis import charts, stats
 from .common import decision_at_budget, results_dir, write_json
 from .trials import find_trial_file, load_trials, platform_classes
 

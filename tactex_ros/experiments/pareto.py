@@ -35,11 +35,11 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from . import charts
+from ..analysis import charts
 from .common import correct_at, parse_set, results_dir, write_json
 from .runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
-from .stats import mcnemar_exact as mcnemar
-from .stats import pareto_front, wilson
+from ..analysis.stats import mcnemar_exact as mcnemar
+from ..analysis.stats import pareto_front, wilson
 
 # The settings are spelled out in full around the pre-issue-5 default ("base": 64 px, 12 Adam
 # steps of 32 per round, 20 MC passes, BN recalibration on 64 views) so the grid does not move

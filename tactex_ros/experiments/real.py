@@ -41,10 +41,10 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from . import charts
+from ..analysis import charts
 from .common import budget_index, parse_set, results_dir, write_json
 from .runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
-from .stats import mcnemar_exact, wilcoxon_paired, wilson
+from ..analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
                     "variance=default:strategy=variance")

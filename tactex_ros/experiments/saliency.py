@@ -33,7 +33,7 @@ from ..core.engine import TrialConfig, TrialEngine
 from ..core.errors import TactexError
 from ..core.learner import OnlineLearner
 from ..core.saliency import display_image, grad_cam, input_x_gradient
-from . import charts
+from ..analysis import charts
 from .common import progress, results_dir, write_json
 
 

@@ -43,11 +43,11 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import TactexError
-from . import charts
+from ..analysis import charts
 from .common import parse_set, results_dir, write_json
 from .runner import TrialJob, add_runner_args, backend_of, run_jobs
-from .stats import mcnemar_exact as mcnemar
-from .stats import wilson
+from ..analysis.stats import mcnemar_exact as mcnemar
+from ..analysis.stats import wilson
 
 AXES: dict[str, list[float]] = {
     "difficulty": [0.3, 0.5, 0.7, 0.8, 0.9, 0.95],

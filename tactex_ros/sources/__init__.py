@@ -24,7 +24,7 @@ def open_source(spec: str):
         return ReplaySource(arg)
     if kind == "sim":
         from ..paths import config_dir
-        from ..sim.source import SimSource
+        from .sim import SimSource
         return SimSource(arg or "medium", catalogue=config_dir() / "fabrics.yaml")
     raise TactexError(f"unknown source {spec!r}; use replay:DIR or sim[:easy|medium|hard|<number>]")
 

@@ -61,7 +61,7 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
                answer_s: float = 2.0, client=None):
     """Send a Press goal to ``/tactex/press`` and return its result (``None``: rejected).
 
-    Through ``tactex_ros.nodes.goal.GoalRequest``, as the explorer does: a goal whose response
+    Through ``tactex_ros.ros.goal.GoalRequest``, as the explorer does: a goal whose response
     is lost (right after discovery) is re-sent after ``answer_s`` and the first one followed by
     its goal id. ``client``: an ActionClient to use (default: a new one on the listener).
     Fails the test at ``timeout`` seconds.
@@ -72,7 +72,7 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
     from rclpy.action import ActionClient
     from tactex.action import Press
 
-    from tactex_ros.nodes.goal import GoalRequest
+    from tactex_ros.ros.goal import GoalRequest
 
     ac = client or ActionClient(listener.node, Press, "/tactex/press")
     if not ac.wait_for_server(timeout_sec=30.0):

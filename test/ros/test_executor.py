@@ -23,8 +23,8 @@ from geometry_msgs.msg import PoseStamped, WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 
-from tactex_ros.node_settings import POSE_TOPIC, WRENCH_TOPIC  # noqa: E402
-from tactex_ros.nodes.common import in_thread  # noqa: E402
+from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC  # noqa: E402
+from tactex_ros.ros.nodes.common import in_thread  # noqa: E402
 
 SCENE = Path(__file__).resolve().parents[2] / "config" / "scene_sim.yaml"
 
@@ -32,7 +32,7 @@ SCENE = Path(__file__).resolve().parents[2] / "config" / "scene_sim.yaml"
 @pytest.fixture
 def mock_arm(domain_id):
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
-    proc = subprocess.Popen([sys.executable, "-m", "tactex_ros.nodes.mock_arm_node", "--ros-args",
+    proc = subprocess.Popen([sys.executable, "-m", "tactex_ros.ros.nodes.mock_arm_node", "--ros-args",
                              "-p", f"scene_file:={SCENE}"], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     yield proc

@@ -20,14 +20,14 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from tactex_ros import adapter
-from tactex_ros.bag import TOUCH_TOPIC, read_bag
-from tactex_ros.cli_graph import summarise_bag
-from tactex_ros.graph import describe
-from tactex_ros.node_settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
+from tactex_ros.ros import adapter
+from tactex_ros.ros.bag import TOUCH_TOPIC, read_bag
+from tactex_ros.cli.graph import summarise_bag
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
 from tactex_ros.record import read_record, read_result
-from tactex_ros.runner import ros_env, run_trial
-from tactex_ros.scene import load_scene
+from tactex_ros.ros.launcher import ros_env, run_trial
+from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
 
@@ -198,7 +198,7 @@ def _node_pids(tag: str) -> list[int]:
                 cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode()
             except OSError:
                 continue
-            if tag in cmd and "tactex_ros.nodes." in cmd and _alive(int(d.name)):
+            if tag in cmd and "tactex_ros.ros.nodes." in cmd and _alive(int(d.name)):
                 out.append(int(d.name))
     return out
 
@@ -207,7 +207,7 @@ def _node_pids(tag: str) -> list[int]:
 def test_runner_signalled_leaves_no_node(tmp_path: Path, domain_id: int, sig: int) -> None:
     """`tactex graph run` gets SIGTERM (or SIGKILL) mid-trial: every node is stopped."""
     logs = tmp_path / f"logs_{sig}"
-    cmd = [sys.executable, "-m", "tactex_ros.cli", "graph", "run", "--sim", "--rounds", "3",
+    cmd = [sys.executable, "-m", "tactex_ros.cli.main", "graph", "run", "--sim", "--rounds", "3",
            "--record-dir", str(tmp_path), "--trial-id", "t", "--log-dir", str(logs),
            "--domain-id", str(domain_id), "--timeout", "120"]
     proc = subprocess.Popen(cmd, env=ros_env(domain_id), stdout=subprocess.PIPE,
@@ -240,7 +240,7 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     """Without the runner's supervision (as under `launch`): the motion node is killed during a
     press; the explorer ends the trial within press_silence_s (not press_timeout_s, 120 s) with
     an error result, and the cut-off press is recorded as interrupted."""
-    from tactex_ros.runner import Graph
+    from tactex_ros.ros.launcher import Graph
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
                                      "learner": {"threads": 1},
                                      "record_dir": str(tmp_path), "trial_id": "gone",

@@ -12,10 +12,10 @@ import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from tactex_ros import adapter
+from tactex_ros.ros import adapter
 from tactex_ros.core.contact import contact_score, blur, crop_border
-from tactex_ros.graph import NodeSpec
-from tactex_ros.runner import Graph
+from tactex_ros.ros.graph import NodeSpec
+from tactex_ros.ros.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

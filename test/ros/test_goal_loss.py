@@ -14,9 +14,9 @@ import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.task import Future
 
-from tactex_ros.graph import describe
-from tactex_ros.nodes.goal import GoalRequest
-from tactex_ros.runner import Graph
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.goal import GoalRequest
+from tactex_ros.ros.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

@@ -26,7 +26,7 @@ from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
-from tactex_ros.nodes.common import entities, wait_for  # noqa: E402
+from tactex_ros.ros.nodes.common import entities, wait_for  # noqa: E402
 from tactex_ros.paths import config_dir  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -120,7 +120,7 @@ def bench(domain_id):
 
 
 def test_mock_arm_lifecycle(bench) -> None:
-    from tactex_ros.nodes.mock_arm_node import MockArmNode
+    from tactex_ros.ros.nodes.mock_arm_node import MockArmNode
     b = bench(MockArmNode, {"scene_file": SCENE, "rate_hz": 20.0})
     got: list = []
     b.manager.create_subscription(PoseStamped, "/franka_robot_state_broadcaster/current_pose",
@@ -129,7 +129,7 @@ def test_mock_arm_lifecycle(bench) -> None:
 
 
 def test_mock_image_lifecycle(bench) -> None:
-    from tactex_ros.nodes.mock_image_node import MockImageNode
+    from tactex_ros.ros.nodes.mock_image_node import MockImageNode
     b = bench(MockImageNode, {"scene_file": SCENE, "fps": 10.0,
                               "image_topic": "/lifecycle_test/image"})
     got: list = []
@@ -139,7 +139,7 @@ def test_mock_image_lifecycle(bench) -> None:
 
 
 def test_gelsight_lifecycle(bench, tmp_path: Path) -> None:
-    from tactex_ros.nodes.gelsight_node import GelsightNode
+    from tactex_ros.ros.nodes.gelsight_node import GelsightNode
     video = tmp_path / "gel.avi"
     w = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 20.0, (320, 240))
     rng = np.random.default_rng(0)
@@ -157,7 +157,7 @@ def test_gelsight_lifecycle(bench, tmp_path: Path) -> None:
 def test_explorer_lifecycle(bench, tmp_path: Path) -> None:
     """Markers (1 Hz) only while active; the trial thread starts on the first activation (no
     press server here: it ends with an error result after server_timeout_s)."""
-    from tactex_ros.nodes.explorer_node import ExplorerNode
+    from tactex_ros.ros.nodes.explorer_node import ExplorerNode
     b = bench(ExplorerNode, {"scene_file": SCENE, "record_dir": str(tmp_path),
                              "trial_id": "lc", "nice": 0, "server_timeout_s": 0.5})
     got: list = []
@@ -172,7 +172,7 @@ def test_motion_lifecycle(bench) -> None:
     cleanup. The node publishes targets only while pressing: none in the whole cycle."""
     from tactex.action import Press
 
-    from tactex_ros.nodes.motion_node import MotionNode
+    from tactex_ros.ros.nodes.motion_node import MotionNode
     b = bench(MotionNode, {"scene_file": SCENE, "robot": "sim", "state_timeout_s": 0.05})
     got: list = []
     b.manager.create_subscription(PoseStamped,

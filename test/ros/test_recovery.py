@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tactex_ros.graph import describe
+from tactex_ros.ros.graph import describe
 from tactex_ros.paths import config_dir
-from tactex_ros.runner import Graph
+from tactex_ros.ros.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

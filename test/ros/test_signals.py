@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.graph import describe, params_file
-from tactex_ros.runner import node_command, ros_env
+from tactex_ros.ros.graph import describe, params_file
+from tactex_ros.ros.launcher import node_command, ros_env
 
 pytestmark = pytest.mark.ros
 

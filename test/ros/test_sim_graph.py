@@ -11,11 +11,11 @@ from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.qos import qos_profile_sensor_data
 from visualization_msgs.msg import MarkerArray
 
-from tactex_ros.graph import describe
-from tactex_ros.node_settings import POSE_TOPIC, WRENCH_TOPIC
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC
 from tactex_ros.record import read_record
-from tactex_ros.runner import run_trial
-from tactex_ros.scene import load_scene
+from tactex_ros.ros.launcher import run_trial
+from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
 
@@ -70,7 +70,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
 def test_press_faults(tmp_path: Path, listener, press) -> None:
     """Unknown platform: goal rejected. Platforms lower than the scene says: no contact, the
     press is retried, then reported failed; the arm stays in the workspace meanwhile."""
-    from tactex_ros.runner import Graph
+    from tactex_ros.ros.launcher import Graph
     nodes = [n for n in describe(True, mock_arm={"surface_offset": -0.03})
              if n.name in ("mock_arm", "mock_image", "motion")]
     scene = load_scene(nodes[0].parameters["scene_file"])
@@ -86,8 +86,8 @@ def test_press_faults(tmp_path: Path, listener, press) -> None:
     assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
     # never below the deepest equilibrium of a press (the floor below the scene's surface at
     # the profile's stiffness), up to 1 mm of the impedance controller's overshoot
-    from tactex_ros.core.press import equilibrium_floor
-    from tactex_ros.robot import load_profile
+    from tactex_ros.robot.press import equilibrium_floor
+    from tactex_ros.robot.robots import load_profile
     floor = equilibrium_floor(scene.press, load_profile("sim").stiffness)
     assert xyz[:, 2].min() >= scene.platform("c1").position[2] - floor - 0.001
 

@@ -10,13 +10,13 @@ import pytest
 import yaml
 
 from tactex_ros.paths import config_dir
-from tactex_ros.runner import ros_env
+from tactex_ros.ros.launcher import ros_env
 
 pytestmark = pytest.mark.ros
 
 
 def _start(node: str, params: list[str], domain_id: int) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", f"tactex_ros.nodes.{node}", "--ros-args"]
+    cmd = [sys.executable, "-m", f"tactex_ros.ros.nodes.{node}", "--ros-args"]
     for p in params:
         cmd += ["-p", p]
     return subprocess.run(cmd, capture_output=True, timeout=60, env=ros_env(domain_id))

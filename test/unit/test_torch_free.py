@@ -15,10 +15,10 @@ ROOT = Path(__file__).resolve().parents[2]
 FORBIDDEN = ("torch", "tactex_ros.core.learner", "tactex_ros.core.models",
              "tactex_ros.core.engine", "tactex_ros.core.uncertainty",
              "tactex_ros.core.strategies")
-MODULES = ["tactex_ros.nodes.motion_node", "tactex_ros.nodes.mock_arm_node",
-           "tactex_ros.nodes.gelsight_node", "tactex_ros.nodes.mock_image_node",
-           "tactex_ros.graph", "tactex_ros.robot", "tactex_ros.node_settings",
-           "tactex_ros.adapter", "tactex_ros.core.press", "tactex_ros.scene"]
+MODULES = ["tactex_ros.ros.nodes.motion_node", "tactex_ros.ros.nodes.mock_arm_node",
+           "tactex_ros.ros.nodes.gelsight_node", "tactex_ros.ros.nodes.mock_image_node",
+           "tactex_ros.ros.graph", "tactex_ros.robot.robots", "tactex_ros.ros.settings",
+           "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.scene"]
 
 
 def _launch_imports() -> list[str]:
@@ -59,7 +59,7 @@ def test_mock_image_sources_do_not_import_torch() -> None:
 
 
 def test_launch_file_imports_were_found() -> None:
-    assert "tactex_ros.graph" in _launch_imports()
+    assert "tactex_ros.ros.graph" in _launch_imports()
 
 
 def test_names_match_the_learning_code() -> None:

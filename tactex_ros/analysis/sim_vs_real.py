@@ -1,0 +1,284 @@
+"""Sim-to-real report: do simulated presses look like, and rank learners like, real presses?
+
+Two parts (``tactex sim compare``):
+
+1. **Frame statistics per class family.** For real presses (first frame = no contact, the
+   strongest-contact frame) and simulated presses (the same sensor without and with contact):
+   the no-contact frame's mean and spatial std per RGB channel, the noise between two
+   no-contact frames (mean |difference|), the contact difference's level (mean
+   |contact - no contact| [grey levels]) and its spectrum (share of its power above
+   0.1 cycles/px, and its shares in the bands 0-0.02, 0.02-0.05, 0.05-0.1 cycles/px). Real
+   classes are grouped by how they press (``REAL_FAMILIES``: soft,
+   firm textured, smooth), simulated fabrics by their softness (soft >= 0.5) and by
+   construction family. Each shared group is compared as sim / real ratio with the 25 % target.
+2. **Ranking agreement.** A set of learner settings (``DEFAULT_SETTINGS``, in the syntax of
+   ``tactex experiment real``) runs through the real-press evaluation
+   (``experiments/real.py``: scene draw, runner, belief after every touch) on simulated scenes
+   (catalogue fabrics) and on real scenes (the folder's classes): 1 reference + C comparisons
+   of distinct classes, seeded, the same scenes for every setting. Per setting: accuracy on
+   each side after a fixed number of touches; Spearman rho between the two rankings with a
+   bootstrap interval (scenes resampled, paired across settings) and the accuracy gap
+   (real - sim).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import TactexError
+
+# How octopi-dev's classes press (by looking at the objects, not at their frames).
+REAL_FAMILIES: dict[str, tuple[str, ...]] = {
+    "soft": ("cotton_ball", "feather_duster", "plush_ball", "sponge", "sponge_soft", "tissue",
+             "toilet_paper", "paper_towel"),
+    "firm_textured": ("basket", "wires", "strainer_head", "hairbrush_bristles",
+                      "toothbrush_bristles", "steel_wool", "millet", "rice", "bubble_wrap",
+                      "sponge_rough"),
+    "smooth": ("aluminium_foil", "eraser", "leather_book", "leatherback_book", "masking_tape",
+               "rubber_slippers", "wood_ruler", "tennis_ball"),
+}
+SOFT_THRESHOLD = 0.5          # simulated fabrics with softness >= this form the "soft" group
+TARGET_REL = 0.25             # every statistic within 25 % of the real value
+
+# Learner settings ranked on both sides, in ``tactex experiment real`` syntax
+# (label=preset[:key=value,...], ``experiments/real.parse_setting``): the shipped descriptor
+# model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
+DEFAULT_SETTINGS: tuple[str, ...] = (
+    "default=default",
+    "random=default:strategy=random",
+    "variance=default:strategy=variance",
+    "entropy=default:strategy=entropy",
+    "yoto=default:strategy=yoto",
+    "no_contact_off=default:descriptor_no_contact=false",
+    "prior0.5=default:match_prior_scale=0.5",
+    "prior3=default:match_prior_scale=3.0",
+    "cnn=cnn",
+    "cnn_random=cnn:strategy=random",
+)
+
+
+BAND_EDGES = (0.0, 0.02, 0.05, 0.1)   # cycles/px: the bands below the high-frequency share
+
+
+def _power(diff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Power spectrum of the grey, mean-removed (H, W, 3) difference image and the radial
+    frequency [cycles/px] of every bin."""
+    g = diff.astype(np.float64).mean(axis=2)
+    p = np.abs(np.fft.fft2(g - g.mean())) ** 2
+    f = np.hypot(np.fft.fftfreq(g.shape[0])[:, None], np.fft.fftfreq(g.shape[1])[None, :])
+    return p, f
+
+
+def hf_share(diff: np.ndarray, cutoff: float = 0.1) -> float:
+    """Share of the (grey, mean-removed) power of a (H, W, 3) difference image above
+    ``cutoff`` cycles/px."""
+    p, f = _power(diff)
+    total = p.sum()
+    return float(p[f > cutoff].sum() / total) if total > 0 else 0.0
+
+
+def band_shares(diff: np.ndarray, edges: tuple[float, ...] = BAND_EDGES) -> np.ndarray:
+    """Shares of the difference image's power in the radial bands [edges[i], edges[i + 1])
+    cycles/px (with ``hf_share`` above the last edge they sum to 1)."""
+    p, f = _power(diff)
+    total = p.sum()
+    if total <= 0:
+        return np.zeros(len(edges) - 1)
+    last = len(edges) - 2        # the last band includes its top edge (hf_share is above it)
+    return np.array([p[(f >= a) & ((f < b) | ((f == b) & (i == last)))].sum()
+                     for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]) / total
+
+
+@dataclass
+class Press:
+    """One press for the statistics: no-contact frame, a second no-contact frame (noise),
+    strongest contact; all (240, 320, 3) uint8 RGB."""
+
+    group: str
+    family: str
+    name: str
+    no_contact: np.ndarray
+    no_contact2: np.ndarray
+    contact: np.ndarray
+
+
+def press_stats(p: Press) -> dict[str, Any]:
+    nc = p.no_contact.astype(np.float32)
+    d = p.contact.astype(np.float32) - nc
+    return {"no_contact_mean_rgb": nc.reshape(-1, 3).mean(0),
+            "no_contact_std_rgb": nc.reshape(-1, 3).std(0),
+            "noise_mean_abs": float(np.abs(p.no_contact2.astype(np.float32) - nc).mean()),
+            "diff_mean_abs": float(np.abs(d).mean()),
+            "hf_share": hf_share(d), "band_shares": band_shares(d)}
+
+
+STAT_KEYS = ("no_contact_mean_rgb", "no_contact_std_rgb", "noise_mean_abs", "diff_mean_abs",
+             "hf_share", "band_shares")
+
+
+def summarise(stats: list[dict[str, Any]]) -> dict[str, Any]:
+    """Mean of every statistic over presses (vectors per channel), and the count."""
+    if not stats:
+        return {"presses": 0}
+    out: dict[str, Any] = {"presses": len(stats)}
+    for k in STAT_KEYS:
+        v = np.mean([np.asarray(s[k], dtype=float) for s in stats], axis=0)
+        out[k] = np.round(v, 3).tolist() if np.ndim(v) else round(float(v), 4)
+    return out
+
+
+def real_presses(real_dir: str, per_class: int) -> list[Press]:
+    """The first ``per_class`` presses of every class of a replay folder (videos only)."""
+    from ..core.contact import strongest_contact
+    from ..sources.replay import ReplaySource, read_video
+    rep = ReplaySource(real_dir)
+    fam_of = {c: f for f, cs in REAL_FAMILIES.items() for c in cs}
+    out = []
+    for cls in rep.classes:
+        for path in rep.presses(cls)[:per_class]:
+            try:
+                arr = read_video(path)[..., ::-1]            # BGR -> RGB
+            except TactexError:
+                continue                                     # an image, not a press video
+            if len(arr) < 3:
+                continue
+            idx, _ = strongest_contact(arr)
+            fam = fam_of.get(cls, "other")
+            out.append(Press(fam, fam, cls, np.ascontiguousarray(arr[0]),
+                             np.ascontiguousarray(arr[1]), np.ascontiguousarray(arr[idx])))
+    if not out:
+        raise TactexError(f"--real {real_dir}: no press videos found")
+    return out
+
+
+def sim_presses(per_class: int, seed: int, classes: list[str] | None = None) -> list[Press]:
+    """``per_class`` simulated presses of every catalogue fabric (or of ``classes``)."""
+    from ..sources import open_source
+    sim = open_source("sim")
+    rng = np.random.default_rng([seed, 61])
+    out = []
+    for name in classes or sim.classes:
+        fab = sim.fabric(name)          # an unknown name is an error naming it
+        group = "soft" if fab.softness >= SOFT_THRESHOLD else "firm_textured"
+        for _ in range(per_class):
+            out.append(Press(group, fab.family, name, sim.renderer.no_contact(rng),
+                             sim.renderer.no_contact(rng), sim.press(name, rng)))
+    return out
+
+
+def frame_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
+    """Statistics per group and family on both sides, and sim / real ratios per shared group."""
+    rs, ss = [press_stats(p) for p in real], [press_stats(p) for p in sim]
+    out: dict[str, Any] = {"real": {"all": summarise(rs)}, "sim": {"all": summarise(ss)}}
+    for side, presses, stats in (("real", real, rs), ("sim", sim, ss)):
+        for key in ("group", "family"):
+            for g in sorted({getattr(p, key) for p in presses}):
+                out[side].setdefault(g, summarise(
+                    [s for p, s in zip(presses, stats) if getattr(p, key) == g]))
+    checks = []
+    for g in ("all", "soft", "firm_textured"):
+        r, s = out["real"].get(g), out["sim"].get(g)
+        if not r or not s or not r["presses"] or not s["presses"]:
+            continue
+        for k in STAT_KEYS:
+            rv, sv = np.atleast_1d(r[k]).astype(float), np.atleast_1d(s[k]).astype(float)
+            ratio = sv / np.where(rv == 0, np.nan, rv)
+            ok = bool(np.all(np.abs(ratio - 1) <= TARGET_REL))
+            checks.append({"group": g, "statistic": k, "real": r[k], "sim": s[k],
+                           "ratio": np.round(ratio, 3).tolist(), "within_25pct": ok})
+    out["checks"] = checks
+    out["checks_passed"] = sum(c["within_25pct"] for c in checks)
+    return out
+
+
+# ------------------------------------------------------------------------------ ranking
+
+def spearman_interval(sim_scores: np.ndarray, real_scores: np.ndarray, boot: int = 2000,
+                      seed: int = 0) -> dict[str, Any]:
+    """Spearman rho between the settings' mean scores on the two sides, with a percentile
+    bootstrap 95 % interval (``scipy.stats.bootstrap``: the scenes of each side resampled,
+    paired across settings). ``*_scores``: (settings, scenes) per-scene scores."""
+    import warnings
+
+    from scipy.stats import ConstantInputWarning, bootstrap, spearmanr
+    a, b = np.asarray(sim_scores, float), np.asarray(real_scores, float)
+
+    def rho(ia: np.ndarray, ib: np.ndarray) -> float:
+        r = spearmanr(a[:, ia.astype(int)].mean(1), b[:, ib.astype(int)].mean(1)).statistic
+        return float(r) if np.isfinite(r) else 0.0     # a resample where one side ties all
+        # settings ranks nothing: counted as no agreement
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConstantInputWarning)   # handled: nan / 0 above
+        point = spearmanr(a.mean(1), b.mean(1)).statistic   # nan if one side ties all
+        if a.shape[1] < 2 or b.shape[1] < 2 or not np.isfinite(point):
+            ci = [float("nan"), float("nan")]
+        else:
+            res = bootstrap((np.arange(a.shape[1]), np.arange(b.shape[1])), rho,
+                            vectorized=False, n_resamples=boot, method="percentile",
+                            rng=np.random.default_rng(seed))
+            ci = [float(res.confidence_interval.low), float(res.confidence_interval.high)]
+    return {"rho": float(point), "ci95": ci, "settings": int(a.shape[0])}
+
+
+def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
+                comparisons: int, budget: int, seed: int, workers: int) -> dict[str, Any]:
+    """Every setting on the same ``scenes`` simulated and real scenes (1 + ``comparisons``
+    distinct classes: catalogue fabrics / the folder's classes), through the real-press
+    evaluation (``experiments/real.py``: the same scene draw, runner and belief curves).
+
+    Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
+    interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
+    (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
+    a bootstrap interval, and the gaps real - sim."""
+    from ..experiments import real
+    from ..experiments.runner import Backend
+    from .stats import wilson
+    from ..sources import open_source
+    if scenes < 2:
+        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
+    if budget < 0:
+        raise TactexError(f"--budget must be >= 0, got {budget}")
+    parsed = [real.parse_setting(s) for s in settings]
+    labels = [p[0] for p in parsed]
+    if len(labels) < 2 or len(set(labels)) != len(labels):
+        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
+    theta = 0.9
+    out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
+                           "budget": budget, "stop_theta": theta, "seed": seed,
+                           "setting_specs": list(settings)}
+    scores: dict[str, dict[str, np.ndarray]] = {}
+    for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
+        classes = sorted(open_source(spec).classes)
+        curves = real.belief_curves(real.draw_scenes(classes, scenes, comparisons, seed),
+                                    parsed, spec, seed, budget, f"{side}-",
+                                    Backend("joblib", workers))
+        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
+        at_b = np.array([[real.at_budget(c, budget) for c in curves[lab]] for lab in labels],
+                        float)
+        mean_b = np.array([[np.mean([real.at_budget(c, k) for k in range(budget + 1)])
+                            for c in curves[lab]] for lab in labels], float)
+        stops = [[real.at_stop(c, theta) for c in curves[lab]] for lab in labels]
+        scores[side] = {"at_budget": at_b, "mean_over_budgets": mean_b}
+        for i, lab in enumerate(labels):
+            k = int(at_b[i].sum())
+            out["settings"].setdefault(lab, {})[side] = {
+                "accuracy": k / scenes, "ci95": list(wilson(k, scenes)),
+                "accuracy_mean_over_budgets": float(mean_b[i].mean()),
+                "accuracy_at_stop": float(np.mean([st[0] for st in stops[i]])),
+                "touches_at_stop": float(np.mean([st[1] for st in stops[i]]))}
+        out[f"{side}_failed_trials"] = errors
+    for lab in labels:
+        v = out["settings"][lab]
+        v["gap_real_minus_sim"] = v["real"]["accuracy"] - v["sim"]["accuracy"]
+    gaps = [out["settings"][lab]["gap_real_minus_sim"] for lab in labels]
+    out["accuracy_spearman"] = spearman_interval(scores["sim"]["at_budget"],
+                                                 scores["real"]["at_budget"], seed=seed)
+    out["mean_over_budgets_spearman"] = spearman_interval(
+        scores["sim"]["mean_over_budgets"], scores["real"]["mean_over_budgets"], seed=seed)
+    out["mean_gap_real_minus_sim"] = float(np.mean(gaps))
+    out["mean_abs_gap"] = float(np.mean(np.abs(gaps)))
+    return out

@@ -1,0 +1,253 @@
+"""``tactex`` command line: trials, weights, benchmarks, simulator, experiments.
+
+Exit status: 0 success, 1 a check failed (e.g. weights mismatch), 2 bad input (named).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import TactexError
+
+
+# a trial touches every platform at least once first; a bench holds a handful (the lab scene
+# has 4 comparisons): more than this is a typing error, not an experiment
+MAX_COMPARISONS = 24
+
+
+def bounded(kind: type, lo: float, hi: float):
+    """argparse type: a number of ``kind`` in [lo, hi]; the error names the range."""
+    def parse(text: str):
+        try:
+            v = kind(text)
+        except ValueError:
+            what = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not lo <= v <= hi:     # also refuses nan
+            raise argparse.ArgumentTypeError(f"{text} is outside {kind(lo)}..{kind(hi)}")
+        return v
+    return parse
+
+
+def add_setting_option(p: argparse.ArgumentParser, flag: str, spec: Any, help: str) -> None:
+    """An option for one schema field (``core.config.FieldSpec``): numbers out of the schema's
+    range are refused by the parser (exit status 2, the option named); a value not among the
+    choices by the schema check (exit status 2, the field named); not given = None."""
+    kw: dict = {"default": None, "help": help + (f" (one of {', '.join(spec.choices)})"
+                                                 if spec.choices else "")}
+    if spec.kind in (int, float):
+        kw["type"] = (bounded(spec.kind, spec.lo, spec.hi) if spec.lo is not None
+                      and spec.hi is not None else spec.kind)
+    p.add_argument(flag, **kw)
+
+
+def add_schema_options(p: argparse.ArgumentParser, cls: type, names: tuple[str, ...]) -> None:
+    """One option per dotted schema field of ``cls`` (``trial.stop_confidence`` ->
+    ``--stop-confidence``), help from its description; not given = the preset's."""
+    from ..core.config import field_spec
+    for name in names:
+        spec = field_spec(cls, name)
+        add_setting_option(p, "--" + name.rsplit(".", 1)[-1].replace("_", "-"), spec,
+                           f"{spec.description} (default: the --config preset's)"
+                           if "." in name else spec.description)
+
+
+def schema_values(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
+    """The options of ``add_schema_options`` that were given, as nested settings."""
+    from ..core.config import nest
+    values = {n: getattr(args, n.rsplit(".", 1)[-1]) for n in names}
+    return nest({n: v for n, v in values.items() if v is not None})
+
+
+# what `tactex trial` takes of a trial's settings (TrialSettings, core/config.py)
+TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
+                 "learner.representation", "trial.rounds", "trial.stop_confidence")
+
+
+def _write_json(path: str | None, obj: dict) -> None:
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(json.dumps(obj, indent=2))
+
+
+def cmd_trial(args: argparse.Namespace) -> int:
+    from ..core.config import TrialSettings
+    from ..core.engine import TrialEngine
+    from ..sources import open_source, trial_scene
+    settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
+                                   "tactex trial")
+    src = open_source(args.source)
+    cfg, tcfg = settings.learner, settings.trial
+    chosen = args.classes.split(",") if args.classes else None
+    if chosen is not None and len(chosen) > MAX_COMPARISONS:
+        raise TactexError(f"--classes: {len(chosen)} comparison classes; at most "
+                          f"{MAX_COMPARISONS}")
+    if chosen is None and args.comparisons < 2:
+        raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
+    platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
+                                          args.reference)
+    n = len(platform_classes) - 1
+    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
+    engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
+    touch = src.trial(platform_classes, args.seed)
+
+    def progress(rec) -> None:
+        if not args.quiet:
+            nxt = ids[rec.platform] if rec.platform is not None else "-"
+            print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
+                  f"decision {rec.decision_s:.2f}s", file=sys.stderr)
+
+    res = engine.run(touch, truth=truth, on_round=progress)
+    out = res.to_dict()
+    out.update(classes={i: c for i, c in zip(ids, platform_classes)},
+               prediction_class=platform_classes[res.prediction],
+               truth_class=platform_classes[truth], strategy=tcfg.strategy,
+               model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
+    _write_json(args.json, out)
+    verdict = "correct" if res.correct else "wrong"
+    print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
+          f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
+          f"{res.touches} touches; stopped: {res.stop_reason}")
+    return 0
+
+
+def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
+                        seed: int = 0) -> dict[str, np.ndarray]:
+    """{class: (n, D) descriptors} of a library: every press of ``replay:DIR``, or
+    ``sim_presses`` simulated presses of every catalogue fabric for ``sim``."""
+    from ..core.texture import describe_touch
+    from ..core.touch import Touch
+    from ..sources import open_source
+    src = open_source(spec)
+    out = {}
+    if spec.startswith("replay:"):
+        for cls in src.classes:
+            xs = []
+            for path in src.presses(cls):
+                try:
+                    xs.append(describe_touch(src.touch(path), frames))
+                except TactexError as exc:
+                    print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
+            if xs:
+                out[f"{spec}/{cls}"] = np.stack(xs)
+        return out
+    rng = np.random.default_rng([seed, 43])
+    for cls in src.classes:
+        nc = src.renderer.no_contact(rng)
+        out[f"{spec}/{cls}"] = np.stack([describe_touch(Touch(src.press(cls, rng), nc), frames)
+                                         for _ in range(sim_presses)])
+    return out
+
+
+def cmd_prepare(args: argparse.Namespace) -> int:
+    from ..core import representation
+    desc: dict[str, np.ndarray] = {}
+    for spec in args.library:
+        desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed))
+    rep = representation.fit(desc, shrink=args.shrink)
+    path = representation.save(rep, args.out)
+    print(f"representation from {rep.classes} classes, {rep.presses} presses "
+          f"({', '.join(args.library)}) -> {path}; use it with "
+          f"`tactex trial ... --representation {path}`")
+    return 0
+
+
+def cmd_weights_inspect(args: argparse.Namespace) -> int:
+    from ..core.models import build_model, load_weights, read_checkpoint
+    state = read_checkpoint(args.path)
+    model, _ = build_model(args.model, args.classes)
+    report = load_weights(model, state)
+    print(report.summary())
+    _write_json(args.json, report.to_dict())
+    return 0 if report.ok else 1
+
+
+def cmd_bench_latency(args: argparse.Namespace) -> int:
+    from ..experiments.bench import latency
+    from ..core.config import PRESETS
+    unknown = [c for c in args.configs if c not in PRESETS]
+    if unknown:
+        raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
+                          f"{', '.join(PRESETS)}")
+    out = latency.run(touch_counts=args.touches, repeats=args.repeats,
+                      seed_epochs=args.seed_epochs, configs=tuple(args.configs))
+    _write_json(args.json, out)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from ..core.config import TrialSettings
+    p = argparse.ArgumentParser(prog="tactex", description=__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    t = sub.add_parser("trial", help="run one active-exploration trial")
+    t.add_argument("--source", required=True, help="replay:DIR or sim[:difficulty]")
+    t.add_argument("--comparisons", type=bounded(int, 2, MAX_COMPARISONS), default=4,
+                   help=f"comparison platforms, 2..{MAX_COMPARISONS}")
+    t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
+    t.add_argument("--reference", help="class of the reference platform")
+    add_schema_options(t, TrialSettings, ("config",) + TRIAL_OPTIONS)
+    t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
+    t.add_argument("--json")
+    t.add_argument("--quiet", action="store_true")
+    t.set_defaults(func=cmd_trial)
+
+    pr = sub.add_parser("prepare", help="build a representation (descriptor metric) from a "
+                                        "library of presses of other materials")
+    pr.add_argument("--library", action="append", required=True,
+                    help="replay:DIR of recorded presses, or sim (repeat to combine)")
+    pr.add_argument("--frames", type=int, default=1, help="contact frames per press")
+    pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
+    pr.add_argument("--shrink", type=float, default=1.0,
+                    help="ridge added to the within-class covariance (standardised units)")
+    pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--out", required=True, help="representation file to write (.pt)")
+    pr.set_defaults(func=cmd_prepare)
+
+    w = sub.add_parser("weights", help="checkpoint tools")
+    wsub = w.add_subparsers(dest="wcmd", required=True)
+    wi = wsub.add_parser("inspect", help="what a checkpoint loads into a model")
+    wi.add_argument("path")
+    wi.add_argument("--model", default="inception_v3")
+    wi.add_argument("--classes", type=int, default=4, help="platforms (classifier size)")
+    wi.add_argument("--json")
+    wi.set_defaults(func=cmd_weights_inspect)
+
+    b = sub.add_parser("bench", help="benchmarks (print figures)")
+    bsub = b.add_subparsers(dest="bcmd", required=True)
+    bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
+    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
+    bl.add_argument("--repeats", type=int, default=5)
+    bl.add_argument("--seed-epochs", type=int, default=1,
+                    help="epochs actually timed for the seed-faithful config (scaled to 10)")
+    bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
+                    help="configurations to time (ratios are to the last one)")
+    bl.add_argument("--json")
+    bl.set_defaults(func=cmd_bench_latency)
+
+    from . import experiment as cli_experiment, graph as cli_graph, sim as cli_sim
+    cli_sim.add_commands(sub, bsub)
+    cli_graph.add_commands(sub)
+    cli_experiment.add_commands(sub)
+
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except TactexError as exc:
+        print(f"tactex: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

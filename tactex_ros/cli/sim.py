@@ -1,0 +1,244 @@
+"""``tactex sim ...`` and ``tactex bench sim``: the fabric simulator on the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..core.errors import TactexError
+
+
+def cmd_fabrics(args: argparse.Namespace) -> int:
+    from ..sources import open_source
+    src = open_source("sim")
+    print(f"{'#':>3} {'name':<18} {'family':<9} {'pitch':>6} {'width':>6} {'height':>7} "
+          f"{'twist':>6} {'irreg':>6} {'fuzz':>5} {'rep':>4} {'soft':>5}")
+    for i, (name, f) in enumerate(src.catalogue.items(), 1):
+        print(f"{i:>3} {name:<18} {f.family:<9} {f.pitch_mm:>6.2f} {f.yarn_width:>6.2f} "
+              f"{f.yarn_height_mm:>7.2f} {f.twist:>6.2f} {f.irregularity:>6.2f} "
+              f"{f.fuzz:>5.2f} {f.repeat:>4d} {f.softness:>5.2f}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from ..sources import open_source
+    src = open_source("sim")
+    if args.depth is not None and not 0.0 < args.depth <= 3.0:
+        raise TactexError(f"--depth {args.depth} mm outside (0, 3]")
+    rng = np.random.default_rng(args.seed)
+    img = (src.renderer.no_contact(rng) if args.no_contact
+           else src.press(args.fabric, rng, depth_mm=args.depth))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
+        raise TactexError(f"--out {out}: cannot write an image there")
+    print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} RGB)")
+    return 0
+
+
+def bench_sim(frames: int = 400, repeats: int = 5) -> dict:
+    """Frames per second for 320x240 contact frames on one thread (tiles cached first)."""
+    cv2.setNumThreads(1)
+    from ..sources import open_source
+    src = open_source("sim")
+    names = src.classes
+    rng = np.random.default_rng(0)
+    for n in names:
+        src.press(n, rng)  # build and cache every height tile (not a per-touch cost)
+    fps = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for i in range(frames):
+            src.press(names[i % len(names)], rng)
+        fps.append(frames / (time.perf_counter() - t0))
+    out = {"fps_median": statistics.median(fps), "fps_runs": fps, "frames_per_run": frames,
+           "opencv_threads": 1}
+    print(f"simulator: {out['fps_median']:.0f} frames/s median over {repeats} runs of "
+          f"{frames} contact frames (320x240, one OpenCV thread; min {min(fps):.0f}, "
+          f"max {max(fps):.0f})")
+    return out
+
+
+def cmd_bench_sim(args: argparse.Namespace) -> int:
+    out = bench_sim(args.frames, args.repeats)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=2))
+    return 0
+
+
+def add_commands(sub, bench_sub) -> None:
+    s = sub.add_parser("sim", help="fabric simulator")
+    ssub = s.add_subparsers(dest="scmd", required=True)
+    f = ssub.add_parser("fabrics", help="list the fabric catalogue")
+    f.set_defaults(func=cmd_fabrics)
+    r = ssub.add_parser("render", help="write one simulated frame")
+    r.add_argument("--fabric", default="denim")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--depth", type=float, help="press depth [mm]")
+    r.add_argument("--no-contact", action="store_true")
+    r.add_argument("--out", required=True)
+    r.set_defaults(func=cmd_render)
+    add_compare(ssub)
+    b = bench_sub.add_parser("sim", help="simulator frames per second")
+    b.add_argument("--frames", type=int, default=400)
+    b.add_argument("--repeats", type=int, default=5)
+    b.add_argument("--json")
+    b.set_defaults(func=cmd_bench_sim)
+
+
+def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
+                      real_per_class: int = 3, ranking: dict | None = None,
+                      fabrics: list[str] | None = None) -> dict:
+    """The sim-to-real report (``sim/compare.py``): frame statistics per family, a picture
+    (top: real presses, bottom: simulated, each with |contact - no contact| x8) and, with
+    ``ranking`` (keyword arguments of ``compare.run_ranking`` except the folder), the
+    ranking agreement of learner settings. ``fabrics``: simulated fabrics of the statistics
+    (default: the whole catalogue)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..analysis import sim_vs_real as compare
+
+    real = compare.real_presses(real_dir, real_per_class)
+    sim = compare.sim_presses(per_class, seed, fabrics)
+    result = compare.frame_report(real, sim)
+    result["real_classes"] = sorted({p.name for p in real})
+    result["sim_fabrics"] = sorted({p.name for p in sim})
+    if ranking is not None:
+        result["ranking"] = compare.run_ranking(real_dir, seed=seed, **ranking)
+
+    picks = {"real": [], "sim": []}
+    for side, presses in (("real", real), ("sim", sim)):
+        for g in ("soft", "firm_textured", "smooth"):
+            named = {p.name: p for p in reversed(presses) if p.group == g}  # first per name
+            picks[side] += list(named.values())[::-1][:2]
+        picks[side] = picks[side][:4]
+    k = min(4, len(picks["real"]), len(picks["sim"]))
+    ncols = 2 * k + (1 if "ranking" in result else 0)
+    fig, axes = plt.subplots(2, ncols, figsize=(2 * ncols, 3.4), squeeze=False)
+    for i in range(k):
+        for row, side in enumerate(("real", "sim")):
+            p = picks[side][i]
+            axes[row, 2 * i].imshow(p.contact)
+            axes[row, 2 * i].set_title(f"{side}: {p.name} ({p.group})", fontsize=6)
+            d = np.clip(np.abs(p.contact.astype(float) - p.no_contact) * 8, 0, 255)
+            axes[row, 2 * i + 1].imshow(d.astype(np.uint8))
+            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=6)
+    for a in axes[:, :2 * k].ravel():
+        a.axis("off")
+    if "ranking" in result:
+        rk = result["ranking"]
+        ax = axes[0, -1]
+        names = list(rk["settings"])
+        xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
+        ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
+        ax.scatter(xs, ys, s=8)
+        for n, x, y in zip(names, xs, ys):
+            ax.annotate(n, (x, y), fontsize=4)
+        ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
+        sp = rk["accuracy_spearman"]
+        ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
+                     fontsize=6)
+        ax.set_xlabel(f"sim accuracy (+{rk['budget']} touches)", fontsize=6)
+        ax.set_ylabel("real accuracy", fontsize=6)
+        ax.tick_params(labelsize=5)
+        axes[1, -1].axis("off")
+    fig.tight_layout()
+    Path(out_png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+    return result
+
+
+def _print_report(res: dict) -> None:
+    print(f"{'group':<14} {'statistic':<20} {'real':>22} {'sim':>22} {'ratio':>18}  <=25%")
+    for c in res["checks"]:
+        def fmt(v):
+            return (", ".join(f"{x:.2f}" for x in v) if isinstance(v, list) else f"{v:.3f}")
+        print(f"{c['group']:<14} {c['statistic']:<20} {fmt(c['real']):>22} {fmt(c['sim']):>22} "
+              f"{fmt(c['ratio']):>18}  {'yes' if c['within_25pct'] else 'no'}")
+    print(f"{res['checks_passed']} of {len(res['checks'])} statistics within 25 % of real")
+    rk = res.get("ranking")
+    if rk:
+        print(f"\n{'setting':<15} {'sim acc':>8} {'real acc':>9} {'gap':>7} {'sim mean':>9} "
+              f"{'real mean':>10}   (accuracy after +{rk['budget']} touches; mean over "
+              f"0..{rk['budget']})")
+        for n, v in rk["settings"].items():
+            print(f"{n:<15} {v['sim']['accuracy']:>8.3f} {v['real']['accuracy']:>9.3f} "
+                  f"{v['gap_real_minus_sim']:>+7.3f} {v['sim']['accuracy_mean_over_budgets']:>9.3f} "
+                  f"{v['real']['accuracy_mean_over_budgets']:>10.3f}")
+        for key in ("accuracy_spearman", "mean_over_budgets_spearman"):
+            sp = rk[key]
+            print(f"{key}: rho {sp['rho']:.3f}, 95 % bootstrap interval "
+                  f"[{sp['ci95'][0]:.3f}, {sp['ci95'][1]:.3f}] over {sp['settings']} settings")
+        print(f"mean accuracy gap real - sim {rk['mean_gap_real_minus_sim']:+.3f} (mean |gap| "
+              f"{rk['mean_abs_gap']:.3f}); {rk['scenes']} sim + {rk['scenes']} real scenes of "
+              f"1 + {rk['comparisons']}; failed trials: sim {rk['sim_failed_trials']}, real "
+              f"{rk['real_failed_trials']}")
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from ..analysis.sim_vs_real import DEFAULT_SETTINGS
+    ranking = None
+    if args.presses < 1 or args.real_presses < 1:
+        raise TactexError("--presses and --real-presses must be >= 1")
+    if args.scenes > 0:
+        if not 2 <= args.comparisons <= 24:
+            raise TactexError(f"--comparisons must be in 2..24, got {args.comparisons}")
+        if not 0 <= args.budget <= 100:
+            raise TactexError(f"--budget must be in 0..100, got {args.budget}")
+        if args.workers < 1:
+            raise TactexError(f"--workers must be >= 1, got {args.workers}")
+        from ..experiments.real import parse_setting
+        for text in args.setting or []:
+            parse_setting(text)          # a bad setting is refused before any work
+        ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,
+                       comparisons=args.comparisons, budget=args.budget, workers=args.workers)
+    elif args.scenes < 0:
+        raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
+    fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
+    if fabrics:
+        from ..sim.fabrics import load_catalogue
+        from ..paths import config_dir
+        known = load_catalogue(config_dir() / "fabrics.yaml")
+        unknown = [f for f in fabrics if f not in known]
+        if unknown:
+            raise TactexError(f"--fabrics: unknown {unknown}; `tactex sim fabrics` lists them")
+    res = compare_with_real(args.real, args.out, args.seed, args.presses, args.real_presses,
+                            ranking, fabrics)
+    _print_report(res)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(res, indent=2))
+    print(f"wrote {args.out}")
+    return 0
+
+
+def add_compare(ssub) -> None:
+    c = ssub.add_parser("compare", help="sim-to-real report: frame statistics per family and "
+                                        "the ranking of learner settings on both sides")
+    c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
+    c.add_argument("--out", required=True, help="PNG: side-by-side frames (+ ranking)")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--json")
+    c.add_argument("--presses", type=int, default=2, help="simulated presses per fabric")
+    c.add_argument("--real-presses", type=int, default=3, help="real presses per class")
+    c.add_argument("--fabrics", help="comma-separated simulated fabrics for the statistics "
+                                     "(default: the whole catalogue)")
+    c.add_argument("--scenes", type=int, default=0,
+                   help="scenes per side for the ranking of learner settings (0 = skip it)")
+    c.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] as for `tactex experiment real` "
+                        "(repeat; default: sim/compare.py DEFAULT_SETTINGS)")
+    c.add_argument("--comparisons", type=int, default=4)
+    c.add_argument("--budget", type=int, default=5,
+                   help="touches after the baseline; accuracy is ranked at this budget")
+    c.add_argument("--workers", type=int, default=1)
+    c.set_defaults(func=cmd_compare)

@@ -1,0 +1,357 @@
+"""The press sequence as a pure state machine (no rclpy), ticked by the motion node, and the
+mock arm's physics.
+
+The robot is under Cartesian impedance control: the motion node commands the controller's
+*equilibrium* pose, and the arm pushes with ``F = K (x - x_eq)`` (``K`` the controller's
+translational stiffness [N/m]). A press therefore commands the equilibrium *below* the surface:
+
+``approach`` (lift to a safe height, travel above the platform, go to the approach point
+``approach_height`` above its surface) -> ``descend`` (the equilibrium goes straight down at
+``descend_speed`` until the normal force reaches ``force_threshold``) -> ``settle`` (the
+equilibrium is held at ``position - force / K``, never deeper than it already was: the static
+force at the measured pose is then the force measured at the threshold, so the contact stays
+at the threshold during settle and capture) -> ``capture`` (the caller
+grabs a frame and calls ``captured``) -> ``retract`` (back to the approach point) -> ``done``.
+
+The equilibrium never goes deeper than ``equilibrium_floor`` below the surface:
+``max(max_depth, (force_threshold + max_force) / 2 / K)``. For compliant controllers
+(``K * max_depth <= (force_threshold + max_force) / 2``) the static force at that floor is below
+the midpoint of threshold and limit whatever the platform's stiffness, because the contact spring
+only adds compliance in series; stiffer controllers rely on the threshold stop, checked every tick.
+No contact: the sensor is ``max_depth`` below the surface, or the equilibrium has reached its
+floor and the arm has settled there, and the force is still below the threshold.
+
+Enforced on every tick, whatever the phase: the commanded target stays inside the workspace
+box and moves at most ``max_speed`` (and the phase's own speed) per second; the force magnitude
+never above ``max_force`` (abort: retract at once); a normal force that reads clearly negative
+while pressing aborts (the wrench sign is wrong: a wrong sign would hide every contact); each
+phase ends before its deadline (abort). A failed press still retracts; ``result`` then carries
+the reason. Units: m, s, N.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, Sequence
+
+import numpy as np
+
+from ..core.errors import TactexError
+
+APPROACH, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = ("approach", "descend", "settle", "capture",
+                                                    "retract", "done")
+
+
+class PressSettings(Protocol):
+    """How a press is made (the scene file's ``press``, ``scene.PressSettings``): m, m/s, N, s."""
+
+    approach_height: float
+    travel_speed: float
+    descend_speed: float
+    max_speed: float
+    force_threshold: float
+    max_force: float
+    max_depth: float
+    settle_s: float
+    approach_deadline_s: float
+    descend_deadline_s: float
+    capture_deadline_s: float
+    retract_deadline_s: float
+    position_tolerance: float
+
+
+class Platform(Protocol):
+    """A platform: ``id``, surface centre ``position`` [m] in the base frame, ``radius`` [m]."""
+
+    id: str
+    position: tuple[float, float, float]
+    radius: float
+
+
+class Workspace(Protocol):
+    """What a press needs of the scene (``scene.Scene``): the workspace box [m], the press
+    settings and the platforms."""
+
+    workspace_min: tuple[float, float, float]
+    workspace_max: tuple[float, float, float]
+    press: PressSettings
+    platforms: Sequence[Platform]
+
+
+def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
+    """Position [m] clipped into the workspace box."""
+    return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
+
+
+@dataclass
+class PressOutcome:
+    success: bool
+    reason: str                  # "" on success
+    force_n: float               # normal force at capture [N] (0 when not captured)
+    depth_m: float               # penetration below the surface at capture [m]
+    max_force_n: float           # largest force magnitude seen during the press [N]
+
+
+def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
+    """Deepest equilibrium below the surface [m] for controller stiffness ``stiffness`` [N/m]."""
+    return max(press.max_depth, 0.5 * (press.force_threshold + press.max_force) / stiffness)
+
+
+def check_press(scene: Workspace, stiffness: float, origin: str = "scene") -> None:
+    """Refuse press settings a controller of ``stiffness`` [N/m] cannot carry out in time or
+    inside the workspace; TactexError names the field."""
+    s = scene.press
+    floor = equilibrium_floor(s, stiffness)
+    deepest = 0.0
+    for i, p in enumerate(scene.platforms):
+        room = min(floor, p.position[2] - scene.workspace_min[2])
+        deepest = max(deepest, room)
+        if stiffness * room < 1.5 * s.force_threshold:
+            raise TactexError(
+                f"{origin}: platforms[{i}] ({p.id}): the equilibrium can go only {room:.4f} m "
+                f"below the surface (workspace.min z {scene.workspace_min[2]}), which at "
+                f"stiffness {stiffness:g} N/m gives less than 1.5 x force_threshold "
+                f"({s.force_threshold} N)")
+    need = (s.approach_height + deepest) / s.descend_speed + 1.0
+    if need > s.descend_deadline_s:
+        raise TactexError(
+            f"{origin}: press.descend_deadline_s ({s.descend_deadline_s} s) is shorter than a "
+            f"descent can take at controller stiffness {stiffness:g} N/m: {need:.1f} s "
+            f"(approach_height {s.approach_height} m + equilibrium floor {deepest:.4f} m at "
+            f"descend_speed {s.descend_speed} m/s, + 1 s)")
+
+
+class PressController:
+    """One press of one platform. Call ``step`` at a steady rate with fresh measurements.
+
+    ``stiffness``: the impedance controller's translational stiffness along z [N/m] (a
+    position-controlled robot: a large value such as 1e5, the equilibrium is then the pose).
+    """
+
+    def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
+                 stiffness: float = 1e5) -> None:
+        if not stiffness > 0:
+            raise ValueError("stiffness must be positive [N/m]")
+        self.scene, self.platform, self.s, self.k = scene, platform, scene.press, stiffness
+        surface = np.asarray(platform.position, dtype=float)
+        self.surface_z = surface[2]
+        self.approach_point = surface + [0.0, 0.0, self.s.approach_height]
+        self.bottom = clamp(scene, surface - [0.0, 0.0, equilibrium_floor(self.s, stiffness)])
+        start = clamp(scene, start)
+        safe_z = max(start[2], self.approach_point[2])
+        self._waypoints = [np.array([start[0], start[1], safe_z]),
+                           np.array([surface[0], surface[1], safe_z]), self.approach_point]
+        self.target = start.copy()
+        self.phase = APPROACH
+        self.phase_start = now
+        self._last = now
+        self.failure = ""
+        self.capture_force = 0.0
+        self.capture_depth = 0.0
+        self.max_force = 0.0
+        self._need_capture = False
+
+    # ------------------------------------------------------------------ helpers
+    def _enter(self, phase: str, now: float) -> None:
+        self.phase, self.phase_start = phase, now
+
+    def abort(self, reason: str, now: float) -> None:
+        """End the press with ``reason``: retract from where it is (done if retracting)."""
+        if not self.failure:
+            self.failure = reason
+        if self.phase in (RETRACT, DONE):
+            self._enter(DONE, now)
+        else:
+            self._enter(RETRACT, now)
+
+    _abort = abort
+
+    def _deadline(self) -> float:
+        return {APPROACH: self.s.approach_deadline_s, DESCEND: self.s.descend_deadline_s,
+                SETTLE: self.s.settle_s + self.s.capture_deadline_s,
+                CAPTURE: self.s.capture_deadline_s,
+                RETRACT: self.s.retract_deadline_s}.get(self.phase, float("inf"))
+
+    def _move_towards(self, goal: np.ndarray, speed: float, dt: float) -> bool:
+        """Advance the target towards ``goal`` at ``speed`` [m/s]; True when it is there."""
+        step = min(speed, self.s.max_speed) * dt
+        d = goal - self.target
+        dist = float(np.linalg.norm(d))
+        self.target = goal.copy() if dist <= step else self.target + d * (step / dist)
+        self.target = clamp(self.scene, self.target)
+        return dist <= step
+
+    # ------------------------------------------------------------------ API
+    @property
+    def capture_requested(self) -> bool:
+        """True once, when the press has settled and a frame should be captured now."""
+        return self.phase == CAPTURE and self._need_capture
+
+    def captured(self, ok: bool, reason: str, now: float) -> None:
+        """Report the capture; the press then retracts."""
+        self._need_capture = False
+        if not ok:
+            self.abort(f"capture failed: {reason}", now)
+        else:
+            self._enter(RETRACT, now)
+
+    def step(self, now: float, position: np.ndarray, force_n: float,
+             force_magnitude: float | None = None) -> np.ndarray:
+        """Advance to time ``now`` [s] given the measured position [m], the signed normal force
+        [N] (positive = pressing) and the force magnitude [N] (default ``|force_n|``).
+
+        Returns the equilibrium position to command (always inside the workspace).
+        """
+        dt = max(0.0, min(now - self._last, 0.2))  # a stalled loop must not jump the target
+        self._last = now
+        position = np.asarray(position, dtype=float)
+        mag = abs(force_n) if force_magnitude is None else float(force_magnitude)
+        self.max_force = max(self.max_force, mag)
+        if self.phase == DONE:
+            return self.target
+        s = self.s
+        if mag > s.max_force and self.phase != RETRACT:
+            self.abort(f"force limit: {mag:.1f} N > max_force {s.max_force} N", now)
+        elif force_n < -s.force_threshold and self.phase in (DESCEND, SETTLE, CAPTURE):
+            self.abort(f"force sign: the normal force reads {force_n:.1f} N while pressing; "
+                       "the wrench sign (force_sign) is wrong for this robot", now)
+        if now - self.phase_start > self._deadline():
+            self.abort(f"deadline: phase {self.phase} took longer than "
+                       f"{self._deadline():.1f} s", now)
+        tol = s.position_tolerance
+        if self.phase == APPROACH:
+            goal = self._waypoints[0]
+            if self._move_towards(goal, s.travel_speed, dt) and \
+                    np.linalg.norm(position - goal) <= tol:
+                self._waypoints.pop(0)
+                if not self._waypoints:
+                    self._enter(DESCEND, now)
+        elif self.phase == DESCEND:
+            if force_n >= s.force_threshold:
+                # hold the equilibrium whose static force at the measured pose is the force
+                # measured now (>= threshold), never deeper than the one that reached it
+                hold = self.target.copy()
+                hold[2] = max(position[2] - force_n / self.k, self.target[2])
+                self.target = clamp(self.scene, hold)
+                self._enter(SETTLE, now)
+            elif self.surface_z - position[2] >= s.max_depth:
+                self.abort(f"no contact: {force_n:.2f} N < force_threshold "
+                           f"{s.force_threshold} N with the sensor max_depth {s.max_depth} m "
+                           "below the surface", now)
+            else:
+                at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
+                if at_bottom and np.linalg.norm(position - self.bottom) <= tol:
+                    self.abort(f"no contact: {force_n:.2f} N < force_threshold "
+                               f"{s.force_threshold} N with the equilibrium at its floor "
+                               f"{self.surface_z - self.bottom[2]:.4f} m below the surface",
+                               now)
+        elif self.phase == SETTLE:
+            if now - self.phase_start >= s.settle_s:
+                if force_n < 0.5 * s.force_threshold:
+                    self.abort(f"contact lost while settling: {force_n:.2f} N < half the "
+                               f"force_threshold {s.force_threshold} N", now)
+                else:
+                    self.capture_force = force_n
+                    self.capture_depth = max(0.0, self.surface_z - position[2])
+                    self._need_capture = True
+                    self._enter(CAPTURE, now)
+        elif self.phase == RETRACT:
+            if self._move_towards(self.approach_point, s.travel_speed, dt) and \
+                    np.linalg.norm(position - self.approach_point) <= tol:
+                self._enter(DONE, now)
+        return self.target
+
+    @property
+    def done(self) -> bool:
+        return self.phase == DONE
+
+    def outcome(self) -> PressOutcome:
+        return PressOutcome(success=self.done and not self.failure, reason=self.failure,
+                            force_n=self.capture_force, depth_m=self.capture_depth,
+                            max_force_n=self.max_force)
+
+
+class ArmModel:
+    """Mock arm under Cartesian impedance control: a point mass ``mass`` [kg] pulled towards the
+    (optionally low-pass filtered) equilibrium ``target`` by a spring ``stiffness`` [N/m] and a
+    damper ``damping`` [N s/m] (default ``2 sqrt(stiffness)``, the damping franka_ros2's and
+    multipanda_ros2's Cartesian impedance controllers use), gravity compensated. Platforms push
+    back with a spring ``platform_stiffness`` [N/m] (gel, fabric and platform in series) and a
+    damper ``platform_damping`` when the sensor is below their surface within their radius.
+    ``target_filter_s``: time constant [s] of the controller's first-order filter on the
+    equilibrium (franka_ros2's example: 0.005 per 1 kHz cycle, i.e. 0.2 s; 0 = none).
+    Integrated with semi-implicit Euler at ``substep`` [s]; every substep is one sample.
+    Positions in m, time in s, forces in N.
+    """
+
+    def __init__(self, scene: Workspace, start: np.ndarray, *, stiffness: float = 1000.0,
+                 damping: float | None = None, mass: float = 3.0,
+                 platform_stiffness: float = 2e4, platform_damping: float = 50.0,
+                 target_filter_s: float = 0.0, substep: float = 5e-4) -> None:
+        for name, v in (("stiffness", stiffness), ("mass", mass),
+                        ("platform_stiffness", platform_stiffness), ("substep", substep)):
+            if not v > 0:
+                raise ValueError(f"{name} must be positive, got {v}")
+        if platform_damping < 0 or target_filter_s < 0 or (damping is not None and damping < 0):
+            raise ValueError("damping, platform_damping and target_filter_s must be >= 0")
+        self.scene, self.k, self.m = scene, float(stiffness), float(mass)
+        self.d = 2.0 * np.sqrt(self.k) if damping is None else float(damping)
+        self.kp, self.dp = float(platform_stiffness), float(platform_damping)
+        self.tau, self.h = float(target_filter_s), float(substep)
+        self.position = np.asarray(start, dtype=float).copy()
+        self.velocity = np.zeros(3)
+        self.target = self.position.copy()
+        self.equilibrium = self.position.copy()
+        self.force = np.zeros(3)       # contact force on the sensor (base frame) [N]
+        self.peak_force = 0.0          # largest contact force over the substeps of last step
+        self.frozen = False            # a reflex stopped the arm
+
+    def contact(self, position: np.ndarray | None = None) -> tuple[Platform | None, float]:
+        """Platform under the sensor and the penetration below its surface [m] (0 if none)."""
+        pos = self.position if position is None else position
+        for p in self.scene.platforms:
+            c = np.asarray(p.position)
+            if np.linalg.norm(pos[:2] - c[:2]) <= p.radius:
+                return p, max(0.0, c[2] - pos[2])
+        return None, 0.0
+
+    def _contact_force(self) -> np.ndarray:
+        _, pen = self.contact()
+        if pen <= 0.0:
+            return np.zeros(3)
+        fz = max(0.0, self.kp * pen - self.dp * self.velocity[2])
+        return np.array([0.0, 0.0, fz])
+
+    def step(self, dt: float) -> None:
+        """Advance ``dt`` [s] in substeps; ``peak_force`` = largest contact force among them."""
+        n = max(1, int(np.ceil(dt / self.h)))
+        h = dt / n
+        self.peak_force = 0.0
+        for _ in range(n):
+            if self.tau > 0:
+                self.equilibrium += (self.target - self.equilibrium) * min(1.0, h / self.tau)
+            else:
+                self.equilibrium = np.asarray(self.target, dtype=float).copy()
+            self.force = self._contact_force()
+            if not self.frozen:
+                acc = (self.k * (self.equilibrium - self.position) - self.d * self.velocity +
+                       self.force) / self.m
+                self.velocity = self.velocity + acc * h
+                self.position = self.position + self.velocity * h
+            self.force = self._contact_force()
+            self.peak_force = max(self.peak_force, float(np.linalg.norm(self.force)))
+
+    def freeze(self) -> None:
+        """A reflex: the arm stops where it is (brakes)."""
+        self.frozen = True
+        self.velocity = np.zeros(3)
+
+    def release(self) -> None:
+        """Control is back: the equilibrium restarts at the current pose (as controllers do)."""
+        self.frozen = False
+        self.target = self.position.copy()
+        self.equilibrium = self.position.copy()
+
+    def normal_force(self) -> float:
+        """Normal force on the sensor [N] (>= 0)."""
+        return float(self.force[2])

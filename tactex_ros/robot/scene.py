@@ -1,0 +1,207 @@
+"""The scene file: platforms (ids, poses), workspace box, press forces, speeds and deadlines.
+
+Pure (no rclpy): loaded and validated once at node start-up; every error names the field.
+Units: metres, seconds, newtons; positions in the robot base frame (``frame_id``). A platform's
+``position`` is the centre of its fabric surface; presses approach straight down (-z).
+
+Example (``config/scene.yaml``)::
+
+    frame_id: fr3_link0
+    workspace: {min: [0.25, -0.45, 0.0], max: [0.75, 0.45, 0.5]}
+    tool_orientation: [1.0, 0.0, 0.0, 0.0]     # quaternion x y z w: sensor pointing down
+    press: {approach_height: 0.05, travel_speed: 0.15, descend_speed: 0.01, ...}
+    platforms:
+      - {id: reference, role: reference, position: [0.50, 0.00, 0.05]}
+      - {id: c1, position: [0.40, -0.20, 0.05], sim_fabric: satin}
+
+``sim_fabric`` (catalogue name) or ``replay_class`` tell the mock image node what lies on a
+platform; the robot application itself never reads them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import ConfigDict, Field, field_validator, model_validator
+
+from ..core.config import FieldError, Schema, param
+from ..core.errors import TactexError
+
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+# a YAML list is taken for a tuple; its numbers are still checked strictly and must be finite
+Vec3 = Annotated[tuple[FiniteFloat, FiniteFloat, FiniteFloat], Field(strict=False)]
+Vec4 = Annotated[tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat], Field(strict=False)]
+
+
+class PressSettings(Schema):
+    """How a press is made; every phase has a deadline [s]."""
+
+    model_config = ConfigDict(frozen=True)
+
+    approach_height: float = param(0.05, "height above the surface where the descent starts [m]",
+                                   0.005, 0.3)
+    travel_speed: float = param(0.15, "speed of moves between platforms (also the speed cap) "
+                                      "[m/s]", 0.001, 1.0)
+    descend_speed: float = param(0.01, "speed while descending onto the fabric [m/s]",
+                                 0.0005, 0.1)
+    max_speed: float = param(0.25, "never exceeded by any commanded motion [m/s]", 0.001, 1.0)
+    force_threshold: float = param(5.0, "normal force that ends the descent [N]", 0.1, 50.0)
+    max_force: float = param(15.0, "exceeded -> abort and retract [N]", 0.2, 100.0)
+    max_depth: float = param(0.008, "depth below the surface where the descent stops at the "
+                                    "latest [m]", 0.0005, 0.05)
+    settle_s: float = param(0.3, "held at the press before capturing [s]", 0.0, 10.0)
+    capture_window_s: float = param(0.5, "frames the capture looks back over [s]", 0.0, 10.0)
+    retries: int = param(2, "extra attempts after a failed press", 0, 10)
+    approach_deadline_s: float = param(15.0, "deadline of the approach [s]", 0.1, 600.0)
+    descend_deadline_s: float = param(6.0, "deadline of the descent [s]", 0.1, 600.0)
+    capture_deadline_s: float = param(3.0, "deadline of the capture [s]", 0.1, 60.0)
+    retract_deadline_s: float = param(10.0, "deadline of the retract [s]", 0.1, 600.0)
+    position_tolerance: float = param(0.002, "'arrived' within this distance [m]", 0.0001, 0.05)
+
+    @model_validator(mode="after")
+    def _limits(self) -> "PressSettings":
+        if self.force_threshold >= self.max_force:
+            raise FieldError("force_threshold", f"{self.force_threshold} N must be below "
+                                                f"max_force ({self.max_force} N)")
+        for name in ("travel_speed", "descend_speed"):
+            if getattr(self, name) > self.max_speed:
+                raise FieldError(name, f"{getattr(self, name)} m/s exceeds max_speed "
+                                       f"({self.max_speed} m/s)")
+        return self
+
+
+class Platform(Schema):
+    """One platform: ``position`` is the centre of its fabric surface in the base frame [m]."""
+
+    model_config = ConfigDict(frozen=True)
+
+    id: str = param(..., "name of letters, digits and _")
+    position: Vec3 = param(..., "surface centre in the base frame [m]")
+    role: Literal["reference", "comparison"] = param("comparison", "reference or comparison")
+    sim_fabric: str = param("", "catalogue fabric on this platform (simulated graph)")
+    replay_class: str = param("", "recorded class on this platform (replayed graph)")
+    radius: float = param(0.04, "half the fabric's side: the contact region [m]", 0.005, 0.2)
+
+    @field_validator("id")
+    @classmethod
+    def _name(cls, v: str) -> str:
+        if not v or not v.replace("_", "").isalnum():
+            raise ValueError(f"must be a non-empty name of letters, digits, _ (got {v!r})")
+        return v
+
+
+@dataclass(frozen=True)
+class Scene:
+    frame_id: str
+    workspace_min: tuple[float, float, float]
+    workspace_max: tuple[float, float, float]
+    tool_orientation: tuple[float, float, float, float]
+    press: PressSettings
+    platforms: tuple[Platform, ...]
+    source: str = ""
+
+    @property
+    def reference(self) -> Platform:
+        return next(p for p in self.platforms if p.role == "reference")
+
+    @property
+    def comparisons(self) -> list[Platform]:
+        return [p for p in self.platforms if p.role == "comparison"]
+
+    @property
+    def ordered(self) -> list[Platform]:
+        """[reference, comparison 1..N]: platform index i of the trial engine."""
+        return [self.reference] + self.comparisons
+
+    def platform(self, pid: str) -> Platform:
+        for p in self.platforms:
+            if p.id == pid:
+                return p
+        raise TactexError(f"unknown platform {pid!r}; the scene has "
+                          f"{[p.id for p in self.platforms]}")
+
+
+
+class Workspace(Schema):
+    """The box every commanded position stays in [m]."""
+
+    min: Vec3 = param(..., "lower corner [x, y, z] in the base frame [m]")
+    max: Vec3 = param(..., "upper corner [x, y, z] in the base frame [m]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Workspace":
+        if not all(lo < hi for lo, hi in zip(self.min, self.max)):
+            raise FieldError("min", f"{list(self.min)} must be below max {list(self.max)} on "
+                                    "every axis")
+        return self
+
+
+class SceneFile(Schema):
+    """The scene file as written (``config/scene.yaml``); ``parse_scene`` makes the Scene."""
+
+    frame_id: str = param(..., "base frame of every position", min_length=1)
+    workspace: Workspace
+    tool_orientation: Vec4 = param((1.0, 0.0, 0.0, 0.0), "quaternion x y z w of the sensor "
+                                                         "(pointing down)")
+    press: PressSettings = Field(default_factory=PressSettings)
+    platforms: list[Platform] = param(..., "a reference and at least 2 comparisons")
+    source: str = param("", "touch source of the simulated graph: sim[:q] or replay:DIR")
+
+    @field_validator("tool_orientation")
+    @classmethod
+    def _unit(cls, q: tuple) -> tuple:
+        if abs(float(np.linalg.norm(q)) - 1.0) > 1e-3:
+            raise ValueError(f"must be a unit quaternion (x y z w), got {list(q)}")
+        return q
+
+    @model_validator(mode="after")
+    def _platforms(self) -> "SceneFile":
+        plats, ws, press = self.platforms, self.workspace, self.press
+        refs = [p for p in plats if p.role == "reference"]
+        if len(refs) != 1 or len(plats) - 1 < 2:
+            raise FieldError("platforms", f"need exactly one role: reference and at least 2 "
+                                          f"comparisons, got {len(refs)} reference(s) among "
+                                          f"{len(plats)} platforms")
+        seen: set[str] = set()
+        for i, p in enumerate(plats):
+            if p.id in seen:
+                raise FieldError(f"platforms.{i}.id", f"duplicate platform id {p.id!r}")
+            seen.add(p.id)
+            for high in (0.0, press.approach_height):
+                probe = np.asarray(p.position) + [0.0, 0.0, high]
+                if not (np.all(probe >= ws.min) and np.all(probe <= ws.max)):
+                    raise FieldError(f"platforms.{i}.position",
+                                     f"{list(p.position)} (approach height {high} m above) "
+                                     f"lies outside the workspace {list(ws.min)}..{list(ws.max)}")
+            if p.position[2] - press.max_depth < ws.min[2]:
+                raise FieldError(f"platforms.{i}.position",
+                                 f"the deepest press ({press.max_depth} m below z="
+                                 f"{p.position[2]}) lies below workspace.min z={ws.min[2]}")
+        return self
+
+
+def parse_scene(data: Any, origin: str = "scene") -> Scene:
+    """Validate a scene mapping; TactexError names every bad field (``platforms.2.position``)."""
+    if not isinstance(data, dict):
+        raise TactexError(f"{origin}: expected a mapping at the top level")
+    f = SceneFile.check(data, origin)
+    return Scene(frame_id=f.frame_id, workspace_min=f.workspace.min,
+                 workspace_max=f.workspace.max, tool_orientation=f.tool_orientation,
+                 press=f.press, platforms=tuple(f.platforms), source=f.source)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene YAML file."""
+    p = Path(path)
+    if not p.is_file():
+        raise TactexError(f"scene file {str(p)!r} not found")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise TactexError(f"scene file {str(p)!r}: not valid YAML ({exc})") from None
+    return parse_scene(data, origin=f"scene {p.name}")

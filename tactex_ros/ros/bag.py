@@ -1,0 +1,200 @@
+"""The trial's topics as an MCAP file that ``ros2 bag`` (rosbag2_storage_mcap) and Foxglove read.
+
+``BagWriter`` writes ROS 2 messages as CDR (``rclpy.serialization``) with ``ros2msg`` schemas
+(the message definition and its dependencies, as rosbag2 stores them), without chunking and
+with a flush and ``fsync`` after every message: a crash loses at most the message being written.
+``close()`` writes the summary and footer. ``read_bag`` reads a closed file, or a crashed one up
+to its last whole record; ``recover_bag`` writes a closed copy of a crashed file.
+
+The record folder (PNG + JSONL, ``record.py``) stays the ground truth; the bag is for ROS tools.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import sys
+import threading
+from pathlib import Path
+from typing import Any, Iterator
+
+from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Message, Schema
+from mcap.writer import CompressionType, Writer
+
+from ..core.errors import TactexError
+
+_PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
+               "int32", "uint32", "int64", "uint64", "string", "wstring"}
+_SEP = "=" * 80
+TOUCH_TOPIC = "/tactex/touch"   # channel of the full touches (tactex/msg/Touch, no-contact frame
+#                                 included); not a published topic, the action result's touch
+
+
+def _share_dirs() -> list[Path]:
+    roots = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return [Path(r) / "share" for r in roots] + [Path(sys.prefix) / "share"]
+
+
+def _msg_text(pkg: str, kind: str, name: str) -> str:
+    for share in _share_dirs():
+        f = share / pkg / kind / f"{name}.{kind}"
+        if f.is_file():
+            return f.read_text()
+    raise TactexError(f"message definition {pkg}/{kind}/{name} not found under "
+                      f"{[str(s) for s in _share_dirs()]}")
+
+
+def _deps(pkg: str, text: str) -> list[str]:
+    """Message types a definition refers to, as ``pkg/Name``."""
+    out = []
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line or line.startswith("---"):
+            continue
+        if "=" in line:
+            continue                                   # a constant: always a primitive
+        typ = line.split()[0]
+        typ = re.sub(r"\[.*\]$", "", typ)
+        typ = re.sub(r"<=\d+$", "", typ)
+        if typ in _PRIMITIVES:
+            continue
+        if typ == "Header":
+            typ = "std_msgs/Header"
+        elif "/" not in typ:
+            typ = f"{pkg}/{typ}"
+        out.append(typ.replace("/msg/", "/"))
+    return out
+
+
+def message_definition(type_name: str) -> str:
+    """The full ``ros2msg`` definition of ``pkg/msg/Name``: its text, then every dependency
+    once, each after a line of 80 '=' and ``MSG: pkg/Name`` (rosbag2's layout)."""
+    pkg, _, name = type_name.split("/")
+    main = _msg_text(pkg, "msg", name)
+    parts, seen, todo = [], {f"{pkg}/{name}"}, _deps(pkg, main)
+    while todo:
+        dep = todo.pop(0)
+        if dep in seen:
+            continue
+        seen.add(dep)
+        dpkg, dname = dep.split("/")
+        text = _msg_text(dpkg, "msg", dname)
+        parts.append(f"{_SEP}\nMSG: {dep}\n{text}")
+        todo += _deps(dpkg, text)
+    return "\n".join([main.rstrip("\n")] + [p.rstrip("\n") for p in parts]) + "\n"
+
+
+def type_name(msg: Any) -> str:
+    """``pkg/msg/Name`` of a generated ROS 2 message instance."""
+    mod = type(msg).__module__.split(".")             # e.g. tactex.msg._touch
+    return f"{mod[0]}/{mod[1]}/{type(msg).__name__}"
+
+
+class BagWriter:
+    """MCAP writer of ROS 2 messages; thread-safe; every message flushed and fsync'ed."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._f = open(self.path, "wb")
+        self._w = Writer(self._f, compression=CompressionType.NONE, use_chunking=False)
+        self._w.start(profile="ros2", library="tactex")
+        self._channels: dict[tuple[str, str], int] = {}
+        self._schemas: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self.closed = False
+        self._sync()
+
+    def _sync(self) -> None:
+        self._f.flush()
+        os.fsync(self._f.fileno())
+
+    def write(self, topic: str, msg: Any, t_ns: int) -> None:
+        """Append ``msg`` on ``topic`` at ``t_ns`` [ns since the epoch]."""
+        from rclpy.serialization import serialize_message
+        tn = type_name(msg)
+        data = serialize_message(msg)
+        with self._lock:
+            if self.closed:
+                return
+            if tn not in self._schemas:
+                self._schemas[tn] = self._w.register_schema(
+                    tn, "ros2msg", message_definition(tn).encode())
+            key = (topic, tn)
+            if key not in self._channels:
+                self._channels[key] = self._w.register_channel(topic, "cdr", self._schemas[tn])
+            self._w.add_message(self._channels[key], log_time=t_ns, data=data,
+                                publish_time=t_ns)
+            self._sync()
+
+    def close(self) -> None:
+        """Write the summary and footer (a closed file is indexed for ``ros2 bag``)."""
+        with self._lock:
+            if self.closed:
+                return
+            self.closed = True
+            self._w.finish()
+            self._sync()
+            self._f.close()
+
+
+def _records(path: Path) -> Iterator[Any]:
+    """The records of an MCAP file up to the last whole one (a crashed writer's torn tail and
+    missing footer end the iteration)."""
+    with open(path, "rb") as f:
+        try:
+            yield from StreamReader(f, validate_crcs=True).records
+        except Exception:  # noqa: BLE001 - torn tail: every complete record was yielded
+            return
+
+
+def read_bag(path: str | Path, decode: bool = True) -> list[tuple[str, int, Any]]:
+    """(topic, log time [ns], message) of every whole message, in file order. ``decode``:
+    deserialise with the installed message classes (else the raw CDR bytes)."""
+    p = Path(path)
+    if not p.is_file():
+        raise TactexError(f"bag {str(p)!r} not found")
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    out = []
+    for r in _records(p):
+        if isinstance(r, Schema):
+            schemas[r.id] = r
+        elif isinstance(r, Channel):
+            channels[r.id] = r
+        elif isinstance(r, Message) and r.channel_id in channels:
+            ch = channels[r.channel_id]
+            msg: Any = r.data
+            if decode:
+                from rclpy.serialization import deserialize_message
+                pkg, kind, name = schemas[ch.schema_id].name.split("/")
+                cls = getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+                msg = deserialize_message(r.data, cls)
+            out.append((ch.topic, r.log_time, msg))
+    return out
+
+
+def recover_bag(path: str | Path, out: str | Path) -> int:
+    """Write a closed copy of a (crashed) bag with every whole message; returns their number."""
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    ids: dict[int, int] = {}
+    sids: dict[int, int] = {}
+    n = 0
+    with open(out, "wb") as f:
+        w = Writer(f, compression=CompressionType.NONE, use_chunking=False)
+        w.start(profile="ros2", library="tactex")
+        for r in _records(Path(path)):
+            if isinstance(r, Schema):
+                schemas[r.id] = r
+                sids[r.id] = w.register_schema(r.name, r.encoding, r.data)
+            elif isinstance(r, Channel):
+                channels[r.id] = r
+                ids[r.id] = w.register_channel(r.topic, r.message_encoding, sids[r.schema_id])
+            elif isinstance(r, Message) and r.channel_id in ids:
+                w.add_message(ids[r.channel_id], log_time=r.log_time, data=r.data,
+                              publish_time=r.publish_time)
+                n += 1
+        w.finish()
+    return n

@@ -1,0 +1,165 @@
+"""The node graph, described once: used by ``launch/explore.launch.py`` and by the runner.
+
+``describe(...)`` returns the nodes (executable, name, parameters, remappings). Hardware graph:
+gelsight_node, motion_node, explorer_node. Simulated graph (``sim=True``): mock_arm_node and
+mock_image_node replace the robot/franka_ros2 and the camera at the same topics; motion_node
+and explorer_node run unchanged. Pure Python (no rclpy, no launch).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
+from ..core.errors import TactexError
+from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
+                       MotionSettings)
+from ..paths import config_dir
+from ..robot.scene import load_scene
+
+PACKAGE = "tactex"
+
+
+@dataclass
+class NodeSpec:
+    executable: str
+    name: str
+    parameters: dict[str, Any]
+    remappings: list[tuple[str, str]] = field(default_factory=list)
+    package: str = PACKAGE
+
+
+# every node's settings schema, by node name
+SETTINGS: dict[str, type] = {"gelsight": GelsightSettings, "motion": MotionSettings,
+                             "explorer": ExplorerSettings, "mock_arm": MockArmSettings,
+                             "mock_image": MockImageSettings}
+# the node settings `tactex graph describe|run` and the launch file take as options, by option
+# name: (node, dotted setting); type, range, choices, default and help come from the schema
+OPTIONS: dict[str, tuple[str, str]] = {
+    "config": ("explorer", "config"), "strategy": ("explorer", "trial.strategy"),
+    "model": ("explorer", "learner.model"), "rounds": ("explorer", "trial.rounds"),
+    "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
+    "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
+    "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
+    "source": ("mock_image", "source")}
+
+
+def option_spec(name: str) -> FieldSpec:
+    """The schema field behind option ``name`` of ``OPTIONS``."""
+    node, path = OPTIONS[name]
+    return field_spec(SETTINGS[node], path)
+
+
+def parse_option(name: str, text: str) -> Any:
+    """Option ``name`` given as text (a launch argument), typed and checked by its schema;
+    TactexError names the option."""
+    node, path = OPTIONS[name]
+    return parse_text(SETTINGS[node], path, text, f"{name}:={text!r}")
+
+
+def option_overrides(values: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Options given (not None) -> ``{node: nested settings}`` for ``describe``."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, value in values.items():
+        if value is not None:
+            node, path = OPTIONS[name]
+            out[node] = merge(out.get(node), nest({path: value}))
+    return out
+
+
+def _checked(node: str, params: dict[str, Any]) -> dict[str, Any]:
+    """A node's given parameters checked against its schema and typed (unknown names refused)."""
+    return typed(SETTINGS[node], params, f"{node} parameters")
+
+
+def explorer_defaults(path: str | Path | None = None) -> dict[str, Any]:
+    """Explorer settings from ``config/explorer.yaml`` (or ``path``)."""
+    p = Path(path) if path else config_dir() / "explorer.yaml"
+    if not p.is_file():
+        raise TactexError(f"explorer settings file {str(p)!r} not found")
+    return _checked("explorer", params_from_file(p, "explorer"))
+
+
+def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
+    """A node's parameters from a YAML file: either ``{name: value}`` or the ROS 2 form
+    ``{<node>: {ros__parameters: {...}}}``."""
+    p = Path(path)
+    if not p.is_file():
+        raise TactexError(f"{node} parameters file {str(p)!r} not found")
+    try:
+        data = yaml.safe_load(p.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise TactexError(f"{node} parameters file {str(p)!r}: not valid YAML ({exc})") from None
+    if isinstance(data, dict) and isinstance(data.get(node), dict):
+        data = data[node].get("ros__parameters", {})
+    if not isinstance(data, dict):
+        raise TactexError(f"{node} parameters file {str(p)!r}: expected a mapping")
+    return data
+
+
+def describe(sim: bool, scene_file: str | Path | None = None, *,
+             explorer: dict[str, Any] | None = None, explorer_file: str | Path | None = None,
+             gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,
+             mock_arm: dict[str, Any] | None = None,
+             motion: dict[str, Any] | None = None, motion_file: str | Path | None = None,
+             robot: str | None = None) -> list[NodeSpec]:
+    """The tactex graph. ``scene_file`` defaults to config/scene_sim.yaml (sim) or
+    config/scene.yaml; ``robot`` (profile name or path) to ``sim`` (sim) or ``fr3_jazzy``;
+    ``motion_file``: a YAML of motion node parameters, under ``motion``. The scene, the robot
+    profile and every parameter are validated here, so bad values fail before anything starts,
+    with the field named."""
+    from ..robot.press import check_press
+    from ..robot.robots import load_profile
+    scene_file = str(Path(scene_file) if scene_file else
+                     config_dir() / ("scene_sim.yaml" if sim else "scene.yaml"))
+    scene = load_scene(scene_file)
+    ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
+    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_jazzy")},
+               params_from_file(motion_file, "motion") if motion_file else None, motion)
+    mo = _checked("motion", mo)
+    prof = load_profile(mo["robot"])
+    if prof.frame_id != scene.frame_id:
+        raise TactexError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
+                          f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
+    check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}")
+    nodes = [NodeSpec("motion_node", "motion", mo),
+             NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]
+    if sim:
+        start = scene.reference.position
+        arm = merge({"scene_file": scene_file, "robot": mo["robot"], "start_x": start[0],
+                     "start_y": start[1],
+                     "start_z": min(scene.workspace_max[2], start[2] + 0.1)}, mock_arm)
+        arm = _checked("mock_arm", arm)
+        # the mock camera follows the mock arm's state topics, so the two cannot disagree
+        arm_prof = load_profile(arm["robot"])
+        img = merge({"scene_file": scene_file, "source": scene.source or "sim",
+                     "pose_topic": arm.get("pose_topic") or arm_prof.pose_topic,
+                     "wrench_topic": arm.get("wrench_topic") or arm_prof.wrench_topic},
+                    mock_image)
+        nodes = [NodeSpec("mock_arm_node", "mock_arm", arm),
+                 NodeSpec("mock_image_node", "mock_image", _checked("mock_image", img))] + nodes
+    else:
+        from ..robot.sensors import sensor_config
+        gs = _checked("gelsight", gelsight or {})
+        sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
+        nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
+    return nodes
+
+
+def fixed_frame(nodes: list[NodeSpec]) -> str:
+    """The robot's base frame (the rviz fixed frame) of a described graph."""
+    from ..robot.robots import load_profile
+    motion = next(n for n in nodes if n.name == "motion")
+    return load_profile(motion.parameters["robot"]).frame_id
+
+
+def params_file(nodes: list[NodeSpec], path: str | Path) -> Path:
+    """Write one ROS 2 parameters YAML for all nodes (``<name>: {ros__parameters: ...}``)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(yaml.safe_dump({n.name: {"ros__parameters": n.parameters} for n in nodes},
+                                sort_keys=False))
+    return p

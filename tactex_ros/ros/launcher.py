@@ -1,0 +1,256 @@
+"""Start the described graph as real ROS 2 processes without ``launch`` (not installable here).
+
+Each node of ``graph.describe`` runs as its own process (``python -m tactex_ros.ros.nodes.<exe>``,
+the same code as the installed executable) with ``--ros-args -r __node:=<name>
+--params-file <file>``; logs go to ``<log_dir>/<name>.log``. The explorer runs with
+``exit_when_done``.
+
+Supervision (``run_trial``): every process is polled every ``poll_s`` (0.1 s) while the trial
+runs. The trial ends at the first of: the explorer exits (done, or failed); any other node
+exits or crashes (the result names the node and its exit status); SIGINT, SIGTERM or SIGHUP
+reaches the runner; the deadline. Then every remaining node gets SIGINT (rclpy's clean
+shutdown), SIGKILL after a grace period. Children run in their own sessions, so a terminal's
+Ctrl-C reaches only the runner, which stops them in order; and each child asks the kernel for
+SIGTERM when the runner dies (``PR_SET_PDEATHSIG`` on Linux), so even a runner killed with
+SIGKILL leaves no node behind. What ended the trial is appended to the record's
+``events.jsonl``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..core.errors import TactexError
+from .graph import NodeSpec, params_file
+
+_PR_SET_PDEATHSIG = 1
+try:
+    _LIBC = ctypes.CDLL(None, use_errno=True) if sys.platform.startswith("linux") else None
+except OSError:  # pragma: no cover - no libc symbols
+    _LIBC = None
+
+
+def exit_text(code: int | None) -> str:
+    """A process exit status in words: 'exit status 1', 'killed by SIGKILL', 'running'."""
+    if code is None:
+        return "still running"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
+@dataclass
+class GraphRun:
+    exit_code: int                     # explorer's exit status (-1: still running at the end)
+    result: dict | None                # result.json of the trial, if written
+    record: Path | None                # the trial record folder
+    logs: Path
+    timed_out: bool
+    node_exit: dict[str, int | None]   # every node's exit status after shutdown
+    failure: str | None = None         # why the trial ended without a result (None: it did not)
+    failed_node: str | None = None     # the node whose exit ended the trial, if one did
+    signal: int | None = None          # the signal that interrupted the runner, if one did
+    elapsed_s: float = 0.0             # start of the nodes -> end of the trial [s]
+    stop_s: float = 0.0                # end of the trial -> every node stopped [s]
+    left_running: list[str] = field(default_factory=list)  # nodes alive after stop (goal: none)
+    pids: dict[str, int] = field(default_factory=dict)     # process id of every node
+
+
+def node_command(n: NodeSpec, params: Path) -> list[str]:
+    cmd = [sys.executable, "-m", f"tactex_ros.ros.nodes.{n.executable}", "--ros-args",
+           "-r", f"__node:={n.name}", "--params-file", str(params)]
+    for src, dst in n.remappings:
+        cmd += ["-r", f"{src}:={dst}"]
+    return cmd
+
+
+def ros_env(domain_id: int | None = None) -> dict[str, str]:
+    """Environment for the node processes: loopback-only discovery, optional domain id."""
+    env = dict(os.environ)
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def _child_setup(parent_pid: int) -> None:
+    """In the child before exec: SIGTERM when the parent dies (Linux), even by SIGKILL."""
+    if _LIBC is not None:
+        _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != parent_pid:      # the parent died before prctl took effect
+            os._exit(1)
+
+
+class Graph:
+    """The running processes of a graph (context manager: always stopped on exit)."""
+
+    def __init__(self, nodes: list[NodeSpec], log_dir: str | Path,
+                 domain_id: int | None = None) -> None:
+        self.nodes = nodes
+        self.log_dir = Path(log_dir)
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.env = ros_env(domain_id)
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self) -> "Graph":
+        params = params_file(self.nodes, self.log_dir / "params.yaml")
+        me = os.getpid()
+        try:
+            for n in self.nodes:
+                with open(self.log_dir / f"{n.name}.log", "wb") as log:
+                    self.procs[n.name] = subprocess.Popen(
+                        node_command(n, params), stdout=log, stderr=subprocess.STDOUT,
+                        env=self.env, start_new_session=True,
+                        preexec_fn=lambda: _child_setup(me))
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    @property
+    def pids(self) -> dict[str, int]:
+        return {k: p.pid for k, p in self.procs.items()}
+
+    def wait(self, name: str, timeout_s: float) -> int | None:
+        """Exit status of node ``name``, or None if it is still running at the deadline."""
+        try:
+            return self.procs[name].wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def first_exit(self) -> tuple[str, int] | None:
+        """(name, exit status) of a node that has exited, explorer first; None if all run."""
+        done = [(k, p.returncode) for k, p in self.procs.items() if p.poll() is not None]
+        done.sort(key=lambda kv: kv[0] != "explorer")
+        return done[0] if done else None
+
+    def stop(self, grace_s: float = 5.0) -> dict[str, int | None]:
+        """SIGINT to every running node, SIGKILL to its process group after ``grace_s``."""
+        for p in self.procs.values():
+            if p.poll() is None:
+                try:
+                    p.send_signal(signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        end = time.monotonic() + grace_s
+        for p in self.procs.values():
+            try:
+                p.wait(timeout=max(0.1, end - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                p.wait()
+        return {k: p.returncode for k, p in self.procs.items()}
+
+    def __enter__(self) -> "Graph":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+class _Signals:
+    """While active (main thread only): SIGINT/SIGTERM/SIGHUP are noted, not fatal."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict[int, object] = {}
+
+    def __enter__(self) -> "_Signals":
+        if threading.current_thread() is threading.main_thread():
+            for s in self.SIGNALS:
+                self._old[s] = signal.signal(s, self._note)
+        return self
+
+    def _note(self, signum: int, frame) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+def append_event(record: Path, event: dict) -> None:
+    """One line in ``<record>/events.jsonl`` (fsync'ed), if the record folder exists."""
+    from ..record import append_event as _append
+    if record.is_dir():
+        _append(record, event)
+
+
+def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600.0,
+              domain_id: int | None = None, poll_s: float = 0.1,
+              on_start=None) -> GraphRun:
+    """Run the graph until the explorer finishes its trial, a node exits, a signal arrives or
+    ``timeout_s`` passes; then stop every node. ``on_start(graph)`` is called once all
+    processes are started (tests use it to inject faults)."""
+    ex = next((n for n in nodes if n.executable == "explorer_node"), None)
+    if ex is None:
+        raise TactexError("the graph has no explorer_node")
+    ex.parameters["exit_when_done"] = True
+    if not ex.parameters.get("trial_id"):
+        ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
+    ex.parameters["record_dir"] = str(Path(ex.parameters["record_dir"]).resolve())
+    record = Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"]
+    failure = failed_node = None
+    with _Signals() as sig:
+        g = Graph(nodes, log_dir, domain_id)
+        t0 = time.monotonic()
+        try:
+            g.start()
+            if on_start is not None:
+                on_start(g)
+            deadline = t0 + timeout_s
+            while True:
+                gone = g.first_exit()
+                if gone is not None:
+                    name, code = gone
+                    if name != ex.name or not (record / "result.json").exists():
+                        failed_node = name
+                        failure = (f"node {name} ended ({exit_text(code)}) "
+                                   f"{time.monotonic() - t0:.1f} s into the trial")
+                    break
+                if sig.received is not None:
+                    failure = (f"interrupted by {signal.Signals(sig.received).name} "
+                               f"{time.monotonic() - t0:.1f} s into the trial")
+                    break
+                if time.monotonic() > deadline:
+                    failure = f"trial not finished within {timeout_s:g} s"
+                    break
+                time.sleep(poll_s)
+            elapsed = time.monotonic() - t0
+        finally:
+            t1 = time.monotonic()
+            exits = g.stop()
+            stop_s = time.monotonic() - t1
+    left = [k for k, p in g.procs.items() if p.poll() is None]
+    res_path = record / "result.json"
+    result = json.loads(res_path.read_text()) if res_path.exists() else None
+    code = exits.get(ex.name)
+    if failure is not None:
+        append_event(record, {"event": "trial_ended", "reason": failure, "node": failed_node,
+                              "signal": sig.received, "node_exit": exits,
+                              "time": time.time()})
+    return GraphRun(exit_code=-1 if code is None else code, result=result,
+                    record=record if record.exists() else None, logs=g.log_dir,
+                    timed_out=failure is not None and failure.startswith("trial not finished"),
+                    node_exit=exits, failure=failure, failed_node=failed_node,
+                    signal=sig.received, elapsed_s=elapsed, stop_s=stop_s, left_running=left,
+                    pids=g.pids)

@@ -1,0 +1,35 @@
+"""The capture service shared by the GelSight node and the mock image node.
+
+``tactex/srv/Capture``: the strongest-contact frame of the ring buffer's last ``window_s``
+seconds against the no-contact reference frame, with its contact score [grey levels].
+"""
+
+from __future__ import annotations
+
+import threading
+
+from .. import adapter
+from ...core.contact import FrameRing
+
+
+def serve_capture(node, ring: FrameRing, lock: threading.Lock, frame_id: str,
+                  name: str) -> object:
+    """Create the capture service on ``node`` answering from ``ring`` (guarded by ``lock``)."""
+    from tactex.srv import Capture
+
+    def handle(req: Capture.Request, resp: Capture.Response) -> Capture.Response:
+        now = node.get_clock().now().nanoseconds * 1e-9
+        with lock:
+            try:
+                frame, score = ring.best(req.window_s, now)
+            except ValueError as exc:
+                resp.success, resp.reason = False, str(exc)
+                return resp
+        resp.success, resp.reason = True, ""
+        resp.image = adapter.array_to_image(frame, now, frame_id)
+        resp.contact_score = score
+        if ring.reference is not None:
+            resp.no_contact = adapter.array_to_image(ring.reference, now, frame_id)
+        return resp
+
+    return node.create_service(Capture, name, handle)

@@ -1,0 +1,379 @@
+"""explorer_node: runs the core trial engine over the ROS graph.
+
+press (action to the motion node) -> record the touch on disk -> validate -> learn -> choose.
+The trial runs in a worker thread, so the executor stays free for action feedback, results
+and publishing; every wait has a deadline. Publishes ``tactex/ExplorationState`` on
+``/tactex/state`` after each decision, rviz markers on ``/tactex/markers`` and the latest touch
+image on ``/tactex/touch_image``. The record (``record.TrialRecord``) receives each touch
+before it is used; a corrupt or wrongly sized image is recorded as rejected and never trained
+on; a failed press is recorded with its reason and the trial goes on.
+
+A press server that leaves the ROS graph, or sends no feedback for ``press_silence_s``, ends
+the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
+than waiting out ``press_timeout_s``. A press goal whose answer is lost (Fast DDS can drop a
+response sent before the server matched the client's reader) is re-sent after
+``goal_answer_s`` and the first one followed by its goal id (``nodes/goal.py``). With ``resume`` (a record folder) the trial continues an
+interrupted one: the recorded touches are handed to the engine again in order
+(``resume.Replay``), then live presses take over.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import numpy as np
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+from sensor_msgs.msg import Image
+from visualization_msgs.msg import MarkerArray
+
+from .. import adapter
+from ...core.engine import TouchFailed, TrialEngine
+from ...core.errors import TactexError
+from ...core.touch import Touch
+from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
+from ..bag import TOUCH_TOPIC
+from ...record import TrialRecord
+from ...robot.scene import load_scene
+from .common import TactexNode, run
+from ..goal import GoalRequest
+
+
+class PressServerLost(TactexError):
+    """The press action server is gone (left the graph, or silent): the trial cannot go on."""
+
+
+class ExplorerNode(TactexNode):
+    settings_cls = ExplorerSettings
+
+    def __init__(self, **kw) -> None:
+        super().__init__("explorer", **kw)
+
+    # ------------------------------------------------------------------ lifecycle
+    def configure(self) -> None:
+        from tactex.action import Press
+        from tactex.msg import ExplorationState
+        s = self.settings
+        if s.nice:
+            os.nice(s.nice)  # before torch starts its worker threads, which inherit it
+        self.scene = load_scene(s.scene_file)
+        self.ids = [p.id for p in self.scene.ordered]
+        self.engine = TrialEngine(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
+                                  platform_ids=self.ids)
+        inputs = {"explorer": s.model_dump(exclude={"learner", "trial"}),
+                  "learner": s.learner.model_dump(), "trial": s.trial.model_dump()}
+        self.replay = None
+        if s.resume:
+            self._open_resume(s.resume, inputs)
+        else:
+            self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
+            self.record = TrialRecord(s.record_dir, self.trial_id)
+            self.record.save_inputs(s.scene_file, inputs)
+        self.bag = self._open_bag()
+        self.press = ActionClient(self, Press, s.press_action)
+        self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic, 10)
+        self.marker_pub = self.create_lifecycle_publisher(MarkerArray, s.marker_topic, 10)
+        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, 10)
+        self.last_state = None
+        self.result: dict | None = None
+        self._feedback_t = time.monotonic()
+        self._stopping = False
+        self._running = threading.Event()   # set while active: the trial presses
+        self.worker: threading.Thread | None = None
+
+    def _open_bag(self):
+        """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
+        from ..bag import BagWriter
+        k = len(list(self.record.dir.glob("topics*.mcap")))
+        return BagWriter(self.record.dir / ("topics.mcap" if k == 0 else f"topics.{k}.mcap"))
+
+    def _bag_write(self, topic: str, msg) -> None:
+        """Copy a message into the MCAP file; a failure there never stops the trial."""
+        try:
+            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+        except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
+            if not getattr(self, "_bag_warned", False):
+                self._bag_warned = True
+                self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
+
+    def _open_resume(self, folder: str, inputs: dict) -> None:
+        """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
+        from pathlib import Path
+
+        from ...record import append_event, read_record
+        from ...resume import check_settings, load_replay
+        d = Path(folder).resolve()
+        self.record = TrialRecord(d.parent, d.name, resume=True)
+        self.trial_id = d.name
+        check_settings(d, inputs)
+        was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
+        if was is not None and [p.id for p in was.ordered] != self.ids:
+            raise TactexError(f"resume: the scene's platforms {self.ids} are not the record's "
+                              f"{[p.id for p in was.ordered]}")
+        self.replay, rec = load_replay(d, self._press, self.ids)
+        self._replay_decisions = rec["decisions"]
+        self._decisions = 0
+        append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
+                         "touches_replayed": len(self.replay.recorded),
+                         "decisions_on_disk": len(rec["decisions"]), "time": time.time()})
+
+    def activate(self) -> None:
+        """Start the trial (first activation) or let a paused one press again."""
+        self.create_timer(1.0, self._publish_markers)
+        self._running.set()
+        if self.worker is None:
+            self.worker = threading.Thread(target=self._trial, name="trial", daemon=True)
+            self.worker.start()
+
+    def deactivate(self) -> None:
+        """Pause the trial: the press under way ends, the next waits for re-activation (up to
+        ``pause_timeout_s``)."""
+        self._running.clear()
+
+    def cleanup(self) -> None:
+        """Stopped mid-trial: let a touch being written finish, then write nothing more; give
+        the trial thread a moment to leave its wait before the action client goes away."""
+        self._stopping = True
+        if getattr(self, "_running", None) is not None:
+            self._running.set()             # a paused trial wakes up and sees the stop
+        record = getattr(self, "record", None)
+        if record is not None:
+            record.close()
+        if getattr(self, "bag", None) is not None:
+            self.bag.close()
+        worker = getattr(self, "worker", None)
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=3.0)
+        self.worker = None
+
+    # ------------------------------------------------------------------ publishing
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _publish_markers(self) -> None:
+        msg = adapter.markers(self.scene, self.last_state, self._now())
+        self.marker_pub.publish(msg)
+        self._bag_write(MARKER_TOPIC, msg)
+
+    def _publish_state(self, rec, done: bool, prediction: str) -> None:
+        msg = adapter.state_msg(rec, trial_id=self.trial_id,
+                                strategy=self.engine.trial_cfg.strategy,
+                                platform_ids=self.ids[1:], reference_id=self.ids[0],
+                                reference_touches=self.engine.reference_touches, done=done,
+                                prediction=prediction, t=self._now(),
+                                frame_id=self.scene.frame_id)
+        self.last_state = msg
+        self.state_pub.publish(msg)
+        self._bag_write(STATE_TOPIC, msg)
+        self._publish_markers()
+        if self.replay is not None and self._replayed_decision(msg):
+            return                            # already on disk before the interruption
+        self.record.add_decision({"round": rec.round, "next": msg.next_platform,
+                                  "belief": list(msg.belief),
+                                  "uncertainty": list(msg.uncertainty),
+                                  "touches": list(msg.touches), "model": rec.model,
+                                  "decision_s": rec.decision_s, "done": done,
+                                  "prediction": prediction})
+
+    def _replayed_decision(self, msg) -> bool:
+        """True for a decision a resumed trial re-made that the record already holds (a
+        recomputed belief that differs from the recorded one is noted in events.jsonl)."""
+        i, self._decisions = self._decisions, self._decisions + 1
+        if i >= len(self._replay_decisions):
+            return False
+        was = self._replay_decisions[i].get("belief") or []
+        diff = float(np.max(np.abs(np.subtract(was, list(msg.belief))))) \
+            if len(was) == len(msg.belief) else float("inf")
+        if diff > 1e-4:
+            from ...record import append_event
+            append_event(self.record.dir, {"event": "replay_differs", "decision": i + 1,
+                                           "max_belief_diff": diff})
+            self.get_logger().warning(f"resume: decision {i + 1} differs from the record "
+                                      f"(belief by up to {diff:.3g})")
+        return True
+
+    # ------------------------------------------------------------------ the trial
+    def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
+        """Poll ``ready()`` (a ``GoalRequest`` is polled by design, nodes/goal.py) until it is
+        True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
+        gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+        absent_since = None
+        while not ready():
+            now = time.monotonic()
+            if now > deadline:
+                return False
+            if self._stopping or not self.context.ok():
+                raise TactexError("the explorer is stopping")
+            if watch:
+                silent = now - self._feedback_t
+                if silent > self.settings.press_silence_s:
+                    raise PressServerLost(f"no answer or feedback from the press server for "
+                                          f"{silent:.1f} s (press_silence_s)")
+                if self.press.server_is_ready():
+                    absent_since = None
+                elif absent_since is None:
+                    absent_since = now
+                elif now - absent_since > 1.0:
+                    raise PressServerLost("the press server left the ROS graph")
+            time.sleep(0.01)
+        return True
+
+    def _wait_running(self) -> None:
+        """Before a press: wait while the node is deactivated (paused), up to
+        ``pause_timeout_s``; TactexError when stopping or paused too long."""
+        if not self._running.wait(timeout=self.settings.pause_timeout_s):
+            raise TactexError(f"the explorer stayed inactive longer than pause_timeout_s "
+                              f"({self.settings.pause_timeout_s} s)")
+        if self._stopping:
+            raise TactexError("the explorer is stopping")
+
+    def _on_feedback(self, _msg) -> None:
+        self._feedback_t = time.monotonic()
+
+    def _touch(self, platform: int) -> Touch:
+        """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
+        touch = self.replay(platform)
+        if self.replay.current is not None and isinstance(touch, Touch):
+            self._set_guard_reference(touch.no_contact)
+        return touch
+
+    def _press(self, platform: int) -> Touch:
+        """The engine's ``touch_fn``: press ``platform`` (index), put the touch on disk, return
+        it (contact image and the sensor's no-contact frame). A failed press (already retried by the motion node) or an unreadable image is
+        recorded and raised as ``TouchFailed(retry=False)``."""
+        from tactex.action import Press
+        self._wait_running()
+        pid = self.ids[platform]
+        deadline = time.monotonic() + self.settings.press_timeout_s
+        meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
+        self._feedback_t = time.monotonic()
+        # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
+        # followed by its id when it runs (nodes/goal.py): a lost response costs no touch
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+                          answer_s=self.settings.goal_answer_s,
+                          feedback_callback=self._on_feedback)
+        try:
+            if not self._wait(req.answered, deadline, watch=True):
+                self._failed(platform, meta, "press goal not answered before the deadline")
+            if req.refused:
+                self._failed(platform, meta, "press goal rejected by the motion node")
+            if not self._wait(req.finished, deadline, watch=True):
+                req.cancel()
+                self._failed(platform, meta, f"press not finished within press_timeout_s "
+                                             f"({self.settings.press_timeout_s} s)")
+        except PressServerLost as exc:   # the press never ended: a resume makes it again
+            self.record.add_touch(None, dict(meta, accepted=False, reason=str(exc),
+                                             interrupted=True))
+            raise
+        if req.resent:
+            meta["goal_resent"] = req.resent
+            self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
+                                      "its answer was lost")
+        if req.result.status == GoalStatus.STATUS_UNKNOWN:
+            self._failed(platform, meta, "press goal lost: the motion node never took it")
+        res = req.result.result
+        if not res.success:
+            self._failed(platform, meta, res.reason or "press failed", res.attempts)
+        touch = res.touch
+        meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
+                    depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
+                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
+        try:
+            img = adapter.image_to_array(touch.image, f"touch of {pid}")
+        except TactexError as exc:
+            meta.update(accepted=False, reason=str(exc), encoding=touch.image.encoding,
+                        width=touch.image.width, height=touch.image.height)
+            self.record.add_touch(None, meta)
+            self.get_logger().warning(f"touch rejected: {exc}")
+            raise TouchFailed(str(exc), retry=False) from exc
+        no_contact = self._no_contact(touch)
+        self.record.add_touch(img, dict(meta, accepted=True),   # on disk before it is used
+                              no_contact=no_contact)
+        self._set_guard_reference(no_contact)
+        self.image_pub.publish(touch.image)
+        self._bag_write(TOUCH_TOPIC, touch)
+        return Touch(frame=img, no_contact=no_contact)
+
+    def _no_contact(self, touch) -> np.ndarray | None:
+        """The touch's no-contact frame as an array (None when absent or unusable)."""
+        if not touch.no_contact_image.data:
+            return None
+        try:
+            return adapter.image_to_array(touch.no_contact_image, "no-contact frame")
+        except TactexError as exc:
+            self.get_logger().warning(f"no-contact frame unusable: {exc}")
+            return None
+
+    def _on_rejected(self, platform: int, exc: TactexError) -> None:
+        """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
+        cur = self.replay.current if self.replay is not None else None
+        if cur is not None:              # a replayed touch: marked already, unless cut off
+            if not cur.rejected:
+                self.record.reject_touch(cur.seq, str(exc))
+            return
+        self.record.reject_touch(self.record.n_touches, str(exc))
+        self.get_logger().warning(f"touch rejected: {exc}")
+
+    def _set_guard_reference(self, no_contact: np.ndarray | None) -> None:
+        """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
+        guard = self.engine.guard
+        if guard is None or guard.has_reference or no_contact is None:
+            return
+        guard.set_reference(no_contact)
+
+    def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> None:
+        self.record.add_touch(None, dict(meta, accepted=False, reason=reason,
+                                         attempts=attempts))
+        self.get_logger().warning(f"touch of {self.ids[platform]} failed: {reason}")
+        raise TouchFailed(reason, retry=False)
+
+    def _trial(self) -> None:
+        try:
+            self._run_trial()
+        except Exception as exc:  # the trial must end in an explicit result
+            if not self.context.ok() or self.record.closed:
+                return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
+            self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
+            self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
+            self.record.finish(self.result)
+            self.exit_code = 1
+        finally:
+            self.bag.close()
+            if self.settings.exit_when_done:
+                self.finished.set()
+
+    def _run_trial(self) -> None:
+        s = self.settings
+        if not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
+            raise TactexError(f"press action {s.press_action!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
+        eng = self.engine
+
+        def on_round(rec) -> None:
+            pred = self.ids[int(np.argmax(rec.probs)) + 1] if eng.done else ""
+            self._publish_state(rec, eng.done, pred)
+
+        touch_fn = self._press if self.replay is None else self._touch
+        res = eng.run(touch_fn, on_round=on_round, on_rejected=self._on_rejected)
+        out = res.to_dict()
+        out.update(trial_id=self.trial_id, record=str(self.record.dir),
+                   strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)
+        if self.replay is not None:
+            from ...record import read_record
+            out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
+                              if e.get("event") == "resumed"]
+        self.result = out
+        path = self.record.finish(out)
+        self.get_logger().info(f"trial {self.trial_id}: reference matches "
+                               f"{out['prediction']} after {out['touches']} touches "
+                               f"(stopped: {out['stop_reason']}); record {path.parent}")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(ExplorerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

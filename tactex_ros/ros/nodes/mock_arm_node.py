@@ -1,0 +1,155 @@
+"""mock_arm_node: stands in for the robot, franka_robot_state_broadcaster and a Cartesian
+impedance controller at the robot profile's topics (``robot``, default ``sim``).
+
+Reads equilibrium targets (PoseStamped, or multipanda_ros2's Float64MultiArray), publishes the
+current pose (PoseStamped) and the external wrench in the base frame (WrenchStamped, z =
+``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``core.press.ArmModel``: a
+spring-damper impedance model (controller stiffness and damping, apparent mass, the
+controller's filter on the equilibrium) against platforms of ``platform_stiffness``, so the
+mock behaves as a real controller does: it pushes with K (x - x_eq), not as a position follower.
+
+Fault injection for tests: ``surface_offset`` (platforms lower or higher than the scene says);
+``reflex_force``: above that contact force the arm stops and the state stops (the hardware
+component and its controllers are down, as after a franka reflex) until a stand-in recovery
+(``recovery_standin``: an action or a service) clears the error and the stand-in re-activation
+services bring hardware, then controllers, back -- in that order, as franka_ros2 requires.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped, Vector3, WrenchStamped
+from rclpy.qos import qos_profile_sensor_data
+from std_msgs.msg import Header
+
+from .. import adapter
+from ...core.errors import TactexError
+from ...robot.press import ArmModel
+from ..settings import MockArmSettings
+from ...robot.robots import import_interface, load_profile
+from ...robot.scene import load_scene
+from .common import TactexNode, run
+
+
+class MockArmNode(TactexNode):
+    settings_cls = MockArmSettings
+
+    def __init__(self, **kw) -> None:
+        super().__init__("mock_arm", **kw)
+
+    def configure(self) -> None:
+        s = self.settings
+        prof = load_profile(s.robot)
+        if prof.franka_state:
+            raise TactexError(f"robot profile {prof.name!r}: the mock arm publishes "
+                              "PoseStamped + WrenchStamped state only")
+        scene = load_scene(s.scene_file)
+        if s.surface_offset:
+            scene = replace(scene, platforms=tuple(
+                p.replace(position=(p.position[0], p.position[1],
+                                    p.position[2] + s.surface_offset))
+                for p in scene.platforms))
+        self.scene = scene
+        k = s.stiffness or prof.stiffness
+        self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]), stiffness=k,
+                            damping=None if s.damping < 0 else s.damping, mass=s.mass,
+                            platform_stiffness=s.platform_stiffness,
+                            platform_damping=s.platform_damping,
+                            target_filter_s=(prof.target_filter_s if s.target_filter_s < 0
+                                             else s.target_filter_s))
+        self.sign = s.wrench_sign or prof.force_sign
+        self.quat = np.array(scene.tool_orientation)
+        self.pose_pub = self.create_lifecycle_publisher(
+            PoseStamped, s.pose_topic or prof.pose_topic, qos_profile_sensor_data)
+        self.wrench_pub = self.create_lifecycle_publisher(
+            WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
+        self.create_subscription(import_interface(prof.target_type),
+                                 s.target_topic or prof.target_topic, self._on_target, 10)
+        self.error = False            # reflex not yet cleared by the recovery
+        self.hardware_active = True
+        self.controller_active = True
+        self.reflexes = 0
+        if s.recovery_standin != "none":
+            self._serve_standins(s)
+
+    def activate(self) -> None:
+        self._last = self.get_clock().now().nanoseconds * 1e-9
+        self.create_timer(1.0 / self.settings.rate_hz, self._tick)
+
+    # ------------------------------------------------------------------ recovery stand-ins
+    def _serve_standins(self, s: MockArmSettings) -> None:
+        from std_srvs.srv import SetBool, Trigger
+        if s.recovery_standin == "action":
+            from rclpy.action import ActionServer
+            from tactex.action import Press
+
+            def recover_action(goal_handle):
+                self.error = False
+                goal_handle.succeed()
+                return Press.Result(success=True)
+            self._recovery_server = ActionServer(self, Press, s.recovery_name, recover_action)
+        else:
+            def recover_service(_req, resp):
+                resp.success, resp.message = self.error, "" if self.error else "No errors"
+                self.error = False
+                return resp
+            self.create_service(Trigger, s.recovery_name, recover_service)
+
+        def hardware(req, resp):
+            if self.error:
+                resp.success, resp.message = False, "robot error not cleared"
+            else:
+                self.hardware_active, resp.success = bool(req.data), True
+            return resp
+
+        def controller(req, resp):
+            if not self.hardware_active:
+                resp.success, resp.message = False, "hardware component not active"
+            else:
+                if req.data and not self.controller_active:
+                    self.arm.release()
+                self.controller_active, resp.success = bool(req.data), True
+            return resp
+        self.create_service(SetBool, s.hardware_service, hardware)
+        self.create_service(SetBool, s.controller_service, controller)
+
+    # ------------------------------------------------------------------ loop
+    def _on_target(self, msg) -> None:
+        if not self.controller_active:
+            return     # a deactivated controller takes no targets
+        try:
+            xyz, _ = adapter.target_to_array(msg)
+        except TactexError as exc:
+            self.get_logger().warning(f"target ignored: {exc}")
+            return
+        self.arm.target = xyz
+
+    def _tick(self) -> None:
+        now = self.get_clock().now().nanoseconds * 1e-9
+        self.arm.step(min(0.1, now - self._last))
+        self._last = now
+        rf = self.settings.reflex_force
+        if (rf and self.controller_active and self.arm.peak_force > rf and
+                self.reflexes < self.settings.reflex_limit):
+            self.get_logger().error(f"reflex: contact force {self.arm.peak_force:.1f} N > "
+                                    f"reflex_force {rf} N; arm stopped")
+            self.arm.freeze()
+            self.error, self.hardware_active, self.controller_active = True, False, False
+            self.reflexes += 1
+        if not self.controller_active:
+            return     # the state broadcaster is down with the hardware component
+        self.pose_pub.publish(adapter.array_to_pose(self.arm.position, self.quat, now,
+                                                    self.scene.frame_id))
+        w = WrenchStamped(header=Header(stamp=adapter.stamp(now), frame_id=self.scene.frame_id))
+        w.wrench.force = Vector3(x=0.0, y=0.0, z=float(self.sign * self.arm.normal_force()))
+        self.wrench_pub.publish(w)
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(MockArmNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

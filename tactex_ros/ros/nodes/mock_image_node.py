@@ -1,0 +1,140 @@
+"""mock_image_node: stands in for the GelSight Mini on the same topic and capture service.
+
+Knows what lies on each platform from the scene (``sim_fabric`` for the simulator,
+``replay_class`` for recorded presses). While the mock arm presses a platform (force > 0 and
+the sensor within the platform's radius) it publishes that fabric's texture at a gel depth
+proportional to the contact force (``depth_per_n``); otherwise a no-contact frame. Each press
+shows a new random patch of the fabric (new window; a new recorded press for replay sources).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import Image
+
+from .. import adapter
+from ...core.contact import FrameRing
+from ...core.errors import TactexError
+from ..settings import MockImageSettings
+from ...robot.scene import load_scene
+from .capture import serve_capture
+from .common import TactexNode, run
+
+
+class MockImageNode(TactexNode):
+    settings_cls = MockImageSettings
+
+    def __init__(self, **kw) -> None:
+        super().__init__("mock_image", **kw)
+
+    def configure(self) -> None:
+        s = self.settings
+        self.scene = load_scene(s.scene_file)
+        kind = s.source.partition(":")[0]
+        if kind == "sim":
+            from ...sources import open_source
+            self.src = open_source(s.source)
+            missing = [p.id for p in self.scene.platforms if not p.sim_fabric]
+            if missing:
+                raise TactexError(f"scene: platforms {missing} have no sim_fabric for source "
+                                  f"{s.source!r}")
+            for p in self.scene.platforms:
+                self.src.fabric(p.sim_fabric)  # names the unknown fabric
+                # build the fabric's height tile now: doing it at the first press stalls the
+                # frame timer for a moment and the capture window then holds no contact frame
+                self.src.press(p.sim_fabric, np.random.default_rng(0))
+            self._rng = np.random.default_rng([s.seed, 1])
+            self.no_contact = self.src.renderer.no_contact(self._rng)
+        elif kind == "replay":
+            from ...sources import open_source
+            from ...sources.replay import read_video
+            self.src = open_source(s.source)
+            missing = [p.id for p in self.scene.platforms if not p.replay_class]
+            if missing:
+                raise TactexError(f"scene: platforms {missing} have no replay_class for source "
+                                  f"{s.source!r}")
+            classes = [p.replay_class for p in self.scene.ordered]
+            self.replay = self.src.trial(classes, s.seed)
+            first = self.src.presses(classes[0])[0]
+            self.no_contact = np.ascontiguousarray(read_video(first)[0][:, :, ::-1]) \
+                if first.suffix.lower() in {".mov", ".mp4", ".avi", ".mkv"} else \
+                np.full((240, 320, 3), 120, np.uint8)
+        else:
+            raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
+        self.kind = kind
+        self.ring = FrameRing(max(2, int(s.buffer_s * s.fps)))
+        self.ring.set_reference(self.no_contact)
+        self.lock = threading.Lock()
+        self.position = None
+        self.force = 0.0
+        self.press_id = 0
+        self._in_contact = False
+        self._press_frame = None
+        self._blank = False
+        self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
+        self.create_subscription(PoseStamped, s.pose_topic, self._on_pose,
+                                 qos_profile_sensor_data)
+        self.create_subscription(WrenchStamped, s.wrench_topic, self._on_wrench,
+                                 qos_profile_sensor_data)
+        serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
+
+    def activate(self) -> None:
+        self.create_timer(1.0 / self.settings.fps, self._tick)
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        try:
+            self.position = adapter.pose_to_array(msg)[0]
+        except TactexError:
+            pass
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        self.force = abs(float(msg.wrench.force.z))   # either wrench sign convention
+
+    def _under(self):
+        if self.position is None:
+            return None, 0.0
+        for i, p in enumerate(self.scene.ordered):
+            c = np.asarray(p.position)
+            if np.linalg.norm(self.position[:2] - c[:2]) <= p.radius:
+                return i, max(0.0, c[2] - self.position[2])
+        return None, 0.0
+
+    def _frame(self) -> np.ndarray:
+        idx, pen = self._under()
+        contact = idx is not None and self.force > 0.05 and pen > 0
+        if contact and not self._in_contact:      # a new press begins
+            self.press_id += 1
+            self._blank = self._rng_fault().random() < self.settings.fault_blank
+            if self.kind == "replay":
+                self._press_frame = self.replay(idx).frame
+        self._in_contact = contact
+        if not contact or self._blank:
+            return self.no_contact
+        if self.kind == "replay":
+            return self._press_frame
+        p = self.scene.ordered[idx]
+        depth_mm = float(np.clip(self.settings.depth_per_n * self.force, 0.02, 1.0))
+        rng = np.random.default_rng([self.settings.seed, self.press_id])
+        return self.src.press(p.sim_fabric, rng, depth_mm=depth_mm)
+
+    def _rng_fault(self) -> np.random.Generator:
+        return np.random.default_rng([self.settings.seed, self.press_id, 99])
+
+    def _tick(self) -> None:
+        now = self.get_clock().now().nanoseconds * 1e-9
+        frame = self._frame()
+        with self.lock:
+            self.ring.push(now, frame)
+        self.pub.publish(adapter.array_to_image(frame, now, self.settings.frame_id))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(MockImageNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,365 @@
+"""motion_node: presses the GelSight on a platform through a Cartesian impedance controller.
+
+Serves the ``tactex/action/Press`` action (goal: platform id from the scene). The robot profile
+(``robot``: ``config/robots/<name>.yaml``, see ``tactex_ros/robot.py``) names the controller's
+equilibrium topic and type (PoseStamped, or multipanda_ros2's Float64MultiArray), the state
+(PoseStamped + WrenchStamped of franka_robot_state_broadcaster, or a franka state message), the
+controller stiffness, the wrench sign and the recovery interface. The press sequence is
+``core.press.PressController``: approach, descend (the equilibrium goes below the surface until
+the force threshold), hold the force during settle and capture (GelSight capture service),
+retract. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
+every phase. A failed attempt (no contact, no image, force limit) is retried up to
+``press.retries`` times. A robot error (the state stops arriving during a press, or the franka
+state reports a reflex) ends the attempt at once; if fresh state does not come back by itself
+within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the profile's recovery
+(error recovery action or service, waits for its result, re-activates hardware and controllers
+by the profile's service calls, waits for fresh state) and retries, or ends the goal with the
+reason (also when recovery is off, e.g. franka_msgs is not installed).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
+from rclpy.qos import qos_profile_sensor_data
+
+from .. import adapter
+from ...core.errors import TactexError
+from ...robot.press import PressController, check_press
+from ..settings import MotionSettings
+from ...robot.robots import fill_message, import_interface, load_profile
+from ...robot.scene import load_scene
+from .common import TactexNode, in_thread, run, wait_for
+
+
+class RobotError(Exception):
+    """The robot stopped (reflex, controllers down): recovery is needed before a retry."""
+
+
+class MotionNode(TactexNode):
+    settings_cls = MotionSettings
+
+    def __init__(self, **kw) -> None:
+        super().__init__("motion", **kw)
+
+    def configure(self) -> None:
+        from tactex.action import Press
+        from tactex.srv import Capture
+        s = self.settings
+        self.scene = load_scene(s.scene_file)
+        prof = self.profile = load_profile(s.robot)
+        if self.scene.frame_id != prof.frame_id:
+            raise TactexError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
+                              f"{prof.name!r}'s base frame {prof.frame_id!r}")
+        self.k = s.stiffness or prof.stiffness
+        self.sign = s.force_sign or prof.force_sign
+        check_press(self.scene, self.k, f"scene with robot {prof.name!r}")
+        self.quat = np.array(self.scene.tool_orientation)
+        self.position: np.ndarray | None = None
+        self.pose_t = -1.0
+        self.force = 0.0            # signed normal force [N]
+        self.force_mag = 0.0        # force magnitude [N]
+        self.wrench_t = -1.0
+        self.robot_mode = 0
+        self.busy = threading.Lock()
+        if prof.franka_state:
+            self.create_subscription(import_interface(prof.state_type),
+                                     s.state_topic or prof.state_topic, self._on_state,
+                                     qos_profile_sensor_data)
+        else:
+            self.create_subscription(PoseStamped, s.pose_topic or prof.pose_topic,
+                                     self._on_pose, qos_profile_sensor_data)
+            self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
+                                     self._on_wrench, qos_profile_sensor_data)
+        if prof.mode_topic:
+            try:
+                self.create_subscription(import_interface(prof.mode_type),
+                                         s.mode_topic or prof.mode_topic, self._on_mode, 10)
+            except TactexError as exc:
+                self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
+                                          f"stopping): {exc}")
+        self.target_type = prof.target_type
+        self.target_pub = self.create_lifecycle_publisher(import_interface(prof.target_type),
+                                                          s.target_topic or prof.target_topic,
+                                                          10)
+        self.capture = self.create_client(Capture, s.capture_service)
+        self._setup_recovery()
+        self._Press = Press
+        self._abort = threading.Event()   # set on deactivation: the running press retracts
+        # created once; goals are accepted only while the node is active (``_on_goal``)
+        self.server = ActionServer(
+            self, Press, s.press_action, execute_callback=self._execute_async,
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+
+    def _setup_recovery(self) -> None:
+        """Clients of the profile's recovery interface and re-activation services; where a
+        type is missing, recovery is off and ``recovery_off`` says why."""
+        rec, s = self.profile.recovery, self.settings
+        self.recovery_off, self.recovery_client, self.reactivate = "", None, []
+        if rec.kind == "none":
+            self.recovery_off = f"robot profile {self.profile.name!r} has no recovery interface"
+            return
+        try:
+            rtype = import_interface(rec.type)
+            name = s.recovery_name or rec.name
+            self.recovery_type = rtype
+            self.recovery_client = (ActionClient(self, rtype, name) if rec.kind == "action"
+                                    else self.create_client(rtype, name))
+            for call in rec.then:
+                ctype = import_interface(call.type)
+                fill_message(ctype.Request(), call.request, f"recovery.then {call.service}")
+                self.reactivate.append((call, ctype, self.create_client(ctype, call.service)))
+        except TactexError as exc:
+            self.recovery_off = f"recovery off: {exc}"
+            self.recovery_client, self.reactivate = None, []
+            self.get_logger().warning(self.recovery_off)
+
+    def activate(self) -> None:
+        self._abort.clear()
+
+    def deactivate(self) -> None:
+        """A running press is aborted: it retracts (targets still published) and ends; wait
+        for it up to the retract deadline before the publishers go off."""
+        self._abort.set()
+        s = self.scene.press
+        if self.busy.acquire(timeout=s.retract_deadline_s + s.capture_deadline_s + 1.0):
+            self.busy.release()
+        else:
+            self.get_logger().error("deactivated while a press did not end in time")
+
+    # ------------------------------------------------------------------ robot state
+    def _on_pose(self, msg: PoseStamped) -> None:
+        try:
+            self.position = adapter.pose_to_array(msg)[0]
+            self.pose_t = time.monotonic()
+        except TactexError as exc:
+            self.get_logger().warning(f"pose ignored: {exc}")
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        try:
+            self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
+            self.wrench_t = time.monotonic()
+        except TactexError as exc:
+            self.get_logger().warning(f"wrench ignored: {exc}")
+
+    def _on_state(self, msg) -> None:
+        try:
+            pos, fn, mag, mode = adapter.franka_state_to_array(msg, self.sign)
+        except TactexError as exc:
+            self.get_logger().warning(f"robot state ignored: {exc}")
+            return
+        self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
+        self.pose_t = self.wrench_t = time.monotonic()
+
+    def _on_mode(self, msg) -> None:
+        self.robot_mode = int(msg.robot_mode)
+
+    def _fresh(self, now: float) -> bool:
+        lim = self.settings.state_timeout_s
+        return (self.position is not None and now - self.pose_t <= lim and
+                now - self.wrench_t <= lim)
+
+    def _robot_fault(self, now: float) -> str:
+        """Why the robot cannot be commanded now ("" when it can)."""
+        if self.robot_mode == adapter.FRANKA_MODE_REFLEX:
+            return "robot in reflex mode (franka state robot_mode)"
+        if not self._fresh(now):
+            return ("robot stopped: no robot state within state_timeout_s "
+                    f"({self.settings.state_timeout_s} s): reflex or controllers down")
+        return ""
+
+    # ------------------------------------------------------------------ action
+    def _on_goal(self, goal) -> GoalResponse:
+        if not self.active:
+            self.get_logger().warning("press goal rejected: the node is not active")
+            return GoalResponse.REJECT
+        try:
+            self.scene.platform(goal.platform_id)
+        except TactexError as exc:
+            self.get_logger().warning(f"press goal rejected: {exc}")
+            return GoalResponse.REJECT
+        if self.busy.locked():
+            self.get_logger().warning("press goal rejected: a press is running")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    async def _execute_async(self, goal_handle):
+        return await in_thread(self, self._execute, goal_handle)
+
+    def _execute(self, goal_handle):
+        Press = self._Press
+        with self.busy:
+            platform = self.scene.platform(goal_handle.request.platform_id)
+            index = [p.id for p in self.scene.ordered].index(platform.id)
+            result = Press.Result()
+            reasons = []
+            for attempt in range(1, self.scene.press.retries + 2):
+                result.attempts = attempt
+                try:
+                    ok, reason, touch = self._press_once(goal_handle, platform, index, attempt)
+                except RobotError as exc:
+                    reasons.append(f"attempt {attempt}: {exc}")
+                    self.get_logger().error(f"press on {platform.id}: {exc}")
+                    if self._state_resumes():
+                        self.get_logger().warning("robot state resumed without recovery (a "
+                                                  "gap, not a reflex); pressing again")
+                        continue
+                    recovered, why = self._recover()
+                    if not recovered:
+                        reasons.append(f"not retried: {why}")
+                        break
+                    self.get_logger().info("robot recovered; pressing again")
+                    continue
+                if ok:
+                    result.success, result.reason, result.touch = True, "", touch
+                    goal_handle.succeed()
+                    return result
+                reasons.append(f"attempt {attempt}: {reason}")
+                self.get_logger().warning(f"press on {platform.id} failed: {reason}")
+                if goal_handle.is_cancel_requested or self._abort.is_set():
+                    break
+            result.success, result.reason = False, "; ".join(reasons)
+            if goal_handle.is_cancel_requested:
+                goal_handle.canceled()
+            else:
+                goal_handle.abort()
+            return result
+
+    def _press_once(self, goal_handle, platform, index: int, attempt: int):
+        """One press; (ok, reason, touch). Raises RobotError when the robot stops."""
+        from tactex.action import Press
+        from tactex.msg import Touch
+        s = self.settings
+        period = 1.0 / s.rate_hz
+        t0 = time.monotonic()
+        while self._robot_fault(time.monotonic()):
+            if time.monotonic() - t0 > s.state_timeout_s:
+                raise RobotError(self._robot_fault(time.monotonic()))
+            time.sleep(period)
+        ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
+                               stiffness=self.k)
+        cap, pose_xyz, fb = None, None, Press.Feedback()
+        while not ctrl.done:
+            now = time.monotonic()
+            fault = self._robot_fault(now)
+            if fault:   # nothing more to command: the robot does not follow
+                raise RobotError(f"{fault} (during {ctrl.phase})")
+            if goal_handle.is_cancel_requested:
+                ctrl.abort("canceled", now)
+            elif self._abort.is_set():
+                ctrl.abort("the motion node was deactivated", now)
+            target = ctrl.step(now, self.position, self.force, self.force_mag)
+            self.target_pub.publish(adapter.target_msg(
+                self.target_type, target, self.quat, self.get_clock().now().nanoseconds * 1e-9,
+                self.scene.frame_id))
+            if ctrl.capture_requested:
+                ok, reason, cap = self._capture(ctrl.s.capture_window_s,
+                                                  ctrl.s.capture_deadline_s)
+                pose_xyz = self.position.copy()
+                ctrl.captured(ok, reason, time.monotonic())
+            fb.phase, fb.force_n, fb.attempt = ctrl.phase, float(self.force), attempt
+            fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
+            goal_handle.publish_feedback(fb)
+            time.sleep(period)
+        out = ctrl.outcome()
+        if not out.success:
+            return False, out.reason, None
+        touch = Touch(header=cap.image.header, platform_id=platform.id, platform_index=index,
+                      image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
+                      attempt=attempt, no_contact_image=cap.no_contact)
+        touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
+        return True, "", touch
+
+    def _capture(self, window_s: float, deadline_s: float):
+        from tactex.srv import Capture
+        if not self.capture.wait_for_service(timeout_sec=deadline_s):
+            return False, "capture service not available", None
+        fut = self.capture.call_async(Capture.Request(window_s=window_s))
+        if not wait_for(fut, deadline_s):
+            self.capture.remove_pending_request(fut)
+            return False, f"no image within capture_deadline_s ({deadline_s} s)", None
+        resp = fut.result()
+        if not resp.success:
+            return False, resp.reason, None
+        if resp.contact_score < self.settings.min_contact_score:
+            return False, (f"no contact in the captured frames: score {resp.contact_score:.2f} < "
+                           f"min_contact_score {self.settings.min_contact_score}"), None
+        return True, "", resp
+
+    def _state_resumes(self) -> bool:
+        """After a robot error: does fresh state (not in reflex) come back by itself within
+        state_timeout_s? A stopped robot (reflex, controllers down) stays silent until
+        recovered; a loaded machine only delays messages."""
+        end = time.monotonic() + self.settings.state_timeout_s
+        while time.monotonic() < end:
+            if not self._robot_fault(time.monotonic()):
+                return True
+            time.sleep(0.02)
+        return False
+
+    def _wait(self, fut, deadline_s: float, what: str):
+        """Wait for a future from this worker thread; its result, or TactexError at the
+        deadline."""
+        if not wait_for(fut, deadline_s):
+            fut.cancel()
+            raise TactexError(f"{what}: no answer within recovery_timeout_s "
+                              f"({deadline_s} s)")
+        return fut.result()
+
+    def _recover(self) -> tuple[bool, str]:
+        """The profile's recovery after a robot error: the error recovery action (its result)
+        or service (its ``ok_field``), then the re-activation calls in order, then fresh state.
+        (recovered, reason if not)."""
+        if self.recovery_client is None:
+            return False, self.recovery_off
+        rec, lim = self.profile.recovery, self.settings.recovery_timeout_s
+        name = self.settings.recovery_name or rec.name
+        try:
+            if rec.kind == "action":
+                if not self.recovery_client.wait_for_server(timeout_sec=lim):
+                    raise TactexError(f"error recovery action {name} not available")
+                handle = self._wait(self.recovery_client.send_goal_async(
+                    self.recovery_type.Goal()), lim, f"error recovery {name} (goal)")
+                if not handle.accepted:
+                    raise TactexError(f"error recovery {name}: goal rejected")
+                res = self._wait(handle.get_result_async(), lim, f"error recovery {name}")
+                if res.status != GoalStatus.STATUS_SUCCEEDED:
+                    raise TactexError(f"error recovery {name} ended with status {res.status}")
+            else:
+                self._call(self.recovery_client, self.recovery_type.Request(), rec.ok_field,
+                           name, lim)
+            for call, ctype, client in self.reactivate:
+                self._call(client, fill_message(ctype.Request(), call.request), call.ok_field,
+                           call.service, lim)
+            end = time.monotonic() + lim
+            while self._robot_fault(time.monotonic()):
+                if time.monotonic() > end:
+                    raise TactexError("no fresh robot state after recovery within "
+                                      f"recovery_timeout_s ({lim} s)")
+                time.sleep(0.02)
+        except TactexError as exc:
+            self.get_logger().error(f"recovery failed: {exc}")
+            return False, f"recovery failed: {exc}"
+        return True, ""
+
+    def _call(self, client, request, ok_field: str, name: str, deadline_s: float) -> None:
+        if not client.wait_for_service(timeout_sec=deadline_s):
+            raise TactexError(f"service {name} not available")
+        resp = self._wait(client.call_async(request), deadline_s, f"service {name}")
+        if not getattr(resp, ok_field, False):
+            detail = getattr(resp, "message", "") or getattr(resp, "error", "")
+            raise TactexError(f"service {name} answered {ok_field} = false"
+                              + (f" ({detail})" if detail else ""))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(MotionNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

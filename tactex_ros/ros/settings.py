@@ -1,0 +1,203 @@
+"""Parameters of every node, in the one schema system (``core/config.py``: type, default,
+range, choices, description), pure Python. The nodes declare their ROS parameters from these
+models (``nodes/common.declare_settings``); the graph description fills and checks them; tests
+validate them without ROS. Every topic, service and action name is a parameter.
+
+The explorer's settings are composed from the core's: ``ExplorerSettings`` is a
+``TrialSettings`` (preset ``config`` + ``learner.*`` + ``trial.*``, the preset's values where
+not given) plus the node's own parameters.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import model_validator
+
+from ..core.config import FieldError, Schema, TrialSettings, param
+
+IMAGE_TOPIC = "/tactex/gelsight/image_raw"
+CAPTURE_SERVICE = "/tactex/gelsight/capture"
+PRESS_ACTION = "/tactex/press"
+STATE_TOPIC = "/tactex/state"
+MARKER_TOPIC = "/tactex/markers"
+TOUCH_IMAGE_TOPIC = "/tactex/touch_image"
+POSE_TOPIC = "/franka_robot_state_broadcaster/current_pose"
+WRENCH_TOPIC = "/franka_robot_state_broadcaster/external_wrench_in_base_frame"
+TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
+
+
+class GelsightSettings(Schema):
+    sensor: str = param("gelsight_mini", "sensor profile: a name from config/sensors/ "
+                                         "(gelsight_mini, digit) or a path; gives the camera "
+                                         "name, capture mode, crop, exposure and LED set-up")
+    device: str = param("", "camera: /dev/videoN, a /dev/v4l/by-id path, a name the camera "
+                            "reports (e.g. 'GelSight Mini', 'DIGIT'), a DIGIT serial number, a "
+                            "video file or a folder of recorded frames ('' = the profile's "
+                            "camera name)")
+    fps: float = param(0.0, "frame rate to read and publish at [Hz] (0 = the profile's)",
+                       0.0, 1000.0)
+    warmup_frames: int = param(10, "frames dropped after opening (auto-exposure settling)",
+                               0, 1000)
+    reference_frames: int = param(5, "frames after warm-up averaged into the no-contact frame",
+                                  1, 100)
+    crop_fraction: float = param(-1.0, "fraction of each border cropped before resizing "
+                                       "(< 0 = the profile's)", -1.0, 0.45)
+    buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
+    frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
+    image_topic: str = param(IMAGE_TOPIC, "where the camera images are published")
+    capture_service: str = param(CAPTURE_SERVICE, "the capture service this node serves")
+    loop_file: bool = param(True, "restart a video file at its end (recordings only)")
+    open_timeout_s: float = param(5.0, "deadline for opening the device [s]", 0.1, 60.0)
+    capture_width: int = param(-1, "capture mode width requested from the camera [px] (-1 = "
+                                   "the profile's, e.g. the GelSight SDK's 320x240; 0 = the "
+                                   "camera's default)", -1, 8192)
+    capture_height: int = param(-1, "capture mode height [px] (-1 = the profile's; 0 = the "
+                                    "camera's default)", -1, 8192)
+    auto_exposure: bool = param(False, "leave the camera's auto exposure on (off: lighting "
+                                       "drift of 10 grey levels broke every strategy in "
+                                       "`tactex experiment stability`); for sensors whose "
+                                       "profile has exposure_controls")
+    exposure: float = param(-1.0, "manual exposure in the driver's units (V4L2: 100 us) "
+                                  "(< 0 = keep the value the camera has)", -1.0, 100000.0)
+    auto_white_balance: bool = param(False, "leave the camera's auto white balance on")
+    white_balance: float = param(-1.0, "white balance temperature [K] (< 0 = keep the "
+                                       "camera's)", -1.0, 15000.0)
+    led_intensity: int = param(-1, "DIGIT LED level on all channels, 0..15 (-1 = the "
+                                   "profile's)", -1, 15)
+
+
+class MotionSettings(Schema):
+    scene_file: str = param("", "scene YAML (platforms, workspace, press settings)")
+    robot: str = param("fr3_jazzy", "robot profile: a name from config/robots/ (fr3_jazzy, "
+                                    "panda_multipanda, sim) or a path; gives the controller, "
+                                    "topics, message types, stiffness and recovery interface")
+    pose_topic: str = param("", "current end-effector pose (PoseStamped) ('' = the profile's)")
+    wrench_topic: str = param("", "external wrench in the base frame (WrenchStamped) "
+                                  "('' = the profile's)")
+    state_topic: str = param("", "franka state message topic, for profiles that read one "
+                                 "('' = the profile's)")
+    target_topic: str = param("", "the impedance controller's equilibrium pose topic "
+                                  "('' = the profile's)")
+    mode_topic: str = param("", "robot mode (reflex) topic, for profiles that read one "
+                                "('' = the profile's)")
+    stiffness: float = param(0.0, "the impedance controller's translational stiffness [N/m] "
+                                  "(0 = the profile's)", 0.0, 1e6)
+    capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
+    press_action: str = param(PRESS_ACTION, "the press action this node serves")
+    recovery_name: str = param("", "error recovery action or service ('' = the profile's)")
+    recovery_timeout_s: float = param(30.0, "deadline for error recovery and re-activation, "
+                                            "each call [s]", 0.5, 600.0)
+    force_sign: float = param(0.0, "normal force = force_sign * wrench.force.z (0 = the "
+                                   "profile's)", -1.0, 1.0)
+    rate_hz: float = param(50.0, "control loop rate [Hz]", 5.0, 1000.0)
+    min_contact_score: float = param(0.3, "captured frame must differ from the no-contact frame "
+                                          "by at least this [grey levels], else the press is "
+                                          "retried (0 = no check)", 0.0, 50.0)
+    state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
+                                   0.05, 30.0)
+
+
+class ExplorerSettings(TrialSettings):
+    """The explorer: a trial's settings (``config``, ``learner.*``, ``trial.*``) + the node's."""
+
+    scene_file: str = param("", "scene YAML (platform ids and order)")
+    seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
+    record_dir: str = param("runs/trials", "folder that receives the trial record")
+    trial_id: str = param("", "record sub-folder ('' = time stamp)")
+    resume: str = param("", "record folder of an interrupted trial to continue ('' = a new "
+                            "trial); its settings must equal this node's")
+    press_action: str = param(PRESS_ACTION, "press action served by the motion node")
+    state_topic: str = param(STATE_TOPIC, "where the exploration state is published after "
+                                          "each decision")
+    marker_topic: str = param(MARKER_TOPIC, "where the rviz markers are published")
+    touch_image_topic: str = param(TOUCH_IMAGE_TOPIC, "where the latest touch image is "
+                                                      "published")
+    press_timeout_s: float = param(120.0, "deadline for one press (all attempts) [s]",
+                                   1.0, 3600.0)
+    server_timeout_s: float = param(30.0, "deadline for the press server to appear [s]",
+                                    0.5, 600.0)
+    press_silence_s: float = param(10.0, "a press server that sends no feedback (and no goal "
+                                         "answer) for this long, or that leaves the ROS graph, "
+                                         "is gone: the trial ends with that reason [s]",
+                                   1.0, 600.0)
+    pause_timeout_s: float = param(600.0, "a trial paused by deactivating the node ends with "
+                                          "that reason when not re-activated within this [s]",
+                                   1.0, 86400.0)
+    goal_answer_s: float = param(2.0, "a press goal not answered within this is sent again "
+                                      "(a lost goal response); the first one is followed by "
+                                      "its goal id if it runs [s] (< press_silence_s)",
+                                 0.1, 600.0)
+    exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
+    nice: int = param(10, "CPU priority increment of this process, so training never starves "
+                          "the control loop and the sensor (0 = unchanged)", 0, 19)
+
+    @model_validator(mode="after")
+    def _goal_answer(self) -> "ExplorerSettings":
+        if self.goal_answer_s >= self.press_silence_s:
+            raise FieldError("goal_answer_s", f"{self.goal_answer_s} s must be below "
+                                              f"press_silence_s ({self.press_silence_s} s): an "
+                                              "unanswered goal is re-sent before the press "
+                                              "server counts as silent")
+        return self
+
+
+class MockArmSettings(Schema):
+    scene_file: str = param("", "scene YAML (platform surfaces)")
+    robot: str = param("sim", "robot profile whose topics, target type, stiffness and wrench "
+                              "sign the mock takes (PoseStamped + WrenchStamped state only)")
+    pose_topic: str = param("", "where the mock publishes the current pose ('' = profile's)")
+    wrench_topic: str = param("", "where the mock publishes the external wrench "
+                                  "('' = profile's)")
+    target_topic: str = param("", "where the mock reads equilibrium poses ('' = profile's)")
+    stiffness: float = param(0.0, "impedance controller stiffness [N/m] (0 = the profile's)",
+                             0.0, 1e6)
+    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = 2 sqrt(stiffness) "
+                                 "as franka's controllers)", -1.0, 1e5)
+    mass: float = param(3.0, "apparent end-effector mass [kg]", 0.1, 100.0)
+    target_filter_s: float = param(-1.0, "controller filter on the equilibrium [s] (< 0 = the "
+                                         "profile's)", -1.0, 5.0)
+    platform_stiffness: float = param(2e4, "contact stiffness of gel, fabric and platform in "
+                                           "series [N/m]", 1.0, 1e7)
+    platform_damping: float = param(50.0, "contact damping [N s/m]", 0.0, 1e5)
+    wrench_sign: float = param(0.0, "published wrench z = wrench_sign * contact force (0 = the "
+                                    "profile's force_sign)", -1.0, 1.0)
+    rate_hz: float = param(100.0, "simulation and publish rate [Hz]", 5.0, 1000.0)
+    start_x: float = param(0.5, "start position x [m] in the base frame", -2.0, 2.0)
+    start_y: float = param(0.0, "start position y [m] in the base frame", -2.0, 2.0)
+    start_z: float = param(0.3, "start position z [m] in the base frame", -2.0, 2.0)
+    surface_offset: float = param(0.0, "platforms' true surface z minus the scene's [m] "
+                                       "(fault injection: < 0 means lower, no contact)",
+                                  -0.5, 0.5)
+    reflex_force: float = param(0.0, "contact force above which the mock goes into a reflex: "
+                                     "the arm stops and no state is published until recovered "
+                                     "(0 = never) [N]", 0.0, 1000.0)
+    reflex_limit: int = param(1, "reflexes injected at most (reflex_force)", 0, 1000)
+    recovery_standin: Literal["none", "action", "service"] = param("none", "serve stand-ins of the recovery interfaces: 'action' "
+                                          "(tactex/action/Press as the action type), 'service' "
+                                          "(std_srvs/srv/Trigger), plus the re-activation "
+                                          "services (std_srvs/srv/SetBool) for tests")
+    recovery_name: str = param("/tactex_test/error_recovery", "stand-in recovery name")
+    hardware_service: str = param("/tactex_test/set_hardware_active",
+                                  "stand-in hardware re-activation service (SetBool)")
+    controller_service: str = param("/tactex_test/activate_controller",
+                                    "stand-in controller re-activation service (SetBool)")
+
+
+class MockImageSettings(Schema):
+    scene_file: str = param("", "scene YAML (what lies on each platform: sim_fabric or "
+                                "replay_class)")
+    source: str = param("sim", "sim[:difficulty] or replay:DIR")
+    pose_topic: str = param(POSE_TOPIC, "mock arm pose, to know what is under the sensor")
+    wrench_topic: str = param(WRENCH_TOPIC, "mock arm external wrench, to know the contact "
+                                            "force")
+    image_topic: str = param(IMAGE_TOPIC, "where the rendered images are published")
+    capture_service: str = param(CAPTURE_SERVICE, "the capture service this node serves")
+    fps: float = param(25.0, "published frame rate [Hz]", 1.0, 120.0)
+    depth_per_n: float = param(0.1, "gel indentation [mm] per newton of contact force (the "
+                                    "GelSight Mini's gel takes about 0.4 mm at 4 N)", 0.0, 10.0)
+    buffer_s: float = param(3.0, "ring buffer length [s]", 0.1, 60.0)
+    frame_id: str = param("gelsight_optical_frame", "frame_id of published images")
+    seed: int = param(0, "seed of the rendered presses", 0, 2**31 - 1)
+    fault_blank: float = param(0.0, "probability that a press shows no texture (fault "
+                                    "injection)", 0.0, 1.0)

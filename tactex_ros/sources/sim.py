@@ -1,0 +1,118 @@
+"""Simulated touch source: every touch is a new random press of a procedural fabric.
+
+Spec ``sim[:difficulty]`` with difficulty ``easy`` (0.2), ``medium`` (0.5), ``hard`` (0.8) or a
+number in [0, 1]. Classes are the names of the fabric catalogue the source is given (the
+package's is ``config/fabrics.yaml``: ``sources.open_source("sim")`` passes it). A scene drawn
+at difficulty q (``draw_scene``) takes a random catalogue fabric as the base and places the
+comparison fabrics around it at parameter distance (1 - q) * 0.6 from the base (Euclidean on the
+normalised parameters, ``FabricParams.vector``), in different random directions, same family —
+q = 1 makes them identical, q = 0 far apart; the reference is one of them.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import TactexError
+from ..core.touch import Touch
+from ..sim.fabrics import FabricParams, height_tile, load_catalogue
+from ..sim.render import GelSightRenderer
+
+DIFFICULTY = {"easy": 0.2, "medium": 0.5, "hard": 0.8}
+TILE_PX = 768
+SPREAD = 0.6
+
+
+def parse_difficulty(text: str) -> float:
+    """``easy|medium|hard|<number in [0, 1]>`` -> number."""
+    if text in DIFFICULTY:
+        return DIFFICULTY[text]
+    try:
+        q = float(text)
+    except ValueError:
+        raise TactexError(f"sim difficulty {text!r}: use easy, medium, hard or a number "
+                          "in [0, 1]") from None
+    if not 0.0 <= q <= 1.0:
+        raise TactexError(f"sim difficulty {q} outside [0, 1]")
+    return q
+
+
+@lru_cache(maxsize=256)
+def cached_tile(fab: FabricParams, seed: int) -> np.ndarray:
+    return height_tile(fab, TILE_PX, 0.0634, seed)
+
+
+class SimSource:
+    """Fabric simulator as a touch source (same interface as ReplaySource)."""
+
+    def __init__(self, difficulty: str | float = "medium", *, catalogue: str | Path) -> None:
+        """``catalogue``: the fabric catalogue file (YAML); ``difficulty``: see the module."""
+        self.difficulty = (parse_difficulty(difficulty) if isinstance(difficulty, str)
+                           else float(difficulty))
+        self.catalogue = load_catalogue(catalogue)
+        self.fabrics: dict[str, FabricParams] = dict(self.catalogue)
+        self.renderer = GelSightRenderer()
+
+    @property
+    def classes(self) -> list[str]:
+        return list(self.catalogue)
+
+    def by_number(self, number: int) -> str:
+        """Catalogue name of fabric ``number`` (1-based, the catalogue's order)."""
+        names = list(self.catalogue)
+        if not 1 <= number <= len(names):
+            raise TactexError(f"fabric number {number} outside 1..{len(names)}")
+        return names[number - 1]
+
+    def fabric(self, name: str) -> FabricParams:
+        if name not in self.fabrics:
+            raise TactexError(f"unknown fabric {name!r}; `tactex sim fabrics` lists them")
+        return self.fabrics[name]
+
+    def draw_scene(self, comparisons: int, seed: int) -> list[str]:
+        """Comparison fabric names at this source's difficulty (new fabrics are registered)."""
+        rng = np.random.default_rng([seed, 17])
+        base_name = self.classes[int(rng.integers(len(self.classes)))]
+        base = self.catalogue[base_name]
+        radius = (1.0 - self.difficulty) * SPREAD
+        v0 = base.vector()
+        names = []
+        for k in range(comparisons):
+            d = rng.standard_normal(v0.size)
+            d /= np.linalg.norm(d)
+            fab = FabricParams.from_vector(base.family, v0 + radius * d)
+            name = f"{base_name}~q{self.difficulty:g}s{seed}k{k}"
+            self.fabrics[name] = fab
+            names.append(name)
+        return names
+
+    def press(self, name: str, rng: np.random.Generator, depth_mm: float | None = None
+              ) -> np.ndarray:
+        """One random press of fabric ``name``: uint8 RGB (240, 320, 3)."""
+        fab = self.fabric(name)
+        tile = cached_tile(fab, _stable_seed(name))
+        heights = self.renderer.window(tile, rng)
+        lo, hi = self.renderer.sensor.depth_mm
+        d = rng.uniform(lo, hi) if depth_mm is None else depth_mm
+        return self.renderer.render(heights, d, rng, softness=fab.softness)
+
+    def trial(self, platform_classes: list[str], seed: int):
+        for c in set(platform_classes):
+            self.fabric(c)
+        rng = np.random.default_rng([seed, 23])
+        no_contact = self.renderer.no_contact(np.random.default_rng([seed, 37]))
+
+        def touch(platform: int) -> Touch:
+            # the session's no-contact frame, as a real sensor records it before the trial
+            return Touch(frame=self.press(platform_classes[platform], rng), no_contact=no_contact)
+
+        return touch
+
+
+def _stable_seed(name: str) -> int:
+    """Seed of a fabric's height tile from its name (stable across processes)."""
+    import zlib
+    return zlib.crc32(name.encode())

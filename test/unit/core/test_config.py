@@ -1,0 +1,175 @@
+"""The one schema system (core/config.py): presets keep their values, errors are located and name
+the field, the explorer's settings are composed from the core's, and ROS parameter descriptors,
+command-line options and launch arguments come from the same declarations."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from tactex_ros.core.config import (PRESETS, TRIAL_PRESETS, LearnerConfig, TrialConfig,
+                                    TrialSettings, field_spec, fields, merge, preset,
+                                    trial_preset, typed)
+from tactex_ros.core.errors import TactexError
+from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
+
+
+def test_presets_keep_their_values() -> None:
+    d = preset("default")
+    assert d == LearnerConfig(model="descriptor")
+    assert (d.model, d.input_size, d.match_temperature, d.match_prior_scale,
+            d.descriptor_frames, d.match_units) == ("descriptor", 299, 0.05, 1.0, 1, "scene")
+    c = preset("cnn")
+    assert (c.model, c.input_size, c.epochs, c.steps, c.batch_size, c.lr, c.dropout,
+            c.mc_passes, c.bn_recalibrate) == ("small_inception", 48, 0, 8, 32, 3e-3, 0.5, 20, 64)
+    s = preset("seed_faithful")
+    assert (s.input_size, s.epochs, s.steps, s.lr, s.bn_recalibrate) == (299, 10, 0, 1e-3, 0)
+    assert trial_preset("default") == TrialConfig(strategy="infogain", stop_confidence=0.9)
+    for name in ("cnn", "seed_faithful"):
+        t = trial_preset(name)
+        assert (t.strategy, t.stop_confidence, t.rounds, t.touch_retries) == \
+            ("variance", 0.0, 20, 2)
+    assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "cnn", "seed_faithful"}
+    # None = an option not given: the preset's value stays
+    assert trial_preset("default", strategy=None, rounds=3) == \
+        TrialConfig(strategy="infogain", stop_confidence=0.9, rounds=3)
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"input_size": 8}, "LearnerConfig: input_size: Input should be greater than or equal to 32 "
+                        "(got 8)"),
+    ({"model": "vgg"}, "LearnerConfig: model: Input should be 'descriptor', 'small_inception', "
+                       "'inception_v3', 'inception_v3_random' or 'auto' (got 'vgg')"),
+    ({"epochs": True}, "LearnerConfig: epochs: Input should be a valid integer (got True)"),
+    ({"lr": "0.1"}, "LearnerConfig: lr: Input should be a valid number (got '0.1')"),
+    ({"epochs": 2.0}, "LearnerConfig: epochs: Input should be a valid integer (got 2.0)"),
+    ({"colour": 1}, "LearnerConfig: colour: unknown name; known: model, input_size,"),
+])
+def test_learner_errors_name_the_field(kw: dict, message: str) -> None:
+    with pytest.raises(TactexError, match="^" + re.escape(message)):
+        LearnerConfig(**kw)
+
+
+def test_types_and_assignment() -> None:
+    c = LearnerConfig(lr=1)                       # an int where a float is expected
+    assert c.lr == 1.0 and isinstance(c.lr, float)
+    with pytest.raises(ValueError, match="input_size"):
+        c.input_size = 4                          # assignments are checked too
+    assert c.replace(input_size=64).input_size == 64 and c.input_size == 299
+    with pytest.raises(TactexError, match="^LearnerConfig: input_size: "):
+        c.replace(input_size=4)
+    with pytest.raises(TactexError, match="^configuration 'cnn': dropout: .*0.95"):
+        preset("cnn", dropout=0.99)
+    with pytest.raises(TactexError, match="unknown configuration 'turbo'"):
+        preset("turbo")
+
+
+def test_trial_settings_are_a_preset_plus_overrides() -> None:
+    t = TrialSettings.check({"config": "cnn", "trial": {"rounds": 3},
+                             "learner": {"threads": 1}})
+    assert t.learner == preset("cnn", threads=1)
+    assert t.trial == trial_preset("cnn", rounds=3)
+    assert TrialSettings().learner == preset("default")
+    assert TrialSettings().trial == trial_preset("default")
+    with pytest.raises(TactexError) as e:
+        TrialSettings.check({"config": "cnn", "trial": {"strategy": "greedy", "bogus": 1},
+                             "learner": {"input_size": 4}}, "tactex trial")
+    msg = str(e.value)
+    assert msg.startswith("tactex trial: ")
+    assert "learner.input_size: Input should be greater than or equal to 32 (got 4)" in msg
+    assert "trial.strategy: Input should be 'variance'" in msg and "(got 'greedy')" in msg
+    assert "trial.bogus: unknown name; known: strategy, rounds, stop_confidence" in msg
+
+
+def test_explorer_settings_are_composed_from_the_core() -> None:
+    names = [f.name for f in fields(ExplorerSettings)]
+    learner = [f"learner.{n}" for n in LearnerConfig.model_fields]
+    trial = [f"trial.{n}" for n in TrialConfig.model_fields]
+    assert set(learner + trial) <= set(names)
+    assert len(names) == len(set(names))
+    e = ExplorerSettings(config="cnn", trial={"rounds": 2}, seed=4)
+    assert e.learner == preset("cnn") and e.trial.rounds == 2 and e.trial.strategy == "variance"
+    spec = field_spec(ExplorerSettings, "trial.rounds")
+    assert (spec.kind, spec.default, spec.lo, spec.hi) == (int, 20, 0, 1000)
+    spec = field_spec(ExplorerSettings, "config")
+    assert spec.read_only and spec.choices == ("default", "seed_faithful", "cnn")
+    spec = field_spec(MockArmSettings, "recovery_standin")
+    assert (spec.kind, spec.choices) == (str, ("none", "action", "service"))
+    assert field_spec(MotionSettings, "stiffness").kind is float
+
+
+def test_typed_and_merge() -> None:
+    assert typed(ExplorerSettings, {"press_timeout_s": 60, "trial": {"rounds": 2}}) == \
+        {"press_timeout_s": 60.0, "trial": {"rounds": 2}}
+    assert isinstance(typed(ExplorerSettings, {"press_timeout_s": 60})["press_timeout_s"], float)
+    with pytest.raises(TactexError, match=r"^x: press_timeout_s: .*less than or equal to 3600"):
+        typed(ExplorerSettings, {"press_timeout_s": 1e5}, "x")
+    assert merge({"a": 1, "t": {"r": 1, "s": "v"}}, None, {"t": {"r": 2}}) == \
+        {"a": 1, "t": {"r": 2, "s": "v"}}
+
+
+def test_ros_descriptors_from_the_schema() -> None:
+    pytest.importorskip("rclpy")
+    from tactex_ros.ros.nodes.common import descriptor
+    d = descriptor(field_spec(ExplorerSettings, "trial.stop_confidence"))
+    assert d.name == "trial.stop_confidence" and not d.read_only
+    assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == \
+        (0.0, 1.0)
+    assert not d.integer_range
+    d = descriptor(field_spec(ExplorerSettings, "seed"))
+    assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (0, 2**31 - 1)
+    d = descriptor(field_spec(ExplorerSettings, "config"))
+    assert d.read_only and d.additional_constraints == "one of: default, seed_faithful, cnn"
+    d = descriptor(field_spec(ExplorerSettings, "exit_when_done"))
+    assert not d.integer_range and not d.floating_point_range
+
+
+def test_graph_options_parse_text_with_the_schema() -> None:
+    from tactex_ros.ros.graph import OPTIONS, option_overrides, parse_option
+    assert parse_option("rounds", "5") == 5 and parse_option("exit_when_done", "true") is True
+    assert parse_option("strategy", "random") == "random"
+    for name, text, what in (("rounds", "abc", "valid integer"), ("rounds", "5000", "1000"),
+                             ("strategy", "greedy", "'infogain'"),
+                             ("exit_when_done", "maybe", "valid boolean")):
+        with pytest.raises(TactexError, match=f"^{name}:={text!r}: .*{what}"):
+            parse_option(name, text)
+    assert option_overrides({"strategy": "random", "rounds": 3, "model": None,
+                             "device": "/dev/video2"}) == \
+        {"explorer": {"trial": {"strategy": "random", "rounds": 3}},
+         "gelsight": {"device": "/dev/video2"}}
+    assert set(OPTIONS) >= {"config", "strategy", "model", "rounds", "seed", "device", "source"}
+
+
+def _launch_module():
+    """launch/explore.launch.py imported from its path (it imports launch only where it runs)."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[3] / "launch" / "explore.launch.py"
+    spec = importlib.util.spec_from_file_location("tactex_explore_launch", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
+    from tactex_ros.ros.graph import OPTIONS
+    launch = _launch_module()
+    args = {n: (d, h) for n, d, h in launch.arguments()}
+    assert set(OPTIONS) <= set(args) and {"sim", "rviz", "robot", "scene"} <= set(args)
+    assert args["strategy"][0] == "" and "trial.strategy: exploration strategy" in \
+        args["strategy"][1] and "infogain" in args["strategy"][1]
+    p = launch.plan({"sim": "true", "rounds": "2", "strategy": "random", "seed": "",
+                     "exit_when_done": "true", "record_dir": str(tmp_path)})
+    ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
+    assert ex["trial"] == {"rounds": 2, "strategy": "random"} and ex["exit_when_done"] is True
+    assert ex["seed"] == 0 and ex["record_dir"] == str(tmp_path)     # '' = the node's default
+    assert p["sim"] and p["frame"] == "fr3_link0"
+    hw = launch.plan({"device": "/dev/video3"})
+    assert next(n for n in hw["nodes"] if n.name == "gelsight").parameters == \
+        {"device": "/dev/video3"}
+    for values, what in (({"rounds": "abc"}, "launch argument rounds:='abc': "),
+                         ({"sim": "maybe"}, "launch argument sim:='maybe': expected true"),
+                         ({"sim": "true", "model": "vgg"}, "launch argument model:='vgg': ")):
+        with pytest.raises(launch.LaunchArgumentError, match="^" + re.escape(what)):
+            launch.plan(values)

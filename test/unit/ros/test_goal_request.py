@@ -1,0 +1,163 @@
+"""GoalRequest (nodes/goal.py) against a scripted action server on a fake clock: lost goal
+responses and lost goal requests cost no touch and never make a second one."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from action_msgs.msg import GoalStatus  # noqa: E402
+from rclpy.action.client import ClientGoalHandle  # noqa: E402
+
+from tactex_ros.ros.goal import GoalRequest  # noqa: E402
+
+
+class Fut:
+    def __init__(self) -> None:
+        self._done, self._value = False, None
+
+    def done(self) -> bool:
+        return self._done
+
+    def result(self):
+        return self._value
+
+    def set(self, value) -> None:
+        self._done, self._value = True, value
+
+
+class Server:
+    """One goal at a time, like the motion node; ``duration`` [s] per goal; the goal requests
+    numbered in ``lose_request`` never arrive, the responses in ``lose_response`` never come
+    back; goals for ``bad`` are rejected."""
+
+    def __init__(self, duration: float, lose_request=(), lose_response=(), bad="") -> None:
+        self.now, self.duration, self.bad = 0.0, duration, bad
+        self.lose_request, self.lose_response = set(lose_request), set(lose_response)
+        self.n_requests = 0
+        self.goals: dict[bytes, dict] = {}     # goal id -> start, end, status
+        self.waiting: list[tuple[bytes, Fut]] = []
+
+    def running(self) -> bool:
+        return any(g["status"] == GoalStatus.STATUS_EXECUTING for g in self.goals.values())
+
+    def tick(self, dt: float) -> None:
+        self.now += dt
+        for g in self.goals.values():
+            if g["status"] == GoalStatus.STATUS_EXECUTING and self.now >= g["end"]:
+                g["status"] = GoalStatus.STATUS_SUCCEEDED
+        for gid, f in list(self.waiting):
+            if self.goals[gid]["status"] != GoalStatus.STATUS_EXECUTING:
+                f.set(SimpleNamespace(status=self.goals[gid]["status"], result=gid))
+                self.waiting.remove((gid, f))
+
+
+class Client:
+    """The parts of rclpy's ActionClient that GoalRequest and ClientGoalHandle use."""
+
+    def __init__(self, server: Server) -> None:
+        self.s = server
+
+    def send_goal_async(self, goal, feedback_callback=None, goal_uuid=None):
+        s, i, f = self.s, self.s.n_requests, Fut()
+        s.n_requests += 1
+        if i in s.lose_request:
+            return f
+        gid = bytes(goal_uuid.uuid)
+        ok = goal != s.bad and not s.running()
+        if ok:
+            s.goals[gid] = {"status": GoalStatus.STATUS_EXECUTING, "end": s.now + s.duration}
+        if i not in s.lose_response:
+            f.set(ClientGoalHandle(self, goal_uuid, SimpleNamespace(accepted=ok)))
+        return f
+
+    def _get_result_async(self, handle):
+        gid, f = bytes(handle.goal_id.uuid), Fut()
+        if gid not in self.s.goals:
+            f.set(SimpleNamespace(status=GoalStatus.STATUS_UNKNOWN, result=None))
+        else:
+            self.s.waiting.append((gid, f))
+            self.s.tick(0.0)
+        return f
+
+    def _cancel_goal_async(self, handle):
+        g = self.s.goals.get(bytes(handle.goal_id.uuid))
+        if g is not None and g["status"] == GoalStatus.STATUS_EXECUTING:
+            g["status"] = GoalStatus.STATUS_CANCELED
+        self.s.tick(0.0)
+        return Fut()
+
+
+def run(server: Server, goal: str = "c1", answer_s: float = 2.0, limit: float = 60.0):
+    req = GoalRequest(Client(server), goal, answer_s=answer_s, clock=lambda: server.now)
+    while not req.finished() and server.now < limit:
+        server.tick(0.1)
+    return req
+
+
+def ids(server: Server, status: int) -> list[bytes]:
+    return [k for k, g in server.goals.items() if g["status"] == status]
+
+
+def test_answered_goal_is_followed() -> None:
+    s = Server(duration=5.0)
+    req = run(s)
+    assert req.answered() and req.resent == 0 and not req.switched
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid)
+
+
+def test_lost_response_goal_running_is_followed_by_its_id() -> None:
+    s = Server(duration=8.0, lose_response={0})
+    req = run(s)
+    assert req.resent == 1                       # re-sent after answer_s, refused (busy)
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid)    # the first goal's result
+    assert len(s.goals) == 1                     # one touch made
+    assert s.now == pytest.approx(8.0, abs=0.15)  # no time lost waiting
+
+
+def test_lost_request_resent_goal_runs() -> None:
+    s = Server(duration=4.0, lose_request={0})
+    req = run(s)
+    assert req.resent == 1 and not req.switched
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[1].gid.uuid)
+    assert len(s.goals) == 1
+
+
+def test_lost_response_goal_already_ended_is_used_and_resend_canceled() -> None:
+    s = Server(duration=1.0, lose_response={0})     # ends before answer_s
+    req = run(s)
+    assert req.switched
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid)
+    assert ids(s, GoalStatus.STATUS_CANCELED) == [bytes(req.sent[1].gid.uuid)]
+
+
+def test_rejected_goal_is_refused() -> None:
+    s = Server(duration=1.0, bad="nope")
+    req = run(s, goal="nope")
+    assert req.refused and req.answered() and req.result is None and req.resent == 0
+
+
+def test_lost_rejection_ends_unknown() -> None:
+    s = Server(duration=1.0, bad="nope", lose_response={0})
+    req = run(s, goal="nope")
+    assert req.finished() and not req.refused
+    assert req.result.status == GoalStatus.STATUS_UNKNOWN   # the server never took it
+    assert s.goals == {}
+
+
+def test_silent_server_sends_at_most_max_sends() -> None:
+    s = Server(duration=1.0, lose_request={0, 1, 2, 3, 4})
+    req = run(s, limit=30.0)
+    assert not req.answered() and len(req.sent) == 3 and s.n_requests == 3
+
+
+def test_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="answer_s"):
+        GoalRequest(Client(Server(1.0)), "c1", answer_s=0.0)
