@@ -1,4 +1,4 @@
-"""Figure helpers of the experiments (matplotlib, Agg backend, PNG files).
+"""Every figure of the package (matplotlib, Agg backend, PNG files): experiments and reports.
 
 Each helper draws one figure, writes it and returns the path; none keeps global figure state.
 """
@@ -391,3 +391,47 @@ def gradcam_rounds(path: Path, labels: Sequence[str], maps: list[tuple], title: 
     axes[0][0].set_title("input", fontsize=6)
     fig.suptitle(title, fontsize=8)
     return save_small(fig, path)
+
+
+def sim_vs_real(path: Path, real: Sequence, sim: Sequence, ranking: dict | None) -> Path:
+    """The sim-to-real picture: top row real presses, bottom row simulated (up to 4 each, two
+    per press group), each beside |contact - no contact| x8; with ``ranking``
+    (``experiments.real.run_ranking``) a last column of sim against real accuracy per setting.
+    ``real``, ``sim``: ``analysis.sim_vs_real.Press`` items."""
+    picks = {"real": [], "sim": []}
+    for side, presses in (("real", real), ("sim", sim)):
+        for g in ("soft", "firm_textured", "smooth"):
+            named = {p.name: p for p in reversed(presses) if p.group == g}  # first per name
+            picks[side] += list(named.values())[::-1][:2]
+        picks[side] = picks[side][:4]
+    k = min(4, len(picks["real"]), len(picks["sim"]))
+    ncols = 2 * k + (1 if ranking else 0)
+    fig, axes = _plt().subplots(2, ncols, figsize=(2 * ncols, 3.4), squeeze=False)
+    for i in range(k):
+        for row, side in enumerate(("real", "sim")):
+            p = picks[side][i]
+            axes[row, 2 * i].imshow(p.contact)
+            axes[row, 2 * i].set_title(f"{side}: {p.name} ({p.group})", fontsize=6)
+            d = np.clip(np.abs(p.contact.astype(float) - p.no_contact) * 8, 0, 255)
+            axes[row, 2 * i + 1].imshow(d.astype(np.uint8))
+            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=6)
+    for a in axes[:, :2 * k].ravel():
+        a.axis("off")
+    rk = ranking
+    if rk:
+        ax = axes[0, -1]
+        names = list(rk["settings"])
+        xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
+        ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
+        ax.scatter(xs, ys, s=8)
+        for n, x, y in zip(names, xs, ys):
+            ax.annotate(n, (x, y), fontsize=4)
+        ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
+        sp = rk["accuracy_spearman"]
+        ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
+                     fontsize=6)
+        ax.set_xlabel(f"sim accuracy (+{rk['budget']} touches)", fontsize=6)
+        ax.set_ylabel("real accuracy", fontsize=6)
+        ax.tick_params(labelsize=5)
+        axes[1, -1].axis("off")
+    return _save(fig, path)

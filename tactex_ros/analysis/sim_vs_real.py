@@ -12,13 +12,10 @@ Two parts (``tactex sim compare``):
    firm textured, smooth), simulated fabrics by their softness (soft >= 0.5) and by
    construction family. Each shared group is compared as sim / real ratio with the 25 % target.
 2. **Ranking agreement.** A set of learner settings (``DEFAULT_SETTINGS``, in the syntax of
-   ``tactex experiment real``) runs through the real-press evaluation
-   (``experiments/real.py``: scene draw, runner, belief after every touch) on simulated scenes
-   (catalogue fabrics) and on real scenes (the folder's classes): 1 reference + C comparisons
-   of distinct classes, seeded, the same scenes for every setting. Per setting: accuracy on
-   each side after a fixed number of touches; Spearman rho between the two rankings with a
-   bootstrap interval (scenes resampled, paired across settings) and the accuracy gap
-   (real - sim).
+   ``tactex experiment real``) runs through the real-press evaluation on simulated and on real
+   scenes (``experiments.real.run_ranking``: scene draw, runner, belief after every touch);
+   Spearman rho between the two rankings with a bootstrap interval
+   (``analysis.stats.spearman_interval``) and the accuracy gap (real - sim).
 """
 
 from __future__ import annotations
@@ -191,94 +188,4 @@ def frame_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
                            "ratio": np.round(ratio, 3).tolist(), "within_25pct": ok})
     out["checks"] = checks
     out["checks_passed"] = sum(c["within_25pct"] for c in checks)
-    return out
-
-
-# ------------------------------------------------------------------------------ ranking
-
-def spearman_interval(sim_scores: np.ndarray, real_scores: np.ndarray, boot: int = 2000,
-                      seed: int = 0) -> dict[str, Any]:
-    """Spearman rho between the settings' mean scores on the two sides, with a percentile
-    bootstrap 95 % interval (``scipy.stats.bootstrap``: the scenes of each side resampled,
-    paired across settings). ``*_scores``: (settings, scenes) per-scene scores."""
-    import warnings
-
-    from scipy.stats import ConstantInputWarning, bootstrap, spearmanr
-    a, b = np.asarray(sim_scores, float), np.asarray(real_scores, float)
-
-    def rho(ia: np.ndarray, ib: np.ndarray) -> float:
-        r = spearmanr(a[:, ia.astype(int)].mean(1), b[:, ib.astype(int)].mean(1)).statistic
-        return float(r) if np.isfinite(r) else 0.0     # a resample where one side ties all
-        # settings ranks nothing: counted as no agreement
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConstantInputWarning)   # handled: nan / 0 above
-        point = spearmanr(a.mean(1), b.mean(1)).statistic   # nan if one side ties all
-        if a.shape[1] < 2 or b.shape[1] < 2 or not np.isfinite(point):
-            ci = [float("nan"), float("nan")]
-        else:
-            res = bootstrap((np.arange(a.shape[1]), np.arange(b.shape[1])), rho,
-                            vectorized=False, n_resamples=boot, method="percentile",
-                            rng=np.random.default_rng(seed))
-            ci = [float(res.confidence_interval.low), float(res.confidence_interval.high)]
-    return {"rho": float(point), "ci95": ci, "settings": int(a.shape[0])}
-
-
-def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
-                comparisons: int, budget: int, seed: int, workers: int) -> dict[str, Any]:
-    """Every setting on the same ``scenes`` simulated and real scenes (1 + ``comparisons``
-    distinct classes: catalogue fabrics / the folder's classes), through the real-press
-    evaluation (``experiments/real.py``: the same scene draw, runner and belief curves).
-
-    Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
-    interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
-    (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
-    a bootstrap interval, and the gaps real - sim."""
-    from ..experiments import real
-    from ..experiments.runner import Backend
-    from .stats import wilson
-    from ..sources import open_source
-    if scenes < 2:
-        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
-    if budget < 0:
-        raise TactexError(f"--budget must be >= 0, got {budget}")
-    parsed = [real.parse_setting(s) for s in settings]
-    labels = [p[0] for p in parsed]
-    if len(labels) < 2 or len(set(labels)) != len(labels):
-        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
-    theta = 0.9
-    out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
-                           "budget": budget, "stop_theta": theta, "seed": seed,
-                           "setting_specs": list(settings)}
-    scores: dict[str, dict[str, np.ndarray]] = {}
-    for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
-        classes = sorted(open_source(spec).classes)
-        curves = real.belief_curves(real.draw_scenes(classes, scenes, comparisons, seed),
-                                    parsed, spec, seed, budget, f"{side}-",
-                                    Backend("joblib", workers))
-        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
-        at_b = np.array([[real.at_budget(c, budget) for c in curves[lab]] for lab in labels],
-                        float)
-        mean_b = np.array([[np.mean([real.at_budget(c, k) for k in range(budget + 1)])
-                            for c in curves[lab]] for lab in labels], float)
-        stops = [[real.at_stop(c, theta) for c in curves[lab]] for lab in labels]
-        scores[side] = {"at_budget": at_b, "mean_over_budgets": mean_b}
-        for i, lab in enumerate(labels):
-            k = int(at_b[i].sum())
-            out["settings"].setdefault(lab, {})[side] = {
-                "accuracy": k / scenes, "ci95": list(wilson(k, scenes)),
-                "accuracy_mean_over_budgets": float(mean_b[i].mean()),
-                "accuracy_at_stop": float(np.mean([st[0] for st in stops[i]])),
-                "touches_at_stop": float(np.mean([st[1] for st in stops[i]]))}
-        out[f"{side}_failed_trials"] = errors
-    for lab in labels:
-        v = out["settings"][lab]
-        v["gap_real_minus_sim"] = v["real"]["accuracy"] - v["sim"]["accuracy"]
-    gaps = [out["settings"][lab]["gap_real_minus_sim"] for lab in labels]
-    out["accuracy_spearman"] = spearman_interval(scores["sim"]["at_budget"],
-                                                 scores["real"]["at_budget"], seed=seed)
-    out["mean_over_budgets_spearman"] = spearman_interval(
-        scores["sim"]["mean_over_budgets"], scores["real"]["mean_over_budgets"], seed=seed)
-    out["mean_gap_real_minus_sim"] = float(np.mean(gaps))
-    out["mean_abs_gap"] = float(np.mean(np.abs(gaps)))
     return out

@@ -95,16 +95,14 @@ def add_commands(sub, bench_sub) -> None:
 def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
                       real_per_class: int = 3, ranking: dict | None = None,
                       fabrics: list[str] | None = None) -> dict:
-    """The sim-to-real report (``sim/compare.py``): frame statistics per family, a picture
-    (top: real presses, bottom: simulated, each with |contact - no contact| x8) and, with
-    ``ranking`` (keyword arguments of ``compare.run_ranking`` except the folder), the
-    ranking agreement of learner settings. ``fabrics``: simulated fabrics of the statistics
-    (default: the whole catalogue)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """The sim-to-real report (``analysis/sim_vs_real.py``): frame statistics per family, a
+    picture (``analysis.charts.sim_vs_real``) and, with ``ranking`` (keyword arguments of
+    ``experiments.real.run_ranking`` except the folder), the ranking agreement of learner
+    settings. ``fabrics``: simulated fabrics of the statistics (default: the whole
+    catalogue)."""
+    from ..analysis import charts
     from ..analysis import sim_vs_real as compare
+    from ..experiments.real import run_ranking
 
     real = compare.real_presses(real_dir, real_per_class)
     sim = compare.sim_presses(per_class, seed, fabrics)
@@ -112,48 +110,8 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
     result["real_classes"] = sorted({p.name for p in real})
     result["sim_fabrics"] = sorted({p.name for p in sim})
     if ranking is not None:
-        result["ranking"] = compare.run_ranking(real_dir, seed=seed, **ranking)
-
-    picks = {"real": [], "sim": []}
-    for side, presses in (("real", real), ("sim", sim)):
-        for g in ("soft", "firm_textured", "smooth"):
-            named = {p.name: p for p in reversed(presses) if p.group == g}  # first per name
-            picks[side] += list(named.values())[::-1][:2]
-        picks[side] = picks[side][:4]
-    k = min(4, len(picks["real"]), len(picks["sim"]))
-    ncols = 2 * k + (1 if "ranking" in result else 0)
-    fig, axes = plt.subplots(2, ncols, figsize=(2 * ncols, 3.4), squeeze=False)
-    for i in range(k):
-        for row, side in enumerate(("real", "sim")):
-            p = picks[side][i]
-            axes[row, 2 * i].imshow(p.contact)
-            axes[row, 2 * i].set_title(f"{side}: {p.name} ({p.group})", fontsize=6)
-            d = np.clip(np.abs(p.contact.astype(float) - p.no_contact) * 8, 0, 255)
-            axes[row, 2 * i + 1].imshow(d.astype(np.uint8))
-            axes[row, 2 * i + 1].set_title("|contact - no contact| x8", fontsize=6)
-    for a in axes[:, :2 * k].ravel():
-        a.axis("off")
-    if "ranking" in result:
-        rk = result["ranking"]
-        ax = axes[0, -1]
-        names = list(rk["settings"])
-        xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
-        ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
-        ax.scatter(xs, ys, s=8)
-        for n, x, y in zip(names, xs, ys):
-            ax.annotate(n, (x, y), fontsize=4)
-        ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
-        sp = rk["accuracy_spearman"]
-        ax.set_title(f"rho {sp['rho']:.2f} [{sp['ci95'][0]:.2f}, {sp['ci95'][1]:.2f}]",
-                     fontsize=6)
-        ax.set_xlabel(f"sim accuracy (+{rk['budget']} touches)", fontsize=6)
-        ax.set_ylabel("real accuracy", fontsize=6)
-        ax.tick_params(labelsize=5)
-        axes[1, -1].axis("off")
-    fig.tight_layout()
-    Path(out_png).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=110)
-    plt.close(fig)
+        result["ranking"] = run_ranking(real_dir, seed=seed, **ranking)
+    charts.sim_vs_real(out_png, real, sim, result.get("ranking"))
     return result
 
 
@@ -236,7 +194,7 @@ def add_compare(ssub) -> None:
                    help="scenes per side for the ranking of learner settings (0 = skip it)")
     c.add_argument("--setting", action="append",
                    help="label=preset[:key=value,...] as for `tactex experiment real` "
-                        "(repeat; default: sim/compare.py DEFAULT_SETTINGS)")
+                        "(repeat; default: analysis/sim_vs_real.py DEFAULT_SETTINGS)")
     c.add_argument("--comparisons", type=int, default=4)
     c.add_argument("--budget", type=int, default=5,
                    help="touches after the baseline; accuracy is ranked at this budget")

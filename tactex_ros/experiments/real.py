@@ -40,11 +40,11 @@ from typing import Any
 
 import numpy as np
 
-from ..core.errors import TactexError
 from ..analysis import charts
+from ..core.errors import TactexError
 from .common import budget_index, parse_set, results_dir, write_json
 from .runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
-from ..analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
+from ..analysis.stats import mcnemar_exact, spearman_interval, wilcoxon_paired, wilson
 
 DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
                     "variance=default:strategy=variance")
@@ -361,3 +361,60 @@ def register(esub: argparse._SubParsersAction) -> None:
         return 0
 
     p.set_defaults(func=func)
+
+
+def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
+                comparisons: int, budget: int, seed: int, workers: int) -> dict[str, Any]:
+    """The ranking part of the sim-to-real report (``tactex sim compare``,
+    ``analysis/sim_vs_real.py``): every setting on the same ``scenes`` simulated and real
+    scenes (1 + ``comparisons`` distinct classes: catalogue fabrics / the folder's classes),
+    through this module's scene draw, runner and belief curves.
+
+    Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
+    interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
+    (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
+    a bootstrap interval, and the gaps real - sim."""
+    from ..sources import open_source
+    if scenes < 2:
+        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
+    if budget < 0:
+        raise TactexError(f"--budget must be >= 0, got {budget}")
+    parsed = [parse_setting(s) for s in settings]
+    labels = [p[0] for p in parsed]
+    if len(labels) < 2 or len(set(labels)) != len(labels):
+        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
+    theta = 0.9
+    out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
+                           "budget": budget, "stop_theta": theta, "seed": seed,
+                           "setting_specs": list(settings)}
+    scores: dict[str, dict[str, np.ndarray]] = {}
+    for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
+        classes = sorted(open_source(spec).classes)
+        curves = belief_curves(draw_scenes(classes, scenes, comparisons, seed),
+                               parsed, spec, seed, budget, f"{side}-",
+                               Backend("joblib", workers))
+        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
+        at_b = np.array([[at_budget(c, budget) for c in curves[lab]] for lab in labels], float)
+        mean_b = np.array([[np.mean([at_budget(c, k) for k in range(budget + 1)])
+                            for c in curves[lab]] for lab in labels], float)
+        stops = [[at_stop(c, theta) for c in curves[lab]] for lab in labels]
+        scores[side] = {"at_budget": at_b, "mean_over_budgets": mean_b}
+        for i, lab in enumerate(labels):
+            k = int(at_b[i].sum())
+            out["settings"].setdefault(lab, {})[side] = {
+                "accuracy": k / scenes, "ci95": list(wilson(k, scenes)),
+                "accuracy_mean_over_budgets": float(mean_b[i].mean()),
+                "accuracy_at_stop": float(np.mean([st[0] for st in stops[i]])),
+                "touches_at_stop": float(np.mean([st[1] for st in stops[i]]))}
+        out[f"{side}_failed_trials"] = errors
+    for lab in labels:
+        v = out["settings"][lab]
+        v["gap_real_minus_sim"] = v["real"]["accuracy"] - v["sim"]["accuracy"]
+    gaps = [out["settings"][lab]["gap_real_minus_sim"] for lab in labels]
+    out["accuracy_spearman"] = spearman_interval(scores["sim"]["at_budget"],
+                                                 scores["real"]["at_budget"], seed=seed)
+    out["mean_over_budgets_spearman"] = spearman_interval(
+        scores["sim"]["mean_over_budgets"], scores["real"]["mean_over_budgets"], seed=seed)
+    out["mean_gap_real_minus_sim"] = float(np.mean(gaps))
+    out["mean_abs_gap"] = float(np.mean(np.abs(gaps)))
+    return out

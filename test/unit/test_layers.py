@@ -68,8 +68,7 @@ ALLOWED = {
     "paths": {"core", "paths"},
     "record": {"core", "record"},
     "resume": {"core", "record", "resume"},
-    # experiments: until the sim-to-real ranking moves to experiments (next commit)
-    "analysis": {"core", "robot", "sim", "sources", "paths", "analysis", "experiments"},
+    "analysis": {"core", "robot", "sim", "sources", "paths", "analysis"},
     "experiments": {"core", "robot", "sim", "sources", "paths", "record", "resume",
                     "analysis", "experiments"},
     "ros": {"core", "robot", "sim", "sources", "paths", "record", "resume", "ros"},
@@ -149,9 +148,7 @@ def test_one_chart_module_one_statistics_module_one_progress_display():
         return ((top == "matplotlib" and p.name != "charts.py")
                 or (mod == "scipy.stats" and p.name != "stats.py")
                 or (top == "rich" and p.name != "common.py"))
-    assert _violations(_files(EXPERIMENTS) + _files(PKG / "core")
-                       + [PKG / "analysis" / "charts.py", PKG / "analysis" / "stats.py"],
-                       bad) == []
+    assert _violations(_files(), bad) == []
 
 
 def test_no_module_imports_a_private_name_of_another_package():

@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tactex_ros.analysis import sim_vs_real as compare
+from tactex_ros.analysis.stats import spearman_interval
 from tactex_ros.cli.main import main
 from tactex_ros.core.errors import TactexError
-from tactex_ros.analysis import sim_vs_real as compare
+from tactex_ros.experiments.real import run_ranking
 
 
 def _press(group: str, level: float, seed: int) -> compare.Press:
@@ -64,11 +66,11 @@ def test_spearman_interval():
     p = np.linspace(0.1, 0.9, 8)[:, None]
     a = (rng.random((8, 200)) < p).astype(float)
     b = (rng.random((8, 200)) < p).astype(float)
-    same = compare.spearman_interval(a, b, boot=300)
+    same = spearman_interval(a, b, boot=300)
     assert same["rho"] > 0.9 and same["ci95"][0] > 0.6 and same["ci95"][1] <= 1.0
-    rev = compare.spearman_interval(a, b[::-1], boot=300)
+    rev = spearman_interval(a, b[::-1], boot=300)
     assert rev["rho"] < -0.9 and rev["ci95"][1] < -0.6
-    tied = compare.spearman_interval(np.ones((3, 5)), b[:3, :5], boot=50)
+    tied = spearman_interval(np.ones((3, 5)), b[:3, :5], boot=50)
     assert np.isnan(tied["rho"]) and np.isnan(tied["ci95"][0])
 
 
@@ -118,5 +120,5 @@ def test_report_refuses_bad_input(tiny_real: Path, tmp_path: Path):
     assert main(base + ["--scenes", "2", "--setting", "x=nopreset"]) == 2
     assert main(base + ["--scenes", "2", "--comparisons", "1"]) == 2
     with pytest.raises(TactexError, match="scenes"):
-        compare.run_ranking(str(tiny_real), ["a=default", "b=default"], scenes=1,
-                            comparisons=2, budget=1, seed=0, workers=1)
+        run_ranking(str(tiny_real), ["a=default", "b=default"], scenes=1,
+                    comparisons=2, budget=1, seed=0, workers=1)
