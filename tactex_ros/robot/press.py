@@ -83,6 +83,20 @@ def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
 
 
+def platform_under(platforms: Sequence[Platform], position: np.ndarray
+                   ) -> tuple[int | None, float]:
+    """Index of the first of ``platforms`` whose disc (``radius`` around its centre, in x-y)
+    holds the sensor at ``position`` (x, y, z) [m], and the sensor's depth below that
+    platform's surface [m] (0 when above it); (None, 0.0) when no platform is under it. The
+    mock arm (contact force) and the mock camera (which fabric to show) both ask this."""
+    pos = np.asarray(position, dtype=float)
+    for i, p in enumerate(platforms):
+        c = np.asarray(p.position, dtype=float)
+        if np.linalg.norm(pos[:2] - c[:2]) <= p.radius:
+            return i, max(0.0, float(c[2] - pos[2]))
+    return None, 0.0
+
+
 @dataclass
 class PressOutcome:
     success: bool
@@ -308,12 +322,9 @@ class ArmModel:
 
     def contact(self, position: np.ndarray | None = None) -> tuple[Platform | None, float]:
         """Platform under the sensor and the penetration below its surface [m] (0 if none)."""
-        pos = self.position if position is None else position
-        for p in self.scene.platforms:
-            c = np.asarray(p.position)
-            if np.linalg.norm(pos[:2] - c[:2]) <= p.radius:
-                return p, max(0.0, c[2] - pos[2])
-        return None, 0.0
+        i, pen = platform_under(self.scene.platforms,
+                                self.position if position is None else position)
+        return (None, 0.0) if i is None else (self.scene.platforms[i], pen)
 
     def _contact_force(self) -> np.ndarray:
         _, pen = self.contact()

@@ -18,7 +18,8 @@ FORBIDDEN = ("torch", "tactex_ros.core.learner", "tactex_ros.core.models",
 MODULES = ["tactex_ros.ros.nodes.motion_node", "tactex_ros.ros.nodes.mock_arm_node",
            "tactex_ros.ros.nodes.gelsight_node", "tactex_ros.ros.nodes.mock_image_node",
            "tactex_ros.ros.graph", "tactex_ros.robot.robots", "tactex_ros.ros.settings",
-           "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.scene"]
+           "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.scene",
+           "tactex_ros.robot.frames", "tactex_ros.robot.sensors"]
 
 
 def _launch_imports() -> list[str]:

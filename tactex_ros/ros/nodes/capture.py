@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 
 from .. import adapter
-from ...core.contact import FrameRing
+from ...robot.frames import FrameRing
 
 
 def serve_capture(node, ring: FrameRing, lock: threading.Lock, frame_id: str,

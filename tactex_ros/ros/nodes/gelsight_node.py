@@ -36,9 +36,10 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from .. import adapter
-from ...core.contact import FrameRing, crop_border
+from ...core.contact import crop_border
 from ...core.errors import TactexError
 from ..settings import GelsightSettings
+from ...robot.frames import FrameRing
 from ...robot.sensors import (SensorConfig, SensorProfile, digit_led_value, load_sensor,
                               sensor_config)
 from .capture import serve_capture

@@ -17,7 +17,8 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from .. import adapter
-from ...core.contact import FrameRing
+from ...robot.frames import FrameRing
+from ...robot.press import platform_under
 from ...core.errors import TactexError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
@@ -94,17 +95,9 @@ class MockImageNode(TactexNode):
     def _on_wrench(self, msg: WrenchStamped) -> None:
         self.force = abs(float(msg.wrench.force.z))   # either wrench sign convention
 
-    def _under(self):
-        if self.position is None:
-            return None, 0.0
-        for i, p in enumerate(self.scene.ordered):
-            c = np.asarray(p.position)
-            if np.linalg.norm(self.position[:2] - c[:2]) <= p.radius:
-                return i, max(0.0, c[2] - self.position[2])
-        return None, 0.0
-
     def _frame(self) -> np.ndarray:
-        idx, pen = self._under()
+        idx, pen = ((None, 0.0) if self.position is None
+                    else platform_under(self.scene.ordered, self.position))
         contact = idx is not None and self.force > 0.05 and pen > 0
         if contact and not self._in_contact:      # a new press begins
             self.press_id += 1

@@ -11,7 +11,7 @@ import pytest
 
 from tactex_ros.core.errors import TactexError
 from tactex_ros.robot.press import (DONE, SETTLE, ArmModel, PressController, check_press,
-                                   equilibrium_floor)
+                                   equilibrium_floor, platform_under)
 from tactex_ros.paths import config_dir
 from tactex_ros.robot.scene import load_scene
 
@@ -166,3 +166,17 @@ def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
             assert 0.5 * s.force_threshold <= out.force_n <= s.max_force
         results.append(out.success)
     assert sum(results) >= 8, results
+
+
+def test_platform_under_is_the_one_answer_of_mock_arm_and_camera() -> None:
+    sc = _scene()
+    p1 = sc.platforms[1]
+    x, y, z = p1.position
+    # inside the disc, 2 mm below the surface; on its rim; just outside it; above it
+    assert platform_under(sc.platforms, np.array([x, y, z - 0.002])) == (1, pytest.approx(0.002))
+    assert platform_under(sc.platforms, np.array([x + p1.radius, y, z + 0.01])) == (1, 0.0)
+    assert platform_under(sc.platforms, np.array([x + p1.radius + 1e-4, y, z]))[0] != 1
+    # the mock arm's contact is the same platform and depth
+    arm = ArmModel(sc, np.array([x, y, z - 0.002]))
+    got, pen = arm.contact()
+    assert got is p1 and pen == pytest.approx(0.002)

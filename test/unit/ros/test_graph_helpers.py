@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import yaml
 
-from tactex_ros.core.contact import FrameRing
 from tactex_ros.core.errors import TactexError
 from tactex_ros.paths import config_dir
 from tactex_ros.robot.scene import load_scene, parse_scene
@@ -129,24 +128,6 @@ def test_graph_description() -> None:
         describe(True, explorer={"roundz": 3})
     with pytest.raises(TactexError, match=r"^explorer parameters: trial\.strategy: .*'greedy'"):
         describe(True, explorer={"trial": {"strategy": "greedy"}})
-
-
-def test_frame_ring_picks_strongest_contact() -> None:
-    rng = np.random.default_rng(0)
-    base = rng.integers(90, 110, (240, 320, 3), dtype=np.uint8)
-    ring = FrameRing(capacity=5)
-    with pytest.raises(ValueError):
-        ring.best(0.0, 0.0)
-    ring.set_reference(base)
-    for k in range(8):
-        f = base.copy()
-        f[100:140, 100:140] += np.uint8(5 * k % 40)
-        ring.push(float(k), f)
-    assert len(ring) == 5
-    frame, score = ring.best(0.0, 7.0)
-    assert score > 0 and int(frame[120, 120, 0]) - int(base[120, 120, 0]) == 35
-    with pytest.raises(ValueError):
-        ring.best(0.5, 100.0)
 
 
 def test_record_summary(tmp_path) -> None:

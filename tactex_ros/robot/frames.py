@@ -1,0 +1,50 @@
+"""The sensor's recent frames: a ring of stamped frames that finds the strongest contact of a
+time window against the no-contact frame (scores from ``core.contact``). No ROS: the GelSight
+node and the mock image node push frames into it and answer capture requests from it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.contact import blur, contact_score
+
+
+class FrameRing:
+    """The last ``capacity`` sensor frames with their stamps [s], and a no-contact reference.
+
+    ``best(window_s, now)`` returns the strongest-contact frame of the frames stamped within
+    ``window_s`` before ``now`` (the whole buffer when ``window_s <= 0``) and its contact score
+    [grey levels] against the reference. Used by the GelSight node and the mock image node.
+    """
+
+    def __init__(self, capacity: int = 60) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}")
+        self.capacity = capacity
+        self._frames: list[tuple[float, np.ndarray]] = []
+        self.reference: np.ndarray | None = None
+        self._ref_blur: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def set_reference(self, frame: np.ndarray) -> None:
+        """Set the no-contact frame (240, 320, 3) uint8."""
+        self.reference = frame.copy()
+        self._ref_blur = blur(frame)
+
+    def push(self, stamp: float, frame: np.ndarray) -> None:
+        self._frames.append((stamp, frame))
+        if len(self._frames) > self.capacity:
+            del self._frames[0]
+
+    def best(self, window_s: float, now: float) -> tuple[np.ndarray, float]:
+        """Strongest-contact frame in the window and its score; ValueError if none/no reference."""
+        if self._ref_blur is None:
+            raise ValueError("no no-contact reference frame yet")
+        frames = [f for t, f in self._frames if window_s <= 0 or t >= now - window_s]
+        if not frames:
+            raise ValueError(f"no frame in the last {window_s:.2f} s")
+        scores = [contact_score(f, self._ref_blur) for f in frames]
+        i = int(np.argmax(scores))
+        return frames[i], float(scores[i])
