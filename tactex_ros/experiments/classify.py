@@ -162,7 +162,7 @@ def build_specs(args: argparse.Namespace) -> tuple[list[dict], list[str], dict]:
         want = [c.strip() for c in args.classes.split(",") if c.strip()]
         classes = []
         for c in want:
-            if c.isdigit() and hasattr(src, "by_number"):
+            if c.isdigit() and c not in all_classes:
                 c = src.by_number(int(c))
             if c not in all_classes:
                 raise TactexError(f"--classes: unknown class {c!r}; available: "

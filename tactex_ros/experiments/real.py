@@ -226,7 +226,7 @@ def run(args: argparse.Namespace) -> dict:
     if len(set(labels)) != len(labels):
         raise TactexError(f"--setting labels must be unique, got {labels}")
     src = open_source(args.source)
-    classes = sorted(getattr(src, "classes"))
+    classes = sorted(src.classes)
     thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
     out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
     folds = class_folds(classes, args.folds, args.seed)

@@ -38,6 +38,7 @@ import numpy as np
 from ..core.engine import TrialConfig, TrialEngine
 from ..core.errors import TactexError
 from ..core.touch import Touch, as_touch
+from ..sources.base import TouchSource
 from .common import progress
 
 T = TypeVar("T")
@@ -160,10 +161,10 @@ class TrialJob:
     no_contact_reference: bool = True   # give the engine a no-contact frame when the source can
 
 
-_SOURCES: dict[str, Any] = {}
+_SOURCES: dict[str, TouchSource] = {}
 
 
-def cached_source(spec: str):
+def cached_source(spec: str) -> TouchSource:
     """The touch source of ``spec``, opened once per process (jobs of a sweep share it)."""
     if spec not in _SOURCES:
         from ..sources import open_source
@@ -203,21 +204,8 @@ def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
-def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], "Touch | np.ndarray"]:
-    src = cached_source(job.source)
-    depth = job.perturb.get("depth_spread")
-    if depth is not None and hasattr(src, "press"):
-        # press depth drawn from a widened range around the sensor's nominal depth [mm]
-        rng_d = np.random.default_rng([job.seed, 29])
-        lo, hi = src.renderer.sensor.depth_mm
-        mid = 0.5 * (lo + hi)
-        rng_p = np.random.default_rng([job.seed, 23])
-
-        def base(p: int) -> np.ndarray:
-            d = float(np.clip(mid + rng_d.uniform(-depth, depth), 0.02, 2.0))
-            return src.press(classes[p], rng_p, depth_mm=d)
-    else:
-        base = src.trial(classes, job.seed)
+def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
+    base = cached_source(job.source).trial(classes, job.seed, job.perturb.get("depth_spread"))
     keys = {k for k, v in job.perturb.items() if k != "depth_spread" and v}
     if not keys:
         return base
@@ -246,8 +234,9 @@ def run_job(job: TrialJob, threads: int = 1,
                        stop_confidence=job.stop_confidence)
     eng = TrialEngine(n, cfg, tcfg, seed=job.seed, platform_ids=ids)
     src = cached_source(job.source)
-    if job.no_contact_reference and hasattr(src, "renderer"):
-        eng.set_no_contact_reference(src.renderer.no_contact(np.random.default_rng([job.seed, 37])))
+    no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
+    if no_contact is not None:
+        eng.set_no_contact_reference(no_contact)
     if engine_hook:
         engine_hook(eng)
     t0 = time.perf_counter()

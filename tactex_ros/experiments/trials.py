@@ -21,6 +21,7 @@ from typing import Any
 
 from ..core.errors import TactexError
 from ..paths import config_file, read_yaml
+from ..sources.base import TouchSource
 
 
 def find_trial_file(spec: str | None) -> Path:
@@ -54,24 +55,24 @@ def load_trials(path: str | Path) -> dict[str, Any]:
     return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}
 
 
-def class_name(source: Any, item: Any) -> str:
+def class_name(source: TouchSource, item: Any) -> str:
     """A trial-file entry -> the source's class name (int = catalogue fabric number)."""
     if isinstance(item, bool):
         raise TactexError(f"trial entry {item!r}: expected a fabric number or a class name")
     if isinstance(item, int):
-        if not hasattr(source, "by_number"):
-            raise TactexError(f"trial entry {item}: fabric numbers need the simulator source "
-                              "(sim); name the classes of this source instead")
-        return source.by_number(item)
+        try:
+            return source.by_number(item)
+        except TactexError as exc:
+            raise TactexError(f"trial entry {item}: {exc}") from None
     name = str(item)
-    known = list(getattr(source, "fabrics", None) or source.classes)
+    known = source.known_classes
     if name not in known:
         raise TactexError(f"trial entry {name!r}: not a class of the source; available: "
                           f"{', '.join(known)}")
     return name
 
 
-def platform_classes(source: Any, trial: dict) -> list[str]:
+def platform_classes(source: TouchSource, trial: dict) -> list[str]:
     """[reference, comparison 1..C] class names of one trial."""
     return [class_name(source, trial["reference"])] + [class_name(source, c)
                                                        for c in trial["comparisons"]]

@@ -1,20 +1,31 @@
 """Touch sources: where the images of a trial come from (no ROS here).
 
 ``open_source(spec)`` accepts ``replay:DIR`` (recorded presses) and ``sim[:difficulty]``
-(procedural fabrics). Every source has ``classes`` and ``trial(platform_classes, seed)``, which
-returns a touch function ``touch(platform) -> RGB uint8 (240, 320, 3)``, platform 0 = reference.
+(procedural fabrics). Every source is a ``TouchSource`` (``base.py``): ``classes``,
+``trial(platform_classes, seed)`` returning ``touch(platform) -> Touch`` (platform 0 = the
+reference), its scene draw and its no-contact frame.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Literal, overload
 
 import numpy as np
 
 from ..core.errors import TactexError
+from .base import TouchSource
+
+if TYPE_CHECKING:
+    from .sim import SimSource
 
 
-def open_source(spec: str):
+@overload
+def open_source(spec: Literal["sim"]) -> "SimSource": ...
+@overload
+def open_source(spec: str) -> TouchSource: ...
+
+
+def open_source(spec: str) -> TouchSource:
     """Open a touch source from its command-line spec."""
     kind, _, arg = spec.partition(":")
     if kind == "replay":
@@ -57,12 +68,12 @@ def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | N
     return [reference] + comps, comps.index(reference) + 1
 
 
-def trial_scene(src: Any, comparisons: int, seed: int, chosen: list[str] | None = None,
-                reference: str | None = None) -> tuple[list[str], int]:
+def trial_scene(src: TouchSource, comparisons: int, seed: int,
+                chosen: list[str] | None = None, reference: str | None = None
+                ) -> tuple[list[str], int]:
     """The scene of a trial on source ``src``: platform classes [reference, comparisons...] and
     the true match (1..N). Without ``chosen``, a source that draws its own scenes (the
     simulator at its difficulty) draws the comparisons from ``seed``; others draw classes."""
-    if chosen is None and hasattr(src, "draw_scene"):
+    if chosen is None:
         chosen = src.draw_scene(comparisons, seed)
-    return assign_platforms(list(getattr(src, "fabrics", src.classes)), comparisons, chosen,
-                            reference, seed)
+    return assign_platforms(src.known_classes, comparisons, chosen, reference, seed)

@@ -80,7 +80,7 @@ def load_touch(path: str) -> tuple[Touch, float]:
 
 
 class ReplaySource:
-    """A folder of recorded presses, one subfolder per class."""
+    """A folder of recorded presses, one subfolder per class (``sources.base.TouchSource``)."""
 
     def __init__(self, root: str | Path) -> None:
         self.root = Path(root)
@@ -101,6 +101,22 @@ class ReplaySource:
     def classes(self) -> list[str]:
         """Classes with at least one press file."""
         return [c for c, f in self.files.items() if f]
+
+    @property
+    def known_classes(self) -> list[str]:
+        return self.classes
+
+    def by_number(self, number: int) -> str:
+        raise TactexError(f"class number {number}: numbers name the simulator's catalogue "
+                          "fabrics (source sim); name the classes of this source instead")
+
+    def draw_scene(self, comparisons: int, seed: int) -> None:
+        """Scenes are drawn from ``classes``."""
+        return None
+
+    def no_contact(self, seed: int) -> None:
+        """Every recorded press brings its own no-contact frame."""
+        return None
 
     def presses(self, cls: str) -> list[Path]:
         if cls not in self.files:
@@ -129,7 +145,13 @@ class ReplaySource:
                 errors.append(str(exc))
         raise TactexError(f"class {cls!r} has no readable press: {'; '.join(errors)}")
 
-    def trial(self, platform_classes: list[str], seed: int) -> "ReplayTrial":
+    def trial(self, platform_classes: list[str], seed: int,
+              depth_spread_mm: float | None = None) -> "ReplayTrial":
+        """Touch function of one trial (``TouchSource.trial``): recorded presses drawn without
+        repetition where possible."""
+        if depth_spread_mm is not None:
+            raise TactexError(f"depth spread {depth_spread_mm} mm: recorded presses have their "
+                              "own depths; the depth perturbation needs the simulator (sim)")
         return ReplayTrial(self, platform_classes, seed)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -46,7 +47,7 @@ def cached_tile(fab: FabricParams, seed: int) -> np.ndarray:
 
 
 class SimSource:
-    """Fabric simulator as a touch source (same interface as ReplaySource)."""
+    """Fabric simulator as a touch source (``sources.base.TouchSource``)."""
 
     def __init__(self, difficulty: str | float = "medium", *, catalogue: str | Path) -> None:
         """``catalogue``: the fabric catalogue file (YAML); ``difficulty``: see the module."""
@@ -59,6 +60,15 @@ class SimSource:
     @property
     def classes(self) -> list[str]:
         return list(self.catalogue)
+
+    @property
+    def known_classes(self) -> list[str]:
+        """Catalogue fabrics and the fabrics drawn by ``draw_scene`` so far."""
+        return list(self.fabrics)
+
+    def no_contact(self, seed: int) -> np.ndarray:
+        """The no-contact frame of the trial with ``seed`` (the one its touches carry)."""
+        return self.renderer.no_contact(np.random.default_rng([seed, 37]))
 
     def by_number(self, number: int) -> str:
         """Catalogue name of fabric ``number`` (1-based, the catalogue's order)."""
@@ -99,11 +109,27 @@ class SimSource:
         d = rng.uniform(lo, hi) if depth_mm is None else depth_mm
         return self.renderer.render(heights, d, rng, softness=fab.softness)
 
-    def trial(self, platform_classes: list[str], seed: int):
+    def trial(self, platform_classes: list[str], seed: int,
+              depth_spread_mm: float | None = None) -> Callable[[int], Touch]:
+        """Touch function of one trial (``TouchSource.trial``): every touch a new press of the
+        platform's fabric; ``depth_spread_mm``: press depth uniform in the sensor's nominal
+        depth +- this [mm] (clipped to 0.02..2 mm), the touches then carry no no-contact
+        frame (the engine is given ``no_contact(seed)``)."""
         for c in set(platform_classes):
             self.fabric(c)
         rng = np.random.default_rng([seed, 23])
-        no_contact = self.renderer.no_contact(np.random.default_rng([seed, 37]))
+        if depth_spread_mm is not None:
+            rng_d = np.random.default_rng([seed, 29])
+            lo, hi = self.renderer.sensor.depth_mm
+            mid = 0.5 * (lo + hi)
+
+            def spread(platform: int) -> Touch:
+                d = float(np.clip(mid + rng_d.uniform(-depth_spread_mm, depth_spread_mm),
+                                  0.02, 2.0))
+                return Touch(frame=self.press(platform_classes[platform], rng, depth_mm=d))
+
+            return spread
+        no_contact = self.no_contact(seed)
 
         def touch(platform: int) -> Touch:
             # the session's no-contact frame, as a real sensor records it before the trial
