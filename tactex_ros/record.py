@@ -16,7 +16,7 @@ Layout of ``<root>/<trial_id>/``::
 Line-per-event files with ``fsync`` after every write lose nothing already recorded when the
 process dies; a reader (``read_record``) ignores a torn last line. This folder is the ground
 truth (a resume is rebuilt from it, ``tactex_ros.resume``); an MCAP file of the trial's topics
-(``bag.py``) is written beside it for ROS tools.
+(``ros/bag.py``) is written beside it for ROS tools.
 """
 
 from __future__ import annotations

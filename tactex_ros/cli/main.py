@@ -231,10 +231,10 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 
-    from . import experiment as cli_experiment, graph as cli_graph, sim as cli_sim
-    cli_sim.add_commands(sub, bsub)
-    cli_graph.add_commands(sub)
-    cli_experiment.add_commands(sub)
+    from . import experiment, graph, sim
+    sim.add_commands(sub, bsub)
+    graph.add_commands(sub)
+    experiment.add_commands(sub)
 
     return p
 

@@ -3,7 +3,7 @@
 Images: ``sensor_msgs/Image`` rgb8 or bgr8 (240 x 320) <-> RGB uint8 (240, 320, 3).
 Poses: ``geometry_msgs/PoseStamped`` <-> position (3,) [m] + quaternion (4,) x y z w.
 Wrenches: ``geometry_msgs/WrenchStamped`` -> normal force [N] (sign configurable).
-Robot interfaces of a robot profile (``robot.py``): equilibrium targets as PoseStamped or
+Robot interfaces of a robot profile (``robot/robots.py``): equilibrium targets as PoseStamped or
 multipanda_ros2's ``Float64MultiArray`` (x y z + rotation matrix row by row); franka state
 messages (``o_t_ee`` column-major 4x4, ``o_f_ext_hat_k``) -> position, force, robot mode.
 Exploration: ``RoundRecord`` -> ``tactex/ExplorationState``; scene + state ->

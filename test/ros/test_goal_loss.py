@@ -1,4 +1,4 @@
-"""A lost Press goal response or request costs no touch (nodes/goal.py against the real
+"""A lost Press goal response or request costs no touch (ros/goal.py against the real
 motion node, mock arm and mock camera over DDS).
 
 The loss is made on the client side: the goal request goes out and the motion node takes it,

@@ -1,7 +1,7 @@
 """Shared node plumbing: parameters declared from a settings schema, the lifecycle.
 
 Every tactex node is a ``rclpy.lifecycle.LifecycleNode``. Its ROS parameters are declared from
-its settings schema (``node_settings``: type, default, range -> ``ParameterDescriptor``, choices
+its settings schema (``ros.settings``: type, default, range -> ``ParameterDescriptor``, choices
 and description; nested settings as dotted names, their defaults from the top-level values, so
 ``config`` picks the preset the explorer's ``learner.*`` / ``trial.*`` start from).
 

@@ -12,7 +12,7 @@ A press server that leaves the ROS graph, or sends no feedback for ``press_silen
 the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
 than waiting out ``press_timeout_s``. A press goal whose answer is lost (Fast DDS can drop a
 response sent before the server matched the client's reader) is re-sent after
-``goal_answer_s`` and the first one followed by its goal id (``nodes/goal.py``). With ``resume`` (a record folder) the trial continues an
+``goal_answer_s`` and the first one followed by its goal id (``ros/goal.py``). With ``resume`` (a record folder) the trial continues an
 interrupted one: the recorded touches are handed to the engine again in order
 (``resume.Replay``), then live presses take over.
 """
@@ -196,7 +196,7 @@ class ExplorerNode(TactexNode):
 
     # ------------------------------------------------------------------ the trial
     def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
-        """Poll ``ready()`` (a ``GoalRequest`` is polled by design, nodes/goal.py) until it is
+        """Poll ``ready()`` (a ``GoalRequest`` is polled by design, ros/goal.py) until it is
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
         gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
         absent_since = None
@@ -250,7 +250,7 @@ class ExplorerNode(TactexNode):
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
         self._feedback_t = time.monotonic()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
-        # followed by its id when it runs (nodes/goal.py): a lost response costs no touch
+        # followed by its id when it runs (ros/goal.py): a lost response costs no touch
         req = GoalRequest(self.press, Press.Goal(platform_id=pid),
                           answer_s=self.settings.goal_answer_s,
                           feedback_callback=self._on_feedback)

@@ -1,7 +1,7 @@
 """gelsight_node: a vision-based tactile sensor as a ROS 2 camera with a capture service.
 
 The sensor is a profile (``sensor``: ``config/sensors/<name>.yaml``, see
-``tactex_ros/sensor.py``): ``gelsight_mini`` (default) or ``digit``. Opens the camera with
+``tactex_ros/robot/sensors.py``): ``gelsight_mini`` (default) or ``digit``. Opens the camera with
 OpenCV by device path (``/dev/videoN``, ``/dev/v4l/by-id/...``), by the name the camera
 reports (``GelSight Mini``, ``DIGIT`` under /sys/class/video4linux/*/name, in numeric device
 order), by a DIGIT serial number (digit-interface's ``DigitHandler.find_digit`` where that

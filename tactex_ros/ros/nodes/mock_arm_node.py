@@ -3,7 +3,7 @@ impedance controller at the robot profile's topics (``robot``, default ``sim``).
 
 Reads equilibrium targets (PoseStamped, or multipanda_ros2's Float64MultiArray), publishes the
 current pose (PoseStamped) and the external wrench in the base frame (WrenchStamped, z =
-``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``core.press.ArmModel``: a
+``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel``: a
 spring-damper impedance model (controller stiffness and damping, apparent mass, the
 controller's filter on the equilibrium) against platforms of ``platform_stiffness``, so the
 mock behaves as a real controller does: it pushes with K (x - x_eq), not as a position follower.

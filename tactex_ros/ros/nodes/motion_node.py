@@ -1,11 +1,11 @@
 """motion_node: presses the GelSight on a platform through a Cartesian impedance controller.
 
 Serves the ``tactex/action/Press`` action (goal: platform id from the scene). The robot profile
-(``robot``: ``config/robots/<name>.yaml``, see ``tactex_ros/robot.py``) names the controller's
+(``robot``: ``config/robots/<name>.yaml``, see ``tactex_ros/robot/robots.py``) names the controller's
 equilibrium topic and type (PoseStamped, or multipanda_ros2's Float64MultiArray), the state
 (PoseStamped + WrenchStamped of franka_robot_state_broadcaster, or a franka state message), the
 controller stiffness, the wrench sign and the recovery interface. The press sequence is
-``core.press.PressController``: approach, descend (the equilibrium goes below the surface until
+``robot.press.PressController``: approach, descend (the equilibrium goes below the surface until
 the force threshold), hold the force during settle and capture (GelSight capture service),
 retract. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
 every phase. A failed attempt (no contact, no image, force limit) is retried up to

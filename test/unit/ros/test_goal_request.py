@@ -1,4 +1,4 @@
-"""GoalRequest (nodes/goal.py) against a scripted action server on a fake clock: lost goal
+"""GoalRequest (ros/goal.py) against a scripted action server on a fake clock: lost goal
 responses and lost goal requests cost no touch and never make a second one."""
 
 from __future__ import annotations

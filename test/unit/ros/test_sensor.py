@@ -1,4 +1,4 @@
-"""Sensor profiles (config/sensors, tactex_ros/sensor.py) and the camera node's DIGIT path
+"""Sensor profiles (config/sensors, tactex_ros/robot/sensors.py) and the camera node's DIGIT path
 without a sensor: modes, LED encoding, serial lookup through a digit-interface stand-in,
 recorded frame folders and their orientation."""
 
