@@ -223,6 +223,21 @@ class PressController:
         self.max_force = max(self.max_force, mag)
         if self.phase == DONE:
             return self.target
+        self._check_limits(now, force_n, mag)
+        if self.phase == APPROACH:
+            self._approach(now, position, dt)
+        elif self.phase == DESCEND:
+            self._descend(now, position, force_n, dt)
+        elif self.phase == SETTLE:
+            self._settle(now, position, force_n)
+        elif self.phase == RETRACT:
+            if self._arrive(self.approach_point, self.s.travel_speed, position, dt):
+                self._enter(DONE, now)
+        return self.target
+
+    def _check_limits(self, now: float, force_n: float, mag: float) -> None:
+        """Abort on the force limit, a normal force of the wrong sign while pressing, or the
+        phase's deadline (checked on every tick, whatever the phase)."""
         s = self.s
         if mag > s.max_force and self.phase != RETRACT:
             self.abort(f"force limit: {mag:.1f} N > max_force {s.max_force} N", now)
@@ -232,48 +247,52 @@ class PressController:
         if now - self.phase_start > self._deadline():
             self.abort(f"deadline: phase {self.phase} took longer than "
                        f"{self._deadline():.1f} s", now)
-        tol = s.position_tolerance
-        if self.phase == APPROACH:
-            goal = self._waypoints[0]
-            if self._move_towards(goal, s.travel_speed, dt) and \
-                    np.linalg.norm(position - goal) <= tol:
-                self._waypoints.pop(0)
-                if not self._waypoints:
-                    self._enter(DESCEND, now)
-        elif self.phase == DESCEND:
-            if force_n >= s.force_threshold:
-                # hold the equilibrium whose static force at the measured pose is the force
-                # measured now (>= threshold), never deeper than the one that reached it
-                hold = self.target.copy()
-                hold[2] = max(position[2] - force_n / self.k, self.target[2])
-                self.target = clamp(self.scene, hold)
-                self._enter(SETTLE, now)
-            elif self.surface_z - position[2] >= s.max_depth:
-                self.abort(f"no contact: {force_n:.2f} N < force_threshold "
-                           f"{s.force_threshold} N with the sensor max_depth {s.max_depth} m "
-                           "below the surface", now)
-            else:
-                at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
-                if at_bottom and np.linalg.norm(position - self.bottom) <= tol:
-                    self.abort(f"no contact: {force_n:.2f} N < force_threshold "
-                               f"{s.force_threshold} N with the equilibrium at its floor "
-                               f"{self.surface_z - self.bottom[2]:.4f} m below the surface",
-                               now)
-        elif self.phase == SETTLE:
-            if now - self.phase_start >= s.settle_s:
-                if force_n < 0.5 * s.force_threshold:
-                    self.abort(f"contact lost while settling: {force_n:.2f} N < half the "
-                               f"force_threshold {s.force_threshold} N", now)
-                else:
-                    self.capture_force = force_n
-                    self.capture_depth = max(0.0, self.surface_z - position[2])
-                    self._need_capture = True
-                    self._enter(CAPTURE, now)
-        elif self.phase == RETRACT:
-            if self._move_towards(self.approach_point, s.travel_speed, dt) and \
-                    np.linalg.norm(position - self.approach_point) <= tol:
-                self._enter(DONE, now)
-        return self.target
+
+    def _arrive(self, goal: np.ndarray, speed: float, position: np.ndarray, dt: float) -> bool:
+        """Move the target towards ``goal``; True once the target is there and the measured
+        position within ``position_tolerance`` of it."""
+        return (self._move_towards(goal, speed, dt)
+                and np.linalg.norm(position - goal) <= self.s.position_tolerance)
+
+    def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
+        """Through the waypoints (lift, travel, approach point); then descend."""
+        if self._arrive(self._waypoints[0], self.s.travel_speed, position, dt):
+            self._waypoints.pop(0)
+            if not self._waypoints:
+                self._enter(DESCEND, now)
+
+    def _descend(self, now: float, position: np.ndarray, force_n: float, dt: float) -> None:
+        """Equilibrium down until the threshold force (then settle), or no contact."""
+        s = self.s
+        if force_n >= s.force_threshold:
+            # hold the equilibrium whose static force at the measured pose is the force
+            # measured now (>= threshold), never deeper than the one that reached it
+            hold = self.target.copy()
+            hold[2] = max(position[2] - force_n / self.k, self.target[2])
+            self.target = clamp(self.scene, hold)
+            self._enter(SETTLE, now)
+        elif self.surface_z - position[2] >= s.max_depth:
+            self.abort(f"no contact: {force_n:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the sensor max_depth {s.max_depth} m "
+                       "below the surface", now)
+        elif self._arrive(self.bottom, s.descend_speed, position, dt):
+            self.abort(f"no contact: {force_n:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the equilibrium at its floor "
+                       f"{self.surface_z - self.bottom[2]:.4f} m below the surface", now)
+
+    def _settle(self, now: float, position: np.ndarray, force_n: float) -> None:
+        """After ``settle_s``: ask for the capture, or abort if the contact was lost."""
+        s = self.s
+        if now - self.phase_start < s.settle_s:
+            return
+        if force_n < 0.5 * s.force_threshold:
+            self.abort(f"contact lost while settling: {force_n:.2f} N < half the "
+                       f"force_threshold {s.force_threshold} N", now)
+        else:
+            self.capture_force = force_n
+            self.capture_depth = max(0.0, self.surface_z - position[2])
+            self._need_capture = True
+            self._enter(CAPTURE, now)
 
     @property
     def done(self) -> bool:
