@@ -25,11 +25,11 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from ..core.config import FieldError, Schema, param
 from ..core.errors import TactexError
+from ..paths import read_yaml
 
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
@@ -200,8 +200,4 @@ def load_scene(path: str | Path) -> Scene:
     p = Path(path)
     if not p.is_file():
         raise TactexError(f"scene file {str(p)!r} not found")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise TactexError(f"scene file {str(p)!r}: not valid YAML ({exc})") from None
-    return parse_scene(data, origin=f"scene {p.name}")
+    return parse_scene(read_yaml(p, "scene file"), origin=f"scene {p.name}")

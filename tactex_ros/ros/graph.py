@@ -17,7 +17,7 @@ from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
 from ..core.errors import TactexError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
-from ..paths import config_dir
+from ..paths import config_dir, read_yaml
 from ..robot.scene import load_scene
 
 PACKAGE = "tactex"
@@ -89,10 +89,7 @@ def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
     p = Path(path)
     if not p.is_file():
         raise TactexError(f"{node} parameters file {str(p)!r} not found")
-    try:
-        data = yaml.safe_load(p.read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise TactexError(f"{node} parameters file {str(p)!r}: not valid YAML ({exc})") from None
+    data = read_yaml(p, f"{node} parameters file") or {}
     if isinstance(data, dict) and isinstance(data.get(node), dict):
         data = data[node].get("ros__parameters", {})
     if not isinstance(data, dict):

@@ -23,13 +23,15 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, Optional
 
 import cv2
 import numpy as np
-import yaml
+from pydantic import create_model, model_validator
 
+from ..core.config import FieldError, Schema, param
 from ..core.errors import TactexError
+from ..paths import read_yaml
 
 FAMILIES = ("plain", "twill", "satin", "basket", "rib", "jersey", "corduroy", "felt")
 WOVEN = ("plain", "twill", "satin", "basket")
@@ -105,38 +107,60 @@ class FabricParams:
 
 # ------------------------------------------------------------------------------ catalogue
 
+def _entry_schema() -> type[Schema]:
+    """The schema of one catalogue entry: ``name``, optional ``number`` and ``note``, and the
+    fields of ``FabricParams`` with their defaults and ``RANGES`` (one declaration of them)."""
+    spec: dict[str, Any] = {
+        "name": (str, param(..., "fabric name (unique)", min_length=1)),
+        "number": (Optional[int], param(None, "number of the thesis's set", 1)),
+        "note": (str, param("", "free text")),
+        "family": (Literal[FAMILIES], param(..., "construction family")),
+    }
+    for f in dataclasses.fields(FabricParams):
+        if f.name in RANGES:
+            lo, hi = RANGES[f.name]
+            kind = int if f.name == "repeat" else float
+            default = ... if f.default is dataclasses.MISSING else f.default
+            spec[f.name] = (kind, param(default, f.name, lo, hi, allow_inf_nan=False)
+                            if kind is float else param(default, f.name, lo, hi))
+    return create_model("FabricEntry", __base__=Schema, **spec)
+
+
+FabricEntry = _entry_schema()
+
+
+class Catalogue(Schema):
+    """The catalogue file: ``fabrics``, a non-empty list of entries with unique names."""
+
+    fabrics: list[FabricEntry] = param(..., "the fabrics", min_length=1)  # type: ignore[valid-type]
+
+    @model_validator(mode="after")
+    def _unique_and_consistent(self) -> "Catalogue":
+        seen: set[str] = set()
+        for i, e in enumerate(self.fabrics):
+            if e.name in seen:
+                raise FieldError(f"fabrics.{i}.name", f"duplicate fabric name {e.name!r}")
+            seen.add(e.name)
+            try:
+                _params(e).validate("fabric")
+            except TactexError as exc:      # a family's own rule (twill / satin repeat)
+                field, _, msg = str(exc).partition(": ")
+                raise FieldError(f"fabrics.{i}.{field.rpartition('.')[2]}", msg) from None
+        return self
+
+
+def _params(entry: Any) -> FabricParams:
+    return FabricParams(**entry.model_dump(exclude={"name", "number", "note"}))
+
+
 def load_catalogue(path: str | Path) -> dict[str, FabricParams]:
-    """Read the fabric catalogue YAML (list of {name, family, parameters...}); validate it."""
+    """Read the fabric catalogue YAML (list of {name, family, parameters...}); validate it
+    (errors located like ``fabrics.2.pitch_mm``)."""
     p = Path(path)
     if not p.is_file():
         raise TactexError(f"fabric catalogue not found: {p}")
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise TactexError(f"fabric catalogue {p} is not valid YAML: {exc}") from exc
-    items = data.get("fabrics") if isinstance(data, dict) else None
-    if not isinstance(items, list) or not items:
-        raise TactexError(f"fabric catalogue {p}: needs a non-empty list under 'fabrics'")
-    out: dict[str, FabricParams] = {}
-    allowed = {f.name for f in dataclasses.fields(FabricParams)} | {"name", "number", "note"}
-    for i, item in enumerate(items):
-        where = f"{p.name}: fabrics[{i}]"
-        if not isinstance(item, dict) or "name" not in item:
-            raise TactexError(f"{where}: needs a 'name'")
-        unknown = set(item) - allowed
-        if unknown:
-            raise TactexError(f"{where} ({item['name']}): unknown field(s) {sorted(unknown)}")
-        kw = {k: v for k, v in item.items() if k not in ("name", "number", "note")}
-        if "family" not in kw or "pitch_mm" not in kw:
-            raise TactexError(f"{where} ({item['name']}): needs 'family' and 'pitch_mm'")
-        try:
-            fab = FabricParams(**kw).validate(f"{where} ({item['name']})")
-        except TypeError as exc:
-            raise TactexError(f"{where} ({item['name']}): {exc}") from exc
-        if item["name"] in out:
-            raise TactexError(f"{where}: duplicate fabric name {item['name']!r}")
-        out[str(item["name"])] = fab
-    return out
+    cat = Catalogue.check(read_yaml(p, "fabric catalogue"), f"fabric catalogue {p.name}")
+    return {e.name: _params(e) for e in cat.fabrics}
 
 
 # ------------------------------------------------------------------------------ height maps

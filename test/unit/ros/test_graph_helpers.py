@@ -45,7 +45,7 @@ def test_scene_files_load(tmp_path) -> None:
     with pytest.raises(TactexError, match="not found"):
         load_scene(tmp_path / "missing.yaml")
     (tmp_path / "bad.yaml").write_text("platforms: [\n")
-    with pytest.raises(TactexError, match="not valid YAML"):
+    with pytest.raises(TactexError, match="scene file .*bad.yaml.*YAML"):
         load_scene(tmp_path / "bad.yaml")
 
 

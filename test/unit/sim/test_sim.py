@@ -90,6 +90,18 @@ def test_bad_names_and_parameters_are_named(tmp_path, src):
     bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3, colour: red}\n")
     with pytest.raises(TactexError, match="colour"):
         load_catalogue(bad)
+    # errors located in the file: entry index and field
+    bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3}\n"
+                   "  - {name: y, family: plain, pitch_mm: 9.0}\n")
+    with pytest.raises(TactexError, match=r"fabrics\.1\.pitch_mm: .*4\.5 \(got 9\.0\)"):
+        load_catalogue(bad)
+    bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3}\n"
+                   "  - {name: x, family: felt, pitch_mm: 0.3}\n")
+    with pytest.raises(TactexError, match=r"fabrics\.1\.name: duplicate fabric name 'x'"):
+        load_catalogue(bad)
+    bad.write_text("fabrics:\n  - {name: x, family: twill, pitch_mm: 0.3, repeat: 2}\n")
+    with pytest.raises(TactexError, match=r"fabrics\.0\.repeat: twill needs repeat >= 3"):
+        load_catalogue(bad)
     with pytest.raises(TactexError, match="difficulty"):
         parse_difficulty("brutal")
     assert main(["sim", "render", "--fabric", "velvet", "--out", str(tmp_path / "a.png")]) == 2
