@@ -27,10 +27,13 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any, Literal
 
+from pydantic import StringConstraints, field_validator, model_validator
+
+from ..core.config import FieldError, Schema, param
 from ..core.errors import TactexError
-from ..paths import check_mapping, config_file, read_yaml
+from ..paths import config_file, read_yaml
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
@@ -81,87 +84,122 @@ class RobotProfile:
         return bool(self.state_type)
 
 
-def _str(d: dict, key: str, where: str, required: bool = True) -> str:
-    v = d.get(key, "")
-    if not isinstance(v, str) or (required and not v):
-        raise TactexError(f"{where}.{key}: expected a non-empty string, got {v!r}")
-    return v
+Text = Annotated[str, StringConstraints(min_length=1)]
 
 
-def _interface_name(v: str, where: str, kinds: tuple[str, ...]) -> str:
-    parts = v.split("/")
-    if len(parts) != 3 or parts[1] not in kinds or not all(parts):
-        raise TactexError(f"{where}: expected 'package/{'|'.join(kinds)}/Name', got {v!r}")
-    return v
+def _interface(*kinds: str) -> Any:
+    """A ROS interface name ``package/<kind>/Name`` for one of ``kinds``."""
+    return Annotated[str, StringConstraints(pattern=rf"^[^/]+/({'|'.join(kinds)})/[^/]+$")]
+
+
+class ControllerSpec(Schema):
+    name: Text = param(..., "the Cartesian impedance controller")
+    stiffness: float = param(..., "translational stiffness [N/m]", 10.0, 1e6)
+    target_filter_s: float = param(0.0, "the controller's filter on the equilibrium [s]",
+                                   0.0, 5.0)
+
+
+class TargetSpec(Schema):
+    topic: Text = param(..., "equilibrium target topic")
+    type: Literal[POSE_STAMPED, FLOAT64_MULTIARRAY] = param(..., "target message type")
+
+
+class StateSpec(Schema):
+    """Either ``pose_topic`` + ``wrench_topic`` (optionally ``mode_topic`` + ``mode_type``) or
+    ``topic`` + ``type`` of a franka state message."""
+
+    pose_topic: str = param("", "PoseStamped state topic")
+    wrench_topic: str = param("", "WrenchStamped state topic")
+    topic: str = param("", "franka state message topic")
+    type: _interface("msg") | Literal[""] = param("", "franka state message type")
+    mode_topic: str = param("", "robot_mode of a full state message: topic")
+    mode_type: _interface("msg") | Literal[""] = param("", "... and its type")
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> "StateSpec":
+        given = self.model_fields_set
+        if given & {"topic", "type"}:
+            if given & {"pose_topic", "wrench_topic"}:
+                raise ValueError("give either topic + type (a franka state message) or "
+                                 "pose_topic + wrench_topic, not both")
+            need = ("topic", "type")
+        else:
+            need = ("pose_topic", "wrench_topic") + (
+                ("mode_topic", "mode_type") if given & {"mode_topic", "mode_type"} else ())
+        for name in need:
+            if not getattr(self, name):
+                raise FieldError(name, "expected a non-empty string")
+        return self
+
+
+class ServiceCallSpec(Schema):
+    service: Text = param(..., "service name")
+    type: _interface("srv") = param(..., "service type")
+    request: dict[str, Any] = param({}, "request fields")
+    ok_field: Text = param(..., "the response field that says it worked")
+
+
+class RecoverySpec(Schema):
+    kind: Literal[RECOVERY_KINDS] = param("none", "recovery interface")
+    name: str = param("", "action or service name")
+    type: str = param("", "action or service type")
+    ok_field: str = param("", "service: the response field that says it worked")
+    then: list[ServiceCallSpec] = param([], "re-activation calls after recovery, in order")
+
+    @model_validator(mode="after")
+    def _complete(self) -> "RecoverySpec":
+        if self.kind == "none":
+            return self
+        if not self.name:
+            raise FieldError("name", "expected a non-empty string")
+        kind = "action" if self.kind == "action" else "srv"
+        parts = self.type.split("/")
+        if len(parts) != 3 or parts[1] != kind or not all(parts):
+            raise FieldError("type", f"expected 'package/{kind}/Name', got {self.type!r}")
+        if self.kind == "service" and not self.ok_field:
+            raise FieldError("ok_field", "expected a non-empty string")
+        return self
+
+
+class ProfileFile(Schema):
+    """A robot profile file (``config/robots/<name>.yaml``) as written."""
+
+    name: Text = param(..., "profile name")
+    frame_id: Text = param(..., "the robot's base frame")
+    controller: ControllerSpec
+    target: TargetSpec
+    state: StateSpec
+    force_sign: float = param(1.0, "normal force = force_sign * f_z (1 or -1)")
+    recovery: RecoverySpec = RecoverySpec()
+    notes: str = param("", "free text")
+
+    @field_validator("force_sign")
+    @classmethod
+    def _sign(cls, v: float) -> float:
+        if v not in (1.0, -1.0):
+            raise ValueError(f"1 or -1, got {v!r}")
+        return v
 
 
 def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
-    """Validate a profile mapping; TactexError names the first bad field."""
-    d = check_mapping(data, origin, {"name", "frame_id", "controller", "target", "state",
-                                "force_sign", "recovery", "notes"})
-    ctl = check_mapping(d.get("controller"), f"{origin}: controller",
-                   {"name", "stiffness", "target_filter_s"})
-    k = ctl.get("stiffness")
-    if isinstance(k, bool) or not isinstance(k, (int, float)) or not 10.0 <= k <= 1e6:
-        raise TactexError(f"{origin}: controller.stiffness: N/m in [10, 1e6], got {k!r}")
-    filt = ctl.get("target_filter_s", 0.0)
-    if isinstance(filt, bool) or not isinstance(filt, (int, float)) or not 0 <= filt <= 5:
-        raise TactexError(f"{origin}: controller.target_filter_s: s in [0, 5], got {filt!r}")
-    tgt = check_mapping(d.get("target"), f"{origin}: target", {"topic", "type"})
-    ttype = _str(tgt, "type", f"{origin}: target")
-    if ttype not in TARGET_TYPES:
-        raise TactexError(f"{origin}: target.type: one of {list(TARGET_TYPES)}, got {ttype!r}")
-    st = check_mapping(d.get("state"), f"{origin}: state",
-                  {"pose_topic", "wrench_topic", "topic", "type", "mode_topic", "mode_type"})
-    if "topic" in st or "type" in st:
-        if "pose_topic" in st or "wrench_topic" in st:
-            raise TactexError(f"{origin}: state: give either topic + type (a franka state "
-                              "message) or pose_topic + wrench_topic, not both")
-        state = {"state_topic": _str(st, "topic", f"{origin}: state"),
-                 "state_type": _interface_name(_str(st, "type", f"{origin}: state"),
-                                               f"{origin}: state.type", ("msg",))}
-    else:
-        state = {"pose_topic": _str(st, "pose_topic", f"{origin}: state"),
-                 "wrench_topic": _str(st, "wrench_topic", f"{origin}: state")}
-        if "mode_topic" in st or "mode_type" in st:
-            state["mode_topic"] = _str(st, "mode_topic", f"{origin}: state")
-            state["mode_type"] = _interface_name(_str(st, "mode_type", f"{origin}: state"),
-                                                 f"{origin}: state.mode_type", ("msg",))
-    sign = d.get("force_sign", 1.0)
-    if sign not in (1, -1, 1.0, -1.0) or isinstance(sign, bool):
-        raise TactexError(f"{origin}: force_sign: 1 or -1, got {sign!r}")
-    rec = check_mapping(d.get("recovery", {"kind": "none"}), f"{origin}: recovery",
-                   {"kind", "name", "type", "ok_field", "then"})
-    kind = rec.get("kind", "none")
-    if kind not in RECOVERY_KINDS:
-        raise TactexError(f"{origin}: recovery.kind: one of {list(RECOVERY_KINDS)}, got "
-                          f"{kind!r}")
-    recovery = Recovery()
-    if kind != "none":
-        then = []
-        for i, c in enumerate(rec.get("then", []) or []):
-            w = f"{origin}: recovery.then[{i}]"
-            c = check_mapping(c, w, {"service", "type", "request", "ok_field"})
-            req = c.get("request", {})
-            if not isinstance(req, dict):
-                raise TactexError(f"{w}.request: expected a mapping of request fields")
-            then.append(ServiceCall(service=_str(c, "service", w),
-                                    type=_interface_name(_str(c, "type", w), f"{w}.type",
-                                                         ("srv",)),
-                                    request=req, ok_field=_str(c, "ok_field", w)))
-        recovery = Recovery(
-            kind=kind, name=_str(rec, "name", f"{origin}: recovery"),
-            type=_interface_name(_str(rec, "type", f"{origin}: recovery"),
-                                 f"{origin}: recovery.type",
-                                 ("action",) if kind == "action" else ("srv",)),
-            ok_field=_str(rec, "ok_field", f"{origin}: recovery", required=kind == "service"),
-            then=tuple(then))
+    """Validate a profile mapping; TactexError names every bad field (``controller.stiffness``,
+    ``recovery.then.0.type``)."""
+    f = ProfileFile.check(data, origin)
+    st = f.state
+    state = ({"state_topic": st.topic, "state_type": st.type} if st.topic else
+             {"pose_topic": st.pose_topic, "wrench_topic": st.wrench_topic,
+              "mode_topic": st.mode_topic, "mode_type": st.mode_type})
+    rec = f.recovery
+    recovery = Recovery() if rec.kind == "none" else Recovery(
+        kind=rec.kind, name=rec.name, type=rec.type, ok_field=rec.ok_field,
+        then=tuple(ServiceCall(service=c.service, type=c.type, request=c.request,
+                               ok_field=c.ok_field) for c in rec.then))
     return RobotProfile(
-        name=_str(d, "name", origin), frame_id=_str(d, "frame_id", origin),
-        controller=_str(ctl, "name", f"{origin}: controller"), stiffness=float(k),
-        target_topic=_str(tgt, "topic", f"{origin}: target"), target_type=ttype,
-        force_sign=float(sign), target_filter_s=float(filt), recovery=recovery,
-        notes=str(d.get("notes", "")), **state)
+        name=f.name, frame_id=f.frame_id, controller=f.controller.name,
+        stiffness=float(f.controller.stiffness), target_topic=f.target.topic,
+        target_type=f.target.type, force_sign=float(f.force_sign),
+        target_filter_s=float(f.controller.target_filter_s), recovery=recovery,
+        notes=f.notes, **state)
 
 
 def load_profile(name_or_path: str) -> RobotProfile:

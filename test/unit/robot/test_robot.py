@@ -37,10 +37,10 @@ def test_shipped_profiles_load() -> None:
     (("recovery", "kind"), "reboot", "recovery.kind"),
     (("recovery", "type"), "franka_msgs/srv/ErrorRecovery", "recovery.type"),
     (("recovery", "then", 0, "type"), "controller_manager_msgs/SetHardwareComponentState",
-     r"recovery.then\[0\].type"),
+     r"recovery\.then\.0\.type"),
     (("state", "topic"), "/x", "state: give either"),
     (("state", "mode_type"), "FrankaRobotState", "state.mode_type"),
-    (("bogus",), 1, "unknown field"),
+    (("bogus",), 1, "bogus: unknown name"),
 ])
 def test_profile_errors_name_the_field(path, value, field) -> None:
     d = _fr3()
