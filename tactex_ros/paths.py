@@ -60,14 +60,3 @@ def read_yaml(path: str | Path, what: str) -> Any:
         return yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as exc:
         raise TactexError(f"{what} {str(path)!r}: not readable YAML ({exc})") from None
-
-
-def check_mapping(d: Any, where: str, allowed: set[str]) -> dict:
-    """``d`` if it is a mapping with only ``allowed`` keys; else TactexError naming ``where``."""
-    if not isinstance(d, dict):
-        raise TactexError(f"{where}: expected a mapping, got {type(d).__name__}")
-    unknown = set(d) - allowed
-    if unknown:
-        raise TactexError(f"{where}: unknown field(s) {sorted(unknown)}; allowed: "
-                          f"{sorted(allowed)}")
-    return d

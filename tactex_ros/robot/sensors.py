@@ -26,10 +26,13 @@ Pure Python (no rclpy, no OpenCV). A profile says:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal, Optional
 
+from pydantic import Field, StringConstraints
+
+from ..core.config import Schema, param
 from ..core.errors import TactexError
-from ..paths import check_mapping, config_file, read_yaml
+from ..paths import config_file, read_yaml
 
 SERIAL_LOOKUPS = ("", "digit_interface")
 LED_MAX = 15
@@ -79,58 +82,50 @@ class SensorConfig:
     led_intensity: int | None
 
 
-def _num(d: dict, key: str, where: str, lo: float, hi: float, integer: bool = False) -> Any:
-    v = d.get(key)
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi or \
-            (integer and int(v) != v):
-        kind = "an integer" if integer else "a number"
-        raise TactexError(f"{where}.{key}: expected {kind} in [{lo:g}, {hi:g}], got {v!r}")
-    return int(v) if integer else float(v)
+Rate = Annotated[float, Field(ge=1, le=1000)]
+
+
+class ModeSpec(Schema):
+    width: int = param(..., "px", 1, 8192)
+    height: int = param(..., "px", 1, 8192)
+    fps: list[Rate] = param(..., "frame rates [Hz]", min_length=1)
+
+
+class CaptureSpec(Schema):
+    width: int = param(..., "px (0 with height 0: the camera's default mode)", 0, 8192)
+    height: int = param(..., "px", 0, 8192)
+    fps: float = param(..., "frame rate [Hz]", 1, 1000)
+
+
+class SensorFile(Schema):
+    """A sensor profile file (``config/sensors/<name>.yaml``) as written."""
+
+    name: Annotated[str, StringConstraints(min_length=1)] = param(..., "profile name")
+    device: Annotated[str, StringConstraints(min_length=1)] = param(
+        ..., "the name the camera reports")
+    serial_lookup: Literal[SERIAL_LOOKUPS] = param("", "how a serial number finds the device")
+    modes: list[ModeSpec] = param([], "the capture modes the sensor offers")
+    capture: CaptureSpec
+    crop_fraction: float = param(..., "border cut before the resize", 0.0, 0.45)
+    exposure_controls: bool = param(True, "auto exposure / white balance switched off")
+    led_intensity: Optional[int] = param(None, "DIGIT LED level", 0, LED_MAX)
+    portrait_recordings: bool = param(False, "recorded frames are transposed")
+    notes: str = param("", "free text")
 
 
 def parse_sensor(data: Any, origin: str = "sensor profile") -> SensorProfile:
-    """Validate a sensor profile mapping; TactexError names the first bad field."""
-    d = check_mapping(data, origin, {"name", "device", "serial_lookup", "modes", "capture",
-                                "crop_fraction", "exposure_controls", "led_intensity",
-                                "portrait_recordings", "notes"})
-    for key in ("name", "device"):
-        if not isinstance(d.get(key), str) or not d[key]:
-            raise TactexError(f"{origin}.{key}: expected a non-empty string, got "
-                              f"{d.get(key)!r}")
-    lookup = d.get("serial_lookup", "")
-    if lookup not in SERIAL_LOOKUPS:
-        raise TactexError(f"{origin}.serial_lookup: one of {list(SERIAL_LOOKUPS)}, got "
-                          f"{lookup!r}")
-    raw_modes = d.get("modes", [])
-    if not isinstance(raw_modes, list):
-        raise TactexError(f"{origin}.modes: expected a list, got {type(raw_modes).__name__}")
-    modes = []
-    for i, m in enumerate(raw_modes):
-        w = f"{origin}.modes[{i}]"
-        m = check_mapping(m, w, {"width", "height", "fps"})
-        fps = m.get("fps")
-        if not isinstance(fps, list) or not fps:
-            raise TactexError(f"{w}.fps: expected a non-empty list of frame rates, got {fps!r}")
-        rates = tuple(_num({"fps": f}, "fps", w, 1, 1000) for f in fps)
-        modes.append(Mode(_num(m, "width", w, 1, 8192, True),
-                          _num(m, "height", w, 1, 8192, True), rates))
-    cap = check_mapping(d.get("capture"), f"{origin}.capture", {"width", "height", "fps"})
-    cw = _num(cap, "width", f"{origin}.capture", 0, 8192, True)
-    ch = _num(cap, "height", f"{origin}.capture", 0, 8192, True)
-    fps = _num(cap, "fps", f"{origin}.capture", 1, 1000)
-    led = d.get("led_intensity")
-    if led is not None:
-        led = _num(d, "led_intensity", origin, 0, LED_MAX, True)
-    for key in ("exposure_controls", "portrait_recordings"):
-        if not isinstance(d.get(key, False), bool):
-            raise TactexError(f"{origin}.{key}: expected true or false, got {d[key]!r}")
+    """Validate a sensor profile mapping; TactexError names every bad field (``modes.0.fps``,
+    ``capture``)."""
+    f = SensorFile.check(data, origin)
+    cap = f.capture
     prof = SensorProfile(
-        name=d["name"], device=d["device"], capture_width=cw, capture_height=ch, fps=fps,
-        crop_fraction=_num(d, "crop_fraction", origin, 0.0, 0.45), modes=tuple(modes),
-        serial_lookup=lookup, exposure_controls=d.get("exposure_controls", True),
-        led_intensity=led, portrait_recordings=d.get("portrait_recordings", False),
-        notes=str(d.get("notes", "")))
-    check_mode(prof, cw, ch, fps, f"{origin}.capture")
+        name=f.name, device=f.device, capture_width=cap.width, capture_height=cap.height,
+        fps=float(cap.fps), crop_fraction=float(f.crop_fraction),
+        modes=tuple(Mode(m.width, m.height, tuple(float(r) for r in m.fps)) for m in f.modes),
+        serial_lookup=f.serial_lookup, exposure_controls=f.exposure_controls,
+        led_intensity=f.led_intensity, portrait_recordings=f.portrait_recordings,
+        notes=f.notes)
+    check_mode(prof, cap.width, cap.height, prof.fps, f"{origin}: capture")
     return prof
 
 

@@ -57,7 +57,7 @@ def _digit_data() -> dict:
     ({"led_intensity": 16}, "led_intensity"),
     ({"serial_lookup": "pyudev"}, "serial_lookup"),
     ({"capture": {"width": 320, "height": 240, "fps": 45}}, "capture"),
-    ({"modes": [{"width": 320, "height": 240}]}, "modes[0].fps"),
+    ({"modes": [{"width": 320, "height": 240}]}, "modes.0.fps"),
     ({"colour": "red"}, "colour"),
     ({"crop_fraction": 0.6}, "crop_fraction"),
 ])
