@@ -36,13 +36,16 @@ class MockImageNode(TactexNode):
         s = self.settings
         self.scene = load_scene(s.scene_file)
         kind = s.source.partition(":")[0]
+        if kind not in ("sim", "replay"):
+            raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
+        field = "sim_fabric" if kind == "sim" else "replay_class"
+        missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
+        if missing:
+            raise TactexError(f"scene: platforms {missing} have no {field} for source "
+                              f"{s.source!r}")
+        from ...sources import open_source
+        self.src = open_source(s.source)
         if kind == "sim":
-            from ...sources import open_source
-            self.src = open_source(s.source)
-            missing = [p.id for p in self.scene.platforms if not p.sim_fabric]
-            if missing:
-                raise TactexError(f"scene: platforms {missing} have no sim_fabric for source "
-                                  f"{s.source!r}")
             for p in self.scene.platforms:
                 self.src.fabric(p.sim_fabric)  # names the unknown fabric
                 # build the fabric's height tile now: doing it at the first press stalls the
@@ -50,22 +53,14 @@ class MockImageNode(TactexNode):
                 self.src.press(p.sim_fabric, np.random.default_rng(0))
             self._rng = np.random.default_rng([s.seed, 1])
             self.no_contact = self.src.renderer.no_contact(self._rng)
-        elif kind == "replay":
-            from ...sources import open_source
+        else:
             from ...sources.replay import read_video
-            self.src = open_source(s.source)
-            missing = [p.id for p in self.scene.platforms if not p.replay_class]
-            if missing:
-                raise TactexError(f"scene: platforms {missing} have no replay_class for source "
-                                  f"{s.source!r}")
             classes = [p.replay_class for p in self.scene.ordered]
             self.replay = self.src.trial(classes, s.seed)
             first = self.src.presses(classes[0])[0]
             self.no_contact = np.ascontiguousarray(read_video(first)[0][:, :, ::-1]) \
                 if first.suffix.lower() in {".mov", ".mp4", ".avi", ".mkv"} else \
                 np.full((240, 320, 3), 120, np.uint8)
-        else:
-            raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
         self.kind = kind
         self.ring = FrameRing(max(2, int(s.buffer_s * s.fps)))
         self.ring.set_reference(self.no_contact)
