@@ -1,5 +1,5 @@
-"""The ``tactex`` command: ``main.py`` (parser, trial, prepare, weights, bench latency) and one
-module per command group (``experiment``, ``graph``, ``sim``)."""
+"""The ``tactex`` command: ``main.py`` (parser, trial, prepare, weights) and one module per
+command group (``bench``, ``experiment``, ``graph``, ``sim``)."""
 
 from .main import main
 

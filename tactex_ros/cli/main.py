@@ -70,7 +70,8 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
-def _write_json(path: str | None, obj: dict) -> None:
+def write_json(path: str | None, obj: dict) -> None:
+    """Write ``obj`` as indented JSON to ``path`` (folders made); nothing when None."""
     if path:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Path(path).write_text(json.dumps(obj, indent=2))
@@ -109,7 +110,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
                prediction_class=platform_classes[res.prediction],
                truth_class=platform_classes[truth], strategy=tcfg.strategy,
                model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
-    _write_json(args.json, out)
+    write_json(args.json, out)
     verdict = "correct" if res.correct else "wrong"
     print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
           f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
@@ -164,21 +165,8 @@ def cmd_weights_inspect(args: argparse.Namespace) -> int:
     model, _ = build_model(args.model, args.classes)
     report = load_weights(model, state)
     print(report.summary())
-    _write_json(args.json, report.to_dict())
+    write_json(args.json, report.to_dict())
     return 0 if report.ok else 1
-
-
-def cmd_bench_latency(args: argparse.Namespace) -> int:
-    from ..experiments.bench import latency
-    from ..core.config import PRESETS
-    unknown = [c for c in args.configs if c not in PRESETS]
-    if unknown:
-        raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
-                          f"{', '.join(PRESETS)}")
-    out = latency.run(touch_counts=args.touches, repeats=args.repeats,
-                      seed_epochs=args.seed_epochs, configs=tuple(args.configs))
-    _write_json(args.json, out)
-    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -219,20 +207,9 @@ def build_parser() -> argparse.ArgumentParser:
     wi.add_argument("--json")
     wi.set_defaults(func=cmd_weights_inspect)
 
-    b = sub.add_parser("bench", help="benchmarks (print figures)")
-    bsub = b.add_subparsers(dest="bcmd", required=True)
-    bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
-    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
-    bl.add_argument("--repeats", type=int, default=5)
-    bl.add_argument("--seed-epochs", type=int, default=1,
-                    help="epochs actually timed for the seed-faithful config (scaled to 10)")
-    bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
-                    help="configurations to time (ratios are to the last one)")
-    bl.add_argument("--json")
-    bl.set_defaults(func=cmd_bench_latency)
-
-    from . import experiment, graph, sim
-    sim.add_commands(sub, bsub)
+    from . import bench, experiment, graph, sim
+    bench.add_commands(sub)
+    sim.add_commands(sub)
     graph.add_commands(sub)
     experiment.add_commands(sub)
 

@@ -1,11 +1,9 @@
-"""``tactex sim ...`` and ``tactex bench sim``: the fabric simulator on the command line."""
+"""``tactex sim ...``: the fabric simulator on the command line."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import statistics
-import time
 from pathlib import Path
 
 import cv2
@@ -42,37 +40,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def bench_sim(frames: int = 400, repeats: int = 5) -> dict:
-    """Frames per second for 320x240 contact frames on one thread (tiles cached first)."""
-    cv2.setNumThreads(1)
-    from ..sources import open_source
-    src = open_source("sim")
-    names = src.classes
-    rng = np.random.default_rng(0)
-    for n in names:
-        src.press(n, rng)  # build and cache every height tile (not a per-touch cost)
-    fps = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for i in range(frames):
-            src.press(names[i % len(names)], rng)
-        fps.append(frames / (time.perf_counter() - t0))
-    out = {"fps_median": statistics.median(fps), "fps_runs": fps, "frames_per_run": frames,
-           "opencv_threads": 1}
-    print(f"simulator: {out['fps_median']:.0f} frames/s median over {repeats} runs of "
-          f"{frames} contact frames (320x240, one OpenCV thread; min {min(fps):.0f}, "
-          f"max {max(fps):.0f})")
-    return out
-
-
-def cmd_bench_sim(args: argparse.Namespace) -> int:
-    out = bench_sim(args.frames, args.repeats)
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2))
-    return 0
-
-
-def add_commands(sub, bench_sub) -> None:
+def add_commands(sub) -> None:
     s = sub.add_parser("sim", help="fabric simulator")
     ssub = s.add_subparsers(dest="scmd", required=True)
     f = ssub.add_parser("fabrics", help="list the fabric catalogue")
@@ -85,11 +53,6 @@ def add_commands(sub, bench_sub) -> None:
     r.add_argument("--out", required=True)
     r.set_defaults(func=cmd_render)
     add_compare(ssub)
-    b = bench_sub.add_parser("sim", help="simulator frames per second")
-    b.add_argument("--frames", type=int, default=400)
-    b.add_argument("--repeats", type=int, default=5)
-    b.add_argument("--json")
-    b.set_defaults(func=cmd_bench_sim)
 
 
 def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
