@@ -231,7 +231,18 @@ class LearnerConfig(Schema):
     dropout: float = param(0.5, "dropout rate before the classifier", 0.0, 0.95)
     block_dropout: float = param(0.0, "dropout rate after stem and Inception blocks (0 = off)",
                                  0.0, 0.95)
-    mc_passes: int = param(20, "Monte-Carlo dropout passes per decision", 1, 1000)
+    mc_passes: int = param(20, "Monte-Carlo dropout passes per decision (uncertainty "
+                               "'laplace': posterior draws per decision)", 1, 1000)
+    uncertainty: Literal["mc_dropout", "ensemble", "laplace"] = param(
+        "mc_dropout", "CNN uncertainty (core/uncertainty.py): 'mc_dropout' (mc_passes stochastic "
+                      "passes), 'ensemble' (ensemble_heads heads over the shared stem, their "
+                      "disagreement) or 'laplace' (last-layer Laplace posterior, mc_passes "
+                      "draws)")
+    ensemble_heads: int = param(5, "uncertainty 'ensemble': number of heads K", 2, 32)
+    laplace_prior_precision: float = param(0.0, "uncertainty 'laplace': prior precision of the "
+                                                "last layer's weights (0 = chosen by the "
+                                                "marginal likelihood on a grid 1e-4..1e4)",
+                                           0.0, 1e6)
     test_views: int = param(1, "views of the reference averaged when scoring (1 = unrotated)",
                             1, 64)
     aux_logits: bool = param(False, "train Inception v3's auxiliary classifier too")

@@ -26,6 +26,12 @@ scenes. The figure to trust pools the report scenes of all folds: classes never 
 choosing. Each setting is also reported at its own chosen theta, with exact McNemar tests paired
 with the chosen setting on the same report scenes.
 
+``--report-only`` skips the choose scenes (no choosing): every setting is measured on the same
+report scenes of every fold at every theta of ``--thresholds`` (for settings too slow to run
+twice, e.g. the CNN's uncertainty variants). ``--paired-against A B`` adds exact McNemar tests
+(correct per scene, at fixed budgets and at every theta) and Wilcoxon tests (touches until the
+stop) of every setting against each of A, B on the pooled report scenes (``paired``).
+
 Output folder: ``config.json``, ``runs.json`` (per scene and setting: classes, the belief curve),
 ``summary.json``, ``accuracy_vs_touches.png``, ``pareto.png`` (accuracy at the stop against
 touches, every setting x threshold).
@@ -130,7 +136,9 @@ def score_pairs(curves: dict[str, list[dict]], thresholds: list[float]) -> list[
         for th in thresholds:
             st = [at_stop(c, th) for c in cs]
             acc = float(np.mean([s[0] for s in st]))
+            s = sum(x[0] for x in st)
             rows.append({"setting": label, "theta": th, "accuracy": acc,
+                         "ci95": list(wilson(s, len(st))),
                          "touches": float(np.mean([s[1] for s in st])),
                          "wrong_stop": float(np.mean([s[2] and not s[0] for s in st])),
                          "n": len(st)})
@@ -219,6 +227,29 @@ def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
     return out
 
 
+def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
+                         thresholds: list[float]) -> dict:
+    """Every setting against ``reference`` under each stop threshold, on the same scenes:
+    {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),
+    "touches_p" (Wilcoxon on touches after the baseline)}}}."""
+    out = {}
+    base = curves[reference]
+    for lab, cs in curves.items():
+        if lab == reference:
+            continue
+        row = {}
+        for th in thresholds:
+            a = [at_stop(c, th) for c in base]
+            b = [at_stop(c, th) for c in cs]
+            row[str(th)] = {"reference": float(np.mean([x[0] for x in a])),
+                            "setting": float(np.mean([x[0] for x in b])),
+                            "p": mcnemar_exact([x[0] for x in a], [x[0] for x in b])["p"],
+                            "touches_p": wilcoxon_paired([x[1] for x in a],
+                                                         [x[1] for x in b])["p"]}
+        out[lab] = row
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
     from ..sources import open_source
     settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
@@ -230,10 +261,15 @@ def run(args: argparse.Namespace) -> dict:
     thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
     out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
     folds = class_folds(classes, args.folds, args.seed)
+    report_only = bool(getattr(args, "report_only", False))
+    against = list(getattr(args, "paired_against", None) or [labels[0]])
+    unknown = [a for a in against if a not in labels]
+    if unknown:
+        raise TactexError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
     report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
     fold_info = []
     for k, fold in enumerate(folds):
-        if args.folds >= 2:
+        if args.folds >= 2 and not report_only:
             rest = sorted(set(classes) - set(fold))
             choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
                                              args.seed + 1000 * (k + 1)),
@@ -258,8 +294,14 @@ def run(args: argparse.Namespace) -> dict:
                "report_rows": score_pairs(report_curves, thresholds),
                "paired_at_budgets": paired_at_budgets(report_curves, labels[0],
                                                       tuple(k for k in (0, 1, 3, 5, 10)
-                                                            if k <= args.budget))}
-    if args.folds >= 2:
+                                                            if k <= args.budget)),
+               "paired": {ref: {"budgets": paired_at_budgets(
+                                    report_curves, ref, tuple(k for k in (0, 1, 3, 5, 10)
+                                                              if k <= args.budget)),
+                                "thresholds": paired_at_thresholds(report_curves, ref,
+                                                                   thresholds)}
+                          for ref in against}}
+    if args.folds >= 2 and not report_only:
         summary["held_out"] = _pool_chosen(fold_info, labels)
     write_json(out / "runs.json", report_curves)
     write_json(out / "summary.json", summary)
@@ -332,6 +374,15 @@ def _print(summary: dict, labels: list[str], args) -> None:
             print(f"    {lab:>14} at its theta: {s['accuracy']:.3f} "
                   f"[{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] touches {s['touches_mean']:.2f}"
                   f"  McNemar vs chosen p={s['mcnemar_vs_chosen']['p']:.3g}")
+    if getattr(args, "report_only", False):
+        for r in summary["report_rows"]:
+            print(f"    {r['setting']:>14} at theta {r['theta']:g}: {r['accuracy']:.3f} "
+                  f"[{r['ci95'][0]:.3f}, {r['ci95'][1]:.3f}] touches {r['touches']:.2f} "
+                  f"wrong stops {r['wrong_stop']:.3f}")
+    for ref, pr in summary["paired"].items():
+        for lab, row in pr["thresholds"].items():
+            print(f"    {lab:>14} vs {ref}: McNemar p at theta " +
+                  "  ".join(f"{th}: {v['p']:.3g}" for th, v in row.items()))
 
 
 def register(esub: argparse._SubParsersAction) -> None:
@@ -349,6 +400,12 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--target-touches", type=float, default=5.0,
                    help="choose the most accurate (setting, theta) with at most this many "
                         "touches after the baseline on average")
+    p.add_argument("--report-only", action="store_true",
+                   help="no choose scenes: measure every setting on the report scenes of each "
+                        "fold at every threshold (no choosing)")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL",
+                   help="paired tests of every setting against these settings (default: the "
+                        "first --setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
     add_runner_args(p)
