@@ -105,6 +105,11 @@ def ensemble_probs(model: TactileInception, x: torch.Tensor) -> torch.Tensor:
         logits = model.member_logits(x)                   # (V, K, C)
     finally:
         model.train(was_training)
+    return member_table(logits)
+
+
+def member_table(logits: torch.Tensor) -> torch.Tensor:
+    """(V, K, C) member logits of V views -> (K, C) float32 member softmax, mean over views."""
     return torch.softmax(logits.float(), dim=2).mean(dim=0)
 
 
@@ -143,6 +148,12 @@ def log_marginal_likelihood(loglik: float, theta_sq: float, eig: np.ndarray,
                  - 0.5 * np.log(e + lam).sum())
 
 
+def marglik_prior_precision(loglik: float, theta_sq: float, eig: np.ndarray,
+                            grid: tuple[float, ...] = PRIOR_GRID) -> float:
+    """The value of ``grid`` with the highest ``log_marginal_likelihood`` (first on ties)."""
+    return max(grid, key=lambda v: log_marginal_likelihood(loglik, theta_sq, eig, v))
+
+
 @dataclass
 class LastLayerLaplace:
     """Gaussian posterior N(theta, precision^-1) over a linear softmax layer's weights.
@@ -173,7 +184,7 @@ class LastLayerLaplace:
             loglik = float(torch.log_softmax(logits, 1).gather(1, labels.long()[:, None]).sum())
             eig = torch.linalg.eigvalsh(ggn).numpy()
             sq = float((theta ** 2).sum())
-            lam = max(PRIOR_GRID, key=lambda v: log_marginal_likelihood(loglik, sq, eig, v))
+            lam = marglik_prior_precision(loglik, sq, eig)
         prec = ggn + lam * torch.eye(ggn.shape[0], dtype=torch.float64)
         return cls(theta, prec, lam)
 
