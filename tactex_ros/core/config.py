@@ -237,7 +237,7 @@ class LearnerConfig(Schema):
         "mc_dropout", "CNN uncertainty (core/uncertainty.py): 'mc_dropout' (mc_passes stochastic "
                       "passes), 'ensemble' (ensemble_heads heads over the shared stem, their "
                       "disagreement) or 'laplace' (last-layer Laplace posterior, mc_passes "
-                      "draws)")
+                      "draws; small_inception with at most 15 comparisons)")
     ensemble_heads: int = param(5, "uncertainty 'ensemble': number of heads K", 2, 32)
     laplace_prior_precision: float = param(0.0, "uncertainty 'laplace': prior precision of the "
                                                 "last layer's weights (0 = chosen by the "

@@ -39,6 +39,11 @@ from .touch import Touch, as_touch
 from .uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
 
 
+#: Largest last layer (weights incl. bias) given a full Laplace posterior: its (P, P) precision
+#: is decomposed every round (P = 3000: 72 MB, about a second).
+LAPLACE_MAX_WEIGHTS = 3000
+
+
 @dataclass
 class TrainStats:
     seconds: float
@@ -79,6 +84,15 @@ class OnlineLearner:
                 aux_logits=cfg.aux_logits, weights=cfg.weights or None,
                 heads=cfg.ensemble_heads if cfg.uncertainty == "ensemble" else 1)
         self.model_name = name
+        if cfg.uncertainty == "laplace":
+            n_w = num_classes * (self.model.fc.in_features + 1)
+            if n_w > LAPLACE_MAX_WEIGHTS:
+                raise TactexError(
+                    f"uncertainty 'laplace' keeps a full posterior over the last layer's "
+                    f"{n_w} weights ({num_classes} platforms x {self.model.fc.in_features + 1} "
+                    f"inputs of model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: use "
+                    f"small_inception with at most {LAPLACE_MAX_WEIGHTS // 193} comparisons, or "
+                    f"uncertainty 'ensemble'")
         self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
         self.model = self.model.to(memory_format=self._fmt)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,

@@ -208,3 +208,12 @@ def test_learner_tables_for_each_uncertainty(kind, rows, one_thread):
     if kind == "laplace":
         assert lr.laplace is not None and lr.laplace.prior_precision > 0
         assert lr.laplace.precision.shape == (3 * 193, 3 * 193)
+
+
+def test_laplace_refuses_a_last_layer_too_large_for_a_full_posterior():
+    with pytest.raises(TactexError, match="laplace"):
+        OnlineLearner(4, preset("cnn", model="inception_v3_random", input_size=75,
+                                uncertainty="laplace"), seed=0)
+    with pytest.raises(TactexError, match="laplace"):
+        OnlineLearner(16, preset("cnn", uncertainty="laplace"), seed=0)
+    OnlineLearner(15, preset("cnn", uncertainty="laplace"), seed=0)
