@@ -221,6 +221,10 @@ class LearnerConfig(Schema):
                              "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
+    sensor_crops: bool = param(False, "views are input_size px crops of the frame at sensor "
+                                      "resolution at random positions (no down-scaling; "
+                                      "input_size <= 169) instead of the centre square resized "
+                                      "to input_size")
     epochs: int = param(10, "full passes over all stored views per round (when steps == 0)",
                         0, 100)
     steps: int = param(0, "if > 0: minibatch steps per round instead of epochs (constant cost)",

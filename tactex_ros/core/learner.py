@@ -34,7 +34,7 @@ import torch.nn.functional as F
 from .config import LearnerConfig, validate
 from .errors import TactexError
 from .models import build_model
-from .preprocess import augment, to_tensor, validate_frame, view
+from .preprocess import augment, safe_crop_side, to_tensor, validate_frame, view
 from .touch import Touch, as_touch
 from .uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
 
@@ -84,6 +84,9 @@ class OnlineLearner:
                 aux_logits=cfg.aux_logits, weights=cfg.weights or None,
                 heads=cfg.ensemble_heads if cfg.uncertainty == "ensemble" else 1)
         self.model_name = name
+        if cfg.sensor_crops and cfg.input_size > int(safe_crop_side()):
+            raise TactexError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
+                              f"frame under rotation (at most {int(safe_crop_side())} px)")
         if cfg.uncertainty == "laplace":
             n_w = num_classes * (self.model.fc.in_features + 1)
             if n_w > LAPLACE_MAX_WEIGHTS:
@@ -126,7 +129,8 @@ class OnlineLearner:
         if not 0 <= label < self.num_classes:
             raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
         img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
-        views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng)
+        views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng,
+                        native=self.cfg.sensor_crops)
         x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
         self._x_parts.append(x)
         self._y_parts.append(np.full(len(views), label, dtype=np.int64))
@@ -176,10 +180,11 @@ class OnlineLearner:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
         img = self._colour_norm(validate_frame(as_touch(img).frame, "reference touch"))
         if self.cfg.test_views == 1:
-            views = view(img, 0.0, self.cfg.input_size)[None]
+            views = view(img, 0.0, self.cfg.input_size, native=self.cfg.sensor_crops)[None]
         else:
             views = augment(img, self.cfg.test_views, self.cfg.input_size,
-                            np.random.default_rng([self.seed, 3]), include_identity=True)
+                            np.random.default_rng([self.seed, 3]), include_identity=True,
+                            native=self.cfg.sensor_crops)
         return to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
 
     def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
