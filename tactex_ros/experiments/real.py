@@ -188,6 +188,25 @@ def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
                          backend_of(args), args.threads, args.quiet)
 
 
+def calibration(cs: list[dict], bins: int = 10) -> dict:
+    """How far the belief's top probability is from being right, over every decision of the
+    curves ``cs``: expected calibration error (``bins`` equal-width bins of the confidence in
+    [0, 1], weighted by decisions), mean confidence, accuracy, and the accuracy of decisions
+    with confidence >= 0.9 (``right_at_0.9``, None without such decisions)."""
+    conf = np.array([x for c in cs for x in c["conf"]], dtype=np.float64)
+    ok = np.array([x for c in cs for x in c["correct"]], dtype=np.float64)
+    if conf.size == 0:
+        return {"decisions": 0}
+    idx = np.minimum((conf * bins).astype(int), bins - 1)
+    ece = sum(abs(conf[idx == b].mean() - ok[idx == b].mean()) * np.sum(idx == b)
+              for b in range(bins) if np.any(idx == b)) / conf.size
+    hi = conf >= 0.9
+    return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
+            "accuracy": float(ok.mean()),
+            "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
+            "share_at_0.9": float(hi.mean())}
+
+
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
     """Per setting: accuracy after k touches with intervals, decision time, believed share."""
     out = {}
@@ -204,7 +223,8 @@ def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
                       "decision_s_median": statistics.median(dec) if dec else None,
                       "believed_share": (sum(c["believed"] for c in cs) / touched
                                          if touched else None),
-                      "errors": sum(1 for c in cs if c["error"])}
+                      "errors": sum(1 for c in cs if c["error"]),
+                      "calibration": calibration(cs)}
     return out
 
 

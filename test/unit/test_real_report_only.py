@@ -41,3 +41,15 @@ def test_report_only_end_to_end(octopi_dir, tmp_path):
     assert set(s["paired"]["d"]["thresholds"]["r"]) == {"0.9", "1.01"}
     assert s["paired"]["d"]["budgets"]["r"]["0"]["p"] == 1.0    # same presses before acting
     assert main(args + ["--paired-against", "nope"]) == 2     # bad input: named, exit 2
+
+
+def test_calibration_by_hand():
+    from tactex_ros.experiments.real import calibration
+    # bin [0.9, 1.0): confidences 0.95, 0.95, one right -> |0.95 - 0.5| = 0.45, weight 2/4;
+    # bin [0.6, 0.7): 0.6 right -> |0.6 - 1| = 0.4, weight 1/4; bin [0.3, 0.4): 0.3 wrong ->
+    # 0.3, weight 1/4
+    cs = [_curve([True, False], [0.95, 0.95]), _curve([True, False], [0.6, 0.3])]
+    out = calibration(cs)
+    assert out["ece"] == pytest.approx(0.5 * 0.45 + 0.25 * 0.4 + 0.25 * 0.3)
+    assert out["right_at_0.9"] == 0.5 and out["share_at_0.9"] == 0.5
+    assert out["accuracy"] == 0.5 and out["mean_confidence"] == pytest.approx(0.7)
