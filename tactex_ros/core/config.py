@@ -221,6 +221,10 @@ class LearnerConfig(Schema):
                              "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
+    sensor_crops: bool = param(False, "views are input_size px crops of the frame at sensor "
+                                      "resolution at random positions (no down-scaling; "
+                                      "input_size <= 169) instead of the centre square resized "
+                                      "to input_size")
     epochs: int = param(10, "full passes over all stored views per round (when steps == 0)",
                         0, 100)
     steps: int = param(0, "if > 0: minibatch steps per round instead of epochs (constant cost)",
@@ -231,7 +235,18 @@ class LearnerConfig(Schema):
     dropout: float = param(0.5, "dropout rate before the classifier", 0.0, 0.95)
     block_dropout: float = param(0.0, "dropout rate after stem and Inception blocks (0 = off)",
                                  0.0, 0.95)
-    mc_passes: int = param(20, "Monte-Carlo dropout passes per decision", 1, 1000)
+    mc_passes: int = param(20, "Monte-Carlo dropout passes per decision (uncertainty "
+                               "'laplace': posterior draws per decision)", 1, 1000)
+    uncertainty: Literal["mc_dropout", "ensemble", "laplace"] = param(
+        "mc_dropout", "CNN uncertainty (core/uncertainty.py): 'mc_dropout' (mc_passes stochastic "
+                      "passes), 'ensemble' (ensemble_heads heads over the shared stem, their "
+                      "disagreement) or 'laplace' (last-layer Laplace posterior, mc_passes "
+                      "draws; small_inception with at most 15 comparisons)")
+    ensemble_heads: int = param(5, "uncertainty 'ensemble': number of heads K", 2, 32)
+    laplace_prior_precision: float = param(0.0, "uncertainty 'laplace': prior precision of the "
+                                                "last layer's weights (0 = chosen by the "
+                                                "marginal likelihood on a grid 1e-4..1e4)",
+                                           0.0, 1e6)
     test_views: int = param(1, "views of the reference averaged when scoring (1 = unrotated)",
                             1, 64)
     aux_logits: bool = param(False, "train Inception v3's auxiliary classifier too")

@@ -1,4 +1,4 @@
-"""The online learner: stores augmented touches, trains across rounds, scores with MC dropout.
+"""The online learner: stores augmented touches, trains across rounds, scores its uncertainty.
 
 Classes are the C comparison platforms. Each stored touch becomes ``augment`` rotated views,
 converted to a tensor once when added (never again on the per-round path). Training uses
@@ -9,6 +9,12 @@ Two training schedules:
 
 - ``epochs`` (thesis): E full shuffled passes over all N stored views; cost grows with N.
 - ``steps``: S minibatches drawn uniformly from the stored views; cost is constant in N.
+
+Uncertainty (``uncertainty``, ``core/uncertainty.py``): ``mc_dropout`` (the thesis), ``ensemble``
+(K heads over the shared stem, trained on the same minibatches with their own init and dropout
+masks, each with its own cross-entropy; the (K, C) table of the members) or ``laplace`` (after
+each round a last-layer Laplace posterior is fitted on the stored views' features; the table
+holds ``mc_passes`` posterior draws).
 
 Determinism: every random draw comes from generators seeded by ``seed`` (model init, view
 angles, minibatch order, dropout masks in training and scoring), never from global state that
@@ -28,9 +34,14 @@ import torch.nn.functional as F
 from .config import LearnerConfig, validate
 from .errors import TactexError
 from .models import build_model
-from .preprocess import augment, to_tensor, validate_frame, view
+from .preprocess import augment, safe_crop_side, to_tensor, validate_frame, view
 from .touch import Touch, as_touch
-from .uncertainty import mc_probs
+from .uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
+
+
+#: Largest last layer (weights incl. bias) given a full Laplace posterior: its (P, P) precision
+#: is decomposed every round (P = 3000: 72 MB, about a second).
+LAPLACE_MAX_WEIGHTS = 3000
 
 
 @dataclass
@@ -70,8 +81,21 @@ class OnlineLearner:
             torch.manual_seed(self.seed)
             self.model, self.load_report = build_model(
                 name, num_classes, dropout=cfg.dropout, block_dropout=cfg.block_dropout,
-                aux_logits=cfg.aux_logits, weights=cfg.weights or None)
+                aux_logits=cfg.aux_logits, weights=cfg.weights or None,
+                heads=cfg.ensemble_heads if cfg.uncertainty == "ensemble" else 1)
         self.model_name = name
+        if cfg.sensor_crops and cfg.input_size > int(safe_crop_side()):
+            raise TactexError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
+                              f"frame under rotation (at most {int(safe_crop_side())} px)")
+        if cfg.uncertainty == "laplace":
+            n_w = num_classes * (self.model.fc.in_features + 1)
+            if n_w > LAPLACE_MAX_WEIGHTS:
+                raise TactexError(
+                    f"uncertainty 'laplace' keeps a full posterior over the last layer's "
+                    f"{n_w} weights ({num_classes} platforms x {self.model.fc.in_features + 1} "
+                    f"inputs of model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: use "
+                    f"small_inception with at most {LAPLACE_MAX_WEIGHTS // 193} comparisons, or "
+                    f"uncertainty 'ensemble'")
         self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
         self.model = self.model.to(memory_format=self._fmt)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,
@@ -83,6 +107,7 @@ class OnlineLearner:
         self._x: torch.Tensor | None = None
         self._y: torch.Tensor | None = None
         self._ref_parts: list[torch.Tensor] = []
+        self.laplace: LastLayerLaplace | None = None
         self.rounds_trained = 0
 
     # ------------------------------------------------------------------ data
@@ -104,7 +129,8 @@ class OnlineLearner:
         if not 0 <= label < self.num_classes:
             raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
         img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
-        views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng)
+        views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng,
+                        native=self.cfg.sensor_crops)
         x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
         self._x_parts.append(x)
         self._y_parts.append(np.full(len(views), label, dtype=np.int64))
@@ -124,23 +150,41 @@ class OnlineLearner:
         self._ref_parts.append(self.test_tensor(img))
 
     def reference_probs(self) -> np.ndarray:
-        """(T, C) MC-dropout softmax of the reference, averaged over all its touches' views."""
+        """(T, C) softmax table of the reference, averaged over all its touches' views: T MC
+        dropout passes, K ensemble members or T Laplace posterior draws (``uncertainty``)."""
         if not self._ref_parts:
             raise TactexError("no reference touch stored")
-        return self.mc_probs(torch.cat(self._ref_parts))
+        return self.uncertainty_probs(torch.cat(self._ref_parts))
+
+    def uncertainty_probs(self, x: torch.Tensor) -> np.ndarray:
+        """(T, C) float64 table for the views ``x`` (V, 3, S, S) from the configured source."""
+        kind = self.cfg.uncertainty
+        if kind == "ensemble":
+            return ensemble_probs(self.model, x).double().numpy()
+        if kind == "laplace":
+            if self.laplace is None:
+                raise TactexError("uncertainty 'laplace': no posterior before the first "
+                                  "training round")
+            with torch.no_grad():
+                self.model.eval()
+                feats = self.model.features(x)
+            return self.laplace.sample_probs(feats, self.cfg.mc_passes, self._gen).numpy()
+        return self.mc_probs(x)
 
     def belief(self, probs: np.ndarray) -> np.ndarray:
-        """(C,) mean softmax over the passes: the CNN's belief over the matching platform."""
+        """(C,) mean softmax over the table's rows: the CNN's belief over the matching
+        platform."""
         return np.asarray(probs, dtype=np.float64).mean(axis=0)
 
     def test_tensor(self, img: "Touch | np.ndarray") -> torch.Tensor:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
         img = self._colour_norm(validate_frame(as_touch(img).frame, "reference touch"))
         if self.cfg.test_views == 1:
-            views = view(img, 0.0, self.cfg.input_size)[None]
+            views = view(img, 0.0, self.cfg.input_size, native=self.cfg.sensor_crops)[None]
         else:
             views = augment(img, self.cfg.test_views, self.cfg.input_size,
-                            np.random.default_rng([self.seed, 3]), include_identity=True)
+                            np.random.default_rng([self.seed, 3]), include_identity=True,
+                            native=self.cfg.sensor_crops)
         return to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
 
     def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
@@ -189,7 +233,11 @@ class OnlineLearner:
                 if idx.numel() < 2:  # batch norm needs two samples in training mode
                     continue
                 logits, aux = self.model.forward_train(x[idx])
-                loss = F.cross_entropy(logits, y[idx], weight=weights)
+                target = y[idx]
+                if logits.dim() == 3:           # ensemble (B, K, C): every member's loss
+                    target = target.repeat_interleave(logits.shape[1])
+                    logits = logits.reshape(-1, logits.shape[2])
+                loss = F.cross_entropy(logits, target, weight=weights)
                 if aux is not None:
                     loss = loss + 0.4 * F.cross_entropy(aux, y[idx], weight=weights)
                 if not torch.isfinite(loss):
@@ -219,6 +267,8 @@ class OnlineLearner:
             restored = True
         if self.cfg.bn_recalibrate:
             self._recalibrate_bn(x)
+        if self.cfg.uncertainty == "laplace":
+            self._fit_laplace(x, y)
         self.rounds_trained += 1
         return TrainStats(time.perf_counter() - t0, len(losses),
                           float(np.mean(losses)) if losses else float("nan"), skipped,
@@ -240,6 +290,15 @@ class OnlineLearner:
     def heldout_proba(self, x: torch.Tensor) -> np.ndarray:
         """(C,) eval-mode softmax averaged over the views of one not-yet-trained-on touch."""
         return self.predict_proba(x).mean(axis=0)
+
+    @torch.no_grad()
+    def _fit_laplace(self, x: torch.Tensor, y: torch.Tensor, batch: int = 256) -> None:
+        """Last-layer Laplace posterior around the trained classifier, on the features of every
+        stored view (eval mode)."""
+        self.model.eval()
+        feats = torch.cat([self.model.features(x[i:i + batch]) for i in range(0, len(x), batch)])
+        self.laplace = LastLayerLaplace.fit(self.model.fc.weight, self.model.fc.bias, feats, y,
+                                            self.cfg.laplace_prior_precision)
 
     @torch.no_grad()
     def _recalibrate_bn(self, x: torch.Tensor) -> None:

@@ -17,12 +17,19 @@ modules hold no parameters, so they never change the state_dict keys.
 Every model splits into ``prefix`` (deterministic part up to the first dropout) and ``suffix``
 (the rest), so Monte-Carlo passes can run the prefix once and only the stochastic suffix T times.
 Input: float tensor (B, 3, H, W), ImageNet-normalised RGB. Output: logits (B, classes).
+
+Ensemble of heads (``heads`` K > 1): ``fc`` holds K linear heads over the shared features
+(weight (K*C, F), rows k*C..k*C+C-1 for member k, each drawn by the same init), each behind its
+own dropout mask. ``member_logits`` gives (B, K, C); ``forward`` returns the log of the members'
+mean softmax, so ``softmax(forward(x))`` is the ensemble's prediction.
 """
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from pathlib import Path
+
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -170,14 +177,18 @@ class TactileInception(nn.Module):
     block_dropout: rate of dropout after the stem and after every Inception block (0 = none).
     aux_logits: build ``AuxLogits`` (full network only); its output is used only in training.
     transform_input: torchvision's input re-normalisation for ImageNet checkpoints.
+    heads: K linear heads over the shared features (1 = the usual single classifier).
     """
 
     def __init__(self, num_classes: int, small: bool = False, dropout: float = 0.5,
                  block_dropout: float = 0.0, aux_logits: bool = False,
-                 transform_input: bool = False) -> None:
+                 transform_input: bool = False, heads: int = 1) -> None:
         super().__init__()
         if num_classes < 2:
             raise TactexError(f"num_classes must be >= 2, got {num_classes}")
+        if heads < 1:
+            raise TactexError(f"heads must be >= 1, got {heads}")
+        self.heads = int(heads)
         for name, rate in (("dropout", dropout), ("block_dropout", block_dropout)):
             if not 0.0 <= rate < 1.0:
                 raise TactexError(f"{name} must be in [0, 1), got {rate}")
@@ -217,12 +228,12 @@ class TactileInception(nn.Module):
         self.avgpool = nn.AdaptiveAvgPool2d((1, 1))
         self.dropout = nn.Dropout(p=dropout)
         self.block_drop = nn.Dropout(p=block_dropout)
-        self.fc = nn.Linear(192 if small else 2048, num_classes)
+        self.fc = nn.Linear(192 if small else 2048, num_classes * self.heads)
         self._init_weights()
 
     @property
     def num_classes(self) -> int:
-        return self.fc.out_features
+        return self.fc.out_features // self.heads
 
     def _init_weights(self) -> None:
         # torchvision's scheme: truncated normal (std 0.1 or the module's stddev), BN = (1, 0).
@@ -237,8 +248,8 @@ class TactileInception(nn.Module):
                 nn.init.constant_(m.bias, 0)
 
     def reset_classifier(self, num_classes: int) -> None:
-        """Replace ``fc`` (and ``AuxLogits.fc``) for ``num_classes`` outputs."""
-        self.fc = nn.Linear(self.fc.in_features, num_classes)
+        """Replace ``fc`` (and ``AuxLogits.fc``) for ``num_classes`` outputs (per head)."""
+        self.fc = nn.Linear(self.fc.in_features, num_classes * self.heads)
         nn.init.trunc_normal_(self.fc.weight, std=0.1, a=-2, b=2)
         nn.init.zeros_(self.fc.bias)
         if self.AuxLogits is not None:
@@ -270,21 +281,50 @@ class TactileInception(nn.Module):
             x = getattr(self, name)(x)
         return torch.flatten(self.avgpool(x), 1)
 
-    def suffix(self, h: torch.Tensor) -> torch.Tensor:
-        """Stochastic part: from ``prefix`` output to logits (dropout active in train mode)."""
+    def _pooled(self, h: torch.Tensor) -> torch.Tensor:
+        """``prefix`` output -> (B, F) pooled features before the classifier's dropout."""
         if self.block_dropout > 0:
             h = self.block_drop(h)
             for name in self._block_names:
                 h = self.block_drop(getattr(self, name)(h))
             h = torch.flatten(self.avgpool(h), 1)
-        return self.fc(self.dropout(h))
+        return h
+
+    def _members(self, h: torch.Tensor) -> torch.Tensor:
+        """(B, F) features -> (B, K, C) logits of the K heads, each behind its own dropout."""
+        k, c = self.heads, self.num_classes
+        hk = self.dropout(h.unsqueeze(1).expand(-1, k, -1))           # (B, K, F)
+        w = self.fc.weight.view(k, c, -1)                              # (K, C, F)
+        return torch.einsum("bkf,kcf->bkc", hk, w) + self.fc.bias.view(k, c)
+
+    def _head(self, h: torch.Tensor) -> torch.Tensor:
+        """(B, F) features -> (B, C) logits; ensemble: log of the members' mean softmax."""
+        if self.heads == 1:
+            return self.fc(self.dropout(h))
+        logp = torch.log_softmax(self._members(h), dim=2)
+        return torch.logsumexp(logp, dim=1) - math.log(self.heads)
+
+    def suffix(self, h: torch.Tensor) -> torch.Tensor:
+        """Stochastic part: from ``prefix`` output to logits (dropout active in train mode)."""
+        return self._head(self._pooled(h))
+
+    def features(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) -> (B, F) inputs of the classifier ``fc`` (F = 192 small, 2048 full)."""
+        return self._pooled(self.prefix(x))
+
+    def member_logits(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) -> (B, K, C) logits of the K heads (K = 1 for a single classifier)."""
+        return self._members(self.features(x))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.suffix(self.prefix(x))
 
     def forward_train(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """Logits and, for the full network with aux logits, the auxiliary logits."""
+        """Logits ((B, C); with K > 1 heads the members' (B, K, C)) and, for the full network
+        with aux logits, the auxiliary logits."""
         if self.AuxLogits is None:
+            if self.heads > 1:
+                return self.member_logits(x), None
             return self.forward(x), None
         x = self.stem(x)
         if self.block_dropout > 0:
@@ -297,7 +337,7 @@ class TactileInception(nn.Module):
             if name == "Mixed_6e":
                 aux = self.AuxLogits(x)
         x = torch.flatten(self.avgpool(x), 1)
-        return self.fc(self.dropout(x)), aux
+        return (self._members(x) if self.heads > 1 else self.fc(self.dropout(x))), aux
 
 
 # --------------------------------------------------------------------------------------------
@@ -402,7 +442,8 @@ def load_weights(model: TactileInception, state: dict[str, torch.Tensor],
 
 def build_model(name: str, num_classes: int, dropout: float = 0.5, block_dropout: float = 0.0,
                 aux_logits: bool = False, weights: str | Path | None = None,
-                strict_weights: bool = True) -> tuple[TactileInception, LoadReport | None]:
+                strict_weights: bool = True,
+                heads: int = 1) -> tuple[TactileInception, LoadReport | None]:
     """Build a model variant by name; optionally load a torchvision-format checkpoint.
 
     ``inception_v3`` with ``weights`` uses torchvision's ``transform_input`` convention.
@@ -416,7 +457,7 @@ def build_model(name: str, num_classes: int, dropout: float = 0.5, block_dropout
     model = TactileInception(num_classes, small=(name == "small_inception"), dropout=dropout,
                              block_dropout=block_dropout,
                              aux_logits=aux_logits and name != "small_inception",
-                             transform_input=weights is not None)
+                             transform_input=weights is not None, heads=heads)
     report = None
     if weights is not None:
         report = load_weights(model, read_checkpoint(weights))

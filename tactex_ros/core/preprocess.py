@@ -4,6 +4,10 @@ A GelSight frame is uint8 RGB (240, 320, 3). Every view the model sees is the ce
 stays inside the frame under *any* rotation: side = frame height / sqrt(2) (169.7 px of 240), so a
 rotated view never contains the black corners that rotating the whole frame would create. The
 rotation, the crop and the resize to the model input (``size`` x ``size``) are one affine warp.
+
+With ``native`` (``LearnerConfig.sensor_crops``) a view is instead a ``size`` x ``size`` crop at
+sensor resolution (no down-scaling) at a random position where it fits under any rotation
+(the unrotated view: the frame centre).
 """
 
 from __future__ import annotations
@@ -43,13 +47,21 @@ def safe_crop_side(h: int = FRAME_H, w: int = FRAME_W) -> float:
     return min(h, w) / math.sqrt(2.0)
 
 
-def view(img: np.ndarray, angle_deg: float, size: int) -> np.ndarray:
-    """One rotated, cropped, resized view: (240, 320, 3) uint8 -> (size, size, 3) uint8."""
+def view(img: np.ndarray, angle_deg: float, size: int, native: bool = False,
+         centre: tuple[float, float] | None = None) -> np.ndarray:
+    """One rotated, cropped, resized view: (240, 320, 3) uint8 -> (size, size, 3) uint8.
+
+    ``native``: no resize (a ``size`` px crop at sensor resolution) centred at ``centre``
+    (x, y) [px] (default: the frame centre)."""
     h, w = img.shape[:2]
-    side = safe_crop_side(h, w)
-    scale = size / side
+    if native and size > safe_crop_side(h, w):
+        raise TactexError(f"a {size} px crop at sensor resolution does not fit a {w}x{h} frame "
+                          f"under rotation (at most {int(safe_crop_side(h, w))} px)")
+    scale = 1.0 if native else size / safe_crop_side(h, w)
     # Map the output square's centre to the frame centre (pixel-centre convention), rotated.
     cx, cy, co = (w - 1) / 2.0, (h - 1) / 2.0, (size - 1) / 2.0
+    if centre is not None:
+        cx, cy = centre
     m = cv2.getRotationMatrix2D((cx, cy), angle_deg, scale)
     m[0, 2] += co - cx
     m[1, 2] += co - cy
@@ -58,15 +70,26 @@ def view(img: np.ndarray, angle_deg: float, size: int) -> np.ndarray:
 
 
 def augment(img: np.ndarray, n: int, size: int, rng: np.random.Generator,
-            include_identity: bool = False) -> np.ndarray:
+            include_identity: bool = False, native: bool = False) -> np.ndarray:
     """``n`` views at uniformly random angles in [0, 360): (n, size, size, 3) uint8.
 
-    With ``include_identity`` the first view is unrotated (angle 0).
+    With ``include_identity`` the first view is unrotated (angle 0; ``native``: at the centre).
+    ``native``: ``size`` px crops at sensor resolution, centres uniform over the positions where
+    the rotated crop stays inside the frame.
     """
     angles = rng.uniform(0.0, 360.0, size=n)
     if include_identity and n > 0:
         angles[0] = 0.0
-    return np.stack([view(img, float(a), size) for a in angles])
+    if not native:
+        return np.stack([view(img, float(a), size) for a in angles])
+    h, w = img.shape[:2]
+    r = size / math.sqrt(2.0)                # the rotated crop's half diagonal
+    xs = rng.uniform(r, max(r, w - 1 - r), size=n)
+    ys = rng.uniform(r, max(r, h - 1 - r), size=n)
+    if include_identity and n > 0:
+        xs[0], ys[0] = (w - 1) / 2.0, (h - 1) / 2.0
+    return np.stack([view(img, float(a), size, True, (float(x), float(y)))
+                     for a, x, y in zip(angles, xs, ys)])
 
 
 def to_tensor(views: np.ndarray, fourier: bool = False) -> torch.Tensor:

@@ -26,6 +26,12 @@ scenes. The figure to trust pools the report scenes of all folds: classes never 
 choosing. Each setting is also reported at its own chosen theta, with exact McNemar tests paired
 with the chosen setting on the same report scenes.
 
+``--report-only`` skips the choose scenes (no choosing): every setting is measured on the same
+report scenes of every fold at every theta of ``--thresholds`` (for settings too slow to run
+twice, e.g. the CNN's uncertainty variants). ``--paired-against A B`` adds exact McNemar tests
+(correct per scene, at fixed budgets and at every theta) and Wilcoxon tests (touches until the
+stop) of every setting against each of A, B on the pooled report scenes (``paired``).
+
 Output folder: ``config.json``, ``runs.json`` (per scene and setting: classes, the belief curve),
 ``summary.json``, ``accuracy_vs_touches.png``, ``pareto.png`` (accuracy at the stop against
 touches, every setting x threshold).
@@ -130,7 +136,9 @@ def score_pairs(curves: dict[str, list[dict]], thresholds: list[float]) -> list[
         for th in thresholds:
             st = [at_stop(c, th) for c in cs]
             acc = float(np.mean([s[0] for s in st]))
+            s = sum(x[0] for x in st)
             rows.append({"setting": label, "theta": th, "accuracy": acc,
+                         "ci95": list(wilson(s, len(st))),
                          "touches": float(np.mean([s[1] for s in st])),
                          "wrong_stop": float(np.mean([s[2] and not s[0] for s in st])),
                          "n": len(st)})
@@ -180,6 +188,25 @@ def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
                          backend_of(args), args.threads, args.quiet)
 
 
+def calibration(cs: list[dict], bins: int = 10) -> dict:
+    """How far the belief's top probability is from being right, over every decision of the
+    curves ``cs``: expected calibration error (``bins`` equal-width bins of the confidence in
+    [0, 1], weighted by decisions), mean confidence, accuracy, and the accuracy of decisions
+    with confidence >= 0.9 (``right_at_0.9``, None without such decisions)."""
+    conf = np.array([x for c in cs for x in c["conf"]], dtype=np.float64)
+    ok = np.array([x for c in cs for x in c["correct"]], dtype=np.float64)
+    if conf.size == 0:
+        return {"decisions": 0}
+    idx = np.minimum((conf * bins).astype(int), bins - 1)
+    ece = sum(abs(conf[idx == b].mean() - ok[idx == b].mean()) * np.sum(idx == b)
+              for b in range(bins) if np.any(idx == b)) / conf.size
+    hi = conf >= 0.9
+    return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
+            "accuracy": float(ok.mean()),
+            "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
+            "share_at_0.9": float(hi.mean())}
+
+
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
     """Per setting: accuracy after k touches with intervals, decision time, believed share."""
     out = {}
@@ -196,7 +223,8 @@ def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
                       "decision_s_median": statistics.median(dec) if dec else None,
                       "believed_share": (sum(c["believed"] for c in cs) / touched
                                          if touched else None),
-                      "errors": sum(1 for c in cs if c["error"])}
+                      "errors": sum(1 for c in cs if c["error"]),
+                      "calibration": calibration(cs)}
     return out
 
 
@@ -219,6 +247,29 @@ def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
     return out
 
 
+def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
+                         thresholds: list[float]) -> dict:
+    """Every setting against ``reference`` under each stop threshold, on the same scenes:
+    {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),
+    "touches_p" (Wilcoxon on touches after the baseline)}}}."""
+    out = {}
+    base = curves[reference]
+    for lab, cs in curves.items():
+        if lab == reference:
+            continue
+        row = {}
+        for th in thresholds:
+            a = [at_stop(c, th) for c in base]
+            b = [at_stop(c, th) for c in cs]
+            row[str(th)] = {"reference": float(np.mean([x[0] for x in a])),
+                            "setting": float(np.mean([x[0] for x in b])),
+                            "p": mcnemar_exact([x[0] for x in a], [x[0] for x in b])["p"],
+                            "touches_p": wilcoxon_paired([x[1] for x in a],
+                                                         [x[1] for x in b])["p"]}
+        out[lab] = row
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
     from ..sources import open_source
     settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
@@ -230,10 +281,15 @@ def run(args: argparse.Namespace) -> dict:
     thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
     out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
     folds = class_folds(classes, args.folds, args.seed)
+    report_only = bool(getattr(args, "report_only", False))
+    against = list(getattr(args, "paired_against", None) or [labels[0]])
+    unknown = [a for a in against if a not in labels]
+    if unknown:
+        raise TactexError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
     report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
     fold_info = []
     for k, fold in enumerate(folds):
-        if args.folds >= 2:
+        if args.folds >= 2 and not report_only:
             rest = sorted(set(classes) - set(fold))
             choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
                                              args.seed + 1000 * (k + 1)),
@@ -258,8 +314,14 @@ def run(args: argparse.Namespace) -> dict:
                "report_rows": score_pairs(report_curves, thresholds),
                "paired_at_budgets": paired_at_budgets(report_curves, labels[0],
                                                       tuple(k for k in (0, 1, 3, 5, 10)
-                                                            if k <= args.budget))}
-    if args.folds >= 2:
+                                                            if k <= args.budget)),
+               "paired": {ref: {"budgets": paired_at_budgets(
+                                    report_curves, ref, tuple(k for k in (0, 1, 3, 5, 10)
+                                                              if k <= args.budget)),
+                                "thresholds": paired_at_thresholds(report_curves, ref,
+                                                                   thresholds)}
+                          for ref in against}}
+    if args.folds >= 2 and not report_only:
         summary["held_out"] = _pool_chosen(fold_info, labels)
     write_json(out / "runs.json", report_curves)
     write_json(out / "summary.json", summary)
@@ -332,6 +394,15 @@ def _print(summary: dict, labels: list[str], args) -> None:
             print(f"    {lab:>14} at its theta: {s['accuracy']:.3f} "
                   f"[{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] touches {s['touches_mean']:.2f}"
                   f"  McNemar vs chosen p={s['mcnemar_vs_chosen']['p']:.3g}")
+    if getattr(args, "report_only", False):
+        for r in summary["report_rows"]:
+            print(f"    {r['setting']:>14} at theta {r['theta']:g}: {r['accuracy']:.3f} "
+                  f"[{r['ci95'][0]:.3f}, {r['ci95'][1]:.3f}] touches {r['touches']:.2f} "
+                  f"wrong stops {r['wrong_stop']:.3f}")
+    for ref, pr in summary["paired"].items():
+        for lab, row in pr["thresholds"].items():
+            print(f"    {lab:>14} vs {ref}: McNemar p at theta " +
+                  "  ".join(f"{th}: {v['p']:.3g}" for th, v in row.items()))
 
 
 def register(esub: argparse._SubParsersAction) -> None:
@@ -349,6 +420,12 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--target-touches", type=float, default=5.0,
                    help="choose the most accurate (setting, theta) with at most this many "
                         "touches after the baseline on average")
+    p.add_argument("--report-only", action="store_true",
+                   help="no choose scenes: measure every setting on the report scenes of each "
+                        "fold at every threshold (no choosing)")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL",
+                   help="paired tests of every setting against these settings (default: the "
+                        "first --setting)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
     add_runner_args(p)
