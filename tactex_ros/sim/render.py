@@ -81,13 +81,14 @@ class GelSightRenderer:
         self._background = np.clip(bg, 0, 255).astype(np.float32)
         k = s.shade_step
         self._hs, self._ws = FRAME_H // k, FRAME_W // k
-        feats = c.features.reshape(FRAME_H, FRAME_W, 6)[k // 2::k, k // 2::k]
-        flat = c.flat.reshape(FRAME_H, FRAME_W, 3)[k // 2::k, k // 2::k]
-        self._feats = np.ascontiguousarray(feats.reshape(-1, 6).T)          # (6, N)
-        self._flat = np.ascontiguousarray(flat.reshape(-1, 3).T)            # (3, N)
-        # one row per (channel, coefficient): (18, bins), gathered per pixel
-        self._table = np.ascontiguousarray(c.table.reshape(-1, 18).T)
-        self._buf = np.empty(self._hs * self._ws, np.float32)
+        feats = c.features.reshape(FRAME_H, FRAME_W, 6)[k // 2::k, k // 2::k].reshape(-1, 6)
+        # One row of 18 coefficients per bin (channel-major: channel * 6 + coefficient), less
+        # the flat gel's (slope bin 0, the same for every direction): a pixel's change against
+        # the flat gel is then the dot product of its bin's row with its features, gathered in
+        # one row lookup per pixel; the flat gel gives exactly 0.
+        table = c.table - c.table[:1, :, :]
+        self._table = np.ascontiguousarray(table.reshape(-1, 18), np.float32)   # (bins, 18)
+        self._feats = np.ascontiguousarray(np.tile(feats, (1, 3)), np.float32)  # (N, 18)
         self._ones = np.ones((self._hs, self._ws), np.float32)
         self._mag_scale = np.float32((c.num_bins - 1) / (0.5 * np.pi))
         self._dir_scale = np.float32((c.num_bins - 1) / (2 * np.pi))
@@ -173,15 +174,13 @@ class GelSightRenderer:
         bm = np.minimum(slope * self._mag_scale, nb - 1).astype(np.int32)
         bd = np.minimum(ang * self._dir_scale, nb - 1).astype(np.int32)
         idx = (bm * nb + bd).ravel()
-        out = -self._flat                      # (3, N): sum_k coef_k(bin) * feature_k(pixel)
-        buf, f = self._buf, self._feats
-        for ch in range(3):
-            o = out[ch]
-            for j in range(6):
-                np.multiply(self._table[ch * 6 + j].take(idx), f[j], out=buf)
-                o += buf
-        out = cv2.merge([out[0].reshape(self._hs, self._ws), out[1].reshape(self._hs, self._ws),
-                         out[2].reshape(self._hs, self._ws)])
+        terms = self._table.take(idx, axis=0)              # (N, 18) coefficients per pixel
+        terms *= self._feats                               # x features
+        t = terms.reshape(-1, 3, 6)
+        out = t[:, :, 0] + t[:, :, 1]                      # (N, 3): sum over the 6 terms
+        for j in range(2, 6):
+            out += t[:, :, j]
+        out = out.reshape(self._hs, self._ws, 3)
         if k > 1:
             out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)
         return out

@@ -9,7 +9,8 @@ import pytest
 
 from tactex_ros.core.errors import TactexError
 from tactex_ros.sim.calibration import calibration_dir, load_calibration
-from tactex_ros.sim.render import GelSightRenderer, SensorModel
+from tactex_ros.sim.render import MM_PER_PX, GelSightRenderer, SensorModel
+from tactex_ros.sim.fabrics import height_tile
 from tactex_ros.sources import open_source
 
 
@@ -115,3 +116,41 @@ def test_soft_fabrics_press_faint_rigid_weaves_sharp(src):
     # measured: fleeces 1.7 grey levels, canvas/hopsack/rib 3.5 (real: soft objects 1.86,
     # firm textured ones 3.42 on average)
     assert soft < 2.0 and rigid > 1.6 * soft, (soft, rigid)
+
+
+def reference_shading(r: GelSightRenderer, indent: np.ndarray) -> np.ndarray:
+    """The calibrated shading written plainly (the renderer before its lookup was
+    restructured for speed): slope bins from the Sobel gradient, then per pixel and channel
+    the bin's quadratic in the pixel position minus the flat gel's, evaluated in float64."""
+    cal, nb = r.calib, r.calib.num_bins
+    neg = -1.0 / (8.0 * r.sensor.mm_per_px)
+    gx = cv2.Sobel(indent, cv2.CV_32F, 1, 0, ksize=3, scale=neg)
+    gy = cv2.Sobel(indent, cv2.CV_32F, 0, 1, ksize=3, scale=neg)
+    mag, ang = cv2.cartToPolar(gx, gy)
+    slope = cv2.phase(np.ones_like(mag), mag)
+    bm = np.minimum(slope * np.float32((nb - 1) / (0.5 * np.pi)), nb - 1).astype(np.int32)
+    bd = np.minimum(ang * np.float32((nb - 1) / (2 * np.pi)), nb - 1).astype(np.int32)
+    coef = cal.table[(bm * nb + bd).ravel()].astype(np.float64)            # (N, 3, 6)
+    out = np.einsum("ncj,nj->nc", coef, cal.features.astype(np.float64)) - cal.flat
+    return out.reshape(indent.shape + (3,))
+
+
+def test_fast_lookup_equals_the_plain_formula_up_to_float_rounding(src, monkeypatch):
+    """The renderer's restructured lookup (one row gather per pixel, flat gel folded into
+    the table) gives the frames of the plain formula: intensity changes within 2e-3 grey
+    levels, uint8 frames equal except for rare rounding ties (+-1)."""
+    r = src.renderer
+    rng = np.random.default_rng(7)
+    for name in src.classes[::2]:
+        fab = src.fabric(name)
+        h = r.lie(r.window(height_tile(fab, 420, MM_PER_PX, 11), rng), rng)
+        ind = r.indentation(h, float(rng.uniform(0.25, 0.6)), fab.softness)
+        fast, plain = r.shading(ind), reference_shading(r, ind)
+        assert np.abs(plain).max() > 5.0, name           # a real contact, not a flat gel
+        np.testing.assert_allclose(fast, plain, atol=2e-3, err_msg=name)
+    frames = [src.press(n, np.random.default_rng([3, i])) for i, n in enumerate(src.classes)]
+    monkeypatch.setattr(r, "shading", lambda ind: reference_shading(r, ind).astype(np.float32))
+    ref = [src.press(n, np.random.default_rng([3, i])) for i, n in enumerate(src.classes)]
+    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
+    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
+    assert diff.max() <= 1 and share < 1e-4, (diff, share)
