@@ -5,7 +5,8 @@ Model (per touch):
 1. Cut a 320x240 window out of the fabric's cached height tile at a random position and
    in-plane rotation (one affine warp) -> heights H [mm] at 0.0634 mm/px.
 2. Lie and press: the fabric undulates on its platform (a smooth random field) and the sensor
-   meets it slightly tilted; loose fibres and rare peaks are squashed (H clipped at its ``crush_percentile``, top
+   meets it slightly tilted; the cloth buckles at the millimetre scale (puckers: a finer smooth
+   random field, ``pucker_mm``, pressed flat on soft fabrics); loose fibres and rare peaks are squashed (H clipped at its ``crush_percentile``, top
    T); a soft fabric's relief is compressed by the press (scaled by
    1 - softness * min(1, depth / ``soft_depth_mm``)). At press depth d the gel's indentation is
    D = max(0, min(H, T) - (T - d)).
@@ -60,8 +61,15 @@ class SensorModel:
     depth_mm: tuple[float, float] = (0.25, 0.6)   # uniform press depth range [mm]
     crush_percentile: float = 97.0       # heights above this percentile are pressed flat
     tilt_deg: float = 1.0                # sensor tilt against the fabric per press (std) [deg]
-    drape_mm: float = 0.3                # fabric undulation on the platform (std) [mm]
+    drape_mm: float = 0.25               # fabric undulation on the platform (std) [mm]
     drape_len_mm: float = 3.0            # its correlation length [mm]
+    # The cloth's millimetre-scale relief that the yarn model lacks: the sheet buckles between
+    # yarn crossings (puckers, cockles) and yarns vary in thickness along their length. A
+    # smooth random field (std for a rigid fabric, Gaussian correlation length); a soft
+    # fabric's is pressed flat: scaled by (1 - softness). It moves contact-difference power
+    # from the largest scales to periods of 0.6-3 mm (README, "Simulator vs real frames").
+    pucker_mm: float = 0.025             # std for a rigid fabric [mm]
+    pucker_len_mm: float = 0.25          # correlation length (Gaussian sigma) [mm]
     soft_depth_mm: float = 0.3           # depth at which a soft fabric is fully compressed
     compression: float = 0.3             # share of every fabric's relief a full press flattens
     shade_step: int = 1                  # table evaluated on every shade_step-th pixel
@@ -100,6 +108,9 @@ class GelSightRenderer:
         drape = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2)).astype(np.float32)
         drape = cv2.GaussianBlur(drape, (0, 0), s.drape_len_mm / s.mm_per_px)
         self._drape = drape / drape.std()
+        pucker = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2)).astype(np.float32)
+        pucker = cv2.GaussianBlur(pucker, (0, 0), s.pucker_len_mm / s.mm_per_px)
+        self._pucker = pucker / pucker.std()
         yy, xx = np.mgrid[0:FRAME_H, 0:FRAME_W].astype(np.float32)
         self._xmm = (xx - (FRAME_W - 1) / 2) * np.float32(s.mm_per_px)
         self._ymm = (yy - (FRAME_H - 1) / 2) * np.float32(s.mm_per_px)
@@ -124,15 +135,21 @@ class GelSightRenderer:
         return cv2.warpAffine(tile, m, (FRAME_W, FRAME_H), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REFLECT)
 
-    def lie(self, heights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def lie(self, heights: np.ndarray, rng: np.random.Generator, softness: float = 0.0
+            ) -> np.ndarray:
         """How the fabric lies under this press: + undulation (a window of a smooth random
-        field, ``drape_mm``) + the sensor's tilt (``tilt_deg``). (240, 320) [mm]."""
+        field, ``drape_mm``) + the sensor's tilt (``tilt_deg``) + the cloth's millimetre-scale
+        puckers (``pucker_mm`` x (1 - ``softness``)). (240, 320) [mm]."""
         s = self.sensor
         oy, ox = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
         tx, ty = np.tan(np.deg2rad(rng.normal(0, s.tilt_deg, 2))).astype(np.float32)
         out = heights + self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.drape_mm)
         out += self._xmm * tx
         out += self._ymm * ty
+        pucker = s.pucker_mm * (1.0 - float(np.clip(softness, 0.0, 1.0)))
+        if pucker > 0:
+            py, px = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
+            out += self._pucker[py:py + FRAME_H, px:px + FRAME_W] * np.float32(pucker)
         return out
 
     def indentation(self, heights: np.ndarray, depth_mm: float, softness: float = 0.0
@@ -191,7 +208,8 @@ class GelSightRenderer:
 
         ``softness`` in [0, 1]: share of the fabric's relief the press flattens."""
         s = self.sensor
-        delta = self.shading(self.indentation(self.lie(heights, rng), depth_mm, softness))
+        delta = self.shading(self.indentation(self.lie(heights, rng, softness), depth_mm,
+                                              softness))
         gains = s.shading_gain * (1.0 + s.drift * rng.standard_normal(3))
         img = cv2.multiply(delta, (*gains.tolist(), 0.0))
         cv2.add(img, self._background, dst=img)
