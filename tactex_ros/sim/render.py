@@ -143,13 +143,14 @@ class GelSightRenderer:
         s = self.sensor
         oy, ox = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
         tx, ty = np.tan(np.deg2rad(rng.normal(0, s.tilt_deg, 2))).astype(np.float32)
-        out = heights + self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.drape_mm)
-        out += self._xmm * tx
-        out += self._ymm * ty
+        # each term in one pass (cv2.scaleAdd: a * x + y)
+        out = cv2.scaleAdd(self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W], s.drape_mm, heights)
+        cv2.scaleAdd(self._xmm, float(tx), out, dst=out)
+        cv2.scaleAdd(self._ymm, float(ty), out, dst=out)
         pucker = s.pucker_mm * (1.0 - float(np.clip(softness, 0.0, 1.0)))
         if pucker > 0:
             py, px = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
-            out += self._pucker[py:py + FRAME_H, px:px + FRAME_W] * np.float32(pucker)
+            cv2.scaleAdd(self._pucker[py:py + FRAME_H, px:px + FRAME_W], pucker, out, dst=out)
         return out
 
     def indentation(self, heights: np.ndarray, depth_mm: float, softness: float = 0.0
@@ -157,20 +158,23 @@ class GelSightRenderer:
         """(240, 320) heights [mm] pressed to ``depth_mm`` -> gel indentation [mm] on the
         shading grid, (240 / shade_step, 320 / shade_step)."""
         s, k = self.sensor, self.sensor.shade_step
-        top = np.float32(np.percentile(heights[::4, ::4], s.crush_percentile))
-        h = np.minimum(heights, top)
+        top = float(np.percentile(heights[::4, ::4], s.crush_percentile))
+        h = heights
         if k > 1:
-            h = cv2.resize(h, (self._ws, self._hs), interpolation=cv2.INTER_AREA)
+            h = cv2.resize(np.minimum(h, np.float32(top)), (self._ws, self._hs),
+                           interpolation=cv2.INTER_AREA)
         px = s.mm_per_px * k
         soft = 1.0 - (1.0 - float(np.clip(softness, 0.0, 1.0))) * (1.0 - s.compression)
+        # a soft fabric's relief is compressed around its top: T - (T - min(H, T)) * squeeze
         squeeze = 1.0 - soft * min(1.0, depth_mm / s.soft_depth_mm)
-        if squeeze < 1.0:          # a soft fabric's relief is compressed around its top
-            h = top - (top - h) * np.float32(squeeze)
-        d = h - np.float32(top - depth_mm)
-        np.maximum(d, 0, out=d)
+        # D = max(0, that - (T - d)) = clip(H * squeeze + d - T * squeeze, 0, d), one pass
+        # for the affine map (cv2.addWeighted with a zero second term) and one for the clip
+        d = cv2.addWeighted(h, squeeze, h, 0.0, depth_mm - top * squeeze)
+        np.clip(d, 0.0, np.float32(depth_mm), out=d)
         if s.elastic_fill > 0:
             bridge = cv2.GaussianBlur(d, (0, 0), s.elastic_sigma_mm / px)
-            np.maximum(d, bridge * np.float32(s.elastic_fill), out=d)
+            bridge *= np.float32(s.elastic_fill)
+            np.maximum(d, bridge, out=d)
         return cv2.GaussianBlur(d, (0, 0), max(0.3, s.gel_sigma_mm / px))
 
     def shading(self, indent: np.ndarray) -> np.ndarray:
@@ -193,10 +197,10 @@ class GelSightRenderer:
         idx = (bm * nb + bd).ravel()
         terms = self._table.take(idx, axis=0)              # (N, 18) coefficients per pixel
         terms *= self._feats                               # x features
-        t = terms.reshape(-1, 3, 6)
-        out = t[:, :, 0] + t[:, :, 1]                      # (N, 3): sum over the 6 terms
+        t = terms.reshape(-1, 6)                           # (N * 3, 6): pixel, channel
+        out = t[:, 0] + t[:, 1]                            # sum over the 6 terms
         for j in range(2, 6):
-            out += t[:, :, j]
+            out += t[:, j]
         out = out.reshape(self._hs, self._ws, 3)
         if k > 1:
             out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)

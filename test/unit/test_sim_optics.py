@@ -163,3 +163,34 @@ def test_fast_lookup_equals_the_plain_formula_up_to_float_rounding(src, monkeypa
     diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
     share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
     assert diff.max() <= 1 and share < 1e-4, (diff, share)
+
+
+def reference_indentation(r: GelSightRenderer, heights: np.ndarray, depth_mm: float,
+                          softness: float) -> np.ndarray:
+    """The press written plainly (the renderer before its passes were fused): crush at the
+    percentile, compress around the top, indent, bridge, smooth; float64."""
+    s, k = r.sensor, r.sensor.shade_step
+    top = float(np.percentile(heights[::4, ::4], s.crush_percentile))
+    h = np.minimum(heights, np.float32(top))
+    if k > 1:
+        h = cv2.resize(h, (320 // k, 240 // k), interpolation=cv2.INTER_AREA)
+    h = h.astype(np.float64)
+    soft = 1.0 - (1.0 - softness) * (1.0 - s.compression)
+    h = top - (top - h) * (1.0 - soft * min(1.0, depth_mm / s.soft_depth_mm))
+    d = np.maximum(h - (top - depth_mm), 0.0).astype(np.float32)
+    px = s.mm_per_px * k
+    bridge = cv2.GaussianBlur(d, (0, 0), s.elastic_sigma_mm / px)
+    d = np.maximum(d, bridge * np.float32(s.elastic_fill))
+    return cv2.GaussianBlur(d, (0, 0), max(0.3, s.gel_sigma_mm / px))
+
+
+@pytest.mark.parametrize("step", [1, 2])
+def test_fused_press_equals_the_plain_formula(step):
+    r = GelSightRenderer(SensorModel(shade_step=step))
+    fab = open_source("sim").fabric("rib_2x2")
+    rng = np.random.default_rng(5)
+    h = r.lie(r.window(height_tile(fab, 420, MM_PER_PX, 3), rng), rng, fab.softness)
+    for softness, depth in ((0.0, 0.3), (0.5, 0.45), (1.0, 0.6)):
+        fast, plain = r.indentation(h, depth, softness), reference_indentation(r, h, depth, softness)
+        assert plain.max() > 0.05                       # a real press
+        np.testing.assert_allclose(fast, plain, atol=1e-6)
