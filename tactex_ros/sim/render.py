@@ -5,7 +5,8 @@ Model (per touch):
 1. Cut a 320x240 window out of the fabric's cached height tile at a random position and
    in-plane rotation (one affine warp) -> heights H [mm] at 0.0634 mm/px.
 2. Lie and press: the fabric undulates on its platform (a smooth random field) and the sensor
-   meets it slightly tilted; loose fibres and rare peaks are squashed (H clipped at its ``crush_percentile``, top
+   meets it slightly tilted; the cloth buckles at the millimetre scale (puckers: a finer smooth
+   random field, ``pucker_mm``, pressed flat on soft fabrics); loose fibres and rare peaks are squashed (H clipped at its ``crush_percentile``, top
    T); a soft fabric's relief is compressed by the press (scaled by
    1 - softness * min(1, depth / ``soft_depth_mm``)). At press depth d the gel's indentation is
    D = max(0, min(H, T) - (T - d)).
@@ -60,8 +61,15 @@ class SensorModel:
     depth_mm: tuple[float, float] = (0.25, 0.6)   # uniform press depth range [mm]
     crush_percentile: float = 97.0       # heights above this percentile are pressed flat
     tilt_deg: float = 1.0                # sensor tilt against the fabric per press (std) [deg]
-    drape_mm: float = 0.3                # fabric undulation on the platform (std) [mm]
+    drape_mm: float = 0.25               # fabric undulation on the platform (std) [mm]
     drape_len_mm: float = 3.0            # its correlation length [mm]
+    # The cloth's millimetre-scale relief that the yarn model lacks: the sheet buckles between
+    # yarn crossings (puckers, cockles) and yarns vary in thickness along their length. A
+    # smooth random field (std for a rigid fabric, Gaussian correlation length); a soft
+    # fabric's is pressed flat: scaled by (1 - softness). It moves contact-difference power
+    # from the largest scales to periods of 0.6-3 mm (README, "Simulator vs real frames").
+    pucker_mm: float = 0.025             # std for a rigid fabric [mm]
+    pucker_len_mm: float = 0.25          # correlation length (Gaussian sigma) [mm]
     soft_depth_mm: float = 0.3           # depth at which a soft fabric is fully compressed
     compression: float = 0.3             # share of every fabric's relief a full press flattens
     shade_step: int = 1                  # table evaluated on every shade_step-th pixel
@@ -81,13 +89,14 @@ class GelSightRenderer:
         self._background = np.clip(bg, 0, 255).astype(np.float32)
         k = s.shade_step
         self._hs, self._ws = FRAME_H // k, FRAME_W // k
-        feats = c.features.reshape(FRAME_H, FRAME_W, 6)[k // 2::k, k // 2::k]
-        flat = c.flat.reshape(FRAME_H, FRAME_W, 3)[k // 2::k, k // 2::k]
-        self._feats = np.ascontiguousarray(feats.reshape(-1, 6).T)          # (6, N)
-        self._flat = np.ascontiguousarray(flat.reshape(-1, 3).T)            # (3, N)
-        # one row per (channel, coefficient): (18, bins), gathered per pixel
-        self._table = np.ascontiguousarray(c.table.reshape(-1, 18).T)
-        self._buf = np.empty(self._hs * self._ws, np.float32)
+        feats = c.features.reshape(FRAME_H, FRAME_W, 6)[k // 2::k, k // 2::k].reshape(-1, 6)
+        # One row of 18 coefficients per bin (channel-major: channel * 6 + coefficient), less
+        # the flat gel's (slope bin 0, the same for every direction): a pixel's change against
+        # the flat gel is then the dot product of its bin's row with its features, gathered in
+        # one row lookup per pixel; the flat gel gives exactly 0.
+        table = c.table - c.table[:1, :, :]
+        self._table = np.ascontiguousarray(table.reshape(-1, 18), np.float32)   # (bins, 18)
+        self._feats = np.ascontiguousarray(np.tile(feats, (1, 3)), np.float32)  # (N, 18)
         self._ones = np.ones((self._hs, self._ws), np.float32)
         self._mag_scale = np.float32((c.num_bins - 1) / (0.5 * np.pi))
         self._dir_scale = np.float32((c.num_bins - 1) / (2 * np.pi))
@@ -99,6 +108,9 @@ class GelSightRenderer:
         drape = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2)).astype(np.float32)
         drape = cv2.GaussianBlur(drape, (0, 0), s.drape_len_mm / s.mm_per_px)
         self._drape = drape / drape.std()
+        pucker = rng.normal(0, 1, (FRAME_H * 2, FRAME_W * 2)).astype(np.float32)
+        pucker = cv2.GaussianBlur(pucker, (0, 0), s.pucker_len_mm / s.mm_per_px)
+        self._pucker = pucker / pucker.std()
         yy, xx = np.mgrid[0:FRAME_H, 0:FRAME_W].astype(np.float32)
         self._xmm = (xx - (FRAME_W - 1) / 2) * np.float32(s.mm_per_px)
         self._ymm = (yy - (FRAME_H - 1) / 2) * np.float32(s.mm_per_px)
@@ -123,15 +135,22 @@ class GelSightRenderer:
         return cv2.warpAffine(tile, m, (FRAME_W, FRAME_H), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REFLECT)
 
-    def lie(self, heights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def lie(self, heights: np.ndarray, rng: np.random.Generator, softness: float = 0.0
+            ) -> np.ndarray:
         """How the fabric lies under this press: + undulation (a window of a smooth random
-        field, ``drape_mm``) + the sensor's tilt (``tilt_deg``). (240, 320) [mm]."""
+        field, ``drape_mm``) + the sensor's tilt (``tilt_deg``) + the cloth's millimetre-scale
+        puckers (``pucker_mm`` x (1 - ``softness``)). (240, 320) [mm]."""
         s = self.sensor
         oy, ox = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
         tx, ty = np.tan(np.deg2rad(rng.normal(0, s.tilt_deg, 2))).astype(np.float32)
-        out = heights + self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W] * np.float32(s.drape_mm)
-        out += self._xmm * tx
-        out += self._ymm * ty
+        # each term in one pass (cv2.scaleAdd: a * x + y)
+        out = cv2.scaleAdd(self._drape[oy:oy + FRAME_H, ox:ox + FRAME_W], s.drape_mm, heights)
+        cv2.scaleAdd(self._xmm, float(tx), out, dst=out)
+        cv2.scaleAdd(self._ymm, float(ty), out, dst=out)
+        pucker = s.pucker_mm * (1.0 - float(np.clip(softness, 0.0, 1.0)))
+        if pucker > 0:
+            py, px = rng.integers(0, FRAME_H), rng.integers(0, FRAME_W)
+            cv2.scaleAdd(self._pucker[py:py + FRAME_H, px:px + FRAME_W], pucker, out, dst=out)
         return out
 
     def indentation(self, heights: np.ndarray, depth_mm: float, softness: float = 0.0
@@ -139,20 +158,23 @@ class GelSightRenderer:
         """(240, 320) heights [mm] pressed to ``depth_mm`` -> gel indentation [mm] on the
         shading grid, (240 / shade_step, 320 / shade_step)."""
         s, k = self.sensor, self.sensor.shade_step
-        top = np.float32(np.percentile(heights[::4, ::4], s.crush_percentile))
-        h = np.minimum(heights, top)
+        top = float(np.percentile(heights[::4, ::4], s.crush_percentile))
+        h = heights
         if k > 1:
-            h = cv2.resize(h, (self._ws, self._hs), interpolation=cv2.INTER_AREA)
+            h = cv2.resize(np.minimum(h, np.float32(top)), (self._ws, self._hs),
+                           interpolation=cv2.INTER_AREA)
         px = s.mm_per_px * k
         soft = 1.0 - (1.0 - float(np.clip(softness, 0.0, 1.0))) * (1.0 - s.compression)
+        # a soft fabric's relief is compressed around its top: T - (T - min(H, T)) * squeeze
         squeeze = 1.0 - soft * min(1.0, depth_mm / s.soft_depth_mm)
-        if squeeze < 1.0:          # a soft fabric's relief is compressed around its top
-            h = top - (top - h) * np.float32(squeeze)
-        d = h - np.float32(top - depth_mm)
-        np.maximum(d, 0, out=d)
+        # D = max(0, that - (T - d)) = clip(H * squeeze + d - T * squeeze, 0, d), one pass
+        # for the affine map (cv2.addWeighted with a zero second term) and one for the clip
+        d = cv2.addWeighted(h, squeeze, h, 0.0, depth_mm - top * squeeze)
+        np.clip(d, 0.0, np.float32(depth_mm), out=d)
         if s.elastic_fill > 0:
             bridge = cv2.GaussianBlur(d, (0, 0), s.elastic_sigma_mm / px)
-            np.maximum(d, bridge * np.float32(s.elastic_fill), out=d)
+            bridge *= np.float32(s.elastic_fill)
+            np.maximum(d, bridge, out=d)
         return cv2.GaussianBlur(d, (0, 0), max(0.3, s.gel_sigma_mm / px))
 
     def shading(self, indent: np.ndarray) -> np.ndarray:
@@ -173,15 +195,13 @@ class GelSightRenderer:
         bm = np.minimum(slope * self._mag_scale, nb - 1).astype(np.int32)
         bd = np.minimum(ang * self._dir_scale, nb - 1).astype(np.int32)
         idx = (bm * nb + bd).ravel()
-        out = -self._flat                      # (3, N): sum_k coef_k(bin) * feature_k(pixel)
-        buf, f = self._buf, self._feats
-        for ch in range(3):
-            o = out[ch]
-            for j in range(6):
-                np.multiply(self._table[ch * 6 + j].take(idx), f[j], out=buf)
-                o += buf
-        out = cv2.merge([out[0].reshape(self._hs, self._ws), out[1].reshape(self._hs, self._ws),
-                         out[2].reshape(self._hs, self._ws)])
+        terms = self._table.take(idx, axis=0)              # (N, 18) coefficients per pixel
+        terms *= self._feats                               # x features
+        t = terms.reshape(-1, 6)                           # (N * 3, 6): pixel, channel
+        out = t[:, 0] + t[:, 1]                            # sum over the 6 terms
+        for j in range(2, 6):
+            out += t[:, j]
+        out = out.reshape(self._hs, self._ws, 3)
         if k > 1:
             out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)
         return out
@@ -192,7 +212,8 @@ class GelSightRenderer:
 
         ``softness`` in [0, 1]: share of the fabric's relief the press flattens."""
         s = self.sensor
-        delta = self.shading(self.indentation(self.lie(heights, rng), depth_mm, softness))
+        delta = self.shading(self.indentation(self.lie(heights, rng, softness), depth_mm,
+                                              softness))
         gains = s.shading_gain * (1.0 + s.drift * rng.standard_normal(3))
         img = cv2.multiply(delta, (*gains.tolist(), 0.0))
         cv2.add(img, self._background, dst=img)

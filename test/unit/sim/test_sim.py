@@ -115,4 +115,10 @@ def test_sim_trial_end_to_end_easy(tmp_path):
     assert main(["trial", "--source", "sim:easy", "--rounds", "2", "--seed", "2",
                  "--json", str(out), "--quiet"]) == 0
     d = json.loads(out.read_text())
-    assert d["touches"] == 7 and d["truth"] in {"c1", "c2", "c3", "c4"}
+    assert d["truth"] in {"c1", "c2", "c3", "c4"}
+    # 5 baseline touches + one per round; the default stop rule may end it before round 2
+    assert d["touches"] == 5 + len(d["rounds"]) and len(d["rounds"]) <= 2
+    if d["stop_reason"] == "confident":
+        assert max(d["final"]["probs"]) >= 0.9
+    else:
+        assert d["stop_reason"] == "rounds" and len(d["rounds"]) == 2
