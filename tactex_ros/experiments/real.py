@@ -228,23 +228,34 @@ def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
     return out
 
 
-def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
-                      budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
-    """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
-    rule), on the same scenes: {setting: {str(k): {"a": acc ref, "b": acc setting, "p"}}}."""
+def _paired(curves: dict[str, list[dict]], reference: str, points, outcome) -> dict:
+    """Every setting against ``reference`` on the same scenes at each point (a budget or a
+    threshold): ``outcome(curve, point)`` gives (correct, touches after the baseline or None).
+    {setting: {str(point): {"reference", "setting" (accuracies), "p" (exact McNemar)[,
+    "touches_p" (Wilcoxon on touches, where outcomes carry touches)]}}}."""
     out = {}
-    base = curves[reference]
     for lab, cs in curves.items():
         if lab == reference:
             continue
         row = {}
-        for k in budgets:
-            a = [at_budget(c, k) for c in base]
-            b = [at_budget(c, k) for c in cs]
-            row[str(k)] = {"reference": float(np.mean(a)), "setting": float(np.mean(b)),
-                           "p": mcnemar_exact(a, b)["p"]}
+        for pt in points:
+            a = [outcome(c, pt) for c in curves[reference]]
+            b = [outcome(c, pt) for c in cs]
+            ok_a, ok_b = [x[0] for x in a], [x[0] for x in b]
+            row[str(pt)] = {"reference": float(np.mean(ok_a)), "setting": float(np.mean(ok_b)),
+                            "p": mcnemar_exact(ok_a, ok_b)["p"]}
+            if a and a[0][1] is not None:
+                row[str(pt)]["touches_p"] = wilcoxon_paired([x[1] for x in a],
+                                                            [x[1] for x in b])["p"]
         out[lab] = row
     return out
+
+
+def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
+                      budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
+    """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
+    rule), on the same scenes: {setting: {str(k): {"reference", "setting", "p"}}}."""
+    return _paired(curves, reference, budgets, lambda c, k: (at_budget(c, k), None))
 
 
 def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
@@ -252,22 +263,7 @@ def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
     """Every setting against ``reference`` under each stop threshold, on the same scenes:
     {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),
     "touches_p" (Wilcoxon on touches after the baseline)}}}."""
-    out = {}
-    base = curves[reference]
-    for lab, cs in curves.items():
-        if lab == reference:
-            continue
-        row = {}
-        for th in thresholds:
-            a = [at_stop(c, th) for c in base]
-            b = [at_stop(c, th) for c in cs]
-            row[str(th)] = {"reference": float(np.mean([x[0] for x in a])),
-                            "setting": float(np.mean([x[0] for x in b])),
-                            "p": mcnemar_exact([x[0] for x in a], [x[0] for x in b])["p"],
-                            "touches_p": wilcoxon_paired([x[1] for x in a],
-                                                         [x[1] for x in b])["p"]}
-        out[lab] = row
-    return out
+    return _paired(curves, reference, thresholds, at_stop)
 
 
 def run(args: argparse.Namespace) -> dict:

@@ -10,23 +10,13 @@ from tactex_ros.core.errors import TactexError
 from tactex_ros.core.guards import ContactGuard, flatness_score
 from tactex_ros.core.learner import OnlineLearner
 from tactex_ros.core.strategies import VarianceStrategy
+from stripes import stripe_frames
 
 FAST = dict(input_size=32, steps=2, batch_size=8, mc_passes=4, augment=3, bn_recalibrate=8)
 
 
-def _frames(seed: int, n: int) -> list[np.ndarray]:
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(n):
-        yy, xx = np.mgrid[0:240, 0:320]
-        base = 120 + 60 * np.sin(2 * np.pi * (xx + yy * 0.3) / (12 * 2**k))
-        img = base[..., None] + rng.normal(0, 8, (240, 320, 3))
-        out.append(np.clip(img, 0, 255).astype(np.uint8))
-    return out
-
-
 def _touch_fn(seed=0, n=4):
-    frames = _frames(seed, n)
+    frames = stripe_frames(seed, n)
     rng = np.random.default_rng(seed)
 
     def touch(p: int) -> np.ndarray:
@@ -84,7 +74,7 @@ def test_heldout_touches_recorded_before_training():
 
 
 def test_contact_guard_rejects_blank_and_no_contact_frames():
-    tex = _frames(0, 1)[0]
+    tex = stripe_frames(0, 1)[0]
     flat = np.full((240, 320, 3), 100, np.uint8)
     flat[::7, ::5] += 1
     assert flatness_score(flat) < 0.35 < flatness_score(tex)
@@ -122,7 +112,7 @@ def test_engine_rejects_blank_touch_and_run_goes_on():
 
 
 def test_nonfinite_loss_is_skipped_with_guards_and_raises_without():
-    frames = _frames(0, 3)
+    frames = stripe_frames(0, 3)
     for guards in (True, False):
         L = OnlineLearner(3, preset("cnn", guards=guards, **FAST), seed=0)
         for k, f in enumerate(frames):
@@ -146,7 +136,7 @@ def test_nonfinite_loss_is_skipped_with_guards_and_raises_without():
 
 def test_round_rolled_back_when_most_steps_are_bad():
     L = OnlineLearner(3, preset("cnn", **FAST), seed=0)
-    for k, f in enumerate(_frames(0, 3)):
+    for k, f in enumerate(stripe_frames(0, 3)):
         L.add_touch(f, k)
     before = {k: v.clone() for k, v in L.model.state_dict().items() if "bn" not in k}
     orig = L.model.forward_train
@@ -167,7 +157,7 @@ def test_degenerate_scores_tie_break_vs_plain_argmax():
 
 
 def test_drift_norm_removes_a_per_touch_colour_offset():
-    img = _frames(0, 1)[0]
+    img = stripe_frames(0, 1)[0]
     shifted = np.clip(img.astype(int) + np.array([9, -7, 5]), 0, 255).astype(np.uint8)
     on = OnlineLearner(3, preset("cnn", drift_norm=True, **FAST), seed=0)
     a, b = on.test_tensor(img), on.test_tensor(shifted)

@@ -6,20 +6,9 @@ from tactex_ros.core.engine import TrialConfig, TrialEngine, TouchFailed
 from tactex_ros.core.errors import TactexError
 from tactex_ros.core.learner import OnlineLearner, class_weights
 from tactex_ros.core.preprocess import augment, validate_frame, view
+from stripes import stripe_frames
 
 FAST = dict(input_size=48, steps=4, batch_size=16, mc_passes=8)
-
-
-def _frames(seed: int, n: int) -> list[np.ndarray]:
-    """Distinct textured frames: class k = stripes of period 12 * 2**k px, noise per touch."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for k in range(n):
-        yy, xx = np.mgrid[0:240, 0:320]
-        base = 120 + 60 * np.sin(2 * np.pi * (xx + yy * 0.3) / (12 * 2**k))
-        img = base[..., None] + rng.normal(0, 8, (240, 320, 3))
-        out.append(np.clip(img, 0, 255).astype(np.uint8))
-    return out
 
 
 def test_class_weights_hand_computed():
@@ -39,7 +28,7 @@ def test_rotated_views_have_no_black_corners():
 
 
 def test_view_rotation_is_a_rotation():
-    img = _frames(0, 1)[0]
+    img = stripe_frames(0, 1)[0]
     a = view(img, 0.0, 100).astype(float)
     b = view(img, 90.0, 100).astype(float)
     np.testing.assert_allclose(np.rot90(b, k=-1)[5:-5, 5:-5], a[5:-5, 5:-5], atol=40)
@@ -64,7 +53,7 @@ def test_config_validation_names_the_field():
 
 
 def _run(seed: int, strategy: str = "variance", rounds: int = 3, **over):
-    frames = _frames(1, 4)
+    frames = stripe_frames(1, 4)
     rng = np.random.default_rng(seed)
     cfg = preset("cnn", **{**FAST, **over})
     eng = TrialEngine(4, cfg, TrialConfig(strategy=strategy, rounds=rounds), seed=seed)
@@ -106,7 +95,7 @@ def test_yoto_never_revisits():
 
 
 def test_failed_touch_is_recorded_and_trial_goes_on():
-    frames = _frames(2, 4)
+    frames = stripe_frames(2, 4)
     calls = {"n": 0}
 
     def touch(p):
@@ -128,7 +117,7 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
 
 
 def test_learner_training_reduces_loss():
-    frames = _frames(3, 3)
+    frames = stripe_frames(3, 3)
     L = OnlineLearner(3, preset("cnn", **{**FAST, "steps": 15}), seed=0)
     for k, f in enumerate(frames):
         L.add_touch(f, k)

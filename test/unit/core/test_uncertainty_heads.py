@@ -12,20 +12,9 @@ from tactex_ros.core.config import LearnerConfig, preset
 from tactex_ros.core.errors import TactexError
 from tactex_ros.core.learner import OnlineLearner
 from tactex_ros.core.models import build_model
+from stripes import stripe_frames
 
 FAST = dict(input_size=48, steps=4, batch_size=16, mc_passes=8, threads=1)
-
-
-def _frames(seed: int, n: int) -> list[np.ndarray]:
-    """Class k = stripes of period 12 * 2**k px, noise per touch."""
-    rng = np.random.default_rng(seed)
-    yy, xx = np.mgrid[0:240, 0:320]
-    out = []
-    for k in range(n):
-        base = 120 + 60 * np.sin(2 * np.pi * (xx + yy * 0.3) / (12 * 2**k))
-        img = base[..., None] + rng.normal(0, 8, (240, 320, 3))
-        out.append(np.clip(img, 0, 255).astype(np.uint8))
-    return out
 
 
 # ------------------------------------------------------------------ Laplace, by hand
@@ -184,7 +173,7 @@ def one_thread():
 @pytest.mark.parametrize("kind,rows", [("ensemble", 4), ("laplace", 8), ("mc_dropout", 8)])
 def test_learner_tables_for_each_uncertainty(kind, rows, one_thread):
     cfg = preset("cnn", uncertainty=kind, ensemble_heads=4, **FAST)
-    frames = _frames(1, 3)
+    frames = stripe_frames(1, 3)
     tables = []
     for _ in range(2):
         lr = OnlineLearner(3, cfg, seed=5)
