@@ -88,14 +88,14 @@ class OnlineLearner:
             raise TactexError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
                               f"frame under rotation (at most {int(safe_crop_side())} px)")
         if cfg.uncertainty == "laplace":
-            n_w = num_classes * (self.model.fc.in_features + 1)
-            if n_w > LAPLACE_MAX_WEIGHTS:
+            n_in = self.model.fc.in_features + 1
+            if num_classes * n_in > LAPLACE_MAX_WEIGHTS:
                 raise TactexError(
                     f"uncertainty 'laplace' keeps a full posterior over the last layer's "
-                    f"{n_w} weights ({num_classes} platforms x {self.model.fc.in_features + 1} "
-                    f"inputs of model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: use "
-                    f"small_inception with at most {LAPLACE_MAX_WEIGHTS // 193} comparisons, or "
-                    f"uncertainty 'ensemble'")
+                    f"{num_classes * n_in} weights ({num_classes} platforms x {n_in} inputs of "
+                    f"model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: with this "
+                    f"model at most {LAPLACE_MAX_WEIGHTS // n_in} comparisons, or a model with "
+                    f"a smaller last layer (small_inception), or uncertainty 'ensemble'")
         self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
         self.model = self.model.to(memory_format=self._fmt)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,

@@ -25,6 +25,7 @@ variance / mutual information over passes, members or posterior draws alike. All
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -188,11 +189,17 @@ class LastLayerLaplace:
         prec = ggn + lam * torch.eye(ggn.shape[0], dtype=torch.float64)
         return cls(theta, prec, lam)
 
+    @cached_property
+    def chol(self) -> torch.Tensor:
+        """(C*D, C*D) lower Cholesky factor L of the precision (L L^T), factored once per fit
+        and shared by every draw and covariance of this posterior."""
+        return torch.linalg.cholesky(self.precision)
+
     def logit_cov(self, features: torch.Tensor) -> torch.Tensor:
         """(V, F) layer inputs -> (V, C, C) covariance of the logits (J Sigma J^T)."""
         phi = with_bias(features.detach().double())
         n_c, n_d = self.theta.shape
-        sigma = torch.cholesky_inverse(torch.linalg.cholesky(self.precision))
+        sigma = torch.cholesky_inverse(self.chol)
         s4 = sigma.view(n_c, n_d, n_c, n_d)
         return torch.einsum("vk,ikjl,vl->vij", phi, s4, phi)
 
@@ -204,7 +211,7 @@ class LastLayerLaplace:
             raise ValueError(f"samples must be >= 1, got {samples}")
         phi = with_bias(features.detach().double())                      # (V, D)
         n_c, n_d = self.theta.shape
-        chol = torch.linalg.cholesky(self.precision)                     # precision = L L^T
+        chol = self.chol                                                 # precision = L L^T
         z = torch.randn(n_c * n_d, samples, generator=generator, dtype=torch.float64)
         # theta + L^-T z has covariance (L L^T)^-1 = precision^-1
         eps = torch.linalg.solve_triangular(chol.T, z, upper=True).T     # (T, C*D)
