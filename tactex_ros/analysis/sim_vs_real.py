@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from ..core.errors import TactexError
@@ -127,6 +128,76 @@ def summarise(stats: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+THUMB = (8, 6)                # (width, height) of the no-contact thumbnail [px]
+
+
+def background_pattern(frame: np.ndarray) -> np.ndarray:
+    """The no-contact frame's large-scale pattern: an 8x6 area-average thumbnail, each channel
+    with its mean removed and divided by its spread -> (144,) float64 (brightness and contrast
+    left out: they have their own statistics)."""
+    t = cv2.resize(frame.astype(np.float32), THUMB, interpolation=cv2.INTER_AREA)
+    t = t.astype(np.float64).reshape(-1, 3)
+    sd = t.std(axis=0)
+    return ((t - t.mean(axis=0)) / np.where(sd > 0, sd, 1.0)).ravel()
+
+
+def _between_within(values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Split of per-press vectors grouped by session: (between-session std, within-session
+    std), per element. Between: std of the session means less the share the pooled within
+    spread explains (method of moments, floored at 0). Within: the median over sessions of
+    each session's std (robust: octopi-dev has a few presses recorded in another session, e.g.
+    a class's 6th press, which would dominate a pooled std)."""
+    means = np.array([v.mean(axis=0) for v in values])
+    dof = sum(len(v) - 1 for v in values)
+    pooled = sum(((v - v.mean(axis=0)) ** 2).sum(axis=0) for v in values) / dof
+    n_h = len(values) / sum(1.0 / len(v) for v in values)     # harmonic mean of press counts
+    between_var = np.maximum(means.var(axis=0, ddof=1) - pooled / n_h, 0.0)
+    within = np.median(np.array([v.std(axis=0, ddof=1) for v in values]), axis=0)
+    return np.sqrt(between_var), within
+
+
+SESSION_KEYS = ("session_mean_between_rgb", "session_mean_within_rgb",
+                "session_std_between_rgb", "session_std_within_rgb",
+                "session_pattern_between", "session_pattern_within")
+
+
+def session_stats(presses: list[Press]) -> dict[str, Any]:
+    """How no-contact frames vary between recording sessions and within one.
+
+    Presses are grouped by ``name`` (a real class was recorded in one session; a simulated
+    fabric in recorded mode too); groups with fewer than 2 presses are left out. Per channel:
+    between- and within-session std of the frame's mean [grey levels] and of its spatial
+    std [grey levels]; of the thumbnail pattern (``background_pattern``): the RMS over its
+    elements of the between- and within-session std [units of the channel spread]. Also
+    ``identity_1nn``: share of presses whose nearest other no-contact frame (8x6 thumbnail,
+    Euclidean) is of the same session, with the counts it depends on."""
+    by: dict[str, list[Press]] = {}
+    for p in presses:
+        by.setdefault(p.name, []).append(p)
+    groups = [g for g in by.values() if len(g) >= 2]
+    if len(groups) < 2:
+        return {"sessions": len(groups)}
+    out: dict[str, Any] = {"sessions": len(groups),
+                           "presses": sum(len(g) for g in groups)}
+    frames = [[p.no_contact.astype(np.float32).reshape(-1, 3) for p in g] for g in groups]
+    for key, fn in (("mean", lambda f: f.mean(axis=0)), ("std", lambda f: f.std(axis=0))):
+        b, w = _between_within([np.array([fn(f) for f in fs]) for fs in frames])
+        out[f"session_{key}_between_rgb"] = np.round(b, 3).tolist()
+        out[f"session_{key}_within_rgb"] = np.round(w, 3).tolist()
+    b, w = _between_within([np.array([background_pattern(p.no_contact) for p in g])
+                            for g in groups])
+    out["session_pattern_between"] = round(float(np.sqrt(np.mean(b ** 2))), 4)
+    out["session_pattern_within"] = round(float(np.sqrt(np.mean(w ** 2))), 4)
+    thumbs = np.array([cv2.resize(p.no_contact.astype(np.float32), THUMB,
+                                  interpolation=cv2.INTER_AREA).ravel()
+                       for g in groups for p in g], dtype=np.float64)
+    label = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
+    d = ((thumbs[:, None, :] - thumbs[None, :, :]) ** 2).sum(-1)
+    np.fill_diagonal(d, np.inf)
+    out["identity_1nn"] = round(float((label[d.argmin(axis=1)] == label).mean()), 4)
+    return out
+
+
 def real_presses(real_dir: str, per_class: int) -> list[Press]:
     """The first ``per_class`` presses of every class of a replay folder (videos only)."""
     from ..core.contact import strongest_contact
@@ -152,22 +223,58 @@ def real_presses(real_dir: str, per_class: int) -> list[Press]:
 
 
 def sim_presses(per_class: int, seed: int, classes: list[str] | None = None) -> list[Press]:
-    """``per_class`` simulated presses of every catalogue fabric (or of ``classes``)."""
+    """``per_class`` simulated presses of every catalogue fabric (or of ``classes``), each
+    fabric recorded in its own session as octopi-dev's classes were (``sim:recorded``)."""
     from ..sources import open_source
-    sim = open_source("sim")
+    sim = open_source("sim:recorded")
     rng = np.random.default_rng([seed, 61])
     out = []
     for name in classes or sim.classes:
         fab = sim.fabric(name)          # an unknown name is an error naming it
         group = "soft" if fab.softness >= SOFT_THRESHOLD else "firm_textured"
         for _ in range(per_class):
-            out.append(Press(group, fab.family, name, sim.renderer.no_contact(rng),
-                             sim.renderer.no_contact(rng), sim.press(name, rng)))
+            bg = sim.press_background(name, rng)
+            out.append(Press(group, fab.family, name, sim.renderer.no_contact(rng, background=bg),
+                             sim.renderer.no_contact(rng, background=bg),
+                             sim.press(name, rng, background=bg)))
     return out
 
 
-def frame_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
-    """Statistics per group and family on both sides, and sim / real ratios per shared group."""
+def first_presses(presses: list[Press], per_class: int) -> list[Press]:
+    """The first ``per_class`` presses of every class (``name``), in order."""
+    seen: dict[str, int] = {}
+    out = []
+    for p in presses:
+        if seen.get(p.name, 0) < per_class:
+            seen[p.name] = seen.get(p.name, 0) + 1
+            out.append(p)
+    return out
+
+
+def frame_report(real: list[Press], sim: list[Press],
+                 real_sessions: list[Press] | None = None) -> dict[str, Any]:
+    """Statistics per group and family on both sides, and sim / real ratios per shared group;
+    the session statistics (``session_stats``) of ``real_sessions`` (default ``real``: every
+    press of a class helps there) against ``sim``'s, as group ``sessions``."""
+    out = _group_report(real, sim)
+    rs, ss = session_stats(real_sessions or real), session_stats(sim)
+    out["real"]["sessions"], out["sim"]["sessions"] = rs, ss
+    if rs.get("sessions", 0) >= 2 and ss.get("sessions", 0) >= 2:
+        for k in SESSION_KEYS:
+            out["checks"].append(_check("sessions", k, rs[k], ss[k]))
+    out["checks_passed"] = sum(c["within_25pct"] for c in out["checks"])
+    return out
+
+
+def _check(group: str, key: str, real: Any, sim: Any) -> dict[str, Any]:
+    rv, sv = np.atleast_1d(real).astype(float), np.atleast_1d(sim).astype(float)
+    ratio = sv / np.where(rv == 0, np.nan, rv)
+    ok = bool(np.all(np.abs(ratio - 1) <= TARGET_REL))
+    return {"group": group, "statistic": key, "real": real, "sim": sim,
+            "ratio": np.round(ratio, 3).tolist(), "within_25pct": ok}
+
+
+def _group_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
     rs, ss = [press_stats(p) for p in real], [press_stats(p) for p in sim]
     out: dict[str, Any] = {"real": {"all": summarise(rs)}, "sim": {"all": summarise(ss)}}
     for side, presses, stats in (("real", real, rs), ("sim", sim, ss)):
@@ -181,11 +288,6 @@ def frame_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
         if not r or not s or not r["presses"] or not s["presses"]:
             continue
         for k in STAT_KEYS:
-            rv, sv = np.atleast_1d(r[k]).astype(float), np.atleast_1d(s[k]).astype(float)
-            ratio = sv / np.where(rv == 0, np.nan, rv)
-            ok = bool(np.all(np.abs(ratio - 1) <= TARGET_REL))
-            checks.append({"group": g, "statistic": k, "real": r[k], "sim": s[k],
-                           "ratio": np.round(ratio, 3).tolist(), "within_25pct": ok})
+            checks.append(_check(g, k, r[k], s[k]))
     out["checks"] = checks
-    out["checks_passed"] = sum(c["within_25pct"] for c in checks)
     return out

@@ -67,9 +67,10 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
     from ..analysis import sim_vs_real as compare
     from ..experiments.real import run_ranking
 
-    real = compare.real_presses(real_dir, real_per_class)
+    every = compare.real_presses(real_dir, 10 ** 6)
+    real = compare.first_presses(every, real_per_class)
     sim = compare.sim_presses(per_class, seed, fabrics)
-    result = compare.frame_report(real, sim)
+    result = compare.frame_report(real, sim, every)
     result["real_classes"] = sorted({p.name for p in real})
     result["sim_fabrics"] = sorted({p.name for p in sim})
     if ranking is not None:
@@ -121,7 +122,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         for text in args.setting or []:
             parse_setting(text)          # a bad setting is refused before any work
         ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,
-                       comparisons=args.comparisons, budget=args.budget, workers=args.workers)
+                       comparisons=args.comparisons, budget=args.budget, workers=args.workers,
+                       sim_spec=args.sim_source)
     elif args.scenes < 0:
         raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
     fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
@@ -162,4 +164,8 @@ def add_compare(ssub) -> None:
     c.add_argument("--budget", type=int, default=5,
                    help="touches after the baseline; accuracy is ranked at this budget")
     c.add_argument("--workers", type=int, default=1)
+    c.add_argument("--sim-source", default="sim:recorded",
+                   help="simulated side of the ranking (default sim:recorded: every fabric "
+                        "in its own recording session, as the real folder's classes; sim: "
+                        "one session per trial, as a live robot)")
     c.set_defaults(func=cmd_compare)

@@ -437,7 +437,8 @@ def register(esub: argparse._SubParsersAction) -> None:
 
 
 def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
-                comparisons: int, budget: int, seed: int, workers: int) -> dict[str, Any]:
+                comparisons: int, budget: int, seed: int, workers: int,
+                sim_spec: str = "sim:recorded") -> dict[str, Any]:
     """The ranking part of the sim-to-real report (``tactex sim compare``,
     ``analysis/sim_vs_real.py``): every setting on the same ``scenes`` simulated and real
     scenes (1 + ``comparisons`` distinct classes: catalogue fabrics / the folder's classes),
@@ -446,8 +447,12 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
     interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
     (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
-    a bootstrap interval, and the gaps real - sim."""
+    a bootstrap interval, and the gaps real - sim. ``sim_spec``: the simulated source
+    (``sim[:difficulty][:recorded]``; recorded sessions as the real folder's)."""
     from ..sources import open_source
+    if not (sim_spec == "sim" or sim_spec.startswith("sim:")):
+        raise TactexError(f"--sim-source {sim_spec!r}: use sim[:difficulty][:recorded]")
+    open_source(sim_spec)            # a bad spec is refused before any work
     if scenes < 2:
         raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
     if budget < 0:
@@ -459,9 +464,9 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     theta = 0.9
     out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
                            "budget": budget, "stop_theta": theta, "seed": seed,
-                           "setting_specs": list(settings)}
+                           "setting_specs": list(settings), "sim_source": sim_spec}
     scores: dict[str, dict[str, np.ndarray]] = {}
-    for side, spec in (("sim", "sim"), ("real", f"replay:{real_dir}")):
+    for side, spec in (("sim", sim_spec), ("real", f"replay:{real_dir}")):
         classes = sorted(open_source(spec).classes)
         curves = belief_curves(draw_scenes(classes, scenes, comparisons, seed),
                                parsed, spec, seed, budget, f"{side}-",

@@ -73,6 +73,19 @@ class SensorModel:
     soft_depth_mm: float = 0.3           # depth at which a soft fabric is fully compressed
     compression: float = 0.3             # share of every fabric's relief a full press flattens
     shade_step: int = 1                  # table evaluated on every shade_step-th pixel
+    # Recording sessions (``session_background``, ``press_background``): the no-contact frame
+    # changes between sessions (LED brightness, exposure, how the gel sits) and, less, from
+    # press to press within one. Measured on octopi-dev, whose classes were each recorded in
+    # one session (README, "Recording sessions"): the channel means move together (one
+    # brightness factor, correlation 0.95-0.99), each channel's spatial spread moves with it
+    # (correlation below) plus independently, and the large-scale pattern changes.
+    session_offset_rgb: tuple[float, float, float] = (5.78, 2.88, 5.22)   # [grey levels]
+    session_contrast_rgb: tuple[float, float, float] = (0.1, 0.55, 1.0)    # spread std [grey]
+    session_pattern: float = 0.16        # large-scale pattern std [units of channel spread]
+    press_offset_rgb: tuple[float, float, float] = (0.13, 0.1, 0.1)       # [grey levels]
+    press_contrast_rgb: tuple[float, float, float] = (0.065, 0.05, 0.045)  # [grey levels]
+    press_pattern: float = 0.01         # [units of channel spread]
+    contrast_brightness_corr: tuple[float, float, float] = (0.22, -0.87, -0.7)
 
 
 class GelSightRenderer:
@@ -207,22 +220,69 @@ class GelSightRenderer:
         return out
 
     def render(self, heights: np.ndarray, depth_mm: float, rng: np.random.Generator,
-               softness: float = 0.0) -> np.ndarray:
+               softness: float = 0.0, background: np.ndarray | None = None) -> np.ndarray:
         """(240, 320) heights [mm] pressed to ``depth_mm`` -> uint8 RGB (240, 320, 3).
 
-        ``softness`` in [0, 1]: share of the fabric's relief the press flattens."""
+        ``softness`` in [0, 1]: share of the fabric's relief the press flattens;
+        ``background``: the press's no-contact frame (float32 (240, 320, 3), from
+        ``press_background``; default: the sensor's)."""
         s = self.sensor
         delta = self.shading(self.indentation(self.lie(heights, rng, softness), depth_mm,
                                               softness))
         gains = s.shading_gain * (1.0 + s.drift * rng.standard_normal(3))
         img = cv2.multiply(delta, (*gains.tolist(), 0.0))
-        cv2.add(img, self._background, dst=img)
+        cv2.add(img, self._check_bg(background), dst=img)
         return self._finish(img, rng, drift=True)
 
-    def no_contact(self, rng: np.random.Generator, drift: bool = False) -> np.ndarray:
+    def no_contact(self, rng: np.random.Generator, drift: bool = False,
+                   background: np.ndarray | None = None) -> np.ndarray:
         """The same sensor with nothing pressed on it (``drift``: with a per-touch
-        brightness offset, as a contact frame has)."""
-        return self._finish(self._background.copy(), rng, drift=drift)
+        brightness offset, as a contact frame has; ``background`` as for ``render``)."""
+        return self._finish(self._check_bg(background).copy(), rng, drift=drift)
+
+    def _check_bg(self, background: np.ndarray | None) -> np.ndarray:
+        if background is None:
+            return self._background
+        if background.shape != self._background.shape or background.dtype != np.float32:
+            raise ValueError(f"background of shape {background.shape} and type "
+                             f"{background.dtype}, expected (240, 320, 3) float32")
+        return background
+
+    def session_background(self, rng: np.random.Generator) -> np.ndarray:
+        """The no-contact frame of a new recording session: the sensor's, varied by the
+        between-session spread (``session_*``). (240, 320, 3) float32 [grey levels]."""
+        s = self.sensor
+        return self._vary(self._background, rng, s.session_offset_rgb,
+                          s.session_contrast_rgb, s.session_pattern)
+
+    def press_background(self, session: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The no-contact frame of one press in a session (``session_background``), varied by
+        the within-session spread (``press_*``); the press's contact frame is rendered on it.
+        (240, 320, 3) float32 [grey levels]."""
+        s = self.sensor
+        return self._vary(self._check_bg(session), rng, s.press_offset_rgb,
+                          s.press_contrast_rgb, s.press_pattern)
+
+    def _vary(self, base: np.ndarray, rng: np.random.Generator,
+              offset: tuple[float, float, float], contrast: tuple[float, float, float],
+              pattern: float) -> np.ndarray:
+        """base (240, 320, 3) float32 -> base with one brightness factor z ~ N(0, 1) moving
+        every channel's mean by ``offset`` * z and its spatial spread by ``contrast`` (std, a
+        share ``contrast_brightness_corr`` of it following z), plus a large-scale pattern
+        (a 6x8 grid of N(0, 1), cubic-interpolated, x ``pattern`` x the channel's spread)."""
+        z = float(rng.standard_normal())
+        own = rng.standard_normal(3)
+        grid = rng.standard_normal((6, 8, 3)).astype(np.float32)
+        flat = base.reshape(-1, 3)
+        mean, spread = flat.mean(axis=0), flat.std(axis=0)
+        rho = np.asarray(self.sensor.contrast_brightness_corr)
+        d_spread = np.asarray(contrast) * (rho * z + np.sqrt(1.0 - rho ** 2) * own)
+        gain = 1.0 + d_spread / np.where(spread > 0, spread, 1.0)
+        field = cv2.resize(grid, (FRAME_W, FRAME_H), interpolation=cv2.INTER_CUBIC)
+        out = (base - mean) * gain.astype(np.float32) + (mean + np.asarray(offset) * z
+                                                         ).astype(np.float32)
+        out += field * (np.float32(pattern) * spread.astype(np.float32))
+        return np.clip(out, 0, 255).astype(np.float32)
 
     def _finish(self, img: np.ndarray, rng: np.random.Generator, drift: bool) -> np.ndarray:
         """float32 image + noise (+ brightness drift) -> rounded, saturated uint8."""

@@ -1,7 +1,7 @@
 """Touch sources: where the images of a trial come from (no ROS here).
 
-``open_source(spec)`` accepts ``replay:DIR`` (recorded presses) and ``sim[:difficulty]``
-(procedural fabrics). Every source is a ``TouchSource`` (``base.py``): ``classes``,
+``open_source(spec)`` accepts ``replay:DIR`` (recorded presses) and
+``sim[:difficulty][:recorded]`` (procedural fabrics). Every source is a ``TouchSource`` (``base.py``): ``classes``,
 ``trial(platform_classes, seed)`` returning ``touch(platform) -> Touch`` (platform 0 = the
 reference), its scene draw and its no-contact frame.
 """
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 
 @overload
-def open_source(spec: Literal["sim"]) -> "SimSource": ...
+def open_source(spec: Literal["sim", "sim:recorded"]) -> "SimSource": ...
 @overload
 def open_source(spec: str) -> TouchSource: ...
 
@@ -36,8 +36,16 @@ def open_source(spec: str) -> TouchSource:
     if kind == "sim":
         from ..paths import config_dir
         from .sim import SimSource
-        return SimSource(arg or "medium", catalogue=config_dir() / "fabrics.yaml")
-    raise TactexError(f"unknown source {spec!r}; use replay:DIR or sim[:easy|medium|hard|<number>]")
+        parts = arg.split(":") if arg else []
+        recorded = bool(parts) and parts[-1] == "recorded"
+        if recorded:
+            parts = parts[:-1]
+        if len(parts) > 1:
+            raise TactexError(f"source {spec!r}: use sim[:difficulty][:recorded]")
+        return SimSource(parts[0] if parts and parts[0] else "medium",
+                         catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
+    raise TactexError(f"unknown source {spec!r}; use replay:DIR or "
+                      "sim[:easy|medium|hard|<number>][:recorded]")
 
 
 def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,

@@ -1,7 +1,12 @@
 """Simulated touch source: every touch is a new random press of a procedural fabric.
 
-Spec ``sim[:difficulty]`` with difficulty ``easy`` (0.2), ``medium`` (0.5), ``hard`` (0.8) or a
-number in [0, 1]. Classes are the names of the fabric catalogue the source is given (the
+Spec ``sim[:difficulty][:recorded]`` with difficulty ``easy`` (0.2), ``medium`` (0.5), ``hard``
+(0.8) or a number in [0, 1]. Sessions: by default a trial is one recording session (a live
+robot presses every platform with the same sensor state: one no-contact frame, the touches'
+backgrounds equal). ``recorded`` simulates a recorded dataset replayed (``replay:DIR``): every
+class was pressed in its own session, so its presses share a session background that the other
+classes' lack (``GelSightRenderer.session_background``), and every press has its own no-contact
+frame (``press_background``). Classes are the names of the fabric catalogue the source is given (the
 package's is ``config/fabrics.yaml``: ``sources.open_source("sim")`` passes it). A scene drawn
 at difficulty q (``draw_scene``) takes a random catalogue fabric as the base and places the
 comparison fabrics around it at parameter distance (1 - q) * 0.6 from the base (Euclidean on the
@@ -49,10 +54,14 @@ def cached_tile(fab: FabricParams, seed: int) -> np.ndarray:
 class SimSource:
     """Fabric simulator as a touch source (``sources.base.TouchSource``)."""
 
-    def __init__(self, difficulty: str | float = "medium", *, catalogue: str | Path) -> None:
-        """``catalogue``: the fabric catalogue file (YAML); ``difficulty``: see the module."""
+    def __init__(self, difficulty: str | float = "medium", *, catalogue: str | Path,
+                 recorded: bool = False) -> None:
+        """``catalogue``: the fabric catalogue file (YAML); ``difficulty``, ``recorded``: see
+        the module."""
         self.difficulty = (parse_difficulty(difficulty) if isinstance(difficulty, str)
                            else float(difficulty))
+        self.recorded = recorded
+        self._sessions: dict[str, np.ndarray] = {}
         self.catalogue = load_catalogue(catalogue)
         self.fabrics: dict[str, FabricParams] = dict(self.catalogue)
         self.renderer = GelSightRenderer()
@@ -99,15 +108,34 @@ class SimSource:
             names.append(name)
         return names
 
-    def press(self, name: str, rng: np.random.Generator, depth_mm: float | None = None
-              ) -> np.ndarray:
-        """One random press of fabric ``name``: uint8 RGB (240, 320, 3)."""
+    def session(self, name: str) -> np.ndarray:
+        """Background of the session in which class ``name`` was recorded (``recorded``
+        mode; one per class, the same in every trial, as a recorded dataset's):
+        (240, 320, 3) float32."""
+        if name not in self._sessions:
+            self.fabric(name)
+            rng = np.random.default_rng([_stable_seed(name), 41])
+            self._sessions[name] = self.renderer.session_background(rng)
+        return self._sessions[name]
+
+    def press_background(self, name: str, rng: np.random.Generator) -> np.ndarray | None:
+        """No-contact background of one press of ``name``: in ``recorded`` mode its class's
+        session varied per press, else None (the sensor's, the same for every press)."""
+        if not self.recorded:
+            return None
+        return self.renderer.press_background(self.session(name), rng)
+
+    def press(self, name: str, rng: np.random.Generator, depth_mm: float | None = None,
+              background: np.ndarray | None = None) -> np.ndarray:
+        """One random press of fabric ``name`` on ``background`` (``press_background``;
+        None: the sensor's): uint8 RGB (240, 320, 3)."""
         fab = self.fabric(name)
         tile = cached_tile(fab, _stable_seed(name))
         heights = self.renderer.window(tile, rng)
         lo, hi = self.renderer.sensor.depth_mm
         d = rng.uniform(lo, hi) if depth_mm is None else depth_mm
-        return self.renderer.render(heights, d, rng, softness=fab.softness)
+        return self.renderer.render(heights, d, rng, softness=fab.softness,
+                                    background=background)
 
     def trial(self, platform_classes: list[str], seed: int,
               depth_spread_mm: float | None = None) -> Callable[[int], Touch]:
@@ -126,9 +154,19 @@ class SimSource:
             def spread(platform: int) -> Touch:
                 d = float(np.clip(mid + rng_d.uniform(-depth_spread_mm, depth_spread_mm),
                                   0.02, 2.0))
-                return Touch(frame=self.press(platform_classes[platform], rng, depth_mm=d))
+                name = platform_classes[platform]
+                return Touch(frame=self.press(name, rng, depth_mm=d,
+                                              background=self.press_background(name, rng)))
 
             return spread
+        if self.recorded:
+            def recorded(platform: int) -> Touch:
+                # a recorded press: its own no-contact frame, in its class's session
+                name = platform_classes[platform]
+                bg = self.press_background(name, rng)
+                return Touch(frame=self.press(name, rng, background=bg),
+                             no_contact=self.renderer.no_contact(rng, background=bg))
+            return recorded
         no_contact = self.no_contact(seed)
 
         def touch(platform: int) -> Touch:
