@@ -269,7 +269,8 @@ class GelSightRenderer:
         """base (240, 320, 3) float32 -> base with one brightness factor z ~ N(0, 1) moving
         every channel's mean by ``offset`` * z and its spatial spread by ``contrast`` (std, a
         share ``contrast_brightness_corr`` of it following z), plus a large-scale pattern
-        (a 6x8 grid of N(0, 1), cubic-interpolated, x ``pattern`` x the channel's spread)."""
+        (a 6x8 grid of N(0, 1), cubic-interpolated, mean removed, x ``pattern`` x the channel's
+        spread)."""
         z = float(rng.standard_normal())
         own = rng.standard_normal(3)
         grid = rng.standard_normal((6, 8, 3)).astype(np.float32)
@@ -279,6 +280,7 @@ class GelSightRenderer:
         d_spread = np.asarray(contrast) * (rho * z + np.sqrt(1.0 - rho ** 2) * own)
         gain = 1.0 + d_spread / np.where(spread > 0, spread, 1.0)
         field = cv2.resize(grid, (FRAME_W, FRAME_H), interpolation=cv2.INTER_CUBIC)
+        field -= field.reshape(-1, 3).mean(axis=0)     # the pattern leaves the means to z
         out = (base - mean) * gain.astype(np.float32) + (mean + np.asarray(offset) * z
                                                          ).astype(np.float32)
         out += field * (np.float32(pattern) * spread.astype(np.float32))
