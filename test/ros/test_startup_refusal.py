@@ -52,3 +52,11 @@ def test_goal_answer_not_below_press_silence_refused(tmp_path: Path, domain_id) 
                                  f"record_dir:={tmp_path}"], domain_id)
     assert r.returncode == 2
     assert b"goal_answer_s" in r.stdout + r.stderr
+
+
+def test_mock_camera_refuses_recorded_sessions(domain_id) -> None:
+    # sim:recorded simulates a replayed dataset; the mock camera is a live sensor
+    r = _start("mock_image_node", [f"scene_file:={config_dir() / 'scene_sim.yaml'}",
+                                   "source:=sim:medium:recorded"], domain_id)
+    assert r.returncode == 2
+    assert b"recorded" in r.stdout + r.stderr

@@ -38,6 +38,9 @@ class MockImageNode(TactexNode):
         kind = s.source.partition(":")[0]
         if kind not in ("sim", "replay"):
             raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
+        if kind == "sim" and s.source.endswith(":recorded"):
+            raise TactexError(f"source {s.source!r}: the mock camera is live (one session); "
+                              "'recorded' is for offline trials: use sim[:difficulty]")
         field = "sim_fabric" if kind == "sim" else "replay_class"
         missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
         if missing:
