@@ -123,7 +123,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             parse_setting(text)          # a bad setting is refused before any work
         ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,
                        comparisons=args.comparisons, budget=args.budget, workers=args.workers,
-                       sim_spec=args.sim_source)
+                       sim_spec=args.sim_source, real_one_session=args.real_one_session)
     elif args.scenes < 0:
         raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
     fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
@@ -168,4 +168,7 @@ def add_compare(ssub) -> None:
                    help="simulated side of the ranking (default sim:recorded: every fabric "
                         "in its own recording session, as the real folder's classes; sim: "
                         "one session per trial, as a live robot)")
+    c.add_argument("--real-one-session", action="store_true",
+                   help="rank on the real presses moved onto one background per trial "
+                        "(replay:DIR:one-session), as a live robot sees them")
     c.set_defaults(func=cmd_compare)

@@ -438,7 +438,8 @@ def register(esub: argparse._SubParsersAction) -> None:
 
 def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
                 comparisons: int, budget: int, seed: int, workers: int,
-                sim_spec: str = "sim:recorded") -> dict[str, Any]:
+                sim_spec: str = "sim:recorded", real_one_session: bool = False
+                ) -> dict[str, Any]:
     """The ranking part of the sim-to-real report (``tactex sim compare``,
     ``analysis/sim_vs_real.py``): every setting on the same ``scenes`` simulated and real
     scenes (1 + ``comparisons`` distinct classes: catalogue fabrics / the folder's classes),
@@ -448,7 +449,9 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
     (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
     a bootstrap interval, and the gaps real - sim. ``sim_spec``: the simulated source
-    (``sim[:difficulty][:recorded]``; recorded sessions as the real folder's)."""
+    (``sim[:difficulty][:recorded]``; recorded sessions as the real folder's);
+    ``real_one_session``: the real presses moved onto one background per trial
+    (``replay:DIR:one-session``, to rank against the live simulator ``sim``)."""
     from ..sources import open_source
     if not (sim_spec == "sim" or sim_spec.startswith("sim:")):
         raise TactexError(f"--sim-source {sim_spec!r}: use sim[:difficulty][:recorded]")
@@ -464,9 +467,11 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     theta = 0.9
     out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
                            "budget": budget, "stop_theta": theta, "seed": seed,
-                           "setting_specs": list(settings), "sim_source": sim_spec}
+                           "setting_specs": list(settings), "sim_source": sim_spec,
+                           "real_one_session": real_one_session}
+    real_spec = f"replay:{real_dir}" + (":one-session" if real_one_session else "")
     scores: dict[str, dict[str, np.ndarray]] = {}
-    for side, spec in (("sim", sim_spec), ("real", f"replay:{real_dir}")):
+    for side, spec in (("sim", sim_spec), ("real", real_spec)):
         classes = sorted(open_source(spec).classes)
         curves = belief_curves(draw_scenes(classes, scenes, comparisons, seed),
                                parsed, spec, seed, budget, f"{side}-",

@@ -1,6 +1,6 @@
 """Touch sources: where the images of a trial come from (no ROS here).
 
-``open_source(spec)`` accepts ``replay:DIR`` (recorded presses) and
+``open_source(spec)`` accepts ``replay:DIR[:one-session]`` (recorded presses) and
 ``sim[:difficulty][:recorded]`` (procedural fabrics). Every source is a ``TouchSource`` (``base.py``): ``classes``,
 ``trial(platform_classes, seed)`` returning ``touch(platform) -> Touch`` (platform 0 = the
 reference), its scene draw and its no-contact frame.
@@ -29,10 +29,12 @@ def open_source(spec: str) -> TouchSource:
     """Open a touch source from its command-line spec."""
     kind, _, arg = spec.partition(":")
     if kind == "replay":
-        if not arg:
-            raise TactexError("source replay needs a folder: replay:DIR")
+        one = arg.endswith(":one-session")
+        folder = arg[:-len(":one-session")] if one else arg
+        if not folder:
+            raise TactexError("source replay needs a folder: replay:DIR[:one-session]")
         from .replay import ReplaySource
-        return ReplaySource(arg)
+        return ReplaySource(folder, one_session=one)
     if kind == "sim":
         from ..paths import config_dir
         from .sim import SimSource
@@ -44,7 +46,7 @@ def open_source(spec: str) -> TouchSource:
             raise TactexError(f"source {spec!r}: use sim[:difficulty][:recorded]")
         return SimSource(parts[0] if parts and parts[0] else "medium",
                          catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
-    raise TactexError(f"unknown source {spec!r}; use replay:DIR or "
+    raise TactexError(f"unknown source {spec!r}; use replay:DIR[:one-session] or "
                       "sim[:easy|medium|hard|<number>][:recorded]")
 
 

@@ -13,6 +13,14 @@ A trial assigns a class to the reference and to every comparison platform. Touch
 draws a press of its class not used yet in this trial, in a seeded random order, cycling when
 the class is exhausted. Presses used for the reference are never handed to a comparison platform
 while unused presses of the class remain (no test press leaks into training).
+
+Recorded datasets press each class in its own session (octopi-dev: the no-contact frame alone
+names a press's class for 75 % of presses, README "Recording sessions"), so a model that sees
+whole frames can match platforms by their session instead of their texture; a live robot
+presses every platform in one session. ``one_session`` (spec ``replay:DIR:one-session``) replays
+the presses as if recorded in one session: every frame of a press is moved onto the trial's
+background, ``frame - own no-contact frame + background`` (the background: the no-contact frame
+of the trial's first touch), and carries that background as its no-contact frame.
 """
 
 from __future__ import annotations
@@ -82,8 +90,9 @@ def load_touch(path: str) -> tuple[Touch, float]:
 class ReplaySource:
     """A folder of recorded presses, one subfolder per class (``sources.base.TouchSource``)."""
 
-    def __init__(self, root: str | Path) -> None:
+    def __init__(self, root: str | Path, one_session: bool = False) -> None:
         self.root = Path(root)
+        self.one_session = one_session
         if not self.root.is_dir():
             raise TactexError(f"replay folder does not exist: {self.root}")
         self.files: dict[str, list[Path]] = {}
@@ -171,6 +180,7 @@ class ReplayTrial:
         self._used: dict[str, list[int]] = {c: [] for c in set(platform_classes)}
         self._reference_used: set[int] = set()
         self.log: list[tuple[int, str]] = []   # (platform, file) per touch
+        self._background: np.ndarray | None = None    # one_session: the trial's
 
     def _draw(self, cls: str, for_reference: bool) -> int:
         order, used = self._order[cls], self._used[cls]
@@ -191,4 +201,24 @@ class ReplayTrial:
         i = self._draw(cls, platform == 0)
         path = self.source.presses(cls)[i]
         self.log.append((platform, str(path)))
-        return self.source.touch(path)
+        touch = self.source.touch(path)
+        if not self.source.one_session or touch.no_contact is None:
+            return touch
+        if self._background is None:
+            self._background = touch.no_contact
+        return rebase(touch, self._background)
+
+
+def rebase(touch: Touch, background: np.ndarray) -> Touch:
+    """``touch`` moved onto ``background`` (uint8 RGB (240, 320, 3)): every frame minus the
+    touch's no-contact frame plus ``background``, saturated; its no-contact frame becomes
+    ``background``. A touch without a no-contact frame is returned as it is."""
+    if touch.no_contact is None:
+        return touch
+    shift = background.astype(np.int16) - touch.no_contact.astype(np.int16)
+
+    def move(f: np.ndarray) -> np.ndarray:
+        return np.clip(f.astype(np.int16) + shift, 0, 255).astype(np.uint8)
+
+    return Touch(frame=move(touch.frame), no_contact=background,
+                 extra=None if touch.extra is None else np.stack([move(f) for f in touch.extra]))
