@@ -182,8 +182,8 @@ def session_stats(presses: list[Press]) -> dict[str, Any]:
     frames = [[p.no_contact.astype(np.float32).reshape(-1, 3) for p in g] for g in groups]
     for key, fn in (("mean", lambda f: f.mean(axis=0)), ("std", lambda f: f.std(axis=0))):
         b, w = _between_within([np.array([fn(f) for f in fs]) for fs in frames])
-        out[f"session_{key}_between_rgb"] = np.round(b, 3).tolist()
-        out[f"session_{key}_within_rgb"] = np.round(w, 3).tolist()
+        out[f"session_{key}_between_rgb"] = np.round(b.astype(float), 3).tolist()
+        out[f"session_{key}_within_rgb"] = np.round(w.astype(float), 3).tolist()
     b, w = _between_within([np.array([background_pattern(p.no_contact) for p in g])
                             for g in groups])
     out["session_pattern_between"] = round(float(np.sqrt(np.mean(b ** 2))), 4)
