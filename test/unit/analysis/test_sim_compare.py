@@ -122,3 +122,31 @@ def test_report_refuses_bad_input(tiny_real: Path, tmp_path: Path):
     with pytest.raises(TactexError, match="scenes"):
         run_ranking(str(tiny_real), ["a=default", "b=default"], scenes=1,
                     comparisons=2, budget=1, seed=0, workers=1)
+
+
+def test_session_stats_split_between_and_within_sessions():
+    rng = np.random.default_rng(4)
+    yy, xx = np.mgrid[0:240, 0:320]
+    ramp = (xx / 320.0 * 40)[..., None]                 # a fixed large-scale pattern
+    presses = []
+    for k in range(40):                                  # 40 sessions x 4 presses
+        level = 100 + 6.0 * rng.standard_normal()      # between-session std 6
+        for _ in range(4):
+            v = level + 0.5 * rng.standard_normal()     # within-session std 0.5
+            nc = np.clip(v + ramp + np.zeros((1, 1, 3)), 0, 255).astype(np.uint8)
+            presses.append(compare.Press("soft", "soft", f"s{k}", nc, nc, nc))
+    st = compare.session_stats(presses)
+    assert st["sessions"] == 40 and st["presses"] == 160
+    np.testing.assert_allclose(st["session_mean_between_rgb"], 6.0, rtol=0.3)
+    np.testing.assert_allclose(st["session_mean_within_rgb"], 0.5, rtol=0.35)
+    # the same pattern in every session: no pattern spread (up to uint8 rounding)
+    assert st["session_pattern_between"] < 0.01
+    assert st["identity_1nn"] > 0.1          # chance: 3 of 159 other presses, 0.02
+    # one press per session: no session statistics; frame_report then adds no session rows
+    single = [presses[i] for i in range(0, 160, 4)]
+    assert compare.session_stats(single) == {"sessions": 0}
+    rep = compare.frame_report(single, single)
+    assert not [c for c in rep["checks"] if c["group"] == "sessions"]
+    rep = compare.frame_report(presses, presses)
+    rows = [c for c in rep["checks"] if c["group"] == "sessions"]
+    assert len(rows) == len(compare.SESSION_KEYS) and all(c["within_25pct"] for c in rows)
