@@ -401,7 +401,91 @@ def _print(summary: dict, labels: list[str], args) -> None:
                   "  ".join(f"{th}: {v['p']:.3g}" for th, v in row.items()))
 
 
+def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: int,
+                 budget: int, seed: int, workers: int, out: str | None = None
+                 ) -> dict[str, Any]:
+    """Does a setting use the recording session? Every setting on the same ``scenes`` real
+    scenes (same seeds) replayed as recorded (``replay:DIR``) and moved onto one background
+    per trial (``replay:DIR:one-session``, as a live robot presses): accuracy after 0, 1, 3,
+    ``budget`` touches and at the stop 0.9 on both, exact McNemar of one-session against
+    recorded per setting (paired by scene), and the per-scene outcomes."""
+    parsed = [parse_setting(t) for t in settings]
+    labels = [q[0] for q in parsed]
+    if len(set(labels)) != len(labels):
+        raise TactexError(f"setting labels must be unique, got {labels}")
+    from ..sources import open_source
+    classes = sorted(open_source(f"replay:{real_dir}").classes)
+    scene_list = draw_scenes(classes, scenes, comparisons, seed)
+    d = results_dir(out, "real_sessions", {"real": real_dir, "settings": settings,
+                                           "scenes": scenes, "comparisons": comparisons,
+                                           "budget": budget, "seed": seed})
+    curves = {side: belief_curves(scene_list, parsed, f"replay:{real_dir}{suffix}", seed,
+                                  budget, f"{side}-", Backend("joblib", workers))
+              for side, suffix in (("recorded", ""), ("one_session", ":one-session"))}
+    points = sorted({0, 1, 3, budget})
+    res: dict[str, Any] = {"scenes": scenes, "comparisons": comparisons, "budget": budget,
+                           "seed": seed, "settings": {}}
+    for lab in labels:
+        both = {side: curves[side][lab] for side in curves}
+        row: dict[str, Any] = {}
+        for side, cs in both.items():
+            row[side] = {"accuracy_at": {str(k): float(np.mean([at_budget(c, k) for c in cs]))
+                                         for k in points},
+                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[0]
+                                                                for c in cs])),
+                         "touches_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[1]
+                                                               for c in cs])),
+                         "correct_at_budget": [at_budget(c, budget) for c in cs],
+                         "failed_trials": sum(1 for c in cs if c["error"])}
+        row["paired_at_budgets"] = _paired({"recorded": both["recorded"],
+                                            "one_session": both["one_session"]}, "recorded",
+                                           points, lambda c, k: (at_budget(c, k), None)
+                                           )["one_session"]
+        row["paired_at_stop_0.9"] = _paired({"recorded": both["recorded"],
+                                             "one_session": both["one_session"]}, "recorded",
+                                            [0.9], at_stop_outcome)["one_session"]
+        res["settings"][lab] = row
+    write_json(d / "summary.json", res)
+    for lab, row in res["settings"].items():
+        r, o = row["recorded"], row["one_session"]
+        pb = row["paired_at_budgets"][str(budget)]["p"]
+        print(f"{lab:>16}: +{budget} recorded {r['accuracy_at'][str(budget)]:.3f} one-session "
+              f"{o['accuracy_at'][str(budget)]:.3f} (McNemar p {pb:.3g}); stop 0.9 "
+              f"{r['accuracy_at_stop_0.9']:.3f} / {o['accuracy_at_stop_0.9']:.3f} with "
+              f"{r['touches_at_stop_0.9']:.2f} / {o['touches_at_stop_0.9']:.2f} touches")
+    print(f"wrote {d}")
+    return res
+
+
+def at_stop_outcome(c: dict, theta: float) -> tuple[bool, int]:
+    """(correct, touches after the baseline) under stop threshold ``theta``."""
+    ok, touches, _ = at_stop(c, theta)
+    return ok, touches
+
+
 def register(esub: argparse._SubParsersAction) -> None:
+    q = esub.add_parser("real-sessions", help="real presses replayed as recorded and moved "
+                                              "onto one session: does a setting use the "
+                                              "recording session?")
+    q.add_argument("--real", required=True, help="folder of recorded presses")
+    q.add_argument("--setting", action="append", required=True,
+                   help="label=preset[:key=value,...] (repeat)")
+    q.add_argument("--scenes", type=int, default=30)
+    q.add_argument("--comparisons", type=int, default=4)
+    q.add_argument("--budget", type=int, default=5)
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--workers", type=int, default=1)
+    q.add_argument("--out")
+
+    def sessions(args: argparse.Namespace) -> int:
+        if args.scenes < 2 or args.budget < 0 or args.workers < 1 or args.comparisons < 2:
+            raise TactexError("--scenes >= 2, --budget >= 0, --workers >= 1, "
+                              "--comparisons >= 2")
+        run_sessions(args.real, args.setting, args.scenes, args.comparisons, args.budget,
+                     args.seed, args.workers, args.out)
+        return 0
+
+    q.set_defaults(func=sessions)
     p = esub.add_parser("real", help="accuracy against touches on real presses "
                                      "(class-disjoint folds)")
     p.add_argument("--source", required=True, help="replay:DIR of recorded presses")
