@@ -194,3 +194,37 @@ def test_fused_press_equals_the_plain_formula(step):
         fast, plain = r.indentation(h, depth, softness), reference_indentation(r, h, depth, softness)
         assert plain.max() > 0.05                       # a real press
         np.testing.assert_allclose(fast, plain, atol=1e-6)
+
+
+@pytest.mark.parametrize("step", [1, 2])
+def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
+    """The numba lookup (one compiled pass) and the numpy row gather it replaces where numba
+    is missing give the same intensity changes (float rounding) and the same uint8 frames;
+    with shade_step 1 both equal the plain formula."""
+    from tactex_ros.sim import render
+    if render._lookup_rows is None:
+        pytest.skip("numba is not installed: only the numpy lookup runs here")
+    src = open_source("sim")
+    r = GelSightRenderer(SensorModel(shade_step=step))
+    src.renderer = r
+    assert r._compiled_lookup is render._lookup_rows
+    rng = np.random.default_rng(17)
+    for name in src.classes[1::3]:
+        fab = src.fabric(name)
+        h = r.lie(r.window(height_tile(fab, 420, MM_PER_PX, 5), rng), rng, fab.softness)
+        ind = r.indentation(h, float(rng.uniform(0.25, 0.6)), fab.softness)
+        compiled = r.shading(ind)
+        monkeypatch.setattr(r, "_compiled_lookup", None)
+        plain_numpy = r.shading(ind)
+        monkeypatch.undo()
+        assert compiled.shape == (240, 320, 3) and np.abs(compiled).max() > 5.0, name
+        np.testing.assert_allclose(compiled, plain_numpy, atol=2e-3, err_msg=name)
+        if step == 1:
+            np.testing.assert_allclose(compiled, reference_shading(r, ind), atol=2e-3,
+                                       err_msg=name)
+    frames = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
+    monkeypatch.setattr(r, "_compiled_lookup", None)
+    ref = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
+    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
+    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
+    assert diff.max() <= 1 and share < 1e-4, (diff, share)
