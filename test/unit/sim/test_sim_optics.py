@@ -228,3 +228,32 @@ def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
     diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
     share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
     assert diff.max() <= 1 and share < 1e-4, (diff, share)
+
+
+def test_lookup_compiles_without_a_writable_cache(monkeypatch):
+    """numba refuses ``cache=True`` where no cache folder is writable (a read-only install):
+    the lookup is then compiled per process instead of failing the import."""
+    from tactex_ros.sim import render
+    if render.njit is None:
+        pytest.skip("numba is not installed")
+    calls, real_njit = [], render.njit
+
+    def njit(**kw):
+        calls.append(kw["cache"])
+        if kw["cache"]:
+            raise RuntimeError("cannot cache function: no locator available")
+        return real_njit(**kw)
+
+    monkeypatch.setattr(render, "njit", njit)
+    kernel = render._compile_lookup()
+    assert calls == [True, False]
+    rng = np.random.default_rng(2)
+    slope = rng.uniform(0.0, 0.4, (240, 320)).astype(np.float32)
+    ang = rng.uniform(0.0, 2 * np.pi, (240, 320)).astype(np.float32)
+    slope[0, 0] = ang[0, 0] = 0.0                      # the flat gel
+    r = GelSightRenderer()
+    out = np.empty((240 * 320, 3), np.float32)
+    kernel(slope.ravel(), ang.ravel(), r._mag_scale, r._dir_scale, r.calib.num_bins, r._table,
+           r._feats6, out)
+    np.testing.assert_allclose(out, r._lookup_numpy(slope, ang), atol=2e-3)
+    assert np.all(out[0] == 0) and np.abs(out).max() > 5.0
