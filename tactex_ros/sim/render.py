@@ -36,6 +36,46 @@ from .calibration import OpticalCalibration, load_calibration
 
 MM_PER_PX = 0.0634
 
+try:  # numba (pinned in requirements.txt): the calibration lookup in one compiled pass
+    from numba import njit
+except ImportError:  # pragma: no cover - exercised by forcing the numpy path in the tests
+    njit = None
+
+
+def _lookup_rows_kernel(slope, ang, mag_scale, dir_scale, nb, table, feats, out):  # noqa: ANN001
+    """The calibration lookup in one pass (compiled by numba; too slow uncompiled). Per pixel
+    i: slope bin min(slope * mag_scale, nb - 1) and direction bin min(ang * dir_scale, nb - 1)
+    (truncated, as numpy's astype) -> row of ``table`` (bins, 18); out[i, c] = row[6c:6c+6] .
+    feats[i] (float32, summed in pairs). slope, ang: (N,) float32 [rad]; feats: (N, 6)
+    float32; out: (N, 3) float32, written in place."""
+    top = np.float32(nb - 1)
+    for i in range(slope.shape[0]):
+        row = np.int64(min(slope[i] * mag_scale, top)) * nb + np.int64(min(ang[i] * dir_scale, top))
+        if row == 0:  # the flat gel: the table's row 0 is 0 (the change against itself)
+            out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+            continue
+        f0, f1, f2 = feats[i, 0], feats[i, 1], feats[i, 2]
+        f3, f4, f5 = feats[i, 3], feats[i, 4], feats[i, 5]
+        for c in range(3):
+            k = 6 * c
+            out[i, c] = ((table[row, k] * f0 + table[row, k + 1] * f1)
+                         + (table[row, k + 2] * f2 + table[row, k + 3] * f3)
+                         + (table[row, k + 4] * f4 + table[row, k + 5] * f5))
+
+
+def _compile_lookup():  # noqa: ANN202
+    """The lookup compiled by numba (cached on disk next to this module, or numba's user-wide
+    cache where that is read-only), or None without numba."""
+    if njit is None:
+        return None
+    try:
+        return njit(cache=True, nogil=True, boundscheck=False)(_lookup_rows_kernel)
+    except RuntimeError:  # no writable cache location: compile on first use in each process
+        return njit(cache=False, nogil=True, boundscheck=False)(_lookup_rows_kernel)
+
+
+_lookup_rows = _compile_lookup()
+
 
 @dataclass
 class SensorModel:
@@ -110,7 +150,11 @@ class GelSightRenderer:
         table = c.table - c.table[:1, :, :]
         self._table = np.ascontiguousarray(table.reshape(-1, 18), np.float32)   # (bins, 18)
         self._feats = np.ascontiguousarray(np.tile(feats, (1, 3)), np.float32)  # (N, 18)
+        self._feats6 = np.ascontiguousarray(feats, np.float32)                   # (N, 6)
         self._ones = np.ones((self._hs, self._ws), np.float32)
+        # numba's one-pass lookup where numba is installed (the default: requirements.txt),
+        # else the numpy row gather below; both give the same frames (test_sim_optics.py)
+        self._compiled_lookup = _lookup_rows
         self._mag_scale = np.float32((c.num_bins - 1) / (0.5 * np.pi))
         self._dir_scale = np.float32((c.num_bins - 1) / (2 * np.pi))
         rng = np.random.default_rng(12345)
@@ -205,6 +249,21 @@ class GelSightRenderer:
                                    cv2.Sobel(indent, cv2.CV_32F, 0, 1, ksize=3, scale=neg))
         nb = self.calib.num_bins
         slope = cv2.phase(self._ones, mag)                # atan(|grad|) in [0, pi/2]
+        if self._compiled_lookup is not None:
+            out = np.empty((self._hs * self._ws, 3), np.float32)
+            self._compiled_lookup(slope.reshape(-1), ang.reshape(-1), self._mag_scale,
+                                  self._dir_scale, nb, self._table, self._feats6, out)
+        else:
+            out = self._lookup_numpy(slope, ang)
+        out = out.reshape(self._hs, self._ws, 3)
+        if k > 1:
+            out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)
+        return out
+
+    def _lookup_numpy(self, slope: np.ndarray, ang: np.ndarray) -> np.ndarray:
+        """The lookup of ``_lookup_rows_kernel`` in numpy (without numba): slope and direction
+        [rad] on the shading grid -> (N, 3) float32 change against the flat gel."""
+        nb = self.calib.num_bins
         bm = np.minimum(slope * self._mag_scale, nb - 1).astype(np.int32)
         bd = np.minimum(ang * self._dir_scale, nb - 1).astype(np.int32)
         idx = (bm * nb + bd).ravel()
@@ -214,10 +273,7 @@ class GelSightRenderer:
         out = t[:, 0] + t[:, 1]                            # sum over the 6 terms
         for j in range(2, 6):
             out += t[:, j]
-        out = out.reshape(self._hs, self._ws, 3)
-        if k > 1:
-            out = cv2.resize(out, (FRAME_W, FRAME_H), interpolation=cv2.INTER_LINEAR)
-        return out
+        return out.reshape(-1, 3)
 
     def render(self, heights: np.ndarray, depth_mm: float, rng: np.random.Generator,
                softness: float = 0.0, background: np.ndarray | None = None) -> np.ndarray:

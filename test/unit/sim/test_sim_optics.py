@@ -194,3 +194,66 @@ def test_fused_press_equals_the_plain_formula(step):
         fast, plain = r.indentation(h, depth, softness), reference_indentation(r, h, depth, softness)
         assert plain.max() > 0.05                       # a real press
         np.testing.assert_allclose(fast, plain, atol=1e-6)
+
+
+@pytest.mark.parametrize("step", [1, 2])
+def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
+    """The numba lookup (one compiled pass) and the numpy row gather it replaces where numba
+    is missing give the same intensity changes (float rounding) and the same uint8 frames;
+    with shade_step 1 both equal the plain formula."""
+    from tactex_ros.sim import render
+    if render._lookup_rows is None:
+        pytest.skip("numba is not installed: only the numpy lookup runs here")
+    src = open_source("sim")
+    r = GelSightRenderer(SensorModel(shade_step=step))
+    src.renderer = r
+    assert r._compiled_lookup is render._lookup_rows
+    rng = np.random.default_rng(17)
+    for name in src.classes[1::3]:
+        fab = src.fabric(name)
+        h = r.lie(r.window(height_tile(fab, 420, MM_PER_PX, 5), rng), rng, fab.softness)
+        ind = r.indentation(h, float(rng.uniform(0.25, 0.6)), fab.softness)
+        compiled = r.shading(ind)
+        monkeypatch.setattr(r, "_compiled_lookup", None)
+        plain_numpy = r.shading(ind)
+        monkeypatch.undo()
+        assert compiled.shape == (240, 320, 3) and np.abs(compiled).max() > 5.0, name
+        np.testing.assert_allclose(compiled, plain_numpy, atol=2e-3, err_msg=name)
+        if step == 1:
+            np.testing.assert_allclose(compiled, reference_shading(r, ind), atol=2e-3,
+                                       err_msg=name)
+    frames = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
+    monkeypatch.setattr(r, "_compiled_lookup", None)
+    ref = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
+    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
+    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
+    assert diff.max() <= 1 and share < 1e-4, (diff, share)
+
+
+def test_lookup_compiles_without_a_writable_cache(monkeypatch):
+    """numba refuses ``cache=True`` where no cache folder is writable (a read-only install):
+    the lookup is then compiled per process instead of failing the import."""
+    from tactex_ros.sim import render
+    if render.njit is None:
+        pytest.skip("numba is not installed")
+    calls, real_njit = [], render.njit
+
+    def njit(**kw):
+        calls.append(kw["cache"])
+        if kw["cache"]:
+            raise RuntimeError("cannot cache function: no locator available")
+        return real_njit(**kw)
+
+    monkeypatch.setattr(render, "njit", njit)
+    kernel = render._compile_lookup()
+    assert calls == [True, False]
+    rng = np.random.default_rng(2)
+    slope = rng.uniform(0.0, 0.4, (240, 320)).astype(np.float32)
+    ang = rng.uniform(0.0, 2 * np.pi, (240, 320)).astype(np.float32)
+    slope[0, 0] = ang[0, 0] = 0.0                      # the flat gel
+    r = GelSightRenderer()
+    out = np.empty((240 * 320, 3), np.float32)
+    kernel(slope.ravel(), ang.ravel(), r._mag_scale, r._dir_scale, r.calib.num_bins, r._table,
+           r._feats6, out)
+    np.testing.assert_allclose(out, r._lookup_numpy(slope, ang), atol=2e-3)
+    assert np.all(out[0] == 0) and np.abs(out).max() > 5.0
