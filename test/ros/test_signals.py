@@ -1,32 +1,40 @@
 """Clean Ctrl-C: a node process that gets SIGINT twice (the terminal's and `ros2 launch`'s, or
-an impatient user) ends with exit status 0, not -2 (killed by the second signal mid clean-up)."""
+an impatient user) ends with exit status 0, not -2 (killed by the second signal mid clean-up)
+and does not hang (a second SIGINT landing inside the first one's handler deadlocked it)."""
 
 from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from geometry_msgs.msg import PoseStamped
+from rclpy.qos import qos_profile_sensor_data
 
 from tactex_ros.ros.graph import describe, params_file
 from tactex_ros.ros.launcher import node_command, ros_env
+from tactex_ros.ros.settings import POSE_TOPIC
 
 pytestmark = pytest.mark.ros
 
 
 @pytest.mark.parametrize("gap_s", [0.0, 0.02, 0.2])
-def test_two_sigints_exit_cleanly(tmp_path: Path, domain_id: int, gap_s: float) -> None:
+def test_two_sigints_exit_cleanly(tmp_path: Path, domain_id: int, listener,
+                                  gap_s: float) -> None:
     nodes = [n for n in describe(True) if n.name == "mock_arm"]
     params = params_file(nodes, tmp_path / "params.yaml")
+    poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
     proc = subprocess.Popen(node_command(nodes[0], params), env=ros_env(domain_id),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             start_new_session=True)
     try:
-        time.sleep(4.0)                      # configured, active, publishing
+        end = time.monotonic() + 60.0          # configured, active, publishing: not a guess
+        while not poses and proc.poll() is None and time.monotonic() < end:
+            time.sleep(0.05)
         assert proc.poll() is None, proc.stdout.read().decode()
+        assert poses, "the mock arm published no pose within 60 s"
         proc.send_signal(signal.SIGINT)
         time.sleep(gap_s)
         proc.send_signal(signal.SIGINT)
