@@ -152,7 +152,10 @@ class TactexNode(LifecycleNode):
             self.exit_code = 2
             return TransitionCallbackReturn.FAILURE
         except Exception as exc:  # noqa: BLE001 - reported, then the lifecycle's error path
-            self.get_logger().error(f"{name} failed: {type(exc).__name__}: {exc}")
+            if self.context.ok():
+                self.get_logger().error(f"{name} failed: {type(exc).__name__}: {exc}")
+            else:   # a stop (SIGINT, SIGTERM) shut the context down under the hook: no error
+                self.get_logger().info(f"{name} ended by the stop: {type(exc).__name__}")
             self.exit_code = 1
             return TransitionCallbackReturn.ERROR
         return TransitionCallbackReturn.SUCCESS
