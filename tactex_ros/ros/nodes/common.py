@@ -32,6 +32,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.lifecycle.publisher import LifecyclePublisher
 from rclpy.publisher import Publisher
+from rclpy.signals import (SignalHandlerOptions, get_current_signal_handlers_options,
+                           uninstall_signal_handlers)
 from rclpy.task import Future
 from rclpy.timer import Timer
 
@@ -150,7 +152,10 @@ class TactexNode(LifecycleNode):
             self.exit_code = 2
             return TransitionCallbackReturn.FAILURE
         except Exception as exc:  # noqa: BLE001 - reported, then the lifecycle's error path
-            self.get_logger().error(f"{name} failed: {type(exc).__name__}: {exc}")
+            if self.context.ok():
+                self.get_logger().error(f"{name} failed: {type(exc).__name__}: {exc}")
+            else:   # a stop (SIGINT, SIGTERM) shut the context down under the hook: no error
+                self.get_logger().info(f"{name} ended by the stop: {type(exc).__name__}")
             self.exit_code = 1
             return TransitionCallbackReturn.ERROR
         return TransitionCallbackReturn.SUCCESS
@@ -213,20 +218,27 @@ class TactexNode(LifecycleNode):
 
     def shutdown(self) -> None:
         """Leave the lifecycle (releasing everything) unless already finalized. After the
-        context was shut down (SIGINT), only files, devices and threads are released here:
-        ``destroy_node`` takes the ROS entities."""
+        context was shut down (SIGINT, SIGTERM: rclpy's handler, possibly while the shutdown
+        transition runs), only files, devices and threads are released here, each hook at most
+        once: ``destroy_node`` takes the ROS entities."""
         if self.finalized:
             return
+        failure = None
         if self.context.ok():
-            self.trigger_shutdown()
-            return
-        self.finalized = True
-        if self.active:
-            self.active = False
-            self._transition("deactivation", self.deactivate)
-        if self.configured:
-            self.configured = False
-            self._transition("clean-up", self.cleanup)
+            try:
+                self.trigger_shutdown()
+            except Exception as exc:  # noqa: BLE001 - re-raised below unless the context went
+                failure = exc          # down meanwhile; the hooks run first either way
+        if not self.finalized:
+            self.finalized = True
+            if self.active:
+                self.active = False
+                self._transition("deactivation", self.deactivate)
+            if self.configured:
+                self.configured = False
+                self._transition("clean-up", self.cleanup)
+        if failure is not None and self.context.ok():
+            raise failure
 
 
 def wait_for(fut: Future, timeout_s: float, check: Callable[[], None] | None = None,
@@ -270,6 +282,25 @@ async def in_thread(node: "rclpy.node.Node", fn: Callable[..., Any], *args: Any)
     return await fut
 
 
+class StopRequest:
+    """SIGINT's handler: it only records that a stop was asked for.
+
+    A Python signal handler runs in the main thread between any two bytecodes, also inside
+    itself when a second SIGINT follows at once (the terminal's and ``ros2 launch``'s). So it
+    takes no lock and raises nothing: a ``threading.Event.set`` here deadlocked, the nested call
+    waiting for the Event's lock that the interrupted outer call held, and an exception raised
+    at an arbitrary bytecode can leave rclpy's executor or a ``with`` block half done. The stop
+    itself comes from rclpy's own SIGINT handler (installed by ``rclpy.init`` after this one,
+    and chaining to it): it shuts the context down from its own thread, which ends the spin.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        self.requested = True
+
+
 def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -> int:
     """Create, auto-start and spin a node until shutdown or ``node.finished``; exit status.
 
@@ -278,62 +309,132 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     ``MultiThreadedExecutor`` re-queues tasks that wait in its thread pool (rclpy issue 1452,
     fixed upstream in 10.0.4): with the mock arm's 100 Hz state it queued thousands of tasks,
     took a full core and left the motion node's robot state stale for over a second.
+
+    SIGINT (any number of them, at any moment after this call starts) is a requested stop:
+    exit status 0, the node's hooks release files, devices and threads. A stop asked for
+    during start-up ends it at the next step (after ``rclpy.init``, node construction,
+    configuration, activation); a step that failed because the stop shut the context down
+    counts as stopped, not as an error.
     """
-    stopping = threading.Event()
-
-    def on_sigint(signum, frame):  # rclpy's handler chains to this one
-        if stopping.is_set():
-            return   # Ctrl-C reaches every process of the group and `ros2 launch` sends its
-            #          own SIGINT too: a second one during clean-up must not kill (exit -2)
-        stopping.set()
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGINT, on_sigint)
+    stop = StopRequest()
+    signal.signal(signal.SIGINT, stop)   # before rclpy.init: rclpy's handler chains to it
     try:
-        return _spin(node_factory, args, stopping)
-    except KeyboardInterrupt:   # a requested stop that surfaced outside the spin
-        return 0
+        return _spin(node_factory, args, stop)
+    finally:
+        # From here on SIGINT is ignored, also during interpreter shutdown (which would put
+        # back the default handler for a Python one: a late Ctrl-C would end it with -2).
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,
-          stopping: threading.Event) -> int:
-    rclpy.init(args=args if args is not None else sys.argv)
+          stop: StopRequest) -> int:
+    if stop.requested:
+        return 0
+    rclpy.init(args=args if args is not None else sys.argv,
+               signal_handler_options=SignalHandlerOptions.ALL)
+
+    def stopped() -> bool:
+        return stop.requested or not rclpy.ok()
+
+    def starting(step: Callable[[], Any]) -> bool:
+        """Run a start-up step; False once a stop was requested (its failure included)."""
+        try:
+            step()
+        except Exception:
+            if not stopped():
+                raise
+        return not stopped()
+
+    node = None
     try:
-        node = node_factory()
-    except (ParameterException, TactexError) as exc:
-        # a parameter given with the wrong type or outside its range (declaration refuses it)
-        print(f"tactex: parameter refused: {exc}", file=sys.stderr)
-        rclpy.shutdown()
-        return 2
-    code = 0
-    try:
+        if stopped():
+            return 0
+        try:
+            node = node_factory()
+        except (ParameterException, TactexError) as exc:
+            # a parameter given with the wrong type or outside its range (declaration refuses it)
+            if stopped():
+                return 0
+            print(f"tactex: parameter refused: {exc}", file=sys.stderr)
+            return 2
+        except Exception:
+            if stopped():
+                return 0     # e.g. the stop shut the context down under the constructor
+            raise
+        if stopped():
+            return 0
         if node.get_parameter("autostart").value:
-            node.trigger_configure()
+            if not starting(node.trigger_configure):
+                return 0
             if node.exit_code:
                 return node.exit_code
-            node.trigger_activate()
-        ex = SingleThreadedExecutor()
-        ex.add_node(node)
-        done = Future()
-        threading.Thread(target=lambda: (node.finished.wait(), done.set_result(True)),
-                         daemon=True).start()
-        try:
-            ex.spin_until_future_complete(done)
-        except RuntimeError:
-            if rclpy.ok() and not stopping.is_set():
-                raise
-            # SIGINT while a message was being taken (the KeyboardInterrupt surfaces as a
-            # RuntimeError from the C++ layer, seen under `ros2 launch`): a normal stop
-        code = node.exit_code
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 0
+            if not starting(node.trigger_activate):
+                return 0
+        return _spin_node(node, stopped)
     finally:
-        stopping.set()   # from here on SIGINT is ignored, also during interpreter shutdown
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
-            node.shutdown()
-            node.destroy_node()
+            if node is not None:
+                if stop.requested:   # let rclpy's handler finish: one release path on SIGINT
+                    _until(lambda: not rclpy.ok(), SIGINT_SHUTDOWN_S)
+                try:
+                    node.shutdown()
+                finally:
+                    node.destroy_node()
         finally:
-            if rclpy.ok():
-                rclpy.shutdown()
-    return code
+            _leave_rclpy()
+
+
+SIGINT_SHUTDOWN_S = 2.0   # [s] rclpy's handler thread shuts the context down within this
+WATCH_PERIOD_S = 0.05     # [s] how often the spin's watcher checks for the end
+
+
+def _spin_node(node: TactexNode, stopped: Callable[[], bool]) -> int:
+    """Spin ``node`` until its work is over (``node.finished``) or a stop; exit status.
+
+    A watcher thread ends the spin: every ``WATCH_PERIOD_S`` it checks ``node.finished`` and
+    ``stopped()``. rclpy's SIGINT handler wakes the executor before it shuts the context down;
+    an executor woken between the two waits again, and a node with no timer would sleep on.
+    """
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    done = Future()
+    ended = threading.Event()
+
+    def watch() -> None:
+        while not ended.is_set():
+            if node.finished.wait(WATCH_PERIOD_S) or stopped():
+                done.set_result(True)
+                return
+
+    watcher = threading.Thread(target=watch, name="spin-watch", daemon=True)
+    watcher.start()
+    try:
+        ex.spin_until_future_complete(done)
+    except ExternalShutdownException:
+        pass
+    except Exception:
+        if not stopped():
+            raise
+        # the stop shut the context down under a callback (e.g. while a message was taken)
+    finally:
+        ended.set()
+        watcher.join(timeout=1.0)
+    return 0 if stopped() else node.exit_code
+
+
+def _until(condition: Callable[[], bool], timeout_s: float, period_s: float = 0.005) -> bool:
+    """Poll ``condition`` every ``period_s`` [s] until it holds or ``timeout_s`` [s] passes."""
+    end = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(period_s)
+    return True
+
+
+def _leave_rclpy() -> None:
+    """Shut the default context down unless a signal did, and take rclpy's signal handlers out
+    of the chain (Kilted's ``try_shutdown`` does so too, Humble's and Jazzy's do not)."""
+    rclpy.try_shutdown()
+    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+        uninstall_signal_handlers()
