@@ -437,13 +437,9 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
                                                                for c in cs])),
                          "correct_at_budget": [at_budget(c, budget) for c in cs],
                          "failed_trials": sum(1 for c in cs if c["error"])}
-        row["paired_at_budgets"] = _paired({"recorded": both["recorded"],
-                                            "one_session": both["one_session"]}, "recorded",
-                                           points, lambda c, k: (at_budget(c, k), None)
-                                           )["one_session"]
-        row["paired_at_stop_0.9"] = _paired({"recorded": both["recorded"],
-                                             "one_session": both["one_session"]}, "recorded",
-                                            [0.9], at_stop_outcome)["one_session"]
+        row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
+                                                     tuple(points))["one_session"]
+        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded", [0.9])["one_session"]
         res["settings"][lab] = row
     write_json(d / "summary.json", res)
     for lab, row in res["settings"].items():
@@ -455,12 +451,6 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
               f"{r['touches_at_stop_0.9']:.2f} / {o['touches_at_stop_0.9']:.2f} touches")
     print(f"wrote {d}")
     return res
-
-
-def at_stop_outcome(c: dict, theta: float) -> tuple[bool, int]:
-    """(correct, touches after the baseline) under stop threshold ``theta``."""
-    ok, touches, _ = at_stop(c, theta)
-    return ok, touches
 
 
 def register(esub: argparse._SubParsersAction) -> None:
