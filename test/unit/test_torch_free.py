@@ -67,11 +67,13 @@ def test_no_module_imports_torch_or_the_lab() -> None:
     assert out.stdout.strip() == "clean"
 
 
+@pytest.mark.slow
 def test_the_check_names_a_module_that_imports_torch() -> None:
     bad = _forbidden(_loaded("tactex_lab.cnn.uncertainty"))
     assert "torch" in bad and "tactex_lab" in bad
 
 
+@pytest.mark.slow
 def test_mock_image_sources_do_not_import_torch() -> None:
     """What the mock image node loads at configure time: the simulator source and a press."""
     bad = _forbidden(_run("import numpy as np; from tactex_ros.sources import open_source; "

@@ -55,6 +55,7 @@ def test_bad_representation_files_are_refused_by_name(tmp_path):
         rp.fit({"a": np.zeros((3, DIM)), "b": np.zeros((1, DIM))})
 
 
+@pytest.mark.slow
 def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     lib = tmp_path / "lib"
     for cls in ("rice", "millet", "sponge"):
