@@ -62,7 +62,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     (``graph.NodeSpec``), ``sim``, ``rviz``, ``bag``, the rviz ``frame``, the robot's
     ``pose_topic`` and ``wrench_topic``, the ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
-    from tactex_ros.core.errors import TactexError
+    from tactex_ros.core.errors import InputError
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile
 
@@ -90,7 +90,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                 "pose_topic": motion.parameters.get("pose_topic") or profile.pose_topic,
                 "wrench_topic": motion.parameters.get("wrench_topic") or profile.wrench_topic,
                 "record_dir": explorer.parameters.get("record_dir") or "runs/trials"}
-    except TactexError as exc:
+    except InputError as exc:
         raise LaunchArgumentError(f"launch argument {exc}") from None
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.cli.main import write_json
 
 
@@ -13,8 +13,8 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
     from tactex_lab.experiments.bench import latency
     unknown = [c for c in args.configs if c not in PRESETS]
     if unknown:
-        raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
-                          f"{', '.join(PRESETS)}")
+        raise InputError(f"--configs: unknown configuration(s) {unknown}; choose from "
+                         f"{', '.join(PRESETS)}")
     out = latency.run(touch_counts=args.touches, repeats=args.repeats,
                       seed_epochs=args.seed_epochs, configs=tuple(args.configs))
     write_json(args.json, out)

@@ -30,7 +30,7 @@ import torch
 
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.saliency import display_image, grad_cam, input_x_gradient
 from tactex_lab.analysis import charts
@@ -48,7 +48,7 @@ class Pool:
         if self.kind == "replay":
             ok = [c for c in self.src.classes if len(self.src.presses(c)) >= 5]
             if len(ok) < n_classes:
-                raise TactexError(f"{spec}: only {len(ok)} classes with >= 5 presses")
+                raise InputError(f"{spec}: only {len(ok)} classes with >= 5 presses")
             self.classes = sorted(rng.choice(ok, n_classes, replace=False).tolist())
             self.frames = {c: [self.src.frame(p) for p in self.src.presses(c)]
                            for c in self.classes}

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .main import add_setting_option, bounded
 from ..core.config import flatten
-from ..core.errors import TactexError
+from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id")
@@ -30,16 +30,16 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
         ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
               "trial": rec["trial"]}
     except (OSError, ValueError, KeyError) as exc:
-        raise TactexError(f"--resume {str(folder)!r}: not a trial record with a config.json "
-                          f"({exc})") from None
+        raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
+                         f"({exc})") from None
     was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]
         if v is not None and v != was.get(path):
-            raise TactexError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
-                              f"{was.get(path)!r}; a resumed trial keeps its settings")
+            raise InputError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
+                             f"{was.get(path)!r}; a resumed trial keeps its settings")
     if args.record_dir is not None or args.trial_id is not None:
-        raise TactexError("--resume names the record; --record-dir and --trial-id do not apply")
+        raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
     ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
     if args.scene is None:
         orig = Path(cfg.get("scene_file") or "")

@@ -2,7 +2,8 @@
 commands (experiments, benchmarks, checkpoint tools, ``sim compare``) are plug-ins of group
 ``tactex.commands`` (``core/plugins.py``).
 
-Exit status: 0 success, 1 a check failed (e.g. weights mismatch), 2 bad input (named).
+Exit status: 0 success, 1 a run-time failure or a failed check (e.g. weights mismatch), 2 bad
+input (named).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..core import plugins
-from ..core.errors import TactexError
+from ..core.errors import InputError, TrialError
 
 
 # a trial touches every platform at least once first; a bench holds a handful (the lab scene
@@ -101,10 +102,10 @@ def cmd_trial(args: argparse.Namespace) -> int:
     cfg, tcfg = settings.learner, settings.trial
     chosen = args.classes.split(",") if args.classes else None
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
-        raise TactexError(f"--classes: {len(chosen)} comparison classes; at most "
-                          f"{MAX_COMPARISONS}")
+        raise InputError(f"--classes: {len(chosen)} comparison classes; at most "
+                         f"{MAX_COMPARISONS}")
     if chosen is None and args.comparisons < 2:
-        raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
+        raise InputError(f"--comparisons must be >= 2, got {args.comparisons}")
     platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
                                           args.reference)
     n = len(platform_classes) - 1
@@ -147,7 +148,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
             for path in src.presses(cls):
                 try:
                     xs.append(describe_touch(src.touch(path), frames))
-                except TactexError as exc:
+                except InputError as exc:
                     print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
             if xs:
                 out[f"{spec}/{cls}"] = np.stack(xs)
@@ -219,9 +220,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except TactexError as exc:
+    except InputError as exc:
         print(f"tactex: error: {exc}", file=sys.stderr)
         return 2
+    except TrialError as exc:
+        print(f"tactex: failed: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

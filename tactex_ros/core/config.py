@@ -21,7 +21,7 @@ import annotated_types
 from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
                       model_validator)
 
-from .errors import TactexError
+from .errors import InputError
 from .strategies import STRATEGIES
 
 
@@ -44,7 +44,7 @@ class FieldError(ValueError):
 class Schema(BaseModel):
     """Base of every settings model. Strict types (an int is taken where a float is expected;
     a bool or a string for a number is not), unknown names refused, assignments checked.
-    Constructing one with bad values raises TactexError naming the field."""
+    Constructing one with bad values raises InputError naming the field."""
 
     model_config = ConfigDict(strict=True, extra="forbid", validate_assignment=True,
                               validate_default=True)
@@ -57,7 +57,7 @@ class Schema(BaseModel):
 
     @classmethod
     def check(cls, data: Any, origin: str | None = None) -> Any:
-        """``data`` (a mapping) validated into ``cls``; TactexError names every bad field as
+        """``data`` (a mapping) validated into ``cls``; InputError names every bad field as
         ``origin: location: problem``."""
         try:
             return cls.model_validate(data)
@@ -84,7 +84,7 @@ def _model_at(cls: type | None, loc: tuple) -> type | None:
     return cls
 
 
-class SchemaError(TactexError):
+class SchemaError(InputError):
     """Bad settings: ``problems`` lists (location, problem) pairs; the message names them all."""
 
     def __init__(self, origin: str, problems: list[tuple[tuple, str]]) -> None:
@@ -157,12 +157,12 @@ def field_spec(cls: type, name: str) -> FieldSpec:
     for spec in fields(cls):
         if spec.name == name:
             return spec
-    raise TactexError(f"{cls.__name__} has no setting {name!r}")
+    raise InputError(f"{cls.__name__} has no setting {name!r}")
 
 
 def parse_text(cls: type, name: str, text: str, origin: str) -> Any:
     """The dotted field ``name`` of ``cls`` read from ``text`` (e.g. a launch argument) and
-    checked against its type, range and choices; TactexError names ``origin``."""
+    checked against its type, range and choices; InputError names ``origin``."""
     *heads, last = name.split(".")
     for part in heads:
         cls = cls.model_fields[part].annotation
@@ -204,7 +204,7 @@ def merge(*dicts: dict[str, Any] | None) -> dict[str, Any]:
 def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[str, Any]:
     """``given`` (nested, a subset of ``cls``'s fields) checked against ``cls`` and returned with
     the schema's types (an int given for a float comes back as a float), e.g. for a ROS
-    parameters file. TactexError names the field."""
+    parameters file. InputError names the field."""
     model = cls.check(given, origin)
     dumped = flatten(model.model_dump())
     return nest({k: dumped[k] for k in flatten(given)})
@@ -362,7 +362,7 @@ TRIAL_PRESETS: dict[str, dict[str, Any]] = {
 
 def _known_preset(name: str) -> None:
     if name not in PRESETS:
-        raise TactexError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
+        raise InputError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
 
 
 def preset(name: str, **overrides: Any) -> LearnerConfig:

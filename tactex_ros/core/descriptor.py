@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from .config import LearnerConfig, validate
-from .errors import TactexError
+from .errors import InputError
 from .learners import TrainStats
 from .match import MatchModel
 from .representation import Representation, load
@@ -61,7 +61,7 @@ class DescriptorLearner:
     def add_touch(self, touch: Touch, label: int) -> np.ndarray:
         """Store the descriptor of a comparison touch under ``label`` (0..C-1); returns it."""
         if not 0 <= label < self.num_classes:
-            raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
+            raise InputError(f"label {label} outside 0..{self.num_classes - 1}")
         x = self._describe(touch)
         self._heldout = self.match.comparison_proba(x) if self.match.ready else None
         self.match.add(label + 1, x)
@@ -75,7 +75,7 @@ class DescriptorLearner:
         """(C,) probabilities of the comparison descriptor ``x`` just added, computed by
         ``add_touch`` before it was stored (the held-back check of the engine)."""
         if self._heldout is None:
-            raise TactexError("no held-back probabilities: the belief was not ready yet")
+            raise InputError("no held-back probabilities: the belief was not ready yet")
         return self._heldout
 
     def train_round(self) -> TrainStats:

@@ -25,7 +25,7 @@ it moves up its ladder of CNNs on evidence from the trial itself; the round reco
 input size it used (``RoundRecord.model``, ``input_size``) and why it escalated (``escalation``).
 
 Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
-``TouchRejected`` (a TactexError) for a blank or no-contact frame, which ``run`` records as a
+``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
 failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
 then falls to the least-touched platform, ``strategies.break_ties``).
 """
@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 
 from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
-from .errors import TactexError
+from .errors import InputError, TrialError
 from .guards import ContactGuard
 from .learners import Learner, make_learner
 from .strategies import make_strategy, predictive_entropy
@@ -57,7 +57,7 @@ class TouchFailed(RuntimeError):
         self.retry = retry
 
 
-class TouchRejected(TactexError):
+class TouchRejected(InputError):
     """A touch frame was refused by the contact guard (blank or no contact); not stored."""
 
 
@@ -140,7 +140,7 @@ class TrialEngine:
                  trial_cfg: TrialConfig | None = None, seed: int = 0,
                  platform_ids: list[str] | None = None) -> None:
         if n_comparisons < 2:
-            raise TactexError(f"comparisons must be >= 2, got {n_comparisons}")
+            raise InputError(f"comparisons must be >= 2, got {n_comparisons}")
         self.C = n_comparisons
         self.trial_cfg = validate(trial_cfg or TrialConfig())
         self.learner_cfg = validate(learner_cfg)
@@ -149,12 +149,12 @@ class TrialEngine:
         self.platform_ids = platform_ids or (["reference"] +
                                              [f"c{i}" for i in range(1, n_comparisons + 1)])
         if len(self.platform_ids) != n_comparisons + 1:
-            raise TactexError(f"platform_ids needs {n_comparisons + 1} names, "
-                              f"got {len(self.platform_ids)}")
+            raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
+                             f"got {len(self.platform_ids)}")
         if self.strategy.includes_reference and self.learner_cfg.model != "descriptor":
-            raise TactexError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
-                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
-                              "another strategy, e.g. variance")
+            raise InputError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
+                             f"(got {self.learner_cfg.model!r}); with a CNN model choose "
+                             "another strategy, e.g. variance")
         self.learner: Learner = make_learner(n_comparisons, self.learner_cfg, seed=seed)
         self.rng = np.random.default_rng([seed, 7])
         self.touches = np.zeros(n_comparisons, dtype=np.int64)
@@ -193,11 +193,11 @@ class TrialEngine:
 
         ``touch``: a ``Touch`` (contact frame, optional no-contact frame and more contact
         frames) or a bare (240, 320, 3) uint8 frame. Every reference touch counts for the
-        decision. Raises TouchRejected (a TactexError) when the guard finds a blank or
+        decision. Raises TouchRejected (a InputError) when the guard finds a blank or
         no-contact frame; nothing is stored then and the platform still counts as untouched.
         """
         if not 0 <= platform <= self.C:
-            raise TactexError(f"platform {platform} outside 0..{self.C}")
+            raise InputError(f"platform {platform} outside 0..{self.C}")
         touch = as_touch(touch)
         frame = validate_frame(touch.frame, f"touch of platform {platform}")
         if self.guard is not None:
@@ -226,9 +226,9 @@ class TrialEngine:
         """Train, score, choose. Sets ``next_platform`` (0 = the reference again, 1..C, or
         None) and maybe ``done`` (``stop_reason`` says why)."""
         if self.done:
-            raise TactexError("trial already finished")
+            raise TrialError("trial already finished")
         if self.reference_touches == 0 or np.any(self.touches == 0):
-            raise TactexError("decide() before every platform has its baseline touch: "
+            raise TrialError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
         stats = self.learner.train_round()
@@ -279,7 +279,7 @@ class TrialEngine:
 
     def result(self, truth: int | None = None) -> TrialResult:
         if self.final is None:
-            raise TactexError("trial not finished")
+            raise TrialError("trial not finished")
         pred = int(np.argmax(self.final.probs)) + 1
         return TrialResult(prediction=pred, truth=truth, touches=self.total_touches,
                            rounds=list(self.records), final=self.final,
@@ -290,7 +290,7 @@ class TrialEngine:
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
-            on_rejected: Callable[[int, TactexError], None] | None = None) -> TrialResult:
+            on_rejected: Callable[[int, InputError], None] | None = None) -> TrialResult:
         """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
         (240, 320, 3) uint8 frame.
 
@@ -308,7 +308,7 @@ class TrialEngine:
                 break
         else:
             missing = [self.platform_ids[p] for p in self.baseline_platforms()]
-            raise TactexError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
+            raise TrialError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
                               f"for {missing}")
         while not self.done:
             rec = self.decide()
@@ -319,7 +319,7 @@ class TrialEngine:
         return self.result(truth)
 
     def _touch(self, platform: int, touch_fn: Callable[[int], "Touch | np.ndarray"],
-               on_rejected: Callable[[int, TactexError], None] | None) -> bool:
+               on_rejected: Callable[[int, InputError], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""
         for _ in range(1 + self.trial_cfg.touch_retries):
@@ -333,7 +333,7 @@ class TrialEngine:
             try:
                 self.add_touch(platform, img)
                 return True
-            except TactexError as exc:   # TouchRejected (guard) or a frame that fails validation
+            except InputError as exc:   # TouchRejected (guard) or a frame that fails validation
                 self.record_failure(platform, str(exc))
                 if on_rejected is not None:
                     on_rejected(platform, exc)

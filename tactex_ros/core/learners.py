@@ -61,7 +61,7 @@ class Learner(Protocol):
 
 def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
     """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
-    plug-in (TactexError when it is not installed)."""
+    plug-in (InputError when it is not installed)."""
     if cfg.model == "descriptor":
         from .descriptor import DescriptorLearner
         return DescriptorLearner(num_classes, cfg, seed=seed)

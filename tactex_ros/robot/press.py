@@ -36,7 +36,7 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 
 APPROACH, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = ("approach", "descend", "settle", "capture",
                                                     "retract", "done")
@@ -113,7 +113,7 @@ def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
 
 def check_press(scene: Workspace, stiffness: float, origin: str = "scene") -> None:
     """Refuse press settings a controller of ``stiffness`` [N/m] cannot carry out in time or
-    inside the workspace; TactexError names the field."""
+    inside the workspace; InputError names the field."""
     s = scene.press
     floor = equilibrium_floor(s, stiffness)
     deepest = 0.0
@@ -121,14 +121,14 @@ def check_press(scene: Workspace, stiffness: float, origin: str = "scene") -> No
         room = min(floor, p.position[2] - scene.workspace_min[2])
         deepest = max(deepest, room)
         if stiffness * room < 1.5 * s.force_threshold:
-            raise TactexError(
+            raise InputError(
                 f"{origin}: platforms[{i}] ({p.id}): the equilibrium can go only {room:.4f} m "
                 f"below the surface (workspace.min z {scene.workspace_min[2]}), which at "
                 f"stiffness {stiffness:g} N/m gives less than 1.5 x force_threshold "
                 f"({s.force_threshold} N)")
     need = (s.approach_height + deepest) / s.descend_speed + 1.0
     if need > s.descend_deadline_s:
-        raise TactexError(
+        raise InputError(
             f"{origin}: press.descend_deadline_s ({s.descend_deadline_s} s) is shorter than a "
             f"descent can take at controller stiffness {stiffness:g} N/m: {need:.1f} s "
             f"(approach_height {s.approach_height} m + equilibrium floor {deepest:.4f} m at "

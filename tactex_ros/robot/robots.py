@@ -32,7 +32,7 @@ from typing import Annotated, Any, Literal
 from pydantic import StringConstraints, field_validator, model_validator
 
 from ..core.config import FieldError, Schema, param
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..paths import config_file, read_yaml
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
@@ -182,7 +182,7 @@ class ProfileFile(Schema):
 
 
 def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
-    """Validate a profile mapping; TactexError names every bad field (``controller.stiffness``,
+    """Validate a profile mapping; InputError names every bad field (``controller.stiffness``,
     ``recovery.then.0.type``)."""
     f = ProfileFile.check(data, origin)
     st = f.state
@@ -209,25 +209,25 @@ def load_profile(name_or_path: str) -> RobotProfile:
 
 
 def import_interface(name: str) -> type:
-    """``pkg/msg|srv|action/Name`` -> the Python class; TactexError if its package is missing."""
+    """``pkg/msg|srv|action/Name`` -> the Python class; InputError if its package is missing."""
     pkg, kind, cls = name.split("/")
     try:
         return getattr(importlib.import_module(f"{pkg}.{kind}"), cls)
     except (ImportError, AttributeError) as exc:
-        raise TactexError(f"interface {name} is not available here ({exc}); install the "
-                          f"package {pkg} (e.g. from the robot's ROS 2 workspace)") from None
+        raise InputError(f"interface {name} is not available here ({exc}); install the "
+                         f"package {pkg} (e.g. from the robot's ROS 2 workspace)") from None
 
 
 def fill_message(msg: Any, values: dict[str, Any], where: str = "request") -> Any:
-    """Set ``msg``'s fields from a (nested) mapping; TactexError names an unknown field."""
+    """Set ``msg``'s fields from a (nested) mapping; InputError names an unknown field."""
     for key, v in values.items():
         if not hasattr(msg, key):
-            raise TactexError(f"{where}.{key}: {type(msg).__name__} has no field {key!r}")
+            raise InputError(f"{where}.{key}: {type(msg).__name__} has no field {key!r}")
         if isinstance(v, dict):
             fill_message(getattr(msg, key), v, f"{where}.{key}")
         else:
             try:
                 setattr(msg, key, v)
             except (TypeError, ValueError, AssertionError) as exc:
-                raise TactexError(f"{where}.{key}: {exc}") from None
+                raise InputError(f"{where}.{key}: {exc}") from None
     return msg

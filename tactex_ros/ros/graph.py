@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
 from ..paths import config_dir, read_yaml
@@ -55,7 +55,7 @@ def option_spec(name: str) -> FieldSpec:
 
 def parse_option(name: str, text: str) -> Any:
     """Option ``name`` given as text (a launch argument), typed and checked by its schema;
-    TactexError names the option."""
+    InputError names the option."""
     node, path = OPTIONS[name]
     return parse_text(SETTINGS[node], path, text, f"{name}:={text!r}")
 
@@ -79,7 +79,7 @@ def explorer_defaults(path: str | Path | None = None) -> dict[str, Any]:
     """Explorer settings from ``config/explorer.yaml`` (or ``path``)."""
     p = Path(path) if path else config_dir() / "explorer.yaml"
     if not p.is_file():
-        raise TactexError(f"explorer settings file {str(p)!r} not found")
+        raise InputError(f"explorer settings file {str(p)!r} not found")
     return _checked("explorer", params_from_file(p, "explorer"))
 
 
@@ -88,12 +88,12 @@ def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
     ``{<node>: {ros__parameters: {...}}}``."""
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"{node} parameters file {str(p)!r} not found")
+        raise InputError(f"{node} parameters file {str(p)!r} not found")
     data = read_yaml(p, f"{node} parameters file") or {}
     if isinstance(data, dict) and isinstance(data.get(node), dict):
         data = data[node].get("ros__parameters", {})
     if not isinstance(data, dict):
-        raise TactexError(f"{node} parameters file {str(p)!r}: expected a mapping")
+        raise InputError(f"{node} parameters file {str(p)!r}: expected a mapping")
     return data
 
 
@@ -119,8 +119,8 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     mo = _checked("motion", mo)
     prof = load_profile(mo["robot"])
     if prof.frame_id != scene.frame_id:
-        raise TactexError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
-                          f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
+        raise InputError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
+                         f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
     check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}")
     nodes = [NodeSpec("motion_node", "motion", mo),
              NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]

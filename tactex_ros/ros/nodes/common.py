@@ -38,7 +38,7 @@ from rclpy.task import Future
 from rclpy.timer import Timer
 
 from ...core.config import FieldSpec, fields, flatten, nest
-from ...core.errors import TactexError
+from ...core.errors import InputError
 
 
 def descriptor(spec: FieldSpec) -> ParameterDescriptor:
@@ -71,14 +71,14 @@ def declare_settings(node: LifecycleNode, cls: type) -> None:
     try:
         base = flatten(cls.model_validate(
             nest({s.name: node.get_parameter(s.name).value for s in top})).model_dump())
-    except (ValidationError, TactexError):
+    except (ValidationError, InputError):
         base = {}       # on_configure names the bad value
     for s in nested:
         node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
 
 
 def read_settings(node: LifecycleNode, cls: type) -> Any:
-    """Current parameter values as a validated settings model (TactexError names a field)."""
+    """Current parameter values as a validated settings model (InputError names a field)."""
     values = {s.name: node.get_parameter(s.name).value for s in fields(cls)}
     return cls.check(nest(values), f"{node.get_name()} parameters")
 
@@ -144,10 +144,10 @@ class TactexNode(LifecycleNode):
 
     def _transition(self, name: str, fn: Callable[[], None]) -> TransitionCallbackReturn:
         """Run a hook; an exception is logged (rclpy would swallow it) and fails the
-        transition: bad input (TactexError, OSError) -> FAILURE and exit status 2."""
+        transition: bad input (InputError, OSError) -> FAILURE and exit status 2."""
         try:
             fn()
-        except (TactexError, OSError) as exc:
+        except (InputError, OSError) as exc:
             self.get_logger().error(f"{name} refused: {exc}")
             self.exit_code = 2
             return TransitionCallbackReturn.FAILURE
@@ -351,7 +351,7 @@ def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,
             return 0
         try:
             node = node_factory()
-        except (ParameterException, TactexError) as exc:
+        except (ParameterException, InputError) as exc:
             # a parameter given with the wrong type or outside its range (declaration refuses it)
             if stopped():
                 return 0

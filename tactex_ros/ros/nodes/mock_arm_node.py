@@ -25,7 +25,7 @@ from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Header
 
 from .. import adapter
-from ...core.errors import TactexError
+from ...core.errors import InputError
 from ...robot.press import ArmModel
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile
@@ -43,8 +43,8 @@ class MockArmNode(TactexNode):
         s = self.settings
         prof = load_profile(s.robot)
         if prof.franka_state:
-            raise TactexError(f"robot profile {prof.name!r}: the mock arm publishes "
-                              "PoseStamped + WrenchStamped state only")
+            raise InputError(f"robot profile {prof.name!r}: the mock arm publishes "
+                             "PoseStamped + WrenchStamped state only")
         scene = load_scene(s.scene_file)
         if s.surface_offset:
             scene = replace(scene, platforms=tuple(
@@ -121,7 +121,7 @@ class MockArmNode(TactexNode):
             return     # a deactivated controller takes no targets
         try:
             xyz, _ = adapter.target_to_array(msg)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"target ignored: {exc}")
             return
         self.arm.target = xyz

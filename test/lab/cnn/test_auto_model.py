@@ -7,7 +7,7 @@ import torch
 from tactex_ros.core.config import preset
 from tactex_lab.cnn.auto import parse_ladder
 from tactex_ros.core.engine import TouchRejected, TrialConfig, TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.guards import ContactGuard, flatness_score
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_ros.core.strategies import VarianceStrategy
@@ -30,11 +30,11 @@ def _touch_fn(seed=0, n=4):
 def test_parse_ladder_checks_names_and_sizes():
     assert parse_ladder("small_inception@32, small_inception", 64) == [
         ("small_inception", 32), ("small_inception", 64)]
-    with pytest.raises(TactexError, match="unknown model"):
+    with pytest.raises(InputError, match="unknown model"):
         parse_ladder("resnet@32", 64)
-    with pytest.raises(TactexError, match="at least 75"):
+    with pytest.raises(InputError, match="at least 75"):
         parse_ladder("inception_v3_random@48", 64)
-    with pytest.raises(TactexError, match="empty"):
+    with pytest.raises(InputError, match="empty"):
         parse_ladder(" , ", 64)
 
 
@@ -194,7 +194,7 @@ def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
 
 
 def test_touch_retries_validated():
-    with pytest.raises(TactexError, match="touch_retries"):
+    with pytest.raises(InputError, match="touch_retries"):
         TrialEngine(3, preset("cnn", **FAST), TrialConfig(touch_retries=-1))
 
 

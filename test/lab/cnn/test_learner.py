@@ -3,7 +3,7 @@ import pytest
 
 from tactex_ros.core.config import LearnerConfig, preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine, TouchFailed
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner, class_weights
 from tactex_lab.cnn.preprocess import augment, validate_frame, view
 from stripes import stripe_frames
@@ -35,20 +35,20 @@ def test_view_rotation_is_a_rotation():
 
 
 def test_bad_frames_are_rejected_with_reason():
-    with pytest.raises(TactexError, match="shape"):
+    with pytest.raises(InputError, match="shape"):
         validate_frame(np.zeros((10, 10, 3), np.uint8))
-    with pytest.raises(TactexError, match="dtype"):
+    with pytest.raises(InputError, match="dtype"):
         validate_frame(np.zeros((240, 320, 3), np.float32))
-    with pytest.raises(TactexError, match="constant"):
+    with pytest.raises(InputError, match="constant"):
         validate_frame(np.zeros((240, 320, 3), np.uint8))
 
 
 def test_config_validation_names_the_field():
-    with pytest.raises(TactexError, match="input_size"):
+    with pytest.raises(InputError, match="input_size"):
         preset("cnn", input_size=8)
-    with pytest.raises(TactexError, match="model"):
+    with pytest.raises(InputError, match="model"):
         LearnerConfig(model="vgg").replace()
-    with pytest.raises(TactexError, match="configuration"):
+    with pytest.raises(InputError, match="configuration"):
         preset("turbo")
 
 

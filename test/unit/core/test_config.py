@@ -11,7 +11,7 @@ import pytest
 from tactex_ros.core.config import (PRESETS, TRIAL_PRESETS, LearnerConfig, TrialConfig,
                                     TrialSettings, field_spec, fields, merge, preset,
                                     trial_preset, typed)
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
 
 
@@ -47,7 +47,7 @@ def test_presets_keep_their_values() -> None:
     ({"colour": 1}, "LearnerConfig: colour: unknown name; known: model, input_size,"),
 ])
 def test_learner_errors_name_the_field(kw: dict, message: str) -> None:
-    with pytest.raises(TactexError, match="^" + re.escape(message)):
+    with pytest.raises(InputError, match="^" + re.escape(message)):
         LearnerConfig(**kw)
 
 
@@ -57,11 +57,11 @@ def test_types_and_assignment() -> None:
     with pytest.raises(ValueError, match="input_size"):
         c.input_size = 4                          # assignments are checked too
     assert c.replace(input_size=64).input_size == 64 and c.input_size == 299
-    with pytest.raises(TactexError, match="^LearnerConfig: input_size: "):
+    with pytest.raises(InputError, match="^LearnerConfig: input_size: "):
         c.replace(input_size=4)
-    with pytest.raises(TactexError, match="^configuration 'cnn': dropout: .*0.95"):
+    with pytest.raises(InputError, match="^configuration 'cnn': dropout: .*0.95"):
         preset("cnn", dropout=0.99)
-    with pytest.raises(TactexError, match="unknown configuration 'turbo'"):
+    with pytest.raises(InputError, match="unknown configuration 'turbo'"):
         preset("turbo")
 
 
@@ -72,7 +72,7 @@ def test_trial_settings_are_a_preset_plus_overrides() -> None:
     assert t.trial == trial_preset("cnn", rounds=3)
     assert TrialSettings().learner == preset("default")
     assert TrialSettings().trial == trial_preset("default")
-    with pytest.raises(TactexError) as e:
+    with pytest.raises(InputError) as e:
         TrialSettings.check({"config": "cnn", "trial": {"strategy": "greedy", "bogus": 1},
                              "learner": {"input_size": 4}}, "tactex trial")
     msg = str(e.value)
@@ -103,7 +103,7 @@ def test_typed_and_merge() -> None:
     assert typed(ExplorerSettings, {"press_timeout_s": 60, "trial": {"rounds": 2}}) == \
         {"press_timeout_s": 60.0, "trial": {"rounds": 2}}
     assert isinstance(typed(ExplorerSettings, {"press_timeout_s": 60})["press_timeout_s"], float)
-    with pytest.raises(TactexError, match=r"^x: press_timeout_s: .*less than or equal to 3600"):
+    with pytest.raises(InputError, match=r"^x: press_timeout_s: .*less than or equal to 3600"):
         typed(ExplorerSettings, {"press_timeout_s": 1e5}, "x")
     assert merge({"a": 1, "t": {"r": 1, "s": "v"}}, None, {"t": {"r": 2}}) == \
         {"a": 1, "t": {"r": 2, "s": "v"}}
@@ -132,7 +132,7 @@ def test_graph_options_parse_text_with_the_schema() -> None:
     for name, text, what in (("rounds", "abc", "valid integer"), ("rounds", "5000", "1000"),
                              ("strategy", "greedy", "'infogain'"),
                              ("exit_when_done", "maybe", "valid boolean")):
-        with pytest.raises(TactexError, match=f"^{name}:={text!r}: .*{what}"):
+        with pytest.raises(InputError, match=f"^{name}:={text!r}: .*{what}"):
             parse_option(name, text)
     assert option_overrides({"strategy": "random", "rounds": 3, "model": None,
                              "device": "/dev/video2"}) == \

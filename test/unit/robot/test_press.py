@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.robot.press import (DONE, SETTLE, ArmModel, PressController, check_press,
                                    equilibrium_floor, platform_under)
 from tactex_ros.paths import config_dir
@@ -103,9 +103,9 @@ def test_equilibrium_floor_and_reachability() -> None:
     assert equilibrium_floor(s, 150.0) == pytest.approx(0.5 * (s.force_threshold + s.max_force)
                                                         / 150.0)
     check_press(_scene(), 150.0)
-    with pytest.raises(TactexError, match="descend_deadline_s"):
+    with pytest.raises(InputError, match="descend_deadline_s"):
         check_press(_scene(descend_deadline_s=3.0), 150.0)
-    with pytest.raises(TactexError, match=r"platforms\[0\].*workspace.min"):
+    with pytest.raises(InputError, match=r"platforms\[0\].*workspace.min"):
         check_press(_scene(), 20.0)
 
 

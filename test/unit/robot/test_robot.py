@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from tactex_ros.ros import adapter
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.ros.graph import describe, fixed_frame
 from tactex_ros.paths import config_dir, config_names
 from tactex_ros.robot.robots import fill_message, import_interface, load_profile, parse_profile
@@ -48,14 +48,14 @@ def test_profile_errors_name_the_field(path, value, field) -> None:
     for k in path[:-1]:
         target = target[k]
     target[path[-1]] = value
-    with pytest.raises(TactexError, match=field):
+    with pytest.raises(InputError, match=field):
         parse_profile(d)
 
 
 def test_missing_profile_and_interface() -> None:
-    with pytest.raises(TactexError, match="robot profile .ur5. not found.*fr3_jazzy"):
+    with pytest.raises(InputError, match="robot profile .ur5. not found.*fr3_jazzy"):
         load_profile("ur5")
-    with pytest.raises(TactexError, match="franka_msgs"):
+    with pytest.raises(InputError, match="franka_msgs"):
         import_interface("franka_msgs/action/ErrorRecovery")
     assert import_interface("std_srvs/srv/SetBool").__name__ == "SetBool"
 
@@ -63,7 +63,7 @@ def test_missing_profile_and_interface() -> None:
 def test_fill_message_names_unknown_fields() -> None:
     from std_srvs.srv import SetBool
     assert fill_message(SetBool.Request(), {"data": True}).data is True
-    with pytest.raises(TactexError, match="request.name"):
+    with pytest.raises(InputError, match="request.name"):
         fill_message(SetBool.Request(), {"name": "x"})
 
 
@@ -97,7 +97,7 @@ def test_franka_state_and_wrench_sign() -> None:
     np.testing.assert_allclose(pos, [0.5, 0.1, 0.2])
     assert fn == pytest.approx(4.0) and mag == pytest.approx(5.0)
     assert mode == adapter.FRANKA_MODE_REFLEX
-    with pytest.raises(TactexError, match="o_t_ee"):
+    with pytest.raises(InputError, match="o_t_ee"):
         adapter.franka_state_to_array(SimpleNamespace(o_t_ee=[0.0] * 3,
                                                       o_f_ext_hat_k=[0.0] * 6), 1.0)
 
@@ -108,7 +108,7 @@ def test_graph_checks_profile_against_scene(tmp_path) -> None:
     motion = next(n for n in nodes if n.name == "motion")
     arm = next(n for n in nodes if n.name == "mock_arm")
     assert motion.parameters["robot"] == arm.parameters["robot"] == "sim"
-    with pytest.raises(TactexError, match="panda_link0"):
+    with pytest.raises(InputError, match="panda_link0"):
         describe(False, robot="panda_multipanda")
     f = tmp_path / "motion.yaml"
     f.write_text(yaml.safe_dump({"motion": {"ros__parameters": {"stiffness": 800.0,
@@ -116,7 +116,7 @@ def test_graph_checks_profile_against_scene(tmp_path) -> None:
     motion = next(n for n in describe(True, motion_file=f) if n.name == "motion")
     assert motion.parameters["stiffness"] == 800.0 and motion.parameters["rate_hz"] == 100.0
     f.write_text(yaml.safe_dump({"rate_hz": 1e9}))
-    with pytest.raises(TactexError, match="rate_hz"):
+    with pytest.raises(InputError, match="rate_hz"):
         describe(True, motion_file=f)
-    with pytest.raises(TactexError, match=r"platforms\[0\].*workspace.min.*60 N/m"):
+    with pytest.raises(InputError, match=r"platforms\[0\].*workspace.min.*60 N/m"):
         describe(True, motion={"stiffness": 60.0})
