@@ -47,6 +47,8 @@ from typing import Any
 import numpy as np
 
 from tactex_lab.analysis import charts
+from tactex_ros.core.config import SHIPPED_STOP
+from tactex_ros.core.engine import confident
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import budget_index, parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
@@ -124,7 +126,7 @@ def at_budget(c: dict, k: int) -> bool:
 def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
     """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
     for i, conf in enumerate(c["conf"]):
-        if conf >= theta:
+        if confident(conf, theta):
             return c["correct"][i], c["extra"][i], True
     return c["correct"][-1], c["extra"][-1], False
 
@@ -200,7 +202,7 @@ def calibration(cs: list[dict], bins: int = 10) -> dict:
     idx = np.minimum((conf * bins).astype(int), bins - 1)
     ece = sum(abs(conf[idx == b].mean() - ok[idx == b].mean()) * np.sum(idx == b)
               for b in range(bins) if np.any(idx == b)) / conf.size
-    hi = conf >= 0.9
+    hi = conf >= SHIPPED_STOP
     return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
             "accuracy": float(ok.mean()),
             "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
@@ -431,15 +433,16 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
         for side, cs in both.items():
             row[side] = {"accuracy_at": {str(k): float(np.mean([at_budget(c, k) for c in cs]))
                                          for k in points},
-                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[0]
+                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[0]
                                                                 for c in cs])),
-                         "touches_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[1]
+                         "touches_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[1]
                                                                for c in cs])),
                          "correct_at_budget": [at_budget(c, budget) for c in cs],
                          "failed_trials": sum(1 for c in cs if c["error"])}
         row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
                                                      tuple(points))["one_session"]
-        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded", [0.9])["one_session"]
+        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded",
+                                                         [SHIPPED_STOP])["one_session"]
         res["settings"][lab] = row
     write_json(d / "summary.json", res)
     for lab, row in res["settings"].items():
@@ -538,7 +541,7 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     labels = [p[0] for p in parsed]
     if len(labels) < 2 or len(set(labels)) != len(labels):
         raise InputError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
-    theta = 0.9
+    theta = SHIPPED_STOP
     out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
                            "budget": budget, "stop_theta": theta, "seed": seed,
                            "setting_specs": list(settings), "sim_source": sim_spec,

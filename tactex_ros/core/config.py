@@ -217,9 +217,10 @@ ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
 
 
 class LearnerConfig(Schema):
-    """How the online learner trains and scores (units in the descriptions)."""
+    """How the learner describes, trains and scores (units in the descriptions). The defaults
+    are the shipped method's (model 'descriptor'); the CNN fields apply to the lab's models."""
 
-    model: ModelName = param("small_inception",
+    model: ModelName = param("descriptor",
                              "model: 'descriptor' (texture descriptor + Gaussian match belief, "
                              "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
@@ -323,13 +324,19 @@ class LearnerConfig(Schema):
     # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
 
 
-class TrialConfig(Schema):
-    """What a trial does (the learner's settings live in LearnerConfig)."""
+#: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3
+#: class folds of octopi-dev (docs/real_presses.md); ``stop_reason`` (core/engine.py) applies it.
+SHIPPED_STOP = 0.9
 
-    strategy: Literal[tuple(STRATEGIES)] = param("variance", "exploration strategy")
+
+class TrialConfig(Schema):
+    """What a trial does (the learner's settings live in LearnerConfig). The defaults are the
+    shipped method's: information-gain touches, stop at belief ``SHIPPED_STOP``."""
+
+    strategy: Literal[tuple(STRATEGIES)] = param("infogain", "exploration strategy")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
-    stop_confidence: float = param(0.0, "stop once the belief in one comparison reaches this "
-                                        "(0 = never: all rounds)", 0.0, 1.0)
+    stop_confidence: float = param(SHIPPED_STOP, "stop once the belief in one comparison "
+                                                 "reaches this (0 = never: all rounds)", 0.0, 1.0)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)
@@ -342,7 +349,7 @@ class TrialConfig(Schema):
 # `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
 # and the default, chosen on real presses (`tactex evaluate`, docs/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
-    "default": dict(model="descriptor"),
+    "default": dict(),          # the class defaults of LearnerConfig are the shipped method
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
@@ -354,7 +361,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 # What a trial does under each preset (TrialConfig fields); the default stops on a calibrated
 # belief and picks touches by expected information about the match (docs/real_presses.md).
 TRIAL_PRESETS: dict[str, dict[str, Any]] = {
-    "default": dict(strategy="infogain", stop_confidence=0.9),
+    "default": dict(),          # the class defaults of TrialConfig are the shipped method
     "seed_faithful": dict(strategy="variance", stop_confidence=0.0),
     "cnn": dict(strategy="variance", stop_confidence=0.0),
 }

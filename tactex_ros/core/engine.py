@@ -41,7 +41,7 @@ import numpy as np
 from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
 from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, make_learner
+from .learners import Learner, TrainStats, make_learner, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
@@ -59,6 +59,26 @@ class TouchFailed(RuntimeError):
 
 class TouchRejected(InputError):
     """A touch frame was refused by the contact guard (blank or no contact); not stored."""
+
+
+def confident(belief_max: float, stop_confidence: float) -> bool:
+    """The stop rule: the belief in one comparison reached ``stop_confidence`` (0 = never)."""
+    return stop_confidence > 0 and belief_max >= stop_confidence
+
+
+def stop_reason(belief_max: float, stop_confidence: float, decisions: int, rounds: int,
+                budget_left: bool = True) -> str | None:
+    """Why a trial ends at a decision after ``decisions`` earlier ones: 'confident' (the stop
+    rule), 'rounds' (all ``rounds`` used), 'max_touches' (no budget left), or None to go on.
+    The offline evaluation of recorded belief curves applies the same rule
+    (``tactex_lab/experiments/real.py``)."""
+    if confident(belief_max, stop_confidence):
+        return "confident"
+    if decisions >= rounds:
+        return "rounds"
+    if not budget_left:
+        return "max_touches"
+    return None
 
 
 @dataclass
@@ -210,7 +230,7 @@ class TrialEngine:
         else:
             x = self.learner.add_touch(touch, platform - 1)
             self.touches[platform - 1] += 1
-            if self.learner.rounds_trained > 0:
+            if self.records or self.final is not None:   # after the first decision
                 p = self.learner.heldout_proba(x)
                 self._pending_heldout.append(bool(int(np.argmax(p)) == platform - 1))
 
@@ -231,7 +251,7 @@ class TrialEngine:
             raise TrialError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
-        stats = self.learner.train_round()
+        stats = train_round(self.learner) or TrainStats(0.0, 0, float("nan"))  # untrained
         t0 = time.perf_counter()
         probs = self.learner.reference_probs()
         pbar = self.learner.belief(probs)
@@ -268,14 +288,8 @@ class TrialEngine:
 
     def _stop_reason(self, belief: np.ndarray) -> str | None:
         """Why the trial ends at this decision, or None to go on."""
-        c = self.trial_cfg
-        if c.stop_confidence > 0 and float(belief.max()) >= c.stop_confidence:
-            return "confident"
-        if len(self.records) >= c.rounds:
-            return "rounds"
-        if not self._budget_left():
-            return "max_touches"
-        return None
+        return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
+                           len(self.records), self.trial_cfg.rounds, self._budget_left())
 
     def result(self, truth: int | None = None) -> TrialResult:
         if self.final is None:

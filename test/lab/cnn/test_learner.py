@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from tactex_ros.core.config import LearnerConfig, preset
-from tactex_ros.core.engine import TrialConfig, TrialEngine, TouchFailed
+from tactex_ros.core.config import LearnerConfig, preset, trial_preset
+from tactex_ros.core.engine import TouchFailed, TrialEngine
 from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner, class_weights
 from tactex_lab.cnn.preprocess import augment, validate_frame, view
@@ -56,7 +56,7 @@ def _run(seed: int, strategy: str = "variance", rounds: int = 3, **over):
     frames = stripe_frames(1, 4)
     rng = np.random.default_rng(seed)
     cfg = preset("cnn", **{**FAST, **over})
-    eng = TrialEngine(4, cfg, TrialConfig(strategy=strategy, rounds=rounds), seed=seed)
+    eng = TrialEngine(4, cfg, trial_preset("cnn", strategy=strategy, rounds=rounds), seed=seed)
 
     def touch(p):
         k = 2 if p == 0 else p - 1
@@ -104,12 +104,12 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
             raise TouchFailed("no contact before deadline")
         return frames[2 if p == 0 else p - 1]
 
-    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3), seed=0)
+    eng = TrialEngine(4, preset("cnn", **FAST), trial_preset("cnn", rounds=3), seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1 and "deadline" in res.failed_touches[0]["reason"]
     assert res.touches == 5 + 3          # the failed touch was repeated at once
     calls["n"] = 0
-    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3, touch_retries=0),
+    eng = TrialEngine(4, preset("cnn", **FAST), trial_preset("cnn", rounds=3, touch_retries=0),
                       seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1

@@ -8,9 +8,9 @@ import re
 
 import pytest
 
-from tactex_ros.core.config import (PRESETS, TRIAL_PRESETS, LearnerConfig, TrialConfig,
-                                    TrialSettings, field_spec, fields, merge, preset,
-                                    trial_preset, typed)
+from tactex_ros.core.config import (PRESETS, SHIPPED_STOP, TRIAL_PRESETS, LearnerConfig,
+                                    TrialConfig, TrialSettings, field_spec, fields, merge,
+                                    preset, trial_preset, typed)
 from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
 
@@ -31,6 +31,9 @@ def test_presets_keep_their_values() -> None:
         assert (t.strategy, t.stop_confidence, t.rounds, t.touch_retries) == \
             ("variance", 0.0, 20, 2)
     assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "cnn", "seed_faithful"}
+    # the class defaults are the shipped method: the default preset adds nothing to them
+    assert LearnerConfig() == preset("default") and TrialConfig() == trial_preset("default")
+    assert (TrialConfig().strategy, TrialConfig().stop_confidence) == ("infogain", SHIPPED_STOP)
     # None = an option not given: the preset's value stays
     assert trial_preset("default", strategy=None, rounds=3) == \
         TrialConfig(strategy="infogain", stop_confidence=0.9, rounds=3)

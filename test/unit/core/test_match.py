@@ -142,7 +142,7 @@ def test_reference_retouch_is_pressed_and_used():
         touched.append(p)
         return fn(p)
 
-    eng = TrialEngine(3, preset("default"), TrialConfig(rounds=2), seed=0)
+    eng = TrialEngine(3, preset("default"), TrialConfig(rounds=2, stop_confidence=0.0), seed=0)
     eng.strategy = _ReferenceFirst()
     res = eng.run(touch, truth=1)
     assert touched == [0, 1, 2, 3, 0, 0]
