@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.cli.main import write_json
+from tactex_ros.cli.main import builds, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
@@ -28,8 +28,10 @@ def cmd_bench_sim(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     b = sub.add_parser("bench", help="benchmarks (print figures)")
+    if not builds(command, "bench"):
+        return
     bsub = b.add_subparsers(dest="bcmd", required=True)
     bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
     bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])

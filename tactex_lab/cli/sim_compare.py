@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from tactex_ros.cli.main import command_group
+from tactex_ros.cli.main import builds, command_group
 from tactex_ros.core.errors import InputError
 
 
@@ -100,9 +100,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
-    c = command_group(sub, "sim", "fabric simulator").add_parser("compare", help="sim-to-real report: frame statistics per family and "
-                                        "the ranking of learner settings on both sides")
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
+    if not builds(command, "sim"):
+        return
+    c = command_group(sub, "sim", "fabric simulator").add_parser(
+        "compare", help="sim-to-real report: frame statistics per family and the ranking of "
+                        "learner settings on both sides")
     c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
     c.add_argument("--out", required=True, help="PNG: side-by-side frames (+ ranking)")
     c.add_argument("--seed", type=int, default=0)

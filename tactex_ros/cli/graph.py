@@ -8,9 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-
-from .main import add_setting_option, bounded
-from ..core.config import flatten
+from .main import add_setting_option, bounded, builds
 from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
@@ -32,6 +30,7 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
                          f"({exc})") from None
+    from ..core.config import flatten
     was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]
@@ -147,8 +146,10 @@ def add_option(p: argparse.ArgumentParser, name: str) -> None:
                        f"{OPTIONS[name][0]} {spec.name}: {spec.description}")
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
+    if not builds(command, "graph"):
+        return
     gsub = g.add_subparsers(dest="gcmd", required=True)
     for name, fn, hlp in (("describe", cmd_describe, "print the nodes and parameters"),
                           ("run", cmd_run, "start the graph, run one trial, stop")):

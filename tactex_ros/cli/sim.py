@@ -5,11 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import cv2
-import numpy as np
-
 from ..core.errors import InputError
-from .main import command_group
+from .main import builds, command_group
 
 
 def cmd_fabrics(args: argparse.Namespace) -> int:
@@ -29,6 +26,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     src = open_source("sim")
     if args.depth is not None and not 0.0 < args.depth <= 3.0:
         raise InputError(f"--depth {args.depth} mm outside (0, 3]")
+    import cv2
+    import numpy as np
     rng = np.random.default_rng(args.seed)
     img = (src.renderer.no_contact(rng) if args.no_contact
            else src.press(args.fabric, rng, depth_mm=args.depth))
@@ -40,8 +39,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     ssub = command_group(sub, "sim", "fabric simulator")
+    if not builds(command, "sim"):
+        return
     f = ssub.add_parser("fabrics", help="list the fabric catalogue")
     f.set_defaults(func=cmd_fabrics)
     r = ssub.add_parser("render", help="write one simulated frame")

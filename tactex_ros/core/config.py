@@ -22,7 +22,6 @@ from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
                       model_validator)
 
 from .errors import InputError
-from .strategies import STRATEGIES
 
 
 def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,
@@ -213,6 +212,9 @@ def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[s
 # the CNN learners (the thesis method) are a plug-in (``core/learners.py``): the schema names them,
 # the lab implements them
 CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
+# the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
+# that the schema, and with it `tactex trial --help`, imports no numpy
+STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
 ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
 
 
@@ -333,7 +335,7 @@ class TrialConfig(Schema):
     """What a trial does (the learner's settings live in LearnerConfig). The defaults are the
     shipped method's: information-gain touches, stop at belief ``SHIPPED_STOP``."""
 
-    strategy: Literal[tuple(STRATEGIES)] = param("infogain", "exploration strategy")
+    strategy: Literal[STRATEGY_NAMES] = param("infogain", "exploration strategy")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(SHIPPED_STOP, "stop once the belief in one comparison "
                                                  "reaches this (0 = never: all rounds)", 0.0, 1.0)

@@ -176,3 +176,9 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
                          ({"sim": "true", "model": "vgg"}, "launch argument model:='vgg': ")):
         with pytest.raises(launch.LaunchArgumentError, match="^" + re.escape(what)):
             launch.plan(values)
+
+
+def test_the_schema_names_every_strategy():
+    from tactex_ros.core.config import STRATEGY_NAMES
+    from tactex_ros.core.strategies import STRATEGIES
+    assert set(STRATEGY_NAMES) == set(STRATEGIES)
