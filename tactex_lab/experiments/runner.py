@@ -16,7 +16,7 @@ A ``TrialJob`` is everything one trial needs as plain data (so it pickles into a
 the source spec (``sim[:q]`` or ``replay:DIR``), the scene (explicit platform classes, or drawn
 from the seed), learner preset + overrides, trial settings, the seed, and an optional
 ``perturb`` dict that experiments use to degrade touches (see ``apply_perturbation``).
-``run_jobs`` returns one result dict per job in job order: the engine's ``TrialResult.to_dict``
+``run_jobs`` returns one result dict per job in job order: the engine's ``TrialOutcome.to_dict``
 plus ``job`` (the job as a dict), ``decision_s`` per decision and ``wall_s``.
 
 Each trial runs with ``threads`` torch threads (default 1), so timings within one run are
@@ -35,7 +35,7 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 
 import numpy as np
 
-from tactex_ros.core.engine import TrialConfig, TrialEngine
+from tactex_ros.core.engine import TrialConfig, TrialEngine, TrialSpec, run_trial
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.sources.base import TouchSource
@@ -232,16 +232,15 @@ def run_job(job: TrialJob, threads: int = 1,
     cfg = preset(job.preset, **job.overrides)
     tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
                        stop_confidence=job.stop_confidence)
-    eng = TrialEngine(n, cfg, tcfg, seed=job.seed, platform_ids=ids)
     src = cached_source(job.source)
     no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
-    if no_contact is not None:
-        eng.set_no_contact_reference(no_contact)
+    spec = TrialSpec(n, cfg, tcfg, seed=job.seed, platform_ids=tuple(ids), no_contact=no_contact)
+    eng = spec.engine()
     if engine_hook:
         engine_hook(eng)
     t0 = time.perf_counter()
     try:
-        res = eng.run(_touch_fn(job, classes), truth=truth)
+        res = run_trial(spec, _touch_fn(job, classes), truth=truth, engine=eng)
     except (InputError, FloatingPointError, RuntimeError) as exc:
         if not job.catch_errors:
             raise

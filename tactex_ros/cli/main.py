@@ -95,7 +95,7 @@ def write_json(path: str | None, obj: dict) -> None:
 
 def cmd_trial(args: argparse.Namespace) -> int:
     from ..core.config import TrialSettings
-    from ..core.engine import TrialEngine
+    from ..core.engine import TrialSpec, run_trial
     from ..sources import open_source, trial_scene
     settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
                                    "tactex trial")
@@ -111,7 +111,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
                                           args.reference)
     n = len(platform_classes) - 1
     ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
-    engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
+    spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
     touch = src.trial(platform_classes, args.seed)
 
     import numpy as np
@@ -122,7 +122,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
                   f"decision {rec.decision_s:.2f}s", file=sys.stderr)
 
-    res = engine.run(touch, truth=truth, on_round=progress)
+    res = run_trial(spec, touch, truth=truth, on_round=progress)
     out = res.to_dict()
     out.update(classes={i: c for i, c in zip(ids, platform_classes)},
                prediction_class=platform_classes[res.prediction],

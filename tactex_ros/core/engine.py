@@ -9,10 +9,12 @@ texture descriptors and a closed-form belief over the matching comparison; nothi
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
 
-Drive it with ``run(touch_fn)``: the command line and experiments pass a simulated or replayed
-touch, the ROS explorer node a press over the graph (in its trial thread, off the executor).
-``add_touch`` / ``decide`` / ``done`` are the steps ``run`` takes, for callers that need them
-one by one.
+One contract for every caller: ``TrialSpec`` (what decides the outcome besides the touches) ->
+``run_trial(spec, touch_fn)`` -> ``TrialOutcome`` (typed, platform indices; ``to_dict`` is the
+JSON at the file edge). The command line and experiments pass a simulated or replayed touch, the
+ROS explorer node its press over the graph (in its trial thread, off the executor).
+``TrialSpec.engine`` is the one place a trial's engine is built; ``add_touch`` / ``decide`` /
+``done`` are the steps ``run`` takes, for callers that need them one by one (the latency bench).
 
 A round (``decide``): train one round (CNN), the (T, C) table of the reference and the belief,
 the strategy's per-platform scores, the choice of the next platform (or none). At most
@@ -112,7 +114,7 @@ class RoundRecord:
 
 
 @dataclass
-class TrialResult:
+class TrialOutcome:
     prediction: int               # 1..C
     truth: int | None             # 1..C when known
     touches: int                  # total touches incl. baseline
@@ -291,11 +293,11 @@ class TrialEngine:
         return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
                            len(self.records), self.trial_cfg.rounds, self._budget_left())
 
-    def result(self, truth: int | None = None) -> TrialResult:
+    def result(self, truth: int | None = None) -> TrialOutcome:
         if self.final is None:
             raise TrialError("trial not finished")
         pred = int(np.argmax(self.final.probs)) + 1
-        return TrialResult(prediction=pred, truth=truth, touches=self.total_touches,
+        return TrialOutcome(prediction=pred, truth=truth, touches=self.total_touches,
                            rounds=list(self.records), final=self.final,
                            failed_touches=list(self.failed), platform_ids=self.platform_ids,
                            stop_reason=self.stop_reason,
@@ -304,7 +306,7 @@ class TrialEngine:
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
-            on_rejected: Callable[[int, InputError], None] | None = None) -> TrialResult:
+            on_rejected: Callable[[int, InputError], None] | None = None) -> TrialOutcome:
         """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
         (240, 320, 3) uint8 frame.
 
@@ -352,3 +354,39 @@ class TrialEngine:
                 if on_rejected is not None:
                     on_rejected(platform, exc)
         return False
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """What decides a trial's outcome besides its touches: ``comparisons`` platforms besides
+    the reference, the learner and trial settings, the seed, the platforms' names (default
+    ``reference, c1..cC``) and the sensor session's no-contact frame (240, 320, 3) uint8 for the
+    contact guard (None: the guard's flatness test only)."""
+
+    comparisons: int
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    trial: TrialConfig = field(default_factory=TrialConfig)
+    seed: int = 0
+    platform_ids: tuple[str, ...] | None = None
+    no_contact: np.ndarray | None = None
+
+    def engine(self) -> TrialEngine:
+        """The trial's engine, ready for its first touch (the one place one is built)."""
+        eng = TrialEngine(self.comparisons, self.learner, self.trial, seed=self.seed,
+                          platform_ids=list(self.platform_ids) if self.platform_ids else None)
+        if self.no_contact is not None:
+            eng.set_no_contact_reference(self.no_contact)
+        return eng
+
+
+def run_trial(spec: TrialSpec, touch_fn: Callable[[int], "Touch | np.ndarray"],
+              truth: int | None = None,
+              on_round: Callable[[RoundRecord], None] | None = None,
+              on_rejected: Callable[[int, InputError], None] | None = None,
+              engine: TrialEngine | None = None) -> TrialOutcome:
+    """Run the trial ``spec`` describes with ``touch_fn(platform)`` (0 = reference, 1..C) until
+    it ends (``TrialEngine.run``); ``truth`` (1..C) when known. ``engine``: the one
+    ``spec.engine()`` built when the caller needed it before the first touch (a node validates
+    its settings at configure, an experiment inspects it); a new one otherwise."""
+    eng = engine if engine is not None else spec.engine()
+    return eng.run(touch_fn, truth=truth, on_round=on_round, on_rejected=on_rejected)

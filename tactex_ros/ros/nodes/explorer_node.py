@@ -30,7 +30,7 @@ from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
-from ...core.engine import TouchFailed, TrialEngine
+from ...core.engine import TouchFailed, TrialSpec, run_trial
 from ...core.errors import InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
@@ -60,8 +60,9 @@ class ExplorerNode(TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        self.engine = TrialEngine(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
-                                  platform_ids=self.ids)
+        self.spec = TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
+                              platform_ids=tuple(self.ids))
+        self.engine = self.spec.engine()       # settings refused here, at configure
         inputs = {"explorer": s.model_dump(exclude={"learner", "trial"}),
                   "learner": s.learner.model_dump(), "trial": s.trial.model_dump()}
         self.replay = None
@@ -356,7 +357,8 @@ class ExplorerNode(TactexNode):
             self._publish_state(rec, eng.done, pred)
 
         touch_fn = self._press if self.replay is None else self._touch
-        res = eng.run(touch_fn, on_round=on_round, on_rejected=self._on_rejected)
+        res = run_trial(self.spec, touch_fn, on_round=on_round, on_rejected=self._on_rejected,
+                        engine=eng)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)

@@ -5,7 +5,8 @@ from tactex_ros.core.config import LearnerConfig, preset, trial_preset
 from tactex_ros.core.engine import TouchFailed, TrialEngine
 from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner, class_weights
-from tactex_lab.cnn.preprocess import augment, validate_frame, view
+from tactex_lab.cnn.preprocess import augment, view
+from tactex_ros.core.touch import validate_frame
 from stripes import stripe_frames
 
 FAST = dict(input_size=48, steps=4, batch_size=16, mc_passes=8)
