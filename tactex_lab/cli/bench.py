@@ -22,8 +22,8 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_sim(args: argparse.Namespace) -> int:
-    from tactex_lab.experiments.bench import sim
-    out = sim.run(args.frames, args.repeats)
+    from tactex_lab.experiments.bench import sim_speed
+    out = sim_speed.run(args.frames, args.repeats)
     write_json(args.json, out)
     return 0
 

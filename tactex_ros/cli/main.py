@@ -193,9 +193,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _trial_parser(sub, command)
     _prepare_parser(sub, command)
 
-    from . import graph, sim
-    sim.add_commands(sub, command)
-    graph.add_commands(sub, command)
+    from . import graph_commands, sim_commands
+    sim_commands.add_commands(sub, command)
+    graph_commands.add_commands(sub, command)
     for name, ep in plugins.available(plugins.COMMANDS).items():
         try:
             ep.load()(sub, command)

@@ -3,7 +3,7 @@
 A settings class derives from ``Schema``; each field carries its type, default, range
 (``param(..., lo, hi)``), choices (a ``Literal`` type) and description. The same declaration
 validates configs and files (errors located like ``platforms.2.position`` and naming the field),
-gives the ROS nodes their parameter descriptors (``nodes/common.declare_settings``), the
+gives the ROS nodes their parameter descriptors (``nodes/lifecycle.declare_settings``), the
 command line its options and the launch file its arguments (``fields``).
 
 ``LearnerConfig`` (how the learner trains and scores), ``TrialConfig`` (what a trial does) and

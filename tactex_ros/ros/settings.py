@@ -1,6 +1,6 @@
 """Parameters of every node, in the one schema system (``core/config.py``: type, default,
 range, choices, description), pure Python. The nodes declare their ROS parameters from these
-models (``nodes/common.declare_settings``); the graph description fills and checks them; tests
+models (``nodes/lifecycle.declare_settings``); the graph description fills and checks them; tests
 validate them without ROS. Every topic, service and action name is a parameter.
 
 The explorer's settings are composed from the core's: ``ExplorerSettings`` is a

@@ -16,7 +16,7 @@ from ..core.errors import InputError
 from .base import TouchSource
 
 if TYPE_CHECKING:
-    from .sim import SimSource
+    from .simulated import SimSource
 
 
 @overload
@@ -37,7 +37,7 @@ def open_source(spec: str) -> TouchSource:
         return ReplaySource(folder, one_session=one)
     if kind == "sim":
         from ..paths import config_dir
-        from .sim import SimSource
+        from .simulated import SimSource
         parts = arg.split(":") if arg else []
         recorded = bool(parts) and parts[-1] == "recorded"
         if recorded:

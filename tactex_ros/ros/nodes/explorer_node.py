@@ -37,7 +37,8 @@ from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
 from ...record import TrialRecord
 from ...robot.scene import load_scene
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 from ..goal import GoalRequest
 
 

@@ -43,7 +43,8 @@ from ...robot.frames import FrameRing
 from ...robot.sensors import (SensorConfig, SensorProfile, digit_led_value, load_sensor,
                               sensor_config)
 from .capture import serve_capture
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")

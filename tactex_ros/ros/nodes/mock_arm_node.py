@@ -30,7 +30,8 @@ from ...robot.press import ArmModel
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile
 from ...robot.scene import load_scene
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 class MockArmNode(TactexNode):

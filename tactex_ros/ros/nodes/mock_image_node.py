@@ -23,7 +23,8 @@ from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 class MockImageNode(TactexNode):

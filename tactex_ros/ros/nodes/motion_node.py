@@ -34,7 +34,8 @@ from ...robot.press import PressController, check_press
 from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
-from .common import TactexNode, in_thread, run, wait_for
+from .lifecycle import TactexNode, in_thread, wait_for
+from .process import run
 
 
 class RobotError(Exception):

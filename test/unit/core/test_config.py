@@ -114,7 +114,7 @@ def test_typed_and_merge() -> None:
 
 def test_ros_descriptors_from_the_schema() -> None:
     pytest.importorskip("rclpy")
-    from tactex_ros.ros.nodes.common import descriptor
+    from tactex_ros.ros.nodes.lifecycle import descriptor
     d = descriptor(field_spec(ExplorerSettings, "trial.stop_confidence"))
     assert d.name == "trial.stop_confidence" and not d.read_only
     assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == \

@@ -131,7 +131,7 @@ def test_graph_description() -> None:
 
 
 def test_record_summary(tmp_path) -> None:
-    from tactex_ros.cli.graph import summarise
+    from tactex_ros.cli.graph_commands import summarise
     from tactex_ros.record import TrialRecord, read_record
     r = TrialRecord(tmp_path, "s")
     img = np.random.default_rng(2).integers(0, 255, (240, 320, 3), dtype=np.uint8)

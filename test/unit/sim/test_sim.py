@@ -4,7 +4,7 @@ import pytest
 from tactex_ros.cli.main import main
 from tactex_ros.core.errors import InputError
 from tactex_ros.sim.fabrics import FabricParams, load_catalogue
-from tactex_ros.sources.sim import parse_difficulty
+from tactex_ros.sources.simulated import parse_difficulty
 from tactex_ros.sources import open_source
 
 
