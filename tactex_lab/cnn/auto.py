@@ -61,8 +61,6 @@ class AutoLearner:
     """The learner of the current ladder stage, plus what escalation needs (raw touches, the
     stage's held-back outcomes and reference entropies)."""
 
-    model_name = "auto"
-
     def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
         self.base_cfg = validate(cfg)
         self.num_classes = num_classes
@@ -83,6 +81,10 @@ class AutoLearner:
                              seed=self.seed, model_name=name)
 
     # the stage learner's identity, for the round records
+    @property
+    def model_name(self) -> str:
+        return self.inner.model_name
+
     @property
     def cfg(self) -> LearnerConfig:
         return self.inner.cfg
