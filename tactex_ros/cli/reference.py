@@ -19,6 +19,7 @@ import importlib
 import importlib.util
 import inspect
 import sys
+import types
 import typing
 from pathlib import Path
 from typing import Any, Literal
@@ -57,15 +58,37 @@ def show(value: Any) -> str:
 
 
 def type_name(kind: Any) -> str:
-    """A short name of a Python / typing type (``list[float]``, ``str | None``)."""
-    if isinstance(kind, type) and not typing.get_args(kind):
+    """A short name of a Python / typing type: constraints dropped (``Annotated``), ``Literal``
+    as the type of its values, ``Optional[int]`` as ``int | None``, ``tuple[float, float,
+    float]`` as ``tuple[float, float, float]``."""
+    origin, args = typing.get_origin(kind), typing.get_args(kind)
+    if origin is typing.Annotated:
+        return type_name(args[0])
+    if origin is Literal:
+        return " | ".join(sorted({type(a).__name__ for a in args}))
+    if origin in (typing.Union, types.UnionType):
+        names = []
+        for a in args:
+            n = "None" if a is type(None) else type_name(a)
+            if n not in names:
+                names.append(n)
+        return " | ".join(names)
+    if origin is not None:
+        name = getattr(origin, "__name__", str(origin).replace("typing.", ""))
+        return f"{name}[{', '.join('...' if a is Ellipsis else type_name(a) for a in args)}]"
+    if isinstance(kind, type):
         return kind.__name__
     return str(kind).replace("typing.", "")
 
 
+def doc_line(obj: Any) -> str:
+    """The first paragraph of a docstring, on one line."""
+    return " ".join((inspect.getdoc(obj) or "").split("\n\n")[0].split())
+
+
 def bounds(lo: Any, hi: Any, choices: tuple = ()) -> str:
     if choices:
-        return ", ".join(f"`{c}`" for c in choices)
+        return ", ".join(show(c) for c in choices)
     if lo is None and hi is None:
         return ""
     return f"{'' if lo is None else lo} .. {'' if hi is None else hi}"
@@ -248,7 +271,7 @@ def model_rows(cls: type, prefix: str = "") -> list[tuple[str, ...]]:
         if sub is not None:
             rows.append((f"`{prefix}{name}{how}`", sub.__name__,
                          "required" if f.is_required() else "", "",
-                         f.description or (sub.__doc__ or "").strip().split("\n")[0]))
+                         f.description or doc_line(sub)))
             rows += model_rows(sub, f"{prefix}{name}{how}.")
             continue
         ann = f.annotation
@@ -257,7 +280,7 @@ def model_rows(cls: type, prefix: str = "") -> list[tuple[str, ...]]:
         hi = next((m.le for m in f.metadata if isinstance(m, annotated_types.Le)), None)
         default = "required" if f.is_required() else show(
             f.get_default(call_default_factory=True))
-        rows.append((f"`{prefix}{name}`", "str" if choices else type_name(ann), default,
+        rows.append((f"`{prefix}{name}`", type_name(ann), default,
                      bounds(lo, hi, choices), f.description or ""))
     return rows
 
