@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import pytest
+
 from tactex_ros.cli import reference
 from tactex_ros.core.config import Schema, fields, param
 
@@ -13,18 +15,22 @@ ROOT = Path(__file__).resolve().parents[3]
 PAGE = ROOT / "docs" / "reference.md"
 
 
-def test_the_committed_reference_is_current() -> None:
+@pytest.fixture(scope="module")
+def fresh() -> str:
+    return reference.render()
+
+
+def test_the_committed_reference_is_current(fresh: str) -> None:
     """Fails when a parameter, launch argument or option changed without regenerating."""
-    fresh = reference.render()
     old = PAGE.read_text() if PAGE.is_file() else ""
     assert old == fresh, (f"docs/reference.md is stale: run `{reference.REGENERATE}` from the "
                           "repository root and commit docs/reference.md")
 
 
-def test_every_node_parameter_launch_argument_and_option_is_listed() -> None:
+def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str) -> None:
     from tactex_ros.cli.main import build_parser
     from tactex_ros.ros.graph import SETTINGS
-    text = reference.render()
+    text = fresh
     for cls in SETTINGS.values():
         for spec in fields(cls):
             assert f"| `{spec.name}` |" in text, spec.name
