@@ -23,8 +23,9 @@ def fresh() -> str:
 def test_the_committed_reference_is_current(fresh: str) -> None:
     """Fails when a parameter, launch argument or option changed without regenerating."""
     old = PAGE.read_text() if PAGE.is_file() else ""
-    assert old == fresh, (f"docs/reference.md is stale: run `{reference.REGENERATE}` from the "
-                          "repository root and commit docs/reference.md")
+    assert old == fresh, (f"docs/reference.md is stale: run `make reference` (= "
+                          f"`{reference.REGENERATE}` from the repository root) and commit "
+                          "docs/reference.md")
 
 
 def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str) -> None:
