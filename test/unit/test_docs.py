@@ -27,6 +27,23 @@ def test_relative_links_resolve() -> None:
     assert broken == []
 
 
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces as hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_anchors_name_headings() -> None:
+    heads = {p.resolve(): {_slug(h) for h in re.findall(r"^#+ (.*)$", p.read_text(), re.M)}
+             for p in PAGES}
+    broken = []
+    for page in PAGES:
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", page.read_text()):
+            path = (page.parent / target).resolve() if target else page.resolve()
+            if path in heads and anchor not in heads[path]:
+                broken.append(f"{page.relative_to(ROOT)} -> {target}#{anchor}")
+    assert broken == []
+
+
 def test_every_figure_is_listed_with_a_command() -> None:
     index = (ROOT / "docs" / "figures.md").read_text()
     blocks = index.split("\n## ")
