@@ -177,13 +177,14 @@ def launch_arguments() -> list[str]:
 # --- command line ------------------------------------------------------------------------
 
 def _subparsers(p: argparse.ArgumentParser) -> list[tuple[str, str, argparse.ArgumentParser]]:
-    """(name, help, parser) of the sub-commands of ``p``, in declaration order."""
+    """(name, help, parser) of the sub-commands of ``p``, by name (plug-in commands are found in
+    an order that depends on the install)."""
     out = []
     for a in p._actions:   # noqa: SLF001 - argparse has no public walk
         if isinstance(a, argparse._SubParsersAction):   # noqa: SLF001
             helps = {c.dest: c.help or "" for c in a._choices_actions}   # noqa: SLF001
             out += [(name, helps.get(name, ""), sp) for name, sp in a.choices.items()]
-    return out
+    return sorted(out, key=lambda t: t[0])
 
 
 def value_type(t: Any) -> str:
@@ -223,7 +224,7 @@ def _option_row(a: argparse.Action) -> tuple[str, ...]:
 
 
 def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
-    """Every sub-command of ``tactex`` with its options, depth first."""
+    """Every sub-command of ``tactex`` with its options, depth first, by name."""
     from .main import build_parser
     parser = parser or build_parser()
     out = ["## Command line", "",
