@@ -133,6 +133,7 @@ def node_parameters() -> list[str]:
 
 def presets() -> list[str]:
     """What each preset of ``TrialSettings.config`` changes against the default preset."""
+    from ..core import plugins
     from ..core.config import TrialSettings, fields, flatten
     config = next((s for s in fields(TrialSettings) if s.name == "config"), None)
     if config is None or not config.choices:
@@ -149,7 +150,8 @@ def presets() -> list[str]:
         values = flatten(TrialSettings.check({"config": name}).model_dump())
         rows += [(f"`{name}`", f"`{k}`", show(v), show(base.get(k, "")))
                  for k, v in values.items() if k != "config" and v != base.get(k)]
-    return out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
+    return (out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
+            + plugin_lines(plugins.LEARNERS, "Learners added by plug-ins (`learner.model`)"))
 
 
 # --- launch arguments --------------------------------------------------------------------
@@ -223,6 +225,16 @@ def _option_row(a: argparse.Action) -> tuple[str, ...]:
     return name, kind, default, (a.help or "").replace("%(default)s", str(a.default))
 
 
+def plugin_lines(group: str, title: str) -> list[str]:
+    """One line naming the installed plug-ins of an entry point group (``core/plugins.py``)."""
+    from ..core import plugins
+    found = sorted((name, ep.value) for name, ep in plugins.available(group).items())
+    if not found:
+        return [f"{title}: none installed (entry point group `{group}`).", ""]
+    return [f"{title} (entry point group `{group}`, listed here as installed): "
+            + ", ".join(f"`{n}` (`{v}`)" for n, v in found) + ".", ""]
+
+
 def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
     """Every sub-command of ``tactex`` with its options, depth first, by name."""
     from .main import build_parser
@@ -230,6 +242,8 @@ def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
     out = ["## Command line", "",
            "`tactex <command> ...` (`tactex_ros/cli/`). Exit status: 0 success, 1 a run-time "
            "failure or a failed check, 2 bad input (the option, file or field named).", ""]
+    from ..core import plugins
+    out += plugin_lines(plugins.COMMANDS, "Commands added by plug-ins")
 
     def walk(p: argparse.ArgumentParser, path: str, help_text: str) -> None:
         subs = _subparsers(p)
