@@ -1,4 +1,4 @@
-"""ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
+"""ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_crisp|panda_crisp|
 sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:=S] [model:=M]
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
@@ -41,11 +41,13 @@ def arguments() -> list[tuple[str, str, str]]:
     args = [("sim", "false", "mock arm + mock image instead of the hardware"),
             ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
                               "base frame)"),
-            ("robot", "", "robot profile: fr3_jazzy | panda_multipanda | sim | FILE "
-                          "('' = fr3_jazzy, sim: sim)"),
+            ("robot", "", "robot profile: fr3_crisp | panda_crisp | sim | FILE "
+                          "('' = fr3_crisp, sim: sim)"),
             ("motion_params", "", "YAML of motion_node parameters (topics, stiffness, "
                                   "force_sign, recovery_name, ...) over the profile's"),
-            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)"),
+            ("scene", "", "scene YAML (default: the robot profile's, config/scene.yaml for the "
+                          "FR3, config/scene_panda.yaml for the Panda; sim: "
+                          "config/scene_sim.yaml)"),
             ("bag", "false", "also record the trial's topics with `ros2 bag record` (MCAP) "
                              "into record_dir/bag_<time> (needs rosbag2)")]
     for name, (node, path) in OPTIONS.items():
