@@ -104,3 +104,21 @@ def test_collision_thresholds_leave_room_for_the_press(name: str) -> None:
     assert min(req["upper_force_thresholds_nominal"][:3]) >= 2.0 * scene.press.max_force
     assert min(req["lower_force_thresholds_nominal"][:3]) > scene.press.max_force
     assert prof.law.max_static_force < scene.press.max_force
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_hand_guiding_controller_has_no_translational_stiffness(name: str) -> None:
+    """crisp_gravity_compensation (for measuring the scene by hand) holds the orientation only,
+    on the same joints and frames as the impedance controller."""
+    if name == "fr3_crisp":
+        cm, nodes = _fr3_files()
+        assert cm["crisp_gravity_compensation"]["type"] == "crisp_controllers/CartesianController"
+        g = flatten(nodes["crisp_gravity_compensation"])
+    else:
+        g = flatten(_yaml(BRINGUP / "panda_crisp_controller.yaml")
+                    ["crisp_gravity_compensation"]["ros__parameters"])
+    c = _controller_params(name)
+    assert [g[f"task.k_pos_{a}"] for a in "xyz"] == [0.0, 0.0, 0.0]
+    assert min(g[f"task.k_rot_{a}"] for a in "xyz") > 0.0
+    for key in ("joints", "end_effector_frame", "base_frame"):
+        assert g[key] == c[key]
