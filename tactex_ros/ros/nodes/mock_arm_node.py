@@ -67,8 +67,9 @@ class MockArmNode(TactexNode):
         self.wrench_pub = self.create_lifecycle_publisher(
             WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
         self.target_topic = s.target_topic or prof.target_topic
+        # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
         self.create_subscription(import_interface(prof.target_type), self.target_topic,
-                                 self._on_target, 10)
+                                 self._on_target, 1)
         self.ignored_targets = 0      # targets dropped for too many publishers
         self.error = False            # reflex not yet cleared by the recovery
         self.hardware_active = True
