@@ -29,12 +29,24 @@ def _nodes(tmp_path: Path, **press):
     return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
 
 
+def _wait_for_camera(listener, timeout_s: float = 90.0) -> None:
+    """The mock camera builds its fabric at start-up (seconds on a loaded machine): press only
+    once its capture service is up, so the test is about the arm."""
+    from tactex.srv import Capture
+
+    from tactex_ros.ros.settings import CAPTURE_SERVICE
+    client = listener.node.create_client(Capture, CAPTURE_SERVICE)
+    if not client.wait_for_service(timeout_sec=timeout_s):
+        pytest.fail(f"no {CAPTURE_SERVICE} within {timeout_s} s")
+
+
 def test_press_through_the_crisp_profile(tmp_path: Path, listener, press) -> None:
     prof = load_profile("fr3_crisp")
     nodes = _nodes(tmp_path)
     arm = next(n for n in nodes if n.name == "mock_arm")
     assert arm.parameters["robot"] == "fr3_crisp"
     with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        _wait_for_camera(listener)
         res = press("c1")
     assert res.success, res.reason
     # at the threshold, never above what CRISP's clipped error lets it push with at rest
