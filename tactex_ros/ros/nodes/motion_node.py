@@ -59,7 +59,7 @@ class MotionNode(TactexNode):
                              f"{prof.name!r}'s base frame {prof.frame_id!r}")
         self.k = s.stiffness or prof.stiffness
         self.sign = s.force_sign or prof.force_sign
-        check_press(self.scene, self.k, f"scene with robot {prof.name!r}")
+        check_press(self.scene, self.k, f"scene with robot {prof.name!r}", prof.law.error_clip)
         self.quat = np.array(self.scene.tool_orientation)
         self.position: np.ndarray | None = None
         self.pose_t = -1.0
