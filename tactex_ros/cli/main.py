@@ -207,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     wi.add_argument("--json")
     wi.set_defaults(func=cmd_weights_inspect)
 
-    from . import bench, experiment, graph, sim
+    from . import bench, experiment, graph, report, sim
+    report.add_commands(sub)
     bench.add_commands(sub)
     sim.add_commands(sub)
     graph.add_commands(sub)

@@ -20,39 +20,8 @@ from typing import Any
 
 
 from ..core.errors import TactexError
-from ..paths import config_file, read_yaml
 from ..sources.base import TouchSource
-
-
-def find_trial_file(spec: str | None) -> Path:
-    """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
-    return config_file(spec or "human_study", "trials", "trial file")
-
-
-def load_trials(path: str | Path) -> dict[str, Any]:
-    """{"name", "path", "trials": [{"id": str, "reference", "comparisons": [...]}, ...]}."""
-    path = Path(path)
-    doc = read_yaml(path, "trial file")
-    if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
-        raise TactexError(f"trial file {path}: needs a non-empty list 'trials'")
-    seen: set[str] = set()
-    trials = []
-    for i, t in enumerate(doc["trials"]):
-        where = f"trial file {path}, entry {i + 1}"
-        if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
-            raise TactexError(f"{where}: needs id, reference and comparisons")
-        tid = str(t["id"])
-        if tid in seen:
-            raise TactexError(f"{where}: duplicate id {tid!r}")
-        seen.add(tid)
-        comps = t["comparisons"]
-        if not isinstance(comps, list) or len(comps) < 2:
-            raise TactexError(f"{where} (id {tid}): comparisons must list >= 2 classes")
-        if t["reference"] not in comps:
-            raise TactexError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
-                              f"the comparisons {comps}")
-        trials.append({"id": tid, "reference": t["reference"], "comparisons": list(comps)})
-    return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}
+from ..trialfile import find_trial_file, load_trials  # noqa: F401  (the format lives in the product)
 
 
 def class_name(source: TouchSource, item: Any) -> str:
