@@ -41,7 +41,7 @@ class SessionRun:
 class Confirmer:
     """Calls the explorer's ``~/confirm`` (Trigger) from the runner's own rclpy context."""
 
-    def __init__(self, service: str, domain_id: int | None, timeout_s: float = 10.0) -> None:
+    def __init__(self, service: str, domain_id: int | None, timeout_s: float = 30.0) -> None:
         self.service, self.domain_id, self.timeout_s = service, domain_id, timeout_s
         self._node = None
         self._lock = threading.Lock()

@@ -61,7 +61,7 @@ class ExplorerNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
         self.session = None
-        self.record = self.bag = None
+        self.record = self.bag = self.last_state = None
         if s.session_file:
             from .session_mode import configure_session
             configure_session(self)     # checks the trial file, opens the session folder
@@ -72,7 +72,7 @@ class ExplorerNode(TactexNode):
         self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
                                                          latched)
         self.marker_pub = self.create_lifecycle_publisher(MarkerArray, s.marker_topic, latched)
-        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, 10)
+        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, latched)
         from ..diagnostics import Diagnostics
         self.diag = Diagnostics(self, s.diag_period_s)
         self.diag.add("trial", "tactex explorer", self._health)
