@@ -120,9 +120,10 @@ def line_chart(series: dict[str, list[tuple[float, float]]], *, chart_id: str, x
 def _table(head: list[str], rows: list[list[Any]], left: int = 1, cls: str = "") -> str:
     th = "".join(f"<th class='{'l' if i < left else ''}'>{_esc(h)}</th>"
                  for i, h in enumerate(head))
+    th = f"<tr>{th}</tr>" if head else ""
     body = "".join("<tr>" + "".join(f"<td class='{'l' if i < left else ''}'>{c}</td>"
                                      for i, c in enumerate(r)) + "</tr>" for r in rows)
-    return f"<table class='{cls}'><tr>{th}</tr>{body}</table>"
+    return f"<table class='{cls}'>{th}{body}</table>"
 
 
 def _fmt(x: Any, spec: str = ".2f") -> str:
@@ -155,9 +156,12 @@ def _config(d: Path) -> dict:
         return {}
 
 
-def not_sure(result: dict) -> bool:
-    """A trial that ended without reaching its stop confidence (rounds or touches ran out)."""
-    return result.get("stop_reason") not in (None, "", "confident")
+def not_sure(result: dict, stop_confidence: float | None, belief: float | None) -> bool:
+    """A trial that ran out of rounds or touches with its answer's belief below the stop
+    confidence it was given (no stop confidence: 0 or unknown -> never 'not sure')."""
+    if result.get("stop_reason") in (None, "", "confident") or not stop_confidence:
+        return False
+    return belief is None or belief < stop_confidence
 
 
 def trial_html(folder: str | Path) -> str:
@@ -181,7 +185,9 @@ def trial_html(folder: str | Path) -> str:
     elif "error" in res:
         parts.append(f"<p class='answer bad' id='answer'>no answer: {_esc(res['error'])}</p>")
     else:
-        sure = "not sure; best guess " if not_sure(res) else ""
+        conf = (cfg.get("trial") or {}).get("stop_confidence")
+        sure = "<span id='not-sure'>not sure</span>; best guess " \
+            if not_sure(res, conf, p_belief) else ""
         fab = f" ({_esc(fabrics[pred])})" if pred in fabrics else ""
         verdict = ""
         if isinstance(res.get("correct"), bool):
@@ -198,7 +204,7 @@ def trial_html(folder: str | Path) -> str:
              ("time", _fmt(res.get("elapsed_s"), ".1f") + " s" if res.get("elapsed_s") else "")]
     if truth is not None:
         facts.append(("true match", _esc(", ".join(truth))))
-    parts.append(_table(["", ""], [[k, v] for k, v in facts], left=2))
+    parts.append(_table([], [[k, v] for k, v in facts], left=2))
 
     parts.append("<h2>Platforms and their touches</h2><div class='platforms'>")
     for pid in ids or sorted({t.get("platform_id") for t in touches}):
@@ -224,9 +230,10 @@ def trial_html(folder: str | Path) -> str:
         b = dec.get("belief") or []
         if len(b) == len(comps):
             for c, v in zip(comps, b):
-                series[c].append((sum(dec.get("touches") or [0]) or i, float(v)))
+                series[c].append((float(i), float(v)))
     if any(series.values()):
-        parts.append(line_chart(series, chart_id="belief-chart", x_label="touches",
+        parts.append(line_chart(series, chart_id="belief-chart",
+                                x_label="decision (one after every touch of a round)",
                                 y_label="belief"))
     else:
         parts.append("<p class='muted' id='belief-chart-missing'>no decision recorded</p>")
@@ -310,8 +317,16 @@ def session_html(folder: str | Path) -> str:
         conf[(ref_fab, got)] = conf.get((ref_fab, got), 0) + 1
         res = json.loads((d / r["record"] / "result.json").read_text())
         mark = "<span class='ok'>yes</span>" if r["correct"] else "<span class='bad'>no</span>"
+        stop_conf = (json.loads((d / r["record"] / "config.json").read_text()).get("trial")
+                     or {}).get("stop_confidence")
+        dec = read_record(d / r["record"], images=False)["decisions"]
+        comps_ = list(placement)[1:]
+        b = (dec[-1].get("belief") or []) if dec else []
+        p_b = b[comps_.index(r["prediction"])] if r["prediction"] in comps_ and \
+            len(b) == len(comps_) else None
         rows.append([link, _esc(ref_fab), f"{_esc(r['prediction'])} ({_esc(got)})"
-                     + (" <span class='muted'>not sure</span>" if not_sure(res) else ""),
+                     + (" <span class='muted'>not sure</span>" if not_sure(res, stop_conf, p_b)
+                        else ""),
                      _esc(r["touches"]), _fmt(r.get("elapsed_s"), ".1f"),
                      _esc(r["stop_reason"]), mark])
         comps = list(placement)[1:]
@@ -349,7 +364,7 @@ def session_html(folder: str | Path) -> str:
             if hits:
                 pts.append((float(t_), sum(hits) / len(hits)))
         parts.append(line_chart({"accuracy": pts}, chart_id="accuracy-chart",
-                                x_label="touches", y_label="accuracy"))
+                                x_label="touches of the comparisons", y_label="accuracy"))
     return _page(f"tactex session {summ['name']}", "".join(parts))
 
 

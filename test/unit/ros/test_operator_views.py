@@ -66,7 +66,8 @@ def test_grade_rate_meter_and_camera_health() -> None:
 def _record(tmp: Path) -> Path:
     rec = TrialRecord(tmp, "t1")
     scene = config_dir() / "scene_sim.yaml"
-    rec.save_inputs(scene, {"explorer": {"seed": 4}, "trial": {"strategy": "infogain"}})
+    rec.save_inputs(scene, {"explorer": {"seed": 4}, "trial": {"strategy": "infogain",
+                                                               "stop_confidence": 0.9}})
     rng = np.random.default_rng(0)
     ids = ["reference", "c1", "c2", "c3", "c4"]
     for k, pid in enumerate(ids + ["c1"]):
@@ -94,7 +95,8 @@ def test_trial_report_is_self_contained_and_says_what_happened(tmp_path: Path) -
     assert "https://" not in html and "<script" not in html
     assert html.count("src='data:image/png;base64,") == 6            # every touch image
     assert len(re.findall(r"<polyline class='series'", html)) == 4   # one line per comparison
-    assert re.search(r"id='prediction'>c1<", html) and "not sure" in html   # stopped: rounds
+    # stopped by rounds with belief 0.7 < stop_confidence 0.9: "not sure"
+    assert re.search(r"id='prediction'>c1<", html) and "id='not-sure'" in html
     assert re.search(r"id='touches'>6<", html)
     assert "no: press failed" in html and "3.00" in html             # press time [s]
     assert "infogain score 0.9 (highest)" in html                    # the chosen one's reason
