@@ -77,6 +77,10 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
             os.kill(pid, signal.SIGCONT)
         assert ok, "no ERROR from the camera link within 5 s of SIGSTOP"
         assert t_err - t0 < 2.0, f"ERROR after {t_err - t0:.2f} s"
+        art = Path(__file__).parents[2] / "test-artifacts"
+        art.mkdir(exist_ok=True)
+        (art / "diagnostics_stale_camera.json").write_text(
+            f'{{"sigstop_to_error_s": {t_err - t0:.3f}}}\n')
         # reported before the press that would need the camera finished
         now = len((tmp_path / "t" / "touches.jsonl").read_text().splitlines())
         assert now <= n_touch + 1
