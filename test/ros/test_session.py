@@ -171,3 +171,20 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path,
     # every accepted touch on disk went into the result: none lost, none pressed twice
     assert res["touches"] == sum(bool(t.get("accepted")) for t in rec["touches"])
     assert [e["event"] for e in sess.events(d)].count("resumed") == 1
+
+
+def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_id) -> None:
+    nodes = _nodes(tmp_path)
+    next(n for n in nodes if n.name == "explorer").parameters["confirm_timeout_s"] = 3.0
+    d = tmp_path / "sess"
+    run = run_session(nodes, tmp_path / "logs", d, confirm="none", timeout_s=300,
+                      domain_id=domain_id, out=lambda *_: None)
+    assert run.result is None and run.exit_code == 1 and run.signal is None
+    assert run.failure == [e for e in sess.events(d) if e["event"] == "session_ended"][0][
+        "reason"]
+    ev = sess.events(d)
+    ended = [e for e in ev if e["event"] == "session_ended"]
+    assert len(ended) == 1 and ended[0]["trial"] == "1"
+    assert not any(e["event"] == "confirmed" for e in ev)
+    assert not (d / "trial_1").exists()                  # nothing moved, nothing recorded
+    assert all(code == 0 for name, code in run.node_exit.items() if name != "explorer")
