@@ -35,6 +35,25 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str]) -> str:
     return f"decision {dec.get('round')}: belief {belief} -> next {nxt}"
 
 
+def tail_jsonl(path: Path, offset: int) -> tuple[list[dict], int]:
+    """The whole JSON lines of ``path`` after byte ``offset`` and the offset after them (a line
+    still being written waits for its end; a torn line is skipped)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(offset)
+            data = f.read()
+    except OSError:
+        return [], offset
+    end = data.rfind(b"\n") + 1
+    out = []
+    for line in data[:end].splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out, offset + end
+
+
 class Progress:
     """Prints what is new in the followed record folder each time ``poll()`` is called."""
 
@@ -51,22 +70,8 @@ class Progress:
             self.folder, self._offsets, self._ids = folder, {}, []
 
     def _new_lines(self, name: str) -> list[dict]:
-        p = self.folder / name
-        try:
-            with open(p, "rb") as f:
-                f.seek(self._offsets.get(name, 0))
-                data = f.read()
-        except OSError:
-            return []
-        end = data.rfind(b"\n") + 1        # a line still being written waits for its end
-        self._offsets[name] = self._offsets.get(name, 0) + end
-        out = []
-        for line in data[:end].splitlines():
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue
-        return out
+        lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
+        return lines
 
     def poll(self) -> None:
         if self.folder is None or not self.folder.is_dir():

@@ -1,21 +1,12 @@
-"""Trial files: fixed scenes of reference + comparison platforms (e.g. the thesis's human study).
+"""Trial files in the offline experiments: entries -> a source's class names.
 
-Format (YAML)::
-
-    name: human_study
-    trials:
-      - {id: 1, reference: 23, comparisons: [4, 8, 23, 7]}
-      - {id: 2, reference: wool_jersey, comparisons: [wool_jersey, polar_fleece, ...]}
-
-``id`` any scalar, unique (kept as a string); ``reference`` and every comparison are either an
-integer, the fabric number of the simulator's catalogue (``config/fabrics.yaml``, resolved with
-``SimSource.by_number``), or a class name of the source (a fabric name, or a class folder of a
-replay source). The reference must be one of the comparisons: that platform is the true match.
+The format and its loader live in the product (``tactex_ros/trialfile.py``: ``load_trials``,
+``find_trial_file``, re-exported here); ``class_name`` / ``platform_classes`` resolve an entry
+(a catalogue fabric number or a class name) against a touch source.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 

@@ -89,23 +89,6 @@ class Confirmer:
             self._node = None
 
 
-def _new_events(path: Path, offset: int) -> tuple[list[dict], int]:
-    try:
-        with open(path, "rb") as f:
-            f.seek(offset)
-            data = f.read()
-    except OSError:
-        return [], offset
-    end = data.rfind(b"\n") + 1
-    out = []
-    for line in data[:end].splitlines():
-        try:
-            out.append(json.loads(line))
-        except json.JSONDecodeError:
-            continue
-    return out, offset + end
-
-
 def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | Path, *,
                 confirm: str = "yes", timeout_s: float = 86400.0,
                 domain_id: int | None = None, poll_s: float = 0.1,
@@ -114,7 +97,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     """Start the graph once, run the explorer's session to its end (or a node's exit, a
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
     from .. import session as sess
-    from ..progress import Progress, console_printer
+    from ..progress import Progress, console_printer, tail_jsonl
     if confirm not in ("yes", "key", "none"):
         raise TactexError(f"confirm {confirm!r}: use yes, key or none")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
@@ -149,7 +132,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
             if on_start is not None:
                 on_start(g)
             while True:
-                evs, offset = _new_events(events_path, offset)
+                evs, offset = tail_jsonl(events_path, offset)
                 for e in evs:
                     kind = e.get("event")
                     if kind == "awaiting_confirmation":
