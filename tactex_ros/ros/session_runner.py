@@ -140,7 +140,11 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                         for pid, fab in e["placement"].items():
                             out(f"  platform {pid}: {fab}", "prompt")
                         if confirm == "yes":
-                            ok, msg = confirmer.confirm()
+                            for _ in range(10):     # refused: not awaited (yet); try again
+                                ok, msg = confirmer.confirm()
+                                if ok:
+                                    break
+                                time.sleep(0.5)
                             n_confirmed += ok
                             if not ok:
                                 out(f"not confirmed: {msg}", "info")

@@ -74,14 +74,14 @@ def _prompt(node: "ExplorerNode", trial: sess.SessionTrial, k: int, n: int) -> b
     s = node.settings
     text = (f"session {node.session.name}, trial {trial.id} ({k}/{n}): place "
             + "; ".join(trial.instructions()) + " -- then confirm")
+    node._confirmed.clear()
+    node._awaiting = trial.id          # before the prompt goes out: a quick confirm is taken
     node.get_logger().info(text)
     sess.add_event(node.session_dir, {"event": "awaiting_confirmation", "trial": trial.id,
                                       "position": trial.position, "number": k, "of": n,
                                       "placement": trial.placement, "text": text,
                                       "time": time.time()})
     node.prompt_pub.publish(String(data=text))
-    node._confirmed.clear()
-    node._awaiting = trial.id
     if s.auto_confirm:
         node._confirmed.set()
     deadline = time.monotonic() + s.confirm_timeout_s
