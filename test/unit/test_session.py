@@ -100,3 +100,22 @@ def test_session_folder_states_and_summary(tmp_path: Path) -> None:
     assert out["accuracy"] == 0.5 and [r["correct"] for r in out["trials"]] == [True, False]
     sess.add_event(d, {"event": "x"})
     assert sess.events(d)[-1] == {"event": "x"}
+
+
+def test_the_graph_refuses_a_bad_session_before_anything_starts(tmp_path: Path) -> None:
+    from tactex_ros.ros.graph import describe
+    bad = _write(tmp_path, "trials:\n  - {id: 1, reference: 23, comparisons: [4, 8, 23, 7]}\n"
+                           "  - {id: 9, reference: 23, comparisons: [4, 8, 23, 7, 1]}\n")
+    with pytest.raises(TactexError, match=r"entry 2 \(id 9\)"):
+        describe(True, explorer={"session_file": str(bad)})
+    with pytest.raises(TactexError, match="entry 2 \\(id 9\\)"):
+        describe(False, explorer={"session_file": str(bad)})
+    nodes = describe(True, explorer={"session_file": "human_study"})
+    ex = next(n for n in nodes if n.name == "explorer")
+    assert ex.parameters["placement_service"] == "/mock_image/set_parameters"
+    hw = next(n for n in describe(False, explorer={"session_file": "human_study"})
+              if n.name == "explorer")
+    assert not hw.parameters.get("placement_service")      # the operator places the fabrics
+    with pytest.raises(TactexError, match="source"):
+        describe(True, explorer={"session_file": "human_study"},
+                 mock_image={"source": "replay:/nonexistent"})
