@@ -345,8 +345,9 @@ def session_html(folder: str | Path) -> str:
     parts.append("<h2>Confusion matrix of the fabrics</h2><p class='muted'>rows: the "
                  "reference's fabric; columns: the fabric on the platform the trial chose</p>")
     head = ["reference \\ chosen"] + fabrics
+    refs = [f for f in fabrics if any(a == f for a, _ in conf)]
     mrows = [[_esc(a)] + [(f"<b>{conf.get((a, b), 0)}</b>" if a == b else
-                           str(conf.get((a, b), 0) or "")) for b in fabrics] for a in fabrics]
+                           str(conf.get((a, b), 0) or "")) for b in fabrics] for a in refs]
     parts.append(_table(head, mrows, left=1, cls="confusion"))
     parts.append("<h2>Accuracy against touches</h2><p class='muted'>the answer each trial "
                  "would have given had it stopped after t touches (trials that ended earlier "
