@@ -3,6 +3,7 @@ as ERROR within 2 s; late joiners receive the latched exploration state at once.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -77,10 +78,6 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
             os.kill(pid, signal.SIGCONT)
         assert ok, "no ERROR from the camera link within 5 s of SIGSTOP"
         assert t_err - t0 < 2.0, f"ERROR after {t_err - t0:.2f} s"
-        art = Path(__file__).parents[2] / "test-artifacts"
-        art.mkdir(exist_ok=True)
-        (art / "diagnostics_stale_camera.json").write_text(
-            f'{{"sigstop_to_error_s": {t_err - t0:.3f}}}\n')
         # reported before the press that would need the camera finished
         now = len((tmp_path / "t" / "touches.jsonl").read_text().splitlines())
         assert now <= n_touch + 1
@@ -89,3 +86,21 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
         assert latest("explorer: trial").level == b"\x00"
         # and the camera recovers: OK again once it runs
         assert _wait(lambda: latest("motion: camera link").level == b"\x00", 10)
+        # a stopped arm (no robot state) is an ERROR of "motion: arm" within 2 s as well
+        assert _wait(lambda: latest("motion: arm").level == b"\x00", 10)
+        arm = g.procs["mock_arm"].pid
+        os.kill(arm, signal.SIGSTOP)
+        t1 = time.monotonic()
+        try:
+            ok = _wait(lambda: any(t > t1 and s.name == "motion: arm" and s.level == b"\x02"
+                                   for t, m in got for s in m.status), 5.0)
+            t_arm = next((t for t, m in got for s in m.status
+                          if t > t1 and s.name == "motion: arm" and s.level == b"\x02"), None)
+        finally:
+            os.kill(arm, signal.SIGCONT)
+        assert ok and t_arm - t1 < 2.0, t_arm and t_arm - t1
+    art = Path(__file__).parents[2] / "test-artifacts"
+    art.mkdir(exist_ok=True)
+    (art / "diagnostics_stale.json").write_text(json.dumps(
+        {"camera_sigstop_to_error_s": round(t_err - t0, 3),
+         "arm_sigstop_to_error_s": round(t_arm - t1, 3)}) + "\n")
