@@ -117,15 +117,17 @@ class MotionSettings(Schema):
                                    0.05, 30.0)
     diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
     diag_state_warn_s: float = param(0.1, "arm: WARN when the newest robot state is older "
-                                          "than this [s] (ERROR at state_timeout_s, when a "
-                                          "press would abort)", 0.01, 30.0)
+                                          "than this [s]", 0.01, 30.0)
+    diag_state_error_s: float = param(0.5, "arm: ERROR when the newest robot state is older "
+                                           "than this [s] (at most state_timeout_s, where a "
+                                           "press aborts)", 0.01, 30.0)
     diag_state_rate_warn: float = param(20.0, "arm: WARN below this robot state rate [Hz]",
                                         0.0, 10000.0)
     diag_camera_topic: str = param(IMAGE_TOPIC, "camera images the press needs, watched for "
                                                 "/diagnostics ('' = not watched)")
-    diag_camera_warn_s: float = param(0.3, "camera link: WARN when the newest image is older "
+    diag_camera_warn_s: float = param(0.2, "camera link: WARN when the newest image is older "
                                            "than this [s]", 0.01, 60.0)
-    diag_camera_error_s: float = param(1.0, "camera link: ERROR when the newest image is older "
+    diag_camera_error_s: float = param(0.5, "camera link: ERROR when the newest image is older "
                                             "than this [s] (a capture would find no fresh "
                                             "frame)", 0.01, 60.0)
 

@@ -125,7 +125,8 @@ class MotionNode(TactexNode):
         rate = self.state_meter.rate(now)
         reflex = self.robot_mode == adapter.FRANKA_MODE_REFLEX
         parts = [(ERROR if reflex else OK, "robot in reflex mode"),
-                 (grade(age, s.diag_state_warn_s, s.state_timeout_s),
+                 (grade(age, s.diag_state_warn_s,
+                        min(s.diag_state_error_s, s.state_timeout_s)),
                   "no robot state" if age is None else f"robot state {age:.2f} s old"),
                  (WARN if rate < s.diag_state_rate_warn else OK,
                   f"robot state at {rate:.0f} Hz")]
