@@ -117,8 +117,7 @@ _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nic
                       "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
                       "goal_answer_s",
                       "scene_file", "session_file", "session_dir", "auto_confirm",
-                      "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s",
-                      "session_trial_retries"},
+                      "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s"},
          "learner": {"threads"}, "trial": set()}
 
 

@@ -174,9 +174,6 @@ class ExplorerSettings(TrialSettings):
                                              "session (recorded; resumable) [s]", 1.0, 86400.0)
     prompt_topic: str = param(PROMPT_TOPIC, "where the operator's instruction (what to place "
                                             "where) is published (std_msgs/String, latched)")
-    session_trial_retries: int = param(2, "a session trial that failed because the press "
-                                          "server was lost is resumed in place (at its touch) "
-                                          "once the server is back, at most this often", 0, 100)
     diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
     placement_service: str = param("", "SetParameters service of a mock camera whose "
                                        "'placement' follows the session ('' = hardware: the "

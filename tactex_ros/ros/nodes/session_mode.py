@@ -135,39 +135,6 @@ def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
             "placement": dict(trial.placement), "seed": trial.seed}
 
 
-def _run_trial(node: "ExplorerNode", trial: sess.SessionTrial, resume: bool) -> dict | None:
-    """One session trial (new, or resumed from its record) to its result; a trial that failed
-    because the press server was lost is resumed in place once the server is back (within
-    ``server_timeout_s``), up to ``session_trial_retries`` times. None: the node stops."""
-    d, s = node.session_dir, node.settings
-    for attempt in range(s.session_trial_retries + 1):
-        node.session_trial, node.result = trial, None
-        node._open_trial(trial.seed, str(d / trial.record_name) if resume else None,
-                         trial.record_name, str(d),
-                         placed_scene=sess.placed_scene(s.scene_file, trial.placement),
-                         extra={"session": {"name": node.session.name, "trial": trial.id,
-                                            "placement": trial.placement,
-                                            "truth": trial.truth}})
-        sess.add_event(d, {"event": "trial_started", "trial": trial.id, "resumed": resume,
-                           "after_touch": node.record.n_touches, "attempt": attempt + 1,
-                           "time": time.time()})
-        node._trial(finish_node=False)
-        res = node.result
-        if res is None or "error" not in res or not res["error"].startswith("PressServerLost"):
-            return res
-        if attempt == s.session_trial_retries or node._stopping:
-            return res
-        if not node.press.wait_for_server(timeout_sec=s.server_timeout_s):
-            return res
-        node.get_logger().warning(f"trial {trial.id}: the press server is back; resuming the "
-                                  "trial at its touch")
-        sess.add_event(d, {"event": "trial_retried", "trial": trial.id,
-                           "reason": res["error"], "time": time.time()})
-        node.exit_code = 0
-        resume = True
-    return node.result
-
-
 def run_session(node: "ExplorerNode") -> None:
     """The session's worker thread: every trial not yet done, in order; then the session's
     result and report. Ends the node's work (``exit_when_done``) in every case."""
@@ -186,7 +153,19 @@ def run_session(node: "ExplorerNode") -> None:
                 node.exit_code = 1
                 return
             _place(node, trial)
-            res = _run_trial(node, trial, resume=state == "started")
+            node.session_trial, node.result = trial, None
+            node._open_trial(trial.seed, str(d / trial.record_name) if state == "started"
+                             else None, trial.record_name, str(d),
+                             placed_scene=sess.placed_scene(node.settings.scene_file,
+                                                            trial.placement),
+                             extra={"session": {"name": node.session.name, "trial": trial.id,
+                                                "placement": trial.placement,
+                                                "truth": trial.truth}})
+            sess.add_event(d, {"event": "trial_started", "trial": trial.id,
+                               "resumed": state == "started",
+                               "after_touch": node.record.n_touches, "time": time.time()})
+            node._trial(finish_node=False)
+            res = node.result
             if res is None:          # the node is being stopped: the trial stays resumable
                 return
             if "error" in res:
