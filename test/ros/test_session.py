@@ -188,3 +188,4 @@ def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_i
     assert not any(e["event"] == "confirmed" for e in ev)
     assert not (d / "trial_1").exists()                  # nothing moved, nothing recorded
     assert all(code == 0 for name, code in run.node_exit.items() if name != "explorer")
+

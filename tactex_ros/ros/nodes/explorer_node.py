@@ -119,6 +119,8 @@ class ExplorerNode(TactexNode):
 
     def _bag_write(self, topic: str, msg) -> None:
         """Copy a message into the MCAP file; a failure there never stops the trial."""
+        if self.bag is None:         # a session between trials: no trial record open
+            return
         try:
             self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
