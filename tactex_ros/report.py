@@ -25,7 +25,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .core.errors import TactexError
+from .core.errors import InputError
 from .record import read_record
 
 REPORT = "report.html"
@@ -377,7 +377,7 @@ def write_session_report(folder: str | Path) -> Path:
 
 def regenerate(folder: str | Path) -> list[Path]:
     """``tactex report``: a trial record -> its report; a session folder -> every trial's
-    report and the session report. TactexError when ``folder`` is neither."""
+    report and the session report. InputError when ``folder`` is neither."""
     from . import session as sess
     d = Path(folder)
     if (d / sess.SESSION_FILE).is_file():
@@ -385,5 +385,5 @@ def regenerate(folder: str | Path) -> list[Path]:
         return out + [write_session_report(d)]
     if (d / "config.json").is_file() or (d / "touches.jsonl").is_file():
         return [write_trial_report(d)]
-    raise TactexError(f"{str(d)!r} is neither a trial record (config.json, touches.jsonl) nor "
+    raise InputError(f"{str(d)!r} is neither a trial record (config.json, touches.jsonl) nor "
                       f"a session folder ({sess.SESSION_FILE})")

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .core.errors import TactexError
+from .core.errors import InputError
 from .record import read_result
 from .trialfile import find_trial_file, load_trials
 
@@ -82,20 +82,20 @@ def catalogue_names(path: str | Path | None = None) -> list[str]:
     try:
         return [str(e["name"]) for e in doc["fabrics"]]
     except (TypeError, KeyError) as exc:
-        raise TactexError(f"fabric catalogue {p}: expected 'fabrics' with names ({exc})") \
+        raise InputError(f"fabric catalogue {p}: expected 'fabrics' with names ({exc})") \
             from None
 
 
 def _fabric(item: Any, names: list[str], where: str) -> str:
     if isinstance(item, bool) or not isinstance(item, (int, str)):
-        raise TactexError(f"{where}: {item!r} is not a fabric number or name")
+        raise InputError(f"{where}: {item!r} is not a fabric number or name")
     if isinstance(item, int):
         if not 1 <= item <= len(names):
-            raise TactexError(f"{where}: unknown fabric {item} (the catalogue numbers "
+            raise InputError(f"{where}: unknown fabric {item} (the catalogue numbers "
                               f"1..{len(names)})")
         return names[item - 1]
     if item not in names:
-        raise TactexError(f"{where}: unknown fabric {item!r} (not in the catalogue "
+        raise InputError(f"{where}: unknown fabric {item!r} (not in the catalogue "
                           "config/fabrics.yaml)")
     return item
 
@@ -103,7 +103,7 @@ def _fabric(item: Any, names: list[str], where: str) -> str:
 def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
                  catalogue: str | Path | None = None) -> Session:
     """Read and check a trial file for a scene whose platforms are ``platform_ids`` (reference
-    first). TactexError names the file and the row of the first problem."""
+    first). InputError names the file and the row of the first problem."""
     path = find_trial_file(str(spec))
     doc = load_trials(path)           # unique ids, reference among the comparisons
     names = catalogue_names(catalogue)
@@ -112,7 +112,7 @@ def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
         where = f"trial file {path}, entry {i + 1} (id {t['id']})"
         fabrics = [t["reference"]] + list(t["comparisons"])
         if len(fabrics) != len(platform_ids):
-            raise TactexError(f"{where}: places {len(fabrics)} fabrics (reference + "
+            raise InputError(f"{where}: places {len(fabrics)} fabrics (reference + "
                               f"{len(fabrics) - 1} comparisons) but the scene has "
                               f"{len(platform_ids)} platforms {platform_ids}")
         fabs = [_fabric(f, names, f"{where}, {'reference' if k == 0 else f'comparison {k}'}")
@@ -135,9 +135,9 @@ def parse_placement(text: str, platform_ids: list[str]) -> dict[str, str]:
     for part in filter(None, (p.strip() for p in text.split(","))):
         pid, sep, fab = part.partition("=")
         if not sep or not pid or not fab:
-            raise TactexError(f"placement {text!r}: expected platform=fabric,... ({part!r})")
+            raise InputError(f"placement {text!r}: expected platform=fabric,... ({part!r})")
         if pid not in platform_ids:
-            raise TactexError(f"placement {text!r}: unknown platform {pid!r} (the scene has "
+            raise InputError(f"placement {text!r}: unknown platform {pid!r} (the scene has "
                               f"{platform_ids})")
         out[pid] = fab
     return out
@@ -180,9 +180,9 @@ def open_session(session_dir: str | Path, session: Session, settings: dict[str, 
         try:
             was = json.loads(p.read_text())
         except json.JSONDecodeError as exc:
-            raise TactexError(f"session {str(p)!r} is not valid JSON ({exc})") from None
+            raise InputError(f"session {str(p)!r} is not valid JSON ({exc})") from None
         if was.get("trials") != now["trials"]:
-            raise TactexError(f"session folder {str(d)!r} holds another session (its trials, "
+            raise InputError(f"session folder {str(d)!r} holds another session (its trials, "
                               "placements or seeds differ from this trial file's): choose "
                               "another session folder")
         return True
@@ -195,7 +195,7 @@ def load_started(session_dir: str | Path) -> dict[str, Any]:
     """``session.json`` of a session folder."""
     p = Path(session_dir) / SESSION_FILE
     if not p.is_file():
-        raise TactexError(f"{str(session_dir)!r} is not a session folder (no {SESSION_FILE})")
+        raise InputError(f"{str(session_dir)!r} is not a session folder (no {SESSION_FILE})")
     return json.loads(p.read_text())
 
 

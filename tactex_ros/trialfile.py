@@ -18,7 +18,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .core.errors import TactexError
+from .core.errors import InputError
 from .paths import config_file, read_yaml
 
 
@@ -32,22 +32,22 @@ def load_trials(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     doc = read_yaml(path, "trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
-        raise TactexError(f"trial file {path}: needs a non-empty list 'trials'")
+        raise InputError(f"trial file {path}: needs a non-empty list 'trials'")
     seen: set[str] = set()
     trials = []
     for i, t in enumerate(doc["trials"]):
         where = f"trial file {path}, entry {i + 1}"
         if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
-            raise TactexError(f"{where}: needs id, reference and comparisons")
+            raise InputError(f"{where}: needs id, reference and comparisons")
         tid = str(t["id"])
         if tid in seen:
-            raise TactexError(f"{where}: duplicate id {tid!r}")
+            raise InputError(f"{where}: duplicate id {tid!r}")
         seen.add(tid)
         comps = t["comparisons"]
         if not isinstance(comps, list) or len(comps) < 2:
-            raise TactexError(f"{where} (id {tid}): comparisons must list >= 2 classes")
+            raise InputError(f"{where} (id {tid}): comparisons must list >= 2 classes")
         if t["reference"] not in comps:
-            raise TactexError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
+            raise InputError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
                               f"the comparisons {comps}")
         trials.append({"id": tid, "reference": t["reference"], "comparisons": list(comps)})
     return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .graph import NodeSpec
 from .launcher import Graph, _Signals, exit_text
 
@@ -99,10 +99,10 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     from .. import session as sess
     from ..progress import Progress, console_printer, tail_jsonl
     if confirm not in ("yes", "key", "none"):
-        raise TactexError(f"confirm {confirm!r}: use yes, key or none")
+        raise InputError(f"confirm {confirm!r}: use yes, key or none")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None or not ex.parameters.get("session_file"):
-        raise TactexError("the graph has no explorer with a session_file")
+        raise InputError("the graph has no explorer with a session_file")
     d = Path(session_dir).resolve()
     ex.parameters.update(exit_when_done=True, session_dir=str(d))
     out = out or console_printer()

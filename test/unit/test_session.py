@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from tactex_ros import session as sess
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_dir
 
 IDS = ["reference", "c1", "c2", "c3", "c4"]
@@ -46,7 +46,7 @@ def test_human_study_places_32_trials_with_their_truth() -> None:
      ["entry 2", "duplicate id '3'"]),
 ])
 def test_bad_session_files_are_refused_with_the_row_named(tmp_path, text, words) -> None:
-    with pytest.raises(TactexError) as err:
+    with pytest.raises(InputError) as err:
         sess.load_session(_write(tmp_path, text), IDS)
     for w in words:
         assert w in str(err.value)
@@ -55,9 +55,9 @@ def test_bad_session_files_are_refused_with_the_row_named(tmp_path, text, words)
 def test_placement_text_round_trip_and_unknown_platform() -> None:
     pl = {"reference": "satin", "c1": "oxford"}
     assert sess.parse_placement(sess.placement_text(pl), IDS) == pl
-    with pytest.raises(TactexError, match="unknown platform 'c9'"):
+    with pytest.raises(InputError, match="unknown platform 'c9'"):
         sess.parse_placement("c9=satin", IDS)
-    with pytest.raises(TactexError, match="platform=fabric"):
+    with pytest.raises(InputError, match="platform=fabric"):
         sess.parse_placement("c1", IDS)
 
 
@@ -76,7 +76,7 @@ def test_session_folder_states_and_summary(tmp_path: Path) -> None:
     assert sess.open_session(d, s, {"seed": 0}) is True           # the same session: continued
     other = sess.load_session(Path(__file__).parents[1] / "data" / "session_short.yaml", IDS,
                               seed=1)
-    with pytest.raises(TactexError, match="another session"):
+    with pytest.raises(InputError, match="another session"):
         sess.open_session(d, other, {})
     t1, t2 = s.trials
     assert sess.trial_state(d, t1) == "pending"
@@ -106,9 +106,9 @@ def test_the_graph_refuses_a_bad_session_before_anything_starts(tmp_path: Path) 
     from tactex_ros.ros.graph import describe
     bad = _write(tmp_path, "trials:\n  - {id: 1, reference: 23, comparisons: [4, 8, 23, 7]}\n"
                            "  - {id: 9, reference: 23, comparisons: [4, 8, 23, 7, 1]}\n")
-    with pytest.raises(TactexError, match=r"entry 2 \(id 9\)"):
+    with pytest.raises(InputError, match=r"entry 2 \(id 9\)"):
         describe(True, explorer={"session_file": str(bad)})
-    with pytest.raises(TactexError, match="entry 2 \\(id 9\\)"):
+    with pytest.raises(InputError, match="entry 2 \\(id 9\\)"):
         describe(False, explorer={"session_file": str(bad)})
     nodes = describe(True, explorer={"session_file": "human_study"})
     ex = next(n for n in nodes if n.name == "explorer")
@@ -116,6 +116,6 @@ def test_the_graph_refuses_a_bad_session_before_anything_starts(tmp_path: Path) 
     hw = next(n for n in describe(False, explorer={"session_file": "human_study"})
               if n.name == "explorer")
     assert not hw.parameters.get("placement_service")      # the operator places the fabrics
-    with pytest.raises(TactexError, match="source"):
+    with pytest.raises(InputError, match="source"):
         describe(True, explorer={"session_file": "human_study"},
                  mock_image={"source": "replay:/nonexistent"})

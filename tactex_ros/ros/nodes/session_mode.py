@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ...core.errors import TactexError
+from ...core.errors import TrialError
 from ... import session as sess
 
 if TYPE_CHECKING:   # pragma: no cover
@@ -69,7 +69,7 @@ def _on_confirm(node: "ExplorerNode", res: Any) -> Any:
 
 def _prompt(node: "ExplorerNode", trial: sess.SessionTrial, k: int, n: int) -> bool:
     """Tell the operator what to place where and wait for the confirmation; False when
-    ``confirm_timeout_s`` passed first. TactexError when the node stops meanwhile."""
+    ``confirm_timeout_s`` passed first. TrialError when the node stops meanwhile."""
     from std_msgs.msg import String
     s = node.settings
     text = (f"session {node.session.name}, trial {trial.id} ({k}/{n}): place "
@@ -88,7 +88,7 @@ def _prompt(node: "ExplorerNode", trial: sess.SessionTrial, k: int, n: int) -> b
     try:
         while not node._confirmed.wait(timeout=0.1):
             if node._stopping or not node.context.ok():
-                raise TactexError("the explorer is stopping")
+                raise TrialError("the explorer is stopping")
             if time.monotonic() > deadline:
                 return False
     finally:
@@ -101,14 +101,14 @@ def _prompt(node: "ExplorerNode", trial: sess.SessionTrial, k: int, n: int) -> b
 
 def _place(node: "ExplorerNode", trial: sess.SessionTrial) -> None:
     """Simulation: set the mock camera's ``placement`` (SetParameters), within
-    ``server_timeout_s``; TactexError with the camera's reason when it refuses."""
+    ``server_timeout_s``; TrialError with the camera's reason when it refuses."""
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
     client, s = node.placement_client, node.settings
     if client is None:
         return
     if not client.wait_for_service(timeout_sec=s.server_timeout_s):
-        raise TactexError(f"placement service {s.placement_service!r} not available within "
+        raise TrialError(f"placement service {s.placement_service!r} not available within "
                           f"server_timeout_s ({s.server_timeout_s} s)")
     value = ParameterValue(type=ParameterType.PARAMETER_STRING,
                            string_value=sess.placement_text(trial.placement))
@@ -117,14 +117,14 @@ def _place(node: "ExplorerNode", trial: sess.SessionTrial) -> None:
     deadline = time.monotonic() + s.server_timeout_s
     while not fut.done():
         if time.monotonic() > deadline:
-            raise TactexError(f"placement service {s.placement_service!r}: no answer within "
+            raise TrialError(f"placement service {s.placement_service!r}: no answer within "
                               f"server_timeout_s ({s.server_timeout_s} s)")
         if node._stopping:
-            raise TactexError("the explorer is stopping")
+            raise TrialError("the explorer is stopping")
         time.sleep(0.01)
     r = fut.result().results[0]
     if not r.successful:
-        raise TactexError(f"the mock camera refused the placement of trial {trial.id}: "
+        raise TrialError(f"the mock camera refused the placement of trial {trial.id}: "
                           f"{r.reason}")
 
 

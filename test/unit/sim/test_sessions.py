@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sim.render import GelSightRenderer, SensorModel
 from tactex_ros.sources import open_source
 
@@ -20,6 +20,7 @@ def _means(frames: list[np.ndarray]) -> np.ndarray:
     return np.array([f.reshape(-1, 3).mean(axis=0) for f in frames])
 
 
+@pytest.mark.slow
 def test_session_and_press_spreads_follow_the_sensor_model(renderer):
     s = renderer.sensor
     rng = np.random.default_rng(0)
@@ -90,7 +91,7 @@ def test_recorded_trials_share_a_class_session_live_trials_one_background():
 @pytest.mark.parametrize("spec", ["sim:medium:live", "sim:easy:hard", "sim:recorded:easy",
                                   "sim:2"])
 def test_bad_sim_specs_are_named(spec):
-    with pytest.raises(TactexError, match="sim"):
+    with pytest.raises(InputError, match="sim"):
         open_source(spec)
 
 

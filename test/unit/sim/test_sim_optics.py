@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sim.calibration import calibration_dir, load_calibration
 from tactex_ros.sim.render import MM_PER_PX, GelSightRenderer, SensorModel
 from tactex_ros.sim.fabrics import height_tile
@@ -42,7 +42,7 @@ def test_calibration_loads_from_the_installed_package_without_network(monkeypatc
     # the Mini's no-contact frame: blue-green at the top, pink at the centre (RGB means)
     r, g, b = cal.background.reshape(-1, 3).mean(0)
     assert 60 < r < 110 and 80 < g < 120 and 95 < b < 130
-    with pytest.raises(TactexError, match="gelsight_nano"):
+    with pytest.raises(InputError, match="gelsight_nano"):
         calibration_dir("gelsight_nano")
 
 
@@ -144,6 +144,7 @@ def reference_shading(r: GelSightRenderer, indent: np.ndarray) -> np.ndarray:
     return out.reshape(indent.shape + (3,))
 
 
+@pytest.mark.slow
 def test_fast_lookup_equals_the_plain_formula_up_to_float_rounding(src, monkeypatch):
     """The renderer's restructured lookup (one row gather per pixel, flat gel folded into
     the table) gives the frames of the plain formula: intensity changes within 2e-3 grey
@@ -196,6 +197,7 @@ def test_fused_press_equals_the_plain_formula(step):
         np.testing.assert_allclose(fast, plain, atol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("step", [1, 2])
 def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
     """The numba lookup (one compiled pass) and the numpy row gather it replaces where numba

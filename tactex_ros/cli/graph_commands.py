@@ -1,0 +1,216 @@
+"""``tactex graph describe|run``: the ROS 2 node graph without ``launch``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from .main import add_setting_option, bounded, builds
+from ..core.errors import InputError
+
+# the explorer settings that are `tactex graph` options (graph.OPTIONS)
+EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
+                    "session", "session_dir")
+DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
+
+
+def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
+    """Explorer parameters that continue the trial recorded in ``folder``: its settings from
+    ``config.json`` (preset, seed, every learner and trial setting); an option that contradicts
+    them is refused (named)."""
+    from ..ros.graph import OPTIONS
+    d = Path(folder).resolve()
+    try:
+        rec = json.loads((d / "config.json").read_text())
+        cfg = rec["explorer"]
+        ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
+              "trial": rec["trial"]}
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
+                         f"({exc})") from None
+    from ..core.config import flatten
+    was = flatten(ex)
+    for k in ("strategy", "model", "rounds", "seed", "config"):
+        v, path = getattr(args, k, None), OPTIONS[k][1]
+        if v is not None and v != was.get(path):
+            raise InputError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
+                             f"{was.get(path)!r}; a resumed trial keeps its settings")
+    if args.record_dir is not None or args.trial_id is not None:
+        raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
+    ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
+    if args.scene is None:
+        orig = Path(cfg.get("scene_file") or "")
+        copy = d / "scene.yaml"
+        same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
+        args.scene = str(orig if same or not copy.is_file() else copy)
+    return ex
+
+
+def _nodes(args: argparse.Namespace):
+    from ..ros.graph import describe, option_overrides
+    given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
+    if getattr(args, "resume", None):
+        given["explorer"] = resume_settings(args.resume, args)
+    return describe(args.sim, args.scene, explorer=given.get("explorer"),
+                    mock_image=given.get("mock_image"), gelsight=given.get("gelsight"))
+
+
+def cmd_describe(args: argparse.Namespace) -> int:
+    nodes = _nodes(args)
+    print(json.dumps([{"executable": n.executable, "name": n.name,
+                       "parameters": n.parameters, "remappings": n.remappings}
+                      for n in nodes], indent=2))
+    return 0
+
+
+def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
+    """``tactex graph run --session FILE``: the session's trials in one graph start."""
+    from ..ros.session_runner import run_session
+    if getattr(args, "resume", None):
+        raise InputError("--resume continues one trial; a session continues with "
+                          "--session-dir <its folder>")
+    ex = next(n for n in nodes if n.name == "explorer")
+    d = args.session_dir or str(Path(ex.parameters.get("record_dir") or "runs/trials") /
+                                f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
+    run = run_session(nodes, logs, d, confirm=confirm, timeout_s=args.timeout,
+                      domain_id=args.domain_id)
+    if run.result is None:
+        print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
+              file=sys.stderr)
+        print(f"tactex: continue with: tactex graph run{' --sim' if args.sim else ''} "
+              f"--session {args.session} --session-dir {run.session_dir}", file=sys.stderr)
+        return 128 + run.signal if run.signal else 1
+    r = run.result
+    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}")
+    print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from ..ros.launcher import exit_text, run_trial
+    nodes = _nodes(args)
+    logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
+    if args.session:
+        return cmd_session(args, nodes, logs)
+    from ..progress import Progress
+    progress = Progress()
+
+    def follow(graph) -> None:
+        ex = next(n for n in nodes if n.name == "explorer")
+        progress.follow(Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"])
+    run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
+                    on_start=follow, on_poll=progress.poll)
+    progress.poll()
+    if run.left_running:
+        print(f"tactex: nodes still running after the stop: {run.left_running}",
+              file=sys.stderr)
+    if run.result is None or "error" in run.result:
+        why = (run.failure or (run.result or {}).get("error")
+               or f"explorer ended without a result ({exit_text(run.exit_code)})")
+        print(f"tactex: trial ended without a result: {why}; logs in {logs}", file=sys.stderr)
+        if run.record is not None:
+            from ..record import read_record
+            n = len(read_record(run.record, images=False)["touches"])
+            print(f"tactex: {n} touches on disk in {run.record}; continue with: tactex graph "
+                  f"run{' --sim' if args.sim else ''} --resume {run.record}", file=sys.stderr)
+        return 128 + run.signal if run.signal else 1
+    r = run.result
+    print(f"reference matches {r['prediction']} after {r['touches']} touches "
+          f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
+          f"failed touches {len(r['failed_touches'])}")
+    print(f"trial record: {run.record}" + (f" (report: {run.record / 'report.html'})"
+                                            if (run.record / "report.html").is_file() else ""))
+    return 0
+
+
+def summarise(record: dict) -> dict:
+    """Where a trial's time went: press durations [s] (request -> capture), decision times [s]."""
+    import numpy as np
+    touches = record["touches"]
+    press = [t["stamp"] - t["requested"] for t in touches if t.get("stamp")]
+    dec = [d["decision_s"] for d in record["decisions"]]
+    out = {"touches": len(touches), "accepted": sum(bool(t.get("accepted")) for t in touches),
+           "decisions": len(dec),
+           "press_s_median": float(np.median(press)) if press else None,
+           "press_s_total": float(np.sum(press)) if press else 0.0,
+           "decision_s_median": float(np.median(dec)) if dec else None,
+           "decision_s_total": float(np.sum(dec)) if dec else 0.0}
+    res = record.get("result") or {}
+    out.update(prediction=res.get("prediction"), error=res.get("error"))
+    return out
+
+
+def summarise_bag(messages: list) -> dict:
+    """The same figures from an MCAP file of a trial (``bag.read_bag``): touches, decisions
+    and decision times; press times need the request times only the record folder keeps."""
+    import numpy as np
+    from ..ros.bag import TOUCH_TOPIC
+    from ..ros.settings import STATE_TOPIC
+    touches = [m for topic, _, m in messages if topic == TOUCH_TOPIC]
+    states = [m for topic, _, m in messages if topic == STATE_TOPIC]
+    dec = [float(s.decision_s) for s in states]
+    done = [s for s in states if s.done]
+    return {"touches": len(touches), "accepted": len(touches), "decisions": len(dec),
+            "press_s_median": None, "press_s_total": None,
+            "decision_s_median": float(np.median(dec)) if dec else None,
+            "decision_s_total": float(np.sum(dec)) if dec else 0.0,
+            "prediction": done[-1].prediction if done else None, "error": None}
+
+
+def cmd_summary(args: argparse.Namespace) -> int:
+    from ..record import read_record
+    if Path(args.record).is_file():
+        from ..ros.bag import read_bag
+        s = summarise_bag(read_bag(args.record))
+    else:
+        s = summarise(read_record(args.record, images=False))
+    print(json.dumps(s, indent=2))
+    return 0
+
+
+def add_option(p: argparse.ArgumentParser, name: str) -> None:
+    """``--name`` for option ``name`` of ``graph.OPTIONS``, from the node's settings schema;
+    not given = None (the node's default)."""
+    from ..ros.graph import OPTIONS, option_spec
+    spec = option_spec(name)
+    add_setting_option(p, "--" + name.replace("_", "-"), spec,
+                       f"{OPTIONS[name][0]} {spec.name}: {spec.description}")
+
+
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
+    g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
+    if not builds(command, "graph"):
+        return
+    gsub = g.add_subparsers(dest="gcmd", required=True)
+    for name, fn, hlp in (("describe", cmd_describe, "print the nodes and parameters"),
+                          ("run", cmd_run, "start the graph, run one trial, stop")):
+        p = gsub.add_parser(name, help=hlp)
+        p.add_argument("--sim", action="store_true", help="mock arm + mock image replace "
+                                                          "the hardware")
+        p.add_argument("--scene", help="scene YAML (default config/scene_sim.yaml or "
+                                       "config/scene.yaml)")
+        for option in EXPLORER_OPTIONS + DEVICE_OPTIONS:
+            add_option(p, option)
+        if name == "run":
+            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
+                           help="deadline [s], 1..86400")
+            p.add_argument("--log-dir")
+            p.add_argument("--domain-id", type=bounded(int, 0, 232),
+                           help="ROS_DOMAIN_ID for the nodes (0..232)")
+            p.add_argument("--resume", metavar="RECORD_DIR",
+                           help="continue the interrupted trial recorded in RECORD_DIR (its "
+                                "settings, its record)")
+            p.add_argument("--yes", action="store_true",
+                           help="with --session: confirm every placement at once (scripted "
+                                "sessions, CI); without it a terminal asks for Enter")
+        p.set_defaults(func=fn)
+    sm = gsub.add_parser("summary", help="where a recorded trial's time went")
+    sm.add_argument("record", help="trial record folder, or an MCAP file of a trial "
+                                   "(<record>/topics.mcap; a crashed one is read up to its "
+                                   "last whole message)")
+    sm.set_defaults(func=cmd_summary)

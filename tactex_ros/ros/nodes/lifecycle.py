@@ -1,0 +1,278 @@
+"""The lifecycle base of every tactex node: parameters declared from a settings schema, the
+transitions, and the helpers a node's threads wait with (``wait_for``, ``in_thread``). The process
+around a node (signals, spin, exit status) is ``process.py``.
+
+Every tactex node is a ``rclpy.lifecycle.LifecycleNode``. Its ROS parameters are declared from
+its settings schema (``ros.settings``: type, default, range -> ``ParameterDescriptor``, choices
+and description; nested settings as dotted names, their defaults from the top-level values, so
+``config`` picks the preset the explorer's ``learner.*`` / ``trial.*`` start from).
+
+Transitions: ``on_configure`` reads and validates the parameters and makes the node's
+subscriptions, clients, servers and lifecycle publishers (``configure``); ``on_activate``
+enables the publishers, then starts timers and threads (``activate``); ``on_deactivate``
+stops them (``deactivate``) and destroys what activation made (timers); ``on_cleanup`` releases
+files and devices (``cleanup``) and destroys every entity configuration made; ``on_shutdown``
+does whatever of the two is due from the state it leaves. An inactive node publishes nothing
+(lifecycle publishers). With the parameter ``autostart`` (default true) the node configures and
+activates itself, so it runs without a lifecycle manager; a configure failure (bad parameter,
+missing or invalid scene) ends the process with exit status 2 and the reason in the log.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, Callable
+
+import rclpy
+from pydantic import ValidationError
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.lifecycle.publisher import LifecyclePublisher
+from rclpy.publisher import Publisher
+from rclpy.task import Future
+from rclpy.timer import Timer
+
+from ...core.config import FieldSpec, fields, flatten, nest
+from ...core.errors import InputError
+
+
+def descriptor(spec: FieldSpec) -> ParameterDescriptor:
+    """The ROS parameter descriptor of a schema field: description, range, choices, read-only."""
+    desc = ParameterDescriptor(name=spec.name, description=spec.description,
+                               read_only=spec.read_only)
+    if spec.choices:
+        desc.additional_constraints = "one of: " + ", ".join(map(str, spec.choices))
+    if spec.lo is not None and spec.hi is not None:
+        if spec.kind is int:
+            desc.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi),
+                                               step=0)]
+        elif spec.kind is float:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(spec.lo),
+                                                            to_value=float(spec.hi), step=0.0)]
+    return desc
+
+
+def declare_settings(node: LifecycleNode, cls: type) -> None:
+    """Declare one ROS parameter per field of a settings schema. Nested fields (``trial.rounds``)
+    are declared after the top-level ones, with defaults the schema derives from the top-level
+    values given (e.g. the preset named by ``config``)."""
+    specs = fields(cls)
+    top = [s for s in specs if "." not in s.name]
+    for s in top:
+        node.declare_parameter(s.name, s.kind(s.default), descriptor(s))
+    nested = [s for s in specs if "." in s.name]
+    if not nested:
+        return
+    try:
+        base = flatten(cls.model_validate(
+            nest({s.name: node.get_parameter(s.name).value for s in top})).model_dump())
+    except (ValidationError, InputError):
+        base = {}       # on_configure names the bad value
+    for s in nested:
+        node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
+
+
+def read_settings(node: LifecycleNode, cls: type) -> Any:
+    """Current parameter values as a validated settings model (InputError names a field)."""
+    values = {s.name: node.get_parameter(s.name).value for s in fields(cls)}
+    return cls.check(nest(values), f"{node.get_name()} parameters")
+
+
+def entities(node: LifecycleNode) -> set:
+    """Every ROS entity of ``node``: publishers, subscriptions, clients, services, timers,
+    guard conditions, waitables (action servers and clients)."""
+    return (set(node.publishers) | set(node.subscriptions) | set(node.clients) |
+            set(node.services) | set(node.timers) | set(node.guards) | set(node.waitables))
+
+
+class TactexNode(LifecycleNode):
+    """Lifecycle node base: ``settings_cls`` parameters and the hooks ``configure``,
+    ``activate``, ``deactivate``, ``cleanup``; the base releases every ROS entity a stage made
+    when the node leaves that stage."""
+
+    settings_cls: type
+
+    def __init__(self, name: str, **kw: Any) -> None:
+        super().__init__(name, **kw)
+        declare_settings(self, self.settings_cls)
+        self.declare_parameter("autostart", True, ParameterDescriptor(
+            description="configure and activate at start-up (no lifecycle manager needed)"))
+        self.settings = None
+        self.finished = threading.Event()   # set when the node's work is over (exit_when_done)
+        self.exit_code = 0
+        self.configured = self.active = self.finalized = False
+        self._made_before: dict[str, set] = {}    # entities before configure / activate
+
+    # subclasses implement these
+    def configure(self) -> None:
+        """Make subscriptions, clients, servers, lifecycle publishers; open files/devices."""
+        raise NotImplementedError
+
+    def activate(self) -> None:
+        """Start timers and threads (publishers are enabled already)."""
+
+    def deactivate(self) -> None:
+        """Stop threads; timers made by ``activate`` are destroyed by the base."""
+
+    def cleanup(self) -> None:
+        """Close files and devices ``configure`` opened; entities are destroyed by the base."""
+
+    def _release(self, stage: str) -> None:
+        """Destroy every ROS entity made since ``stage`` began."""
+        for e in entities(self) - self._made_before.pop(stage, entities(self)):
+            if isinstance(e, Timer):
+                self.destroy_timer(e)
+            elif isinstance(e, LifecyclePublisher):
+                self.destroy_lifecycle_publisher(e)
+            elif isinstance(e, Publisher):
+                self.destroy_publisher(e)
+            elif e in set(self.subscriptions):
+                self.destroy_subscription(e)
+            elif e in set(self.clients):
+                self.destroy_client(e)
+            elif e in set(self.services):
+                self.destroy_service(e)
+            elif e in set(self.guards):
+                self.destroy_guard_condition(e)
+            else:
+                e.destroy()    # action servers and clients remove themselves from the node
+
+    def _transition(self, name: str, fn: Callable[[], None]) -> TransitionCallbackReturn:
+        """Run a hook; an exception is logged (rclpy would swallow it) and fails the
+        transition: bad input (InputError, OSError) -> FAILURE and exit status 2."""
+        try:
+            fn()
+        except (InputError, OSError) as exc:
+            self.get_logger().error(f"{name} refused: {exc}")
+            self.exit_code = 2
+            return TransitionCallbackReturn.FAILURE
+        except Exception as exc:  # noqa: BLE001 - reported, then the lifecycle's error path
+            if self.context.ok():
+                self.get_logger().error(f"{name} failed: {type(exc).__name__}: {exc}")
+            else:   # a stop (SIGINT, SIGTERM) shut the context down under the hook: no error
+                self.get_logger().info(f"{name} ended by the stop: {type(exc).__name__}")
+            self.exit_code = 1
+            return TransitionCallbackReturn.ERROR
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        self._made_before["configure"] = entities(self)
+
+        def configure() -> None:
+            self.settings = read_settings(self, self.settings_cls)
+            self.configure()
+        ret = self._transition("configuration", configure)
+        if ret != TransitionCallbackReturn.SUCCESS:
+            self._undo_configure()
+            return ret
+        self.configured = True
+        return super().on_configure(state)
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self._made_before["activate"] = entities(self)
+        ret = super().on_activate(state)       # lifecycle publishers first: then timers
+        if ret == TransitionCallbackReturn.SUCCESS:
+            ret = self._transition("activation", self.activate)
+        if ret != TransitionCallbackReturn.SUCCESS:
+            self._undo_activate()
+            return ret
+        self.active = True
+        return ret
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self._undo_activate()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        self._undo_configure()
+        return super().on_cleanup(state)
+
+    def on_shutdown(self, state) -> TransitionCallbackReturn:
+        self._undo_activate()
+        self._undo_configure()
+        self.finalized = True
+        return super().on_shutdown(state)
+
+    def on_error(self, state) -> TransitionCallbackReturn:
+        self._undo_activate()
+        self._undo_configure()
+        return super().on_error(state)
+
+    def _undo_activate(self) -> None:
+        if self.active or "activate" in self._made_before:
+            self.active = False
+            self._transition("deactivation", self.deactivate)
+            super().on_deactivate(None)      # publishers off (idempotent)
+            self._release("activate")
+
+    def _undo_configure(self) -> None:
+        if self.configured or "configure" in self._made_before:
+            self.configured = False
+            self._transition("clean-up", self.cleanup)
+            self._release("configure")
+
+    def shutdown(self) -> None:
+        """Leave the lifecycle (releasing everything) unless already finalized. After the
+        context was shut down (SIGINT, SIGTERM: rclpy's handler, possibly while the shutdown
+        transition runs), only files, devices and threads are released here, each hook at most
+        once: ``destroy_node`` takes the ROS entities."""
+        if self.finalized:
+            return
+        failure = None
+        if self.context.ok():
+            try:
+                self.trigger_shutdown()
+            except Exception as exc:  # noqa: BLE001 - re-raised below unless the context went
+                failure = exc          # down meanwhile; the hooks run first either way
+        if not self.finalized:
+            self.finalized = True
+            if self.active:
+                self.active = False
+                self._transition("deactivation", self.deactivate)
+            if self.configured:
+                self.configured = False
+                self._transition("clean-up", self.cleanup)
+        if failure is not None and self.context.ok():
+            raise failure
+
+
+def wait_for(fut: Future, timeout_s: float, check: Callable[[], None] | None = None,
+             period_s: float = 0.1) -> bool:
+    """Block this worker thread until ``fut`` is done or ``timeout_s`` [s] passes; True when
+    done. The wait wakes on the future's completion (a done callback), not by polling; ``check``
+    runs every ``period_s`` meanwhile and may raise to end the wait (e.g. the server left). Never
+    call it from an executor callback (the executor completes the future)."""
+    done = threading.Event()
+    fut.add_done_callback(lambda _f: done.set())
+    end = time.monotonic() + timeout_s
+    while not (done.is_set() or fut.done()):
+        left = end - time.monotonic()
+        if left <= 0:
+            return False
+        if check is not None:
+            check()
+        done.wait(min(left, period_s) if check is not None else left)
+    return True
+
+
+async def in_thread(node: "rclpy.node.Node", fn: Callable[..., Any], *args: Any) -> Any:
+    """Await ``fn(*args)`` run in a new thread; the executor goes on serving other callbacks.
+
+    For long blocking work inside a callback (a press runs for seconds): the node's single
+    executor thread stays free for the robot state, the capture service and cancel requests.
+    """
+    ex = node.executor
+    fut: Future = Future(executor=ex)
+
+    def work() -> None:
+        try:
+            fut.set_result(fn(*args))
+        except BaseException as exc:  # handed to the awaiting callback
+            fut.set_exception(exc)
+        finally:
+            if ex is not None:
+                ex.wake()
+
+    threading.Thread(target=work, name=f"{node.get_name()}-work", daemon=True).start()
+    return await fut
