@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from .main import builds
+
 
 def cmd_report(args: argparse.Namespace) -> int:
     from ..report import regenerate
@@ -12,8 +14,10 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     p = sub.add_parser("report", help="write report.html of a trial record, or of a session "
                                       "folder and each of its trials")
+    if not builds(command, "report"):
+        return
     p.add_argument("folder", help="a trial record folder or a session folder")
     p.set_defaults(func=cmd_report)
