@@ -175,7 +175,8 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path,
 
 def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_id) -> None:
     nodes = _nodes(tmp_path)
-    next(n for n in nodes if n.name == "explorer").parameters["confirm_timeout_s"] = 20.0   # the other nodes are up by then
+    # 20 s: every other node has started before the session ends
+    next(n for n in nodes if n.name == "explorer").parameters["confirm_timeout_s"] = 20.0
     d = tmp_path / "sess"
     run = run_session(nodes, tmp_path / "logs", d, confirm="none", timeout_s=300,
                       domain_id=domain_id, out=lambda *_: None)
