@@ -43,6 +43,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "model": ("explorer", "learner.model"), "rounds": ("explorer", "trial.rounds"),
     "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
     "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
+    "session": ("explorer", "session_file"), "session_dir": ("explorer", "session_dir"),
+    "auto_confirm": ("explorer", "auto_confirm"),
     "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
     "source": ("mock_image", "source")}
 
@@ -103,27 +105,34 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
              mock_arm: dict[str, Any] | None = None,
              motion: dict[str, Any] | None = None, motion_file: str | Path | None = None,
              robot: str | None = None) -> list[NodeSpec]:
-    """The tactex graph. ``scene_file`` defaults to config/scene_sim.yaml (sim) or
-    config/scene.yaml; ``robot`` (profile name or path) to ``sim`` (sim) or ``fr3_jazzy``;
+    """The tactex graph. ``robot`` (profile name or path) defaults to ``sim`` (sim) or
+    ``fr3_crisp``; ``scene_file`` to config/scene_sim.yaml (sim) or the profile's ``scene``
+    (config/scene.yaml for the FR3, config/scene_panda.yaml for the Panda);
     ``motion_file``: a YAML of motion node parameters, under ``motion``. The scene, the robot
     profile and every parameter are validated here, so bad values fail before anything starts,
     with the field named."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
+    given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
+                         motion)
+    prof = load_profile(given_motion.get("robot") or robot or ("sim" if sim else "fr3_crisp"))
     scene_file = str(Path(scene_file) if scene_file else
-                     config_dir() / ("scene_sim.yaml" if sim else "scene.yaml"))
+                     config_dir() / ("scene_sim.yaml" if sim else prof.scene))
     scene = load_scene(scene_file)
     ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
-    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_jazzy")},
-               params_from_file(motion_file, "motion") if motion_file else None, motion)
+    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_crisp")},
+               given_motion)
     mo = _checked("motion", mo)
     prof = load_profile(mo["robot"])
     if prof.frame_id != scene.frame_id:
         raise InputError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
-                         f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
-    check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}")
-    nodes = [NodeSpec("motion_node", "motion", mo),
-             NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]
+                          f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
+    check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}",
+                prof.law.error_clip)
+    ex = _checked("explorer", ex)
+    if ex.get("session_file"):
+        check_session(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
+    nodes = [NodeSpec("motion_node", "motion", mo), NodeSpec("explorer_node", "explorer", ex)]
     if sim:
         start = scene.reference.position
         arm = merge({"scene_file": scene_file, "robot": mo["robot"], "start_x": start[0],
@@ -144,6 +153,22 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
         sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
         nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
     return nodes
+
+
+def check_session(explorer: dict[str, Any], scene, sim: bool, source: str) -> None:
+    """A study session's trial file checked against the scene before anything starts (the
+    row named); in simulation the explorer drives the mock camera's placement."""
+    from ..session import load_session
+    load_session(explorer["session_file"], [p.id for p in scene.ordered],
+                 seed=int(explorer.get("seed", 0)))
+    if sim:
+        if not source.startswith("sim"):
+            raise InputError(f"session {explorer['session_file']!r}: a simulated session "
+                              f"places catalogue fabrics; source {source!r} cannot show them "
+                              "(use source sim)")
+        explorer.setdefault("placement_service", "/mock_image/set_parameters")
+        if not explorer["placement_service"]:
+            explorer["placement_service"] = "/mock_image/set_parameters"
 
 
 def fixed_frame(nodes: list[NodeSpec]) -> str:

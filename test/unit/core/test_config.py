@@ -171,6 +171,15 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
     hw = launch.plan({"device": "/dev/video3"})
     assert next(n for n in hw["nodes"] if n.name == "gelsight").parameters == \
         {"device": "/dev/video3"}
+    # the robot state the bag records: pose + wrench (FR3 under CRISP), the franka state
+    # message (Panda), each in the profile's base frame and default scene
+    assert (hw["pose_topic"], hw["wrench_topic"], hw["state_topic"], hw["frame"]) == (
+        "/current_pose", "/franka_robot_state_broadcaster/external_wrench_in_base_frame", "",
+        "fr3_link0")
+    panda = launch.plan({"robot": "panda_crisp"})
+    assert (panda["pose_topic"], panda["wrench_topic"], panda["state_topic"],
+            panda["frame"]) == ("", "", "/franka_robot_state_broadcaster/robot_state",
+                                "panda_link0")
     for values, what in (({"rounds": "abc"}, "launch argument rounds:='abc': "),
                          ({"sim": "maybe"}, "launch argument sim:='maybe': expected true"),
                          ({"sim": "true", "model": "vgg"}, "launch argument model:='vgg': ")):
