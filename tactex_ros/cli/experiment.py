@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import importlib
 
-MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real"]
+MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real",
+                      "unseen"]
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:

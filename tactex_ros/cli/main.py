@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +113,9 @@ def cmd_trial(args: argparse.Namespace) -> int:
                model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
     write_json(args.json, out)
     verdict = "correct" if res.correct else "wrong"
+    if res.sure is False:
+        print(f"not sure: the belief ended at {res.confidence:.2f} < {tcfg.stop_confidence:g}; "
+              f"best guess {ids[res.prediction]} ({platform_classes[res.prediction]})")
     print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
           f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
           f"{res.touches} touches; stopped: {res.stop_reason}")
@@ -147,15 +151,36 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
 
 
 def cmd_prepare(args: argparse.Namespace) -> int:
-    from ..core import representation
+    """Describe every press of the library, fit the representation, calibrate the belief's
+    temperature on the library with classes left out (``core/calibration.py``), write .npz."""
+    from functools import partial
+
+    from ..core import calibration, representation
+    from ..core.config import preset
+    t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
     for spec in args.library:
         desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed))
-    rep = representation.fit(desc, shrink=args.shrink)
+    fit = partial(representation.fit, shrink=args.shrink, kind=args.kind, dims=args.dims)
+    rep = fit(desc)
+    if args.calibration != "off":
+        cfg = preset("default", descriptor_frames=args.frames)
+        trajs = calibration.trajectories(desc, fit, cfg, folds=args.calibration_folds,
+                                         scenes=args.calibration_scenes,
+                                         budget=args.calibration_budget, seed=args.seed,
+                                         temperature0=args.calibration_start)
+        rep.temperature = calibration.fit_temperature(trajs, args.calibration)
+        rep.calibration = dict(calibration.report(trajs, rep.temperature),
+                               method=args.calibration, folds=args.calibration_folds,
+                               budget=args.calibration_budget)
     path = representation.save(rep, args.out)
-    print(f"representation from {rep.classes} classes, {rep.presses} presses "
-          f"({', '.join(args.library)}) -> {path}; use it with "
-          f"`tactex trial ... --representation {path}`")
+    cal = (f"; belief temperature {rep.temperature:.4g} calibrated on {rep.calibration['trials']} "
+           f"left-out trials (wrong stops at 0.9: {rep.calibration['wrong_stop']['0.9']:.3f}, "
+           f"ECE {rep.calibration['ece']:.3f})" if args.calibration != "off" else "")
+    print(f"representation {rep.kind} ({rep.dims} dims) from {rep.classes} classes, "
+          f"{rep.presses} presses ({', '.join(args.library)}){cal} -> {path} in "
+          f"{time.perf_counter() - t0:.0f} s; use it with `tactex trial ... --representation "
+          f"{path}`")
     return 0
 
 
@@ -192,10 +217,26 @@ def build_parser() -> argparse.ArgumentParser:
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
     pr.add_argument("--frames", type=int, default=1, help="contact frames per press")
     pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
-    pr.add_argument("--shrink", type=float, default=1.0,
+    pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
                     help="ridge added to the within-class covariance (standardised units)")
-    pr.add_argument("--seed", type=int, default=0)
-    pr.add_argument("--out", required=True, help="representation file to write (.pt)")
+    pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="lda",
+                    help="the metric: lda (Fisher directions of the library, --dims of them), "
+                         "whiten (within-class whitening), none (descriptor as is; the file "
+                         "then only carries the calibrated temperature)")
+    pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
+                    help="output dimensions of --kind lda")
+    pr.add_argument("--calibration", choices=("stop", "nll", "off"), default="stop",
+                    help="belief temperature from left-out library trials: stop (largest whose "
+                         "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), nll, off")
+    pr.add_argument("--calibration-folds", type=bounded(int, 2, 20), default=3)
+    pr.add_argument("--calibration-scenes", type=bounded(int, 1, 10000), default=40,
+                    help="left-out trials per fold")
+    pr.add_argument("--calibration-budget", type=bounded(int, 1, 100), default=10,
+                    help="touches after the baseline per left-out trial")
+    pr.add_argument("--calibration-start", type=bounded(float, 1e-4, 10.0), default=None,
+                    help="temperature the left-out trials run with (default: the config's)")
+    pr.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
+    pr.add_argument("--out", required=True, help="representation file to write (.npz)")
     pr.set_defaults(func=cmd_prepare)
 
     w = sub.add_parser("weights", help="checkpoint tools")

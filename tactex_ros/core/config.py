@@ -310,6 +310,10 @@ class LearnerConfig(Schema):
     representation: str = param("", "model 'descriptor': a representation file made by "
                                     "`tactex prepare` (a metric learnt from presses of other "
                                     "materials; '' = none)")
+    representation_temperature: bool = param(
+        True, "model 'descriptor': use the belief temperature `tactex prepare` calibrated on the "
+              "library with classes left out, when the representation file has one (else "
+              "match_temperature)")
     match_units: Literal["scene", "fixed"] = param(
         "scene", "model 'descriptor': units of the belief: 'scene' (each dimension divided by "
                  "its spread over this scene's platforms) or 'fixed' (as given, e.g. by a "

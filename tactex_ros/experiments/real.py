@@ -274,56 +274,70 @@ def run(args: argparse.Namespace) -> dict:
         raise TactexError(f"--setting labels must be unique, got {labels}")
     src = open_source(args.source)
     classes = sorted(src.classes)
-    thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
     out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
+    summary = protocol(classes, labels, lambda scenes, tag: _run(scenes, settings, args, tag),
+                       args)
+    summary.update(source=args.source, settings={s[0]: {"preset": s[1], "strategy": s[2],
+                                                        "overrides": s[3]} for s in settings})
+    write_outputs(out, summary, labels, args)
+    return summary
+
+
+def protocol(classes: list[str], labels: list[str], runner, args: argparse.Namespace) -> dict:
+    """The class-disjoint protocol (module docstring) over ``classes``: ``runner(scenes, tag)``
+    gives {label: [belief curve per scene]} for a list of scenes; ``args`` carries folds,
+    scenes, comparisons, seed, budget, thresholds, target_touches, report_only,
+    paired_against. Returns the summary (with ``report_curves``)."""
+    thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
     folds = class_folds(classes, args.folds, args.seed)
     report_only = bool(getattr(args, "report_only", False))
     against = list(getattr(args, "paired_against", None) or [labels[0]])
     unknown = [a for a in against if a not in labels]
     if unknown:
         raise TactexError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
-    report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    report_curves: dict[str, list[dict]] = {lab: [] for lab in labels}
     fold_info = []
     for k, fold in enumerate(folds):
         if args.folds >= 2 and not report_only:
             rest = sorted(set(classes) - set(fold))
-            choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
-                                             args.seed + 1000 * (k + 1)),
-                                 settings, args, f"choose{k}-")
+            choose_curves = runner(draw_scenes(rest, args.scenes, args.comparisons,
+                                               args.seed + 1000 * (k + 1)), f"choose{k}-")
             rows = score_pairs(choose_curves, thresholds)
             best = choose(rows, args.target_touches)
             per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
         else:
             rest, rows, best, per_setting = [], [], None, {}
-        rep = _run(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
-                   settings, args, f"report{k}-")
+        rep = runner(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
+                     f"report{k}-")
         for lab, cs in rep.items():
             report_curves[lab].extend(cs)
         fold_info.append({"fold": k, "report_classes": fold, "choose_classes": rest,
                           "chosen": best, "chosen_per_setting": per_setting,
                           "choose_rows": rows, "report_rows": score_pairs(rep, thresholds),
                           "report_chosen": _report(rep, best, per_setting)})
-    summary = {"source": args.source, "comparisons": args.comparisons, "budget": args.budget,
-               "folds": fold_info, "settings": {s[0]: {"preset": s[1], "strategy": s[2],
-                                                       "overrides": s[3]} for s in settings},
+    budgets = tuple(k for k in (0, 1, 3, 5, 10) if k <= args.budget)
+    summary = {"comparisons": args.comparisons, "budget": args.budget,
+               "folds": fold_info,
                "per_setting": summarise(report_curves, args.budget),
                "report_rows": score_pairs(report_curves, thresholds),
-               "paired_at_budgets": paired_at_budgets(report_curves, labels[0],
-                                                      tuple(k for k in (0, 1, 3, 5, 10)
-                                                            if k <= args.budget)),
-               "paired": {ref: {"budgets": paired_at_budgets(
-                                    report_curves, ref, tuple(k for k in (0, 1, 3, 5, 10)
-                                                              if k <= args.budget)),
+               "paired_at_budgets": paired_at_budgets(report_curves, labels[0], budgets),
+               "paired": {ref: {"budgets": paired_at_budgets(report_curves, ref, budgets),
                                 "thresholds": paired_at_thresholds(report_curves, ref,
                                                                    thresholds)}
-                          for ref in against}}
+                          for ref in against},
+               "report_curves": report_curves}
     if args.folds >= 2 and not report_only:
         summary["held_out"] = _pool_chosen(fold_info, labels)
-    write_json(out / "runs.json", report_curves)
+    return summary
+
+
+def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Namespace
+                  ) -> None:
+    """runs.json (the report curves), summary.json, the charts and the printed table."""
+    write_json(out / "runs.json", summary.pop("report_curves"))
     write_json(out / "summary.json", summary)
     _charts(out, summary, labels, args.budget)
     _print(summary, labels, args)
-    return summary
 
 
 def _report(curves: dict[str, list[dict]], best: dict | None,

@@ -158,7 +158,7 @@ class ExplorerNode(TactexNode):
         self._bag_write(MARKER_TOPIC, msg)
 
     def _publish_state(self, rec, done: bool, prediction: str) -> None:
-        msg = adapter.state_msg(rec, trial_id=self.trial_id,
+        msg = adapter.state_msg(rec, trial_id=self.trial_id, sure=bool(self.engine.sure),
                                 strategy=self.engine.trial_cfg.strategy,
                                 platform_ids=self.ids[1:], reference_id=self.ids[0],
                                 reference_touches=self.engine.reference_touches, done=done,
@@ -175,7 +175,8 @@ class ExplorerNode(TactexNode):
                                   "uncertainty": list(msg.uncertainty),
                                   "touches": list(msg.touches), "model": rec.model,
                                   "decision_s": rec.decision_s, "done": done,
-                                  "prediction": prediction})
+                                  "prediction": prediction,
+                                  "sure": self.engine.sure if done else None})
 
     def _replayed_decision(self, msg) -> bool:
         """True for a decision a resumed trial re-made that the record already holds (a
@@ -368,7 +369,9 @@ class ExplorerNode(TactexNode):
         path = self.record.finish(out)
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
                                f"{out['prediction']} after {out['touches']} touches "
-                               f"(stopped: {out['stop_reason']}); record {path.parent}")
+                               f"(stopped: {out['stop_reason']}"
+                               f"{'' if out['sure'] is not False else ', NOT SURE: best guess'}"
+                               f", belief {out['confidence']:.2f}); record {path.parent}")
 
 
 def main(args: list[str] | None = None) -> int:
