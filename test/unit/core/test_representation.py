@@ -5,7 +5,6 @@ import json
 
 import numpy as np
 import pytest
-import torch
 
 from tactex_ros.cli.main import main
 from tactex_ros.core import representation as rp
@@ -29,7 +28,7 @@ def test_fit_downweights_dimensions_that_vary_within_a_class(tmp_path):
     rep = rp.fit(_library(np.random.default_rng(0)), shrink=0.01)
     w = np.abs(np.diag(rep.whiten))
     assert w[:2].max() < 0.5 * np.median(w[2:])
-    path = rp.save(rep, tmp_path / "r.pt")
+    path = rp.save(rep, tmp_path / "r.npz")
     back = rp.load(path)
     np.testing.assert_allclose(back.whiten, rep.whiten)
     x = np.random.default_rng(1).normal(size=(3, DIM))
@@ -39,19 +38,55 @@ def test_fit_downweights_dimensions_that_vary_within_a_class(tmp_path):
 
 def test_bad_representation_files_are_refused_by_name(tmp_path):
     with pytest.raises(TactexError, match="not found"):
-        rp.load(tmp_path / "missing.pt")
-    (tmp_path / "junk.pt").write_bytes(b"not a torch file")
+        rp.load(tmp_path / "missing.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not an npz file")
     with pytest.raises(TactexError, match="not loadable"):
-        rp.load(tmp_path / "junk.pt")
-    torch.save({"format": "other"}, tmp_path / "other.pt")
+        rp.load(tmp_path / "junk.npz")
+    np.savez(tmp_path / "other.npz", format=np.array("other"))
     with pytest.raises(TactexError, match="not a tactex-representation"):
-        rp.load(tmp_path / "other.pt")
-    torch.save({"format": rp.FORMAT, "mean": torch.zeros(3), "std": torch.ones(3),
-                "whiten": torch.eye(3)}, tmp_path / "small.pt")
+        rp.load(tmp_path / "other.npz")
+    np.savez(tmp_path / "small.npz", format=np.array(rp.FORMAT), mean=np.zeros(3),
+             std=np.ones(3), map=np.eye(3))
     with pytest.raises(TactexError, match="do not fit"):
-        rp.load(tmp_path / "small.pt")
+        rp.load(tmp_path / "small.npz")
+    rep = rp.fit(_library(np.random.default_rng(0)))
+    rep.temperature = -1.0
+    rp.save(rep, tmp_path / "neg.npz")
+    with pytest.raises(TactexError, match="temperature"):
+        rp.load(tmp_path / "neg.npz")
+    with pytest.raises(TactexError, match=".npz"):
+        rp.save(rep, tmp_path / "r.pt")
     with pytest.raises(TactexError, match="at least 2"):
         rp.fit({"a": np.zeros((3, DIM)), "b": np.zeros((1, DIM))})
+    with pytest.raises(TactexError, match="kind"):
+        rp.fit(_library(np.random.default_rng(0)), kind="pca")
+
+
+def test_lda_keeps_the_directions_the_classes_differ_in(tmp_path):
+    """Classes differ only along dims 0..2; the rest is within-class noise. The 3 LDA
+    directions then lie mostly inside dims 0..2, and the file keeps the map and temperature."""
+    rng = np.random.default_rng(3)
+    lib = {}
+    for c in range(10):
+        centre = np.zeros(DIM)
+        centre[:3] = rng.normal(0, 3.0, 3)
+        lib[f"k{c}"] = centre + rng.normal(0, 1.0, (40, DIM))
+    rep = rp.fit(lib, kind="lda", dims=3)
+    assert rep.whiten.shape == (3, DIM) and rep.dims == 3 and rep.kind == "lda"
+    w = rep.whiten / np.linalg.norm(rep.whiten, axis=1, keepdims=True)
+    share = (w[:, :3] ** 2).sum(axis=1)          # of each direction's weight on dims 0..2
+    np.testing.assert_allclose(share, [0.9369, 0.8748, 0.7304], atol=1e-3)
+    x = rng.normal(size=(4, DIM))
+    assert rep.apply(x).shape == (4, 3)
+    rep.temperature, rep.calibration = 0.25, {"trials": 7}
+    back = rp.load(rp.save(rep, tmp_path / "lda.npz"))
+    np.testing.assert_allclose(back.apply(x), rep.apply(x))
+    assert (back.kind, back.temperature, back.calibration) == ("lda", 0.25, {"trials": 7})
+    # more dims than the class means span are clipped to classes - 1
+    assert rp.fit(lib, kind="lda", dims=40).dims == 9
+    # kind none: the identity
+    ident = rp.fit(lib, kind="none")
+    np.testing.assert_allclose(ident.apply(x), x)
 
 
 def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
@@ -60,8 +95,9 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
         (lib / cls).mkdir(parents=True)
         for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
             (lib / cls / f.name).symlink_to(f)
-    out = tmp_path / "rep.pt"
-    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out)]) == 0
+    out = tmp_path / "rep.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--kind",
+                 "whiten", "--calibration", "off"]) == 0
     assert rp.load(out).presses == 6
     js = tmp_path / "t.json"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--classes",
@@ -70,4 +106,4 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     d = json.loads(js.read_text())
     assert d["model"] == "descriptor" and d["truth"] == "c2"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--representation",
-                 str(tmp_path / "nope.pt")]) == 2
+                 str(tmp_path / "nope.npz")]) == 2
