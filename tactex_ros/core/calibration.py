@@ -137,15 +137,24 @@ def nll(trajs: list[Trajectory], beta: float) -> float:
     return float(-np.mean(np.log(np.clip(p, 1e-300, 1.0))))
 
 
+def _padded(trajs: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """(N, S, C) evidence, shorter trajectories padded with their last decision (which cannot
+    move a first crossing), and the (N,) truths."""
+    s = max(len(t.evidence) for t in trajs)
+    ev = np.stack([np.concatenate([t.evidence, np.repeat(t.evidence[-1:], s - len(t.evidence),
+                                                         axis=0)]) for t in trajs])
+    return ev, np.array([t.truth for t in trajs])
+
+
 def wrong_stop_rate(trajs: list[Trajectory], beta: float, theta: float) -> float:
     """Share of trajectories whose first decision with belief >= theta predicts wrong."""
-    wrong = 0
-    for t in trajs:
-        b = softmax(beta * t.evidence)
-        hit = np.flatnonzero(b.max(axis=1) >= theta)
-        if hit.size:
-            wrong += int(np.argmax(b[hit[0]]) != t.truth)
-    return wrong / max(1, len(trajs))
+    ev, y = _padded(trajs)
+    b = softmax(beta * ev)                                    # (N, S, C)
+    hit = b.max(axis=2) >= theta                              # (N, S)
+    first = np.argmax(hit, axis=1)
+    stopped = hit.any(axis=1)
+    pred = np.argmax(b[np.arange(len(y)), first], axis=1)
+    return float(np.sum(stopped & (pred != y)) / max(1, len(trajs)))
 
 
 def ece(trajs: list[Trajectory], beta: float, bins: int = 10) -> float:

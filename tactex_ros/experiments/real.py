@@ -336,7 +336,7 @@ def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Na
     """runs.json (the report curves), summary.json, the charts and the printed table."""
     write_json(out / "runs.json", summary.pop("report_curves"))
     write_json(out / "summary.json", summary)
-    _charts(out, summary, labels, args.budget)
+    _charts(out, summary, labels, args.budget, getattr(args, "press_s", PRESS_S))
     _print(summary, labels, args)
 
 
@@ -374,14 +374,30 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
     return out
 
 
-def _charts(out: Path, summary: dict, labels: list[str], budget: int) -> None:
-    series = {}
-    for lab in labels:
-        acc = summary["per_setting"][lab]["accuracy_vs_touches"]
-        series[lab] = ([a["accuracy"] for a in acc], None)
-    charts.lines(out / "accuracy_vs_touches.png", list(range(budget + 1)), series,
-                 "touches after the baseline", "accuracy (report scenes)",
-                 "real presses: accuracy against touches (no stop rule)", ylim=(0.0, 1.02))
+#: Seconds per touch for the time axis when no --press-s is given: a press of the simulated
+#: graph (impedance-control press, 10 mm/s descent) takes about 3 s (README, "make demo").
+PRESS_S = 3.0
+
+
+def _charts(out: Path, summary: dict, labels: list[str], budget: int,
+            press_s: float = PRESS_S) -> None:
+    """accuracy_vs_touches.png and accuracy_vs_time.png (trial time after the baseline:
+    touches x (``press_s`` + the setting's median decision time)), 95 % Wilson bands and the
+    number of scenes per line; pareto.png (the stop-threshold sweep)."""
+    for axis in ("touches", "time"):
+        series = {}
+        for lab in labels:
+            p = summary["per_setting"][lab]
+            acc = p["accuracy_vs_touches"]
+            step = 1.0 if axis == "touches" else press_s + (p["decision_s_median"] or 0.0)
+            series[lab] = {"x": [a["touches"] * step for a in acc],
+                           "accuracy": [a["accuracy"] for a in acc],
+                           "lo": [a["ci95"][0] for a in acc], "hi": [a["ci95"][1] for a in acc],
+                           "n": p["scenes"]}
+        xlabel = ("touches after the baseline" if axis == "touches" else
+                  f"trial time after the baseline [s] ({press_s:g} s per press + decision)")
+        charts.accuracy_bands(out / f"accuracy_vs_{axis}.png", series, xlabel,
+                              f"real presses, report scenes, no stop rule (budget {budget})")
     charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
 
 
@@ -510,6 +526,8 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--paired-against", nargs="+", metavar="LABEL",
                    help="paired tests of every setting against these settings (default: the "
                         "first --setting)")
+    p.add_argument("--press-s", type=float, default=PRESS_S,
+                   help="seconds per touch for the time axis of accuracy_vs_time.png")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
     add_runner_args(p)

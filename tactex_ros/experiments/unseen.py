@@ -62,7 +62,7 @@ def build_cache(root: str | Path, out: str | Path) -> Path:
     from ..core.contact import strongest_contact
     from ..sources.replay import ReplaySource, read_video
     src = ReplaySource(root)
-    rows: dict[str, list] = {k: [] for k in ("cls", "file", "f0", "extra", "early", "reg")}
+    rows: dict[str, list] = {k: [] for k in ("cls", "path", "f0", "extra", "early", "reg")}
     for cls in src.classes:
         for path in src.presses(cls):
             arr = read_video(path)
@@ -80,7 +80,7 @@ def build_cache(root: str | Path, out: str | Path) -> Path:
             h, w = d.shape[0] // 2, d.shape[1] // 2
             reg = [texture.describe_difference(d[i * h:(i + 1) * h, j * w:(j + 1) * w])
                    for i in range(2) for j in range(2)]
-            for k, v in (("cls", cls), ("file", str(path)), ("f0", f0),
+            for k, v in (("cls", cls), ("path", str(path)), ("f0", f0),
                          ("extra", np.stack(ex[:3])), ("early", early), ("reg", np.stack(reg))):
                 rows[k].append(v)
     out = Path(out)
@@ -273,6 +273,8 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--target-touches", type=float, default=3.0)
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--paired-against", nargs="+", metavar="LABEL")
+    p.add_argument("--press-s", type=float, default=3.0,
+                   help="seconds per touch for the time axis (experiment real's PRESS_S)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
 
