@@ -37,7 +37,8 @@ def add_commands(sub) -> None:
     bl.add_argument("--seed-epochs", type=int, default=1,
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
-                    help="configurations to time (ratios are to the last one)")
+                    help="configurations to time (ratios are to the last one): a preset, or "
+                         "label=preset:key=value,... e.g. prepared=default:representation=r.npz")
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 
