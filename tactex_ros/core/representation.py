@@ -22,8 +22,10 @@ the scene's own spread (``core/match.py``), so only the subspace and its orienta
 The belief's temperature depends on the number of dimensions and on the materials: ``prepare``
 calibrates it on the library itself with classes left out (``core/calibration.py``), and the
 file keeps it (``temperature``; NaN when not calibrated). The file (``save`` / ``load``) is a
-numpy ``.npz`` archive without pickled objects: mean (D,), std (D,), map (k, D), the kind, the
-temperature and the library's size; no frames or descriptors of the library.
+numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped path): mean
+(D,), std (D,), the map (k, D) (key ``whiten``), the kind, the temperature, what the calibration
+measured (JSON) and the library's size; no frames or descriptors of the library. A file without
+kind or temperature is a whitening without calibration.
 """
 
 from __future__ import annotations
@@ -112,17 +114,16 @@ def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0, kind: str = "wh
 
 
 def save(rep: Representation, path: str | Path) -> Path:
-    """Write ``rep`` as a numpy ``.npz`` archive (no pickled objects)."""
+    """Write ``rep`` as a numpy ``.npz`` archive of arrays at ``path`` (no pickled objects)."""
     import json
     path = Path(path)
-    if path.suffix != ".npz":
-        raise TactexError(f"representation file {path}: use a .npz name")
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(path, format=np.array(FORMAT), mean=rep.mean, std=rep.std, map=rep.whiten,
-             kind=np.array(rep.kind), classes=np.array(rep.classes),
-             presses=np.array(rep.presses), shrink=np.array(rep.shrink),
-             temperature=np.array(rep.temperature),
-             calibration=np.array(json.dumps(rep.calibration)))
+    with path.open("wb") as f:                    # exactly that name (savez adds no suffix)
+        np.savez(f, format=np.array(FORMAT), mean=rep.mean, std=rep.std, whiten=rep.whiten,
+                 kind=np.array(rep.kind), classes=np.array(rep.classes),
+                 presses=np.array(rep.presses), shrink=np.array(rep.shrink),
+                 temperature=np.array(rep.temperature),
+                 calibration=np.array(json.dumps(rep.calibration)))
     return path
 
 
@@ -136,12 +137,13 @@ def load(path: str | Path) -> Representation:
         with np.load(p, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
     except Exception as exc:  # numpy raises several types for a corrupt or foreign file
-        raise TactexError(f"representation file {p} is not loadable (expected a .npz written "
-                          f"by `tactex prepare`): {exc}") from None
+        raise TactexError(f"representation file {p} is not loadable ({exc}); make it with "
+                          "`tactex prepare`") from None
     if str(d.get("format", "")) != FORMAT:
-        raise TactexError(f"representation file {p}: not a {FORMAT} file")
+        raise TactexError(f"representation file {p}: not a {FORMAT} file; make it with "
+                          "`tactex prepare`")
     try:
-        mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "map"))
+        mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
     except KeyError as exc:
         raise TactexError(f"representation file {p}: missing {exc}") from None
     if (mean.shape != (DIM,) or std.shape != (DIM,) or w.ndim != 2 or w.shape[1] != DIM

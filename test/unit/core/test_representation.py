@@ -46,7 +46,7 @@ def test_bad_representation_files_are_refused_by_name(tmp_path):
     with pytest.raises(TactexError, match="not a tactex-representation"):
         rp.load(tmp_path / "other.npz")
     np.savez(tmp_path / "small.npz", format=np.array(rp.FORMAT), mean=np.zeros(3),
-             std=np.ones(3), map=np.eye(3))
+             std=np.ones(3), whiten=np.eye(3))
     with pytest.raises(TactexError, match="do not fit"):
         rp.load(tmp_path / "small.npz")
     rep = rp.fit(_library(np.random.default_rng(0)))
@@ -54,8 +54,6 @@ def test_bad_representation_files_are_refused_by_name(tmp_path):
     rp.save(rep, tmp_path / "neg.npz")
     with pytest.raises(TactexError, match="temperature"):
         rp.load(tmp_path / "neg.npz")
-    with pytest.raises(TactexError, match=".npz"):
-        rp.save(rep, tmp_path / "r.pt")
     with pytest.raises(TactexError, match="at least 2"):
         rp.fit({"a": np.zeros((3, DIM)), "b": np.zeros((1, DIM))})
     with pytest.raises(TactexError, match="kind"):
