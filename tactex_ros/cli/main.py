@@ -219,10 +219,11 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
     pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
                     help="ridge added to the within-class covariance (standardised units)")
-    pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="lda",
-                    help="the metric: lda (Fisher directions of the library, --dims of them), "
-                         "whiten (within-class whitening), none (descriptor as is; the file "
-                         "then only carries the calibrated temperature)")
+    pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
+                    help="the metric: whiten (within-class whitening; measured best, "
+                         "docs/unseen_materials.md), lda (Fisher directions of the library, "
+                         "--dims of them), none (descriptor as is; the file then only carries "
+                         "the calibrated temperature)")
     pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
                     help="output dimensions of --kind lda")
     pr.add_argument("--calibration", choices=("stop", "nll", "off"), default="stop",
