@@ -195,6 +195,59 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     return out
 
 
+def nearest_mean_accuracy(x: np.ndarray, cls: np.ndarray,
+                          rep: representation.Representation | None, per: int = 1,
+                          scenes: int = 3000, seed: int = 0) -> float:
+    """Screening proxy (no trial): share of random 1 + 4 scenes of the classes ``cls`` in which
+    the comparison whose mean of ``per`` presses lies nearest to the mean of ``per`` reference
+    presses, in the belief's scene units (``core/match.py``), is the match. ``per`` = 1 is the
+    belief after the baseline."""
+    rng = np.random.default_rng(seed)
+    classes = sorted(set(cls.tolist()))
+    rows = {c: np.flatnonzero(cls == c) for c in classes}
+    z = x if rep is None else rep.apply(x)
+    ok = 0
+    for _ in range(scenes):
+        comps = rng.choice(len(classes), 4, replace=False)
+        t = int(rng.integers(4))
+        ref_rows = rng.permutation(rows[classes[comps[t]]])
+        means = [z[ref_rows[:per]].mean(0)]
+        for i, c in enumerate(comps):
+            r = rows[classes[c]]
+            if i == t and len(ref_rows) > per:
+                r = ref_rows[per:]
+            means.append(z[rng.choice(r, min(per, len(r)), replace=False)].mean(0))
+        m = np.vstack(means)
+        spread = m.std(0)
+        scale = np.sqrt(spread ** 2 + (0.05 * np.median(spread)) ** 2) + 1e-12
+        ok += int(np.argmin((((m[1:] - m[0]) / scale) ** 2).sum(1)) == t)
+    return ok / scenes
+
+
+SCREEN = ([("frame", "none", 0, 1.0)] + [("frame", "whiten", 0, s) for s in (0.3, 1.0, 3.0)]
+          + [("frame", "lda", k, s) for k in (8, 16, 24, 32, 48) for s in (0.3, 1.0, 3.0)]
+          + [(f, kind, k, 1.0) for f in ("frames4", "growth", "regions", "frame_regstd")
+             for kind, k in (("none", 0), ("whiten", 0), ("lda", 24))])
+
+
+def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[dict]:
+    """Every (feature, kind, dims, shrink) of ``SCREEN`` fitted on one cache and scored with
+    ``nearest_mean_accuracy`` (1 and 2 presses per platform) on the other, both directions."""
+    rows = []
+    for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
+        for f, kind, k, shrink in SCREEN:
+            x = FEATURES[f](test)
+            rep = (None if kind == "none" else
+                   representation.fit(by_class(lib, f), shrink=shrink, kind=kind, dims=k))
+            rows.append({"direction": name, "feature": f, "kind": kind, "dims": k,
+                         "shrink": shrink,
+                         "acc_1": nearest_mean_accuracy(x, test["cls"], rep, 1),
+                         "acc_2": nearest_mean_accuracy(x, test["cls"], rep, 2)})
+            print("  ".join(f"{v}" if not isinstance(v, float) else f"{v:.3f}"
+                            for v in rows[-1].values()), flush=True)
+    return rows
+
+
 DEFAULT_SETTINGS = ("default=feature:frame", "whiten=feature:frame,kind:whiten",
                     "lda24=feature:frame,kind:lda,dims:24,calibration:stop")
 
@@ -240,6 +293,10 @@ def run(args: argparse.Namespace) -> dict:
             build_cache(root, path)
         caches[name] = load_cache(path)
     out = results_dir(args.out, "unseen", {k: v for k, v in vars(args).items() if k != "func"})
+    if args.screen:
+        rows = screen(caches["a"], caches["b"])
+        write_json(out / "screen.json", rows)
+        return {"screen": rows}
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
@@ -262,6 +319,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--cache-dir", default="/tmp/tactex_unseen",
                    help="where the per-press descriptors are cached (never the repository)")
     p.add_argument("--build-cache", action="store_true", help="re-describe every press")
+    p.add_argument("--screen", action="store_true",
+                   help="only the screening proxy (nearest mean, no trials) of every feature x "
+                        "metric of SCREEN, both directions; writes screen.json")
     p.add_argument("--setting", action="append",
                    help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
                         + " ".join(DEFAULT_SETTINGS))
