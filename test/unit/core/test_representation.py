@@ -87,6 +87,7 @@ def test_lda_keeps_the_directions_the_classes_differ_in(tmp_path):
     np.testing.assert_allclose(ident.apply(x), x)
 
 
+@pytest.mark.slow
 def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     lib = tmp_path / "lib"
     for cls in ("rice", "millet", "sponge"):
