@@ -9,8 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 
-MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real",
-                      "unseen"]
+MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real"]
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:

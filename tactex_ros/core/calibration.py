@@ -36,7 +36,7 @@ from .touch import Touch
 
 #: A valid (non-constant) sensor-sized frame for touches whose descriptor is given; it is never
 #: described.
-_BLANK = np.random.default_rng(0).integers(0, 256, (240, 320, 3), dtype=np.uint8)
+PLACEHOLDER_FRAME = np.random.default_rng(0).integers(0, 256, (240, 320, 3), dtype=np.uint8)
 
 
 @dataclass
@@ -78,7 +78,7 @@ def _scene(classes: list[str], presses: dict[str, np.ndarray], comparisons: int,
         used[c].append(i)
         if p == 0:
             ref_used.add(i)
-        return Touch(_BLANK, None, None, presses[c][i])
+        return Touch(PLACEHOLDER_FRAME, None, None, presses[c][i])
 
     return plat, truth + 1, touch
 

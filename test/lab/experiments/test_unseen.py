@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.errors import TactexError
-from tactex_lab.experiments import unseen
+from tactex_lab.experiments import real as unseen
 from tactex_lab.experiments.real import belief_curves, draw_scenes, parse_setting
 
 

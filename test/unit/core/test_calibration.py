@@ -75,7 +75,7 @@ def _engine_trial(stop: float, spread: float, rounds: int = 3):
     within-class noise (large = the classes overlap, the belief stays unsure)."""
     rng = np.random.default_rng(0)
     centres = rng.normal(0, 1.0, (3, 106))
-    frame = cal._BLANK
+    frame = cal.PLACEHOLDER_FRAME
     eng = TrialEngine(3, preset("default", guards=False),
                       TrialConfig(strategy="infogain", rounds=rounds, stop_confidence=stop))
     truth = 2
