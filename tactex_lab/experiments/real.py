@@ -410,7 +410,8 @@ def _charts(out: Path, summary: dict, labels: list[str], budget: int,
 
 
 def _print(summary: dict, labels: list[str], args) -> None:
-    print(f"real presses: {args.source}, {args.comparisons} comparisons, budget {args.budget}")
+    print(f"real presses: {summary.get('source', summary.get('test'))}, {args.comparisons} "
+          f"comparisons, budget {args.budget}")
     for lab in labels:
         p = summary["per_setting"][lab]
         acc = p["accuracy_vs_touches"]
@@ -746,7 +747,9 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
     rep = fit(library)
     if setting.calibration != "off":
         trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
-        rep.temperature = belief_calibration.fit_temperature(trajs, setting.calibration)
+        rep.temperature = belief_calibration.fit_temperature(
+            trajs, setting.calibration, *(((0.9,), 0.03) if setting.calibration == "target"
+                                          else ()))
         rep.calibration = belief_calibration.report(trajs, rep.temperature)
     return rep
 

@@ -183,7 +183,9 @@ def cmd_prepare(args: argparse.Namespace) -> int:
                                          scenes=args.calibration_scenes,
                                          budget=args.calibration_budget, seed=args.seed,
                                          temperature0=args.calibration_start)
-        rep.temperature = calibration.fit_temperature(trajs, args.calibration)
+        rep.temperature = calibration.fit_temperature(
+            trajs, args.calibration, *(((args.stop_at,), args.max_wrong)
+                                       if args.calibration == "target" else ()))
         rep.calibration = dict(calibration.report(trajs, rep.temperature),
                                method=args.calibration, folds=args.calibration_folds,
                                budget=args.calibration_budget)
@@ -230,9 +232,14 @@ def build_parser() -> argparse.ArgumentParser:
                          "the calibrated temperature)")
     pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
                     help="output dimensions of --kind lda")
-    pr.add_argument("--calibration", choices=("stop", "nll", "off"), default="stop",
+    pr.add_argument("--calibration", choices=("stop", "target", "nll", "off"), default="stop",
                     help="belief temperature from left-out library trials: stop (largest whose "
-                         "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), nll, off")
+                         "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "
+                         "--max-wrong at --stop-at), nll, off")
+    pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=0.9,
+                    help="the trials' stop threshold, for --calibration target")
+    pr.add_argument("--max-wrong", type=bounded(float, 0.0, 0.5), default=0.03,
+                    help="wrong-stop rate allowed at --stop-at, for --calibration target")
     pr.add_argument("--calibration-folds", type=bounded(int, 2, 20), default=3)
     pr.add_argument("--calibration-scenes", type=bounded(int, 1, 10000), default=40,
                     help="left-out trials per fold")

@@ -14,7 +14,9 @@ calibrates it on the lab's own library, on classes the representation did not se
 3. ``fit_temperature`` picks beta for belief = softmax(beta l): ``nll`` minimises the negative
    log-likelihood of the true match over all decisions; ``stop`` takes the largest beta (log grid, ascending)
    up to which the wrong-stop rate (the trial's first decision with belief >= theta is wrong)
-   stays at most 1 - theta at every theta of ``thetas`` on these left-out trials.
+   stays at most 1 - theta at every theta of ``thetas`` on these left-out trials; ``target``
+   the largest up to which the wrong-stop rate at the trial's own threshold stays at most a
+   chosen rate (e.g. 3 % at 0.9: the issue's target, not 1 - theta).
 
 The policy's touches depend on the temperature the trajectories were run with (``temperature0``);
 the fitted beta is applied to the recorded evidence, not re-run (one pass; ``prepare`` documents
@@ -172,23 +174,30 @@ GRID = np.geomspace(1e-4, 10.0, 241)
 
 
 def fit_temperature(trajs: list[Trajectory], method: str = "stop",
-                    thetas: tuple[float, ...] = (0.8, 0.9, 0.95)) -> float:
-    """beta for belief = softmax(beta l) on left-out trajectories (module docstring)."""
+                    thetas: tuple[float, ...] = (0.8, 0.9, 0.95),
+                    max_wrong: float | None = None) -> float:
+    """beta for belief = softmax(beta l) on left-out trajectories (module docstring).
+    ``target``: as ``stop`` but the wrong-stop rate at every theta of ``thetas`` must stay at
+    most ``max_wrong`` (e.g. 0.03 at the trial's stop threshold 0.9) instead of 1 - theta."""
     if not trajs:
         raise TactexError("no calibration trajectories")
     if method == "nll":
         return float(GRID[int(np.argmin([nll(trajs, b) for b in GRID]))])
-    if method == "stop":
+    if method in ("stop", "target"):
+        if method == "target" and not (max_wrong is not None and 0.0 <= max_wrong < 1.0):
+            raise TactexError(f"calibration target needs a wrong-stop rate in [0, 1), got "
+                              f"{max_wrong}")
         best = None
         for b in GRID:                      # ascending: stop at the first violation
-            if any(wrong_stop_rate(trajs, b, th) > 1.0 - th + 1e-12 for th in thetas):
+            if any(wrong_stop_rate(trajs, b, th) >
+                   (1.0 - th if method == "stop" else max_wrong) + 1e-12 for th in thetas):
                 break
             best = b
         if best is None:
             raise TactexError("calibration: no temperature keeps the wrong stops within "
                               f"1 - theta for thetas {thetas}")
         return float(best)
-    raise TactexError(f"calibration method {method!r}: one of nll, stop")
+    raise TactexError(f"calibration method {method!r}: one of nll, stop, target")
 
 
 def report(trajs: list[Trajectory], beta: float,

@@ -42,6 +42,11 @@ def test_stop_rule_temperature_keeps_wrong_stops_within_one_minus_theta():
     assert any(cal.wrong_stop_rate(trajs, nxt, th) > 1 - th for th in thetas)
     with pytest.raises(TactexError, match="one of nll, stop"):
         cal.fit_temperature(trajs, "other")
+    # target: at most 3 % wrong stops at 0.9 is stricter than 1 - 0.9, so a cooler belief
+    cool = cal.fit_temperature(trajs, "target", (0.9,), 0.03)
+    assert cool < beta and cal.wrong_stop_rate(trajs, cool, 0.9) <= 0.03
+    with pytest.raises(TactexError, match="wrong-stop rate"):
+        cal.fit_temperature(trajs, "target", (0.9,), None)
 
 
 def test_wrong_stop_rate_counts_the_first_confident_decision():
