@@ -11,7 +11,7 @@ from tactex_ros.cli.main import write_json
 def cmd_bench_latency(args: argparse.Namespace) -> int:
     from tactex_ros.core.config import PRESETS
     from tactex_lab.experiments.bench import latency
-    unknown = [c for c in args.configs if c not in PRESETS]
+    unknown = [c for c in args.configs if latency.parse_config(c)[1] not in PRESETS]
     if unknown:
         raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
                           f"{', '.join(PRESETS)}")
