@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 
 from .config import LearnerConfig, TrialConfig
-from .errors import TactexError
+from .errors import InputError
 from .match import softmax
 from .representation import Representation
 from .touch import Touch
@@ -93,13 +93,13 @@ def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Repre
     docstring). ``temperature0``: the temperature the trials run with (default: the
     representation's, else ``cfg.match_temperature`` scaled by D / k: the log evidence sums
     over the k dimensions)."""
-    from .engine import TrialEngine
+    from .engine import TrialSpec, run_trial
     classes = sorted(c for c, x in presses.items() if len(x) >= 2)
     if folds < 2:
-        raise TactexError(f"calibration needs >= 2 class folds, got {folds}")
+        raise InputError(f"calibration needs >= 2 class folds, got {folds}")
     groups = class_split(classes, folds, seed)
     if min(len(g) for g in groups) < comparisons:
-        raise TactexError(f"calibration: {len(classes)} library classes with >= 2 presses "
+        raise InputError(f"calibration: {len(classes)} library classes with >= 2 presses "
                           f"cannot fill {folds} folds of >= {comparisons} classes; give a "
                           "larger library or fewer --calibration-folds")
     cfg = cfg.replace(model="descriptor", representation="", guards=False)
@@ -112,7 +112,8 @@ def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Repre
         rng = np.random.default_rng([seed, 53, k])
         for s in range(scenes):
             plat, truth, touch = _scene(held, presses, comparisons, rng)
-            eng = TrialEngine(comparisons, cfg, tcfg, seed=seed * 1000 + s)
+            spec = TrialSpec(comparisons, cfg, tcfg, seed=seed * 1000 + s)
+            eng = spec.engine()
             eng.learner.representation = rep
             eng.learner.match.beta = float(beta)
             ev, extra = [], []
@@ -121,7 +122,7 @@ def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Repre
                 ev.append(eng.learner.match.log_evidence())
                 extra.append(eng.total_touches - (comparisons + 1))
 
-            eng.run(touch, truth=truth, on_round=keep)
+            run_trial(spec, touch, truth=truth, on_round=keep, engine=eng)
             out.append(Trajectory(np.stack(ev), truth - 1, np.array(extra)))
     return out
 
@@ -180,12 +181,12 @@ def fit_temperature(trajs: list[Trajectory], method: str = "stop",
     ``target``: as ``stop`` but the wrong-stop rate at every theta of ``thetas`` must stay at
     most ``max_wrong`` (e.g. 0.03 at the trial's stop threshold 0.9) instead of 1 - theta."""
     if not trajs:
-        raise TactexError("no calibration trajectories")
+        raise InputError("no calibration trajectories")
     if method == "nll":
         return float(GRID[int(np.argmin([nll(trajs, b) for b in GRID]))])
     if method in ("stop", "target"):
         if method == "target" and not (max_wrong is not None and 0.0 <= max_wrong < 1.0):
-            raise TactexError(f"calibration target needs a wrong-stop rate in [0, 1), got "
+            raise InputError(f"calibration target needs a wrong-stop rate in [0, 1), got "
                               f"{max_wrong}")
         best = None
         for b in GRID:                      # ascending: stop at the first violation
@@ -194,10 +195,10 @@ def fit_temperature(trajs: list[Trajectory], method: str = "stop",
                 break
             best = b
         if best is None:
-            raise TactexError("calibration: no temperature keeps the wrong stops within "
+            raise InputError("calibration: no temperature keeps the wrong stops within "
                               f"1 - theta for thetas {thetas}")
         return float(best)
-    raise TactexError(f"calibration method {method!r}: one of nll, stop, target")
+    raise InputError(f"calibration method {method!r}: one of nll, stop, target")
 
 
 def report(trajs: list[Trajectory], beta: float,

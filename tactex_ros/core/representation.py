@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import TactexError
+from .errors import InputError
 from .texture import DIM
 
 FORMAT = "tactex-representation-2"
@@ -63,8 +63,8 @@ class Representation:
         """(..., D) descriptors -> (..., k) coordinates."""
         x = np.asarray(x, dtype=np.float64)
         if x.shape[-1] != self.mean.shape[0]:
-            raise TactexError(f"representation expects descriptors of size {self.mean.shape[0]}, "
-                              f"got {x.shape[-1]}")
+            raise InputError(f"representation expects descriptors of size {self.mean.shape[0]}, "
+                             f"got {x.shape[-1]}")
         return ((x - self.mean) / self.std) @ self.whiten.T
 
 
@@ -81,14 +81,14 @@ def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0, kind: str = "wh
     the within-class covariance; at least 2 such classes). ``kind``: ``whiten`` or ``lda``
     (``dims`` output dimensions, 1 <= dims < D; at most classes - 1 are kept)."""
     if not shrink > 0:
-        raise TactexError(f"shrink must be > 0, got {shrink}")
+        raise InputError(f"shrink must be > 0, got {shrink}")
     if kind not in KINDS:
-        raise TactexError(f"representation kind {kind!r}: one of {', '.join(KINDS)}")
+        raise InputError(f"representation kind {kind!r}: one of {', '.join(KINDS)}")
     groups = [np.asarray(v, dtype=np.float64) for v in descriptors.values()]
     usable = [g for g in groups if g.ndim == 2 and len(g) >= 2]
     if len(usable) < 2:
-        raise TactexError("a representation needs at least 2 library classes with 2 or more "
-                          f"presses each; got {len(usable)}")
+        raise InputError("a representation needs at least 2 library classes with 2 or more "
+                         f"presses each; got {len(usable)}")
     allx = np.concatenate(groups)
     if kind == "none":
         d = allx.shape[1]
@@ -100,7 +100,7 @@ def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0, kind: str = "wh
     whiten = (vecs / np.sqrt(vals)) @ vecs.T
     if kind == "lda":
         if not 1 <= dims < allx.shape[1]:
-            raise TactexError(f"lda dims must be in 1..{allx.shape[1] - 1}, got {dims}")
+            raise InputError(f"lda dims must be in 1..{allx.shape[1] - 1}, got {dims}")
         dims = min(dims, len(groups) - 1)         # the class means span at most classes - 1
         cm = np.stack([((g.mean(axis=0) - mean) / std) @ whiten.T for g in groups])
         w = np.array([len(g) for g in groups], dtype=np.float64)
@@ -128,39 +128,39 @@ def save(rep: Representation, path: str | Path) -> Path:
 
 
 def load(path: str | Path) -> Representation:
-    """Read a representation file; TactexError naming the file and what is wrong."""
+    """Read a representation file; InputError naming the file and what is wrong."""
     import json
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"representation file not found: {p}")
+        raise InputError(f"representation file not found: {p}")
     try:
         with np.load(p, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
     except Exception as exc:  # numpy raises several types for a corrupt or foreign file
-        raise TactexError(f"representation file {p} is not loadable ({exc}); make it with "
-                          "`tactex prepare`") from None
+        raise InputError(f"representation file {p} is not loadable ({exc}); make it with "
+                         "`tactex prepare`") from None
     if str(d.get("format", "")) != FORMAT:
-        raise TactexError(f"representation file {p}: not a {FORMAT} file; make it with "
-                          "`tactex prepare`")
+        raise InputError(f"representation file {p}: not a {FORMAT} file; make it with "
+                         "`tactex prepare`")
     try:
         mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
     except KeyError as exc:
-        raise TactexError(f"representation file {p}: missing {exc}") from None
+        raise InputError(f"representation file {p}: missing {exc}") from None
     if (mean.shape != (DIM,) or std.shape != (DIM,) or w.ndim != 2 or w.shape[1] != DIM
             or not 1 <= w.shape[0] <= DIM):
-        raise TactexError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
+        raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
                           f"{w.shape} do not fit the descriptor of size {DIM}")
     if not (np.all(np.isfinite(w)) and np.all(std > 0) and np.all(np.isfinite(mean))):
-        raise TactexError(f"representation file {p}: non-finite map or mean, or std <= 0")
+        raise InputError(f"representation file {p}: non-finite map or mean, or std <= 0")
     temp = float(d.get("temperature", np.nan))
     if np.isfinite(temp) and not temp > 0:
-        raise TactexError(f"representation file {p}: temperature {temp} must be > 0")
+        raise InputError(f"representation file {p}: temperature {temp} must be > 0")
     kind = str(d.get("kind", "whiten"))
     if kind not in KINDS:
-        raise TactexError(f"representation file {p}: unknown kind {kind!r}")
+        raise InputError(f"representation file {p}: unknown kind {kind!r}")
     try:
         calib = json.loads(str(d.get("calibration", "{}")))
     except ValueError:
-        raise TactexError(f"representation file {p}: calibration is not JSON") from None
+        raise InputError(f"representation file {p}: calibration is not JSON") from None
     return Representation(mean, std, w, int(d.get("classes", 0)), int(d.get("presses", 0)),
                           float(d.get("shrink", 0.0)), kind, temp, calib)

@@ -4,7 +4,7 @@ runs on the same presses (same scenes, same draws, same beliefs), and its settin
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.experiments import real as unseen
 from tactex_lab.experiments.real import belief_curves, draw_scenes, parse_setting
 
@@ -37,9 +37,9 @@ def test_settings_parse_and_name_what_is_wrong():
     s = unseen.Setting.parse("x=feature:regions,kind:lda,dims:12,calibration:stop")
     assert (s.label, s.feature, s.kind, s.dims, s.calibration) == ("x", "regions", "lda", 12,
                                                                    "stop")
-    with pytest.raises(TactexError, match="unknown key"):
+    with pytest.raises(InputError, match="unknown key"):
         unseen.Setting.parse("x=colour:red")
-    with pytest.raises(TactexError, match="feature one of"):
+    with pytest.raises(InputError, match="feature one of"):
         unseen.Setting.parse("x=feature:nope")
 
 

@@ -7,8 +7,8 @@ import pytest
 from tactex_ros.core import calibration as cal
 from tactex_ros.core import representation as rp
 from tactex_ros.core.config import TrialConfig, preset
-from tactex_ros.core.engine import TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.engine import TrialSpec, run_trial
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.match import softmax
 from tactex_ros.core.touch import Touch
 
@@ -40,12 +40,12 @@ def test_stop_rule_temperature_keeps_wrong_stops_within_one_minus_theta():
     assert all(cal.wrong_stop_rate(trajs, beta, th) <= 1 - th for th in thetas)
     nxt = cal.GRID[np.searchsorted(cal.GRID, beta) + 1]
     assert any(cal.wrong_stop_rate(trajs, nxt, th) > 1 - th for th in thetas)
-    with pytest.raises(TactexError, match="one of nll, stop"):
+    with pytest.raises(InputError, match="one of nll, stop"):
         cal.fit_temperature(trajs, "other")
     # target: at most 3 % wrong stops at 0.9 is stricter than 1 - 0.9, so a cooler belief
     cool = cal.fit_temperature(trajs, "target", (0.9,), 0.03)
     assert cool < beta and cal.wrong_stop_rate(trajs, cool, 0.9) <= 0.03
-    with pytest.raises(TactexError, match="wrong-stop rate"):
+    with pytest.raises(InputError, match="wrong-stop rate"):
         cal.fit_temperature(trajs, "target", (0.9,), None)
 
 
@@ -71,7 +71,7 @@ def test_left_out_trajectories_run_the_engine_on_known_descriptors():
         assert list(t.extra) == [0, 1, 2, 3, 4]
     # well separated classes: the left-out trials end right
     assert np.mean([np.argmax(t.evidence[-1]) == t.truth for t in trajs]) >= 0.9
-    with pytest.raises(TactexError, match="cannot fill"):
+    with pytest.raises(InputError, match="cannot fill"):
         cal.trajectories(lib, rp.fit, preset("default"), folds=3, comparisons=5)
 
 
@@ -81,15 +81,15 @@ def _engine_trial(stop: float, spread: float, rounds: int = 3):
     rng = np.random.default_rng(0)
     centres = rng.normal(0, 1.0, (3, 106))
     frame = cal.PLACEHOLDER_FRAME
-    eng = TrialEngine(3, preset("default", guards=False),
-                      TrialConfig(strategy="infogain", rounds=rounds, stop_confidence=stop))
+    spec = TrialSpec(3, preset("default", guards=False),
+                     TrialConfig(strategy="infogain", rounds=rounds, stop_confidence=stop))
     truth = 2
 
     def touch(p: int) -> Touch:
         c = truth - 1 if p == 0 else p - 1
         return Touch(frame, None, None, centres[c] + rng.normal(0, spread, 106))
 
-    return eng.run(touch, truth=truth)
+    return run_trial(spec, touch, truth=truth)
 
 
 def test_trial_says_not_sure_when_the_budget_ends_below_the_threshold():
