@@ -106,3 +106,29 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     assert d["model"] == "descriptor" and d["truth"] == "c2"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--representation",
                  str(tmp_path / "nope.npz")]) == 2
+
+
+@pytest.mark.slow
+def test_prepare_calibrates_the_temperature_with_classes_left_out(octopi_dir, tmp_path):
+    """`tactex prepare --calibration target` on 12 real classes (2 presses each): the file holds
+    a temperature and what the left-out trials measured; a trial uses it."""
+    lib = tmp_path / "lib"
+    classes = sorted(p.name for p in octopi_dir.iterdir() if p.is_dir())[:12]
+    for cls in classes:
+        (lib / cls).mkdir(parents=True)
+        for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
+            (lib / cls / f.name).symlink_to(f)
+    out = tmp_path / "cal.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--calibration",
+                 "target", "--calibration-scenes", "3", "--calibration-budget", "2"]) == 0
+    rep = rp.load(out)
+    assert rep.kind == "whiten" and np.isfinite(rep.temperature) and rep.temperature > 0
+    cal = rep.calibration
+    assert cal["trials"] == 9 and cal["decisions"] == 27 and cal["method"] == "target"
+    assert cal["wrong_stop"]["0.9"] <= 0.03
+    js = tmp_path / "t.json"
+    assert main(["trial", "--source", f"replay:{octopi_dir}", "--classes",
+                 "basket,tissue,wires", "--reference", "tissue", "--seed", "1",
+                 "--representation", str(out), "--json", str(js), "--quiet"]) == 0
+    d = json.loads(js.read_text())
+    assert d["sure"] in (True, False) and 0 < d["confidence"] <= 1
