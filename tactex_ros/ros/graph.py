@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
+from ..core.config import FieldSpec, field_spec, flatten, merge, nest, parse_text, typed
 from ..core.errors import TactexError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
@@ -51,6 +51,14 @@ def option_spec(name: str) -> FieldSpec:
     """The schema field behind option ``name`` of ``OPTIONS``."""
     node, path = OPTIONS[name]
     return field_spec(SETTINGS[node], path)
+
+
+def option_default(name: str) -> Any:
+    """The value option ``name`` of ``OPTIONS`` has when not given: the node's settings with
+    nothing set (the explorer's ``learner.*`` / ``trial.*`` come from the default preset, not
+    from the field's own default)."""
+    node, path = OPTIONS[name]
+    return flatten(SETTINGS[node].check({}, f"{node} defaults").model_dump())[path]
 
 
 def parse_option(name: str, text: str) -> Any:

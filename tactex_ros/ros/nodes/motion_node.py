@@ -262,7 +262,7 @@ class MotionNode(TactexNode):
                                                   ctrl.s.capture_deadline_s)
                 pose_xyz = self.position.copy()
                 ctrl.captured(ok, reason, time.monotonic())
-            fb.phase, fb.force_n, fb.attempt = ctrl.phase, float(self.force), attempt
+            fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
             fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
             goal_handle.publish_feedback(fb)
             time.sleep(period)
@@ -271,7 +271,9 @@ class MotionNode(TactexNode):
             return False, out.reason, None
         touch = Touch(header=cap.image.header, platform_id=platform.id, platform_index=index,
                       image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
-                      attempt=attempt, no_contact_image=cap.no_contact)
+                      attempt=attempt, no_contact_image=cap.no_contact,
+                      tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
+                      tare_samples=out.tare.samples)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
