@@ -207,11 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
     wi.add_argument("--json")
     wi.set_defaults(func=cmd_weights_inspect)
 
-    from . import bench, experiment, graph, sim
+    from . import bench, experiment, graph, robot, sim
     bench.add_commands(sub)
     sim.add_commands(sub)
     graph.add_commands(sub)
     experiment.add_commands(sub)
+    robot.add_commands(sub)
 
     return p
 

@@ -17,6 +17,9 @@ Pure Python (no rclpy). A profile says:
   a full state message whose ``robot_mode`` reports a reflex (franka_ros2's
   ``franka_msgs/msg/FrankaRobotState``; read only where that type is installed);
 - ``force_sign``: normal force = ``force_sign * f_z`` of the base-frame wrench;
+- ``collision``: ``service`` + ``type`` of franka's collision-threshold service, where the
+  stack offers one (franka_ros2: ``/service_server/set_force_torque_collision_behavior``); the
+  motion node's pre-flight sets the thresholds the press needs through it;
 - ``recovery``: ``kind`` (``action``, ``service`` or ``none``), ``name``, ``type``,
   ``ok_field`` (service: the response field that says it worked), and ``then``: the service
   calls that re-activate hardware and controllers after recovery, in order (``service``,
@@ -77,6 +80,8 @@ class RobotProfile:
     force_sign: float = 1.0
     target_filter_s: float = 0.0         # s, the controller's filter on the equilibrium
     recovery: Recovery = field(default_factory=Recovery)
+    collision_service: str = ""          # franka's collision-threshold service ("" = none)
+    collision_type: str = ""
     notes: str = ""
 
     @property
@@ -161,6 +166,20 @@ class RecoverySpec(Schema):
         return self
 
 
+class CollisionSpec(Schema):
+    """franka's collision-threshold service where the robot stack offers one (pre-flight)."""
+
+    service: str = param("", "service name ('' = the stack offers none)")
+    type: _interface("srv") | Literal[""] = param("", "service type")
+
+    @model_validator(mode="after")
+    def _both(self) -> "CollisionSpec":
+        if bool(self.service) != bool(self.type):
+            raise FieldError("type" if self.service else "service",
+                             "give both service and type, or neither")
+        return self
+
+
 class ProfileFile(Schema):
     """A robot profile file (``config/robots/<name>.yaml``) as written."""
 
@@ -171,6 +190,7 @@ class ProfileFile(Schema):
     state: StateSpec
     force_sign: float = param(1.0, "normal force = force_sign * f_z (1 or -1)")
     recovery: RecoverySpec = RecoverySpec()
+    collision: CollisionSpec = CollisionSpec()
     notes: str = param("", "free text")
 
     @field_validator("force_sign")
@@ -199,6 +219,7 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
         stiffness=float(f.controller.stiffness), target_topic=f.target.topic,
         target_type=f.target.type, force_sign=float(f.force_sign),
         target_filter_s=float(f.controller.target_filter_s), recovery=recovery,
+        collision_service=f.collision.service, collision_type=f.collision.type,
         notes=f.notes, **state)
 
 

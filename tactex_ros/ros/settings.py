@@ -65,6 +65,25 @@ class GelsightSettings(Schema):
                                        "camera's)", -1.0, 15000.0)
     led_intensity: int = param(-1, "DIGIT LED level on all channels, 0..15 (-1 = the "
                                    "profile's)", -1, 15)
+    preflight: bool = param(True, "check the camera at configuration (measured frame rate, "
+                                  "a sane no-contact frame) and refuse the start on a problem "
+                                  "(docs/hardware_checks.md); off only for tests of the node "
+                                  "itself")
+    preflight_frames: int = param(25, "frames timed for the measured frame rate (cameras)",
+                                  3, 1000)
+    min_fps_fraction: float = param(0.8, "the measured frame rate must reach this fraction of "
+                                         "the requested one", 0.0, 1.0)
+    frame_min_std: float = param(5.0, "a no-contact frame whose grey-level spread is below "
+                                      "this is blank (LED off, lens covered)", 0.0, 128.0)
+    frame_max_saturated: float = param(0.02, "largest fraction of the no-contact frame's "
+                                             "pixels at 250 or above", 0.0, 1.0)
+    frame_max_texture: float = param(0.8, "a no-contact frame with more high-pass texture than "
+                                          "this [grey levels] shows contact (octopi-dev: "
+                                          "0.52-0.62 without contact, 0.9-2.5 for textured "
+                                          "contact)", 0.0, 50.0)
+    frame_max_change: float = param(0.8, "largest contact score of one reference frame "
+                                         "against their mean [grey levels] (octopi-dev: "
+                                         "0.31-0.38 without contact)", 0.0, 50.0)
 
 
 class MotionSettings(Schema):
@@ -96,6 +115,28 @@ class MotionSettings(Schema):
                                           "retried (0 = no check)", 0.0, 50.0)
     state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
                                    0.05, 30.0)
+    preflight: bool = param(True, "check the robot at configuration, before the arm moves "
+                                  "(state rate, robot mode, franka's collision thresholds) "
+                                  "and refuse the start on a problem "
+                                  "(docs/hardware_checks.md); off only for tests of the node "
+                                  "itself")
+    preflight_window_s: float = param(1.0, "robot state is counted over this window, after "
+                                           "its first message [s]", 0.1, 30.0)
+    preflight_deadline_s: float = param(20.0, "deadline for the first robot state message and "
+                                              "for franka's collision service [s]", 0.1, 120.0)
+    min_state_rate_hz: float = param(50.0, "robot state slower than this refuses the start "
+                                           "[Hz] (franka_robot_state_broadcaster: 1000)",
+                                     0.0, 10000.0)
+    collision_force_lower_n: float = param(20.0, "franka's Cartesian contact threshold for "
+                                                 "x, y, z, set at start-up [N]", 0.0, 200.0)
+    collision_force_upper_n: float = param(30.0, "franka's Cartesian reflex threshold for "
+                                                 "x, y, z, set at start-up; must be above "
+                                                 "max_force + tare_max_offset_n [N]",
+                                           0.0, 200.0)
+    collision_set_by_hand: bool = param(False, "franka's collision thresholds were set with "
+                                               "the `ros2 service call` a refused start "
+                                               "printed (where franka_msgs is not installed "
+                                               "for this node)")
 
 
 class ExplorerSettings(TrialSettings):

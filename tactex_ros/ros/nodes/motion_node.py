@@ -15,6 +15,13 @@ within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the p
 (error recovery action or service, waits for its result, re-activates hardware and controllers
 by the profile's service calls, waits for fresh state) and retries, or ends the goal with the
 reason (also when recovery is off, e.g. franka_msgs is not installed).
+
+Pre-flight (``preflight``, at the end of the configuration, before any target is published):
+the robot state arrives at ``min_state_rate_hz`` or faster, franka's ``robot_mode`` (where it is
+read) is move, and franka's collision thresholds are set to what the press needs through the
+profile's collision service (or the start is refused with the ``ros2 service call`` to run).
+Any failure refuses the configuration with the reason: exit status 2
+(``robot/preflight.py``, docs/hardware_checks.md).
 """
 
 from __future__ import annotations
@@ -30,7 +37,9 @@ from rclpy.qos import qos_profile_sensor_data
 
 from .. import adapter
 from ...core.errors import TactexError
+from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
+from ..preflight import Probe
 from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
@@ -95,6 +104,89 @@ class MotionNode(TactexNode):
         self.server = ActionServer(
             self, Press, s.press_action, execute_callback=self._execute_async,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+        if s.preflight:
+            self._preflight()
+        else:
+            self.get_logger().warning("pre-flight off (preflight: false): robot state, robot "
+                                      "mode and collision thresholds not checked")
+
+    def _preflight(self) -> None:
+        """The robot's pre-flight (module doc); TactexError names the first problem."""
+        s, prof, press = self.settings, self.profile, self.scene.press
+        th = checks.CollisionThresholds(s.collision_force_lower_n, s.collision_force_upper_n)
+        problem = checks.collision_problem(th, press.max_force, press.tare_max_offset_n)
+        if prof.collision_service and problem:
+            raise TactexError(f"pre-flight: {problem}")
+        probe = Probe(self.context, f"{self.get_name()}_preflight")
+        try:
+            if prof.franka_state:
+                topics = [(import_interface(prof.state_type), s.state_topic or prof.state_topic)]
+            else:
+                topics = [(PoseStamped, s.pose_topic or prof.pose_topic),
+                          (WrenchStamped, s.wrench_topic or prof.wrench_topic)]
+            mode = None
+            for mtype, topic in topics:
+                stamps, last = probe.sample(mtype, topic, qos_profile_sensor_data,
+                                            s.preflight_window_s, s.preflight_deadline_s)
+                problem = checks.state_problem(stamps, s.min_state_rate_hz,
+                                               s.preflight_window_s, topic)
+                if problem:
+                    raise TactexError(f"pre-flight: {problem}")
+                self.get_logger().info(f"pre-flight: {topic} at "
+                                       f"{checks.rate_hz(stamps):.0f} Hz")
+                if prof.franka_state:
+                    mode = int(last.robot_mode)
+            if mode is None and prof.mode_topic:
+                mode = self._preflight_mode(probe)
+            problem = checks.mode_problem(mode)
+            if problem:
+                raise TactexError(f"pre-flight: {problem}")
+            if prof.collision_service:
+                self._preflight_collision(probe, th)
+            else:
+                self.get_logger().info(f"pre-flight: robot profile {prof.name!r} names no "
+                                       "collision-threshold service (nothing to set)")
+        finally:
+            probe.close()
+
+    def _preflight_mode(self, probe: Probe) -> int | None:
+        """robot_mode from the profile's full state topic; None where its type is missing."""
+        s, prof = self.settings, self.profile
+        try:
+            mtype = import_interface(prof.mode_type)
+        except TactexError as exc:
+            self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
+            return None
+        topic = s.mode_topic or prof.mode_topic
+        stamps, last = probe.sample(mtype, topic, 10, 0.0, s.preflight_deadline_s)
+        if last is None:
+            raise TactexError(f"pre-flight: robot mode: no message on {topic} within "
+                              f"preflight_deadline_s ({s.preflight_deadline_s} s)")
+        return int(last.robot_mode)
+
+    def _preflight_collision(self, probe: Probe, th: checks.CollisionThresholds) -> None:
+        """Set franka's collision thresholds through the profile's service; where its type
+        is not installed, refuse with the command to run (unless ``collision_set_by_hand``)."""
+        s, prof = self.settings, self.profile
+        command = checks.collision_command(prof.collision_service, prof.collision_type, th)
+        try:
+            ctype = import_interface(prof.collision_type)
+        except TactexError as exc:
+            if s.collision_set_by_hand:
+                self.get_logger().warning("pre-flight: collision thresholds set by hand "
+                                          "(collision_set_by_hand), not verified here")
+                return
+            raise TactexError(f"pre-flight: collision thresholds cannot be set from here "
+                              f"({exc}); set them with `{command}` and start again with "
+                              "the motion parameter collision_set_by_hand: true") from None
+        try:
+            probe.call(ctype, prof.collision_service, checks.collision_request(th), "success",
+                       s.preflight_deadline_s)
+        except TactexError as exc:
+            raise TactexError(f"pre-flight: collision thresholds: {exc}; the robot's "
+                              f"bring-up must run (or set them with `{command}`)") from None
+        self.get_logger().info(f"pre-flight: franka collision thresholds set (force "
+                               f"{th.lower_n:g} / {th.upper_n:g} N)")
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
