@@ -33,3 +33,13 @@ def keys_fixture() -> Path:
     if p is None:
         pytest.skip("inception_v3_torchvision_keys.json not found (set TACTEX_SHARED)")
     return p
+
+
+def press_frames(octopi_dir: Path, material: str, index: int = 0):
+    """The frames of one recorded octopi-dev press (``material/index.mov``), sensor-sized RGB
+    uint8 (F, 240, 320, 3), read in place (never copied into the repository)."""
+    from tactex_ros.sources.replay import read_video
+    path = octopi_dir / material / f"{index}.mov"
+    if not path.is_file():
+        pytest.skip(f"octopi-dev press {material}/{index}.mov not found")
+    return read_video(path)[..., ::-1].copy()

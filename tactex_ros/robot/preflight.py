@@ -41,6 +41,19 @@ JOINT_TORQUE_UPPER = (35.0, 35.0, 32.0, 30.0, 29.0, 27.0, 24.0)
 CARTESIAN_TORQUE_LOWER, CARTESIAN_TORQUE_UPPER = 25.0, 35.0
 
 
+@dataclass(frozen=True)
+class Problem:
+    """A pre-flight refusal: ``check`` names it (docs/hardware_checks.md lists each: state,
+    state_rate, robot_mode, collision, fps, no_frame, blank, saturated, contact, unsteady),
+    ``text`` says what was measured and what to do."""
+
+    check: str
+    text: str
+
+    def __str__(self) -> str:
+        return f"pre-flight {self.check}: {self.text}"
+
+
 def rate_hz(stamps: Sequence[float]) -> float:
     """Message rate [Hz] from arrival times [s] (0 with fewer than 2)."""
     if len(stamps) < 2 or stamps[-1] <= stamps[0]:
@@ -49,30 +62,30 @@ def rate_hz(stamps: Sequence[float]) -> float:
 
 
 def state_problem(stamps: Sequence[float], min_rate_hz: float, window_s: float,
-                  what: str) -> str:
-    """Why the robot state ``what`` (a topic) is not good enough to press with ('' if it is):
+                  what: str) -> Problem | None:
+    """Why the robot state ``what`` (a topic) is not good enough to press with (None if it is):
     none within the window, or slower than ``min_rate_hz``."""
     if not stamps:
-        return (f"robot state: no message on {what} within the pre-flight window "
+        return Problem("state", f"no message on {what} within the pre-flight window "
                 f"({window_s} s): is the robot's bring-up (state broadcaster) running?")
     r = rate_hz(stamps)
     if r < min_rate_hz:
-        return (f"robot state: {what} arrives at {r:.1f} Hz, below min_state_rate_hz "
+        return Problem("state_rate", f"{what} arrives at {r:.1f} Hz, below min_state_rate_hz "
                 f"{min_rate_hz} Hz ({len(stamps)} messages in {window_s} s)")
-    return ""
+    return None
 
 
-def mode_problem(mode: int | None) -> str:
-    """Why franka's ``robot_mode`` forbids a start ('' for move; '' when not read)."""
+def mode_problem(mode: int | None) -> Problem | None:
+    """Why franka's ``robot_mode`` forbids a start (None for move, or when not read)."""
     if mode is None or mode == ROBOT_MODE_MOVE:
-        return ""
+        return None
     name = ROBOT_MODES.get(mode, f"unknown ({mode})")
     hint = {1: "no controller is running: start the bring-up and activate the controller",
             4: "the robot is in a reflex: run the error recovery (docs/hardware_checks.md)",
             5: "the user stop is pressed: release it",
             3: "the robot is in guiding mode: release the guiding button",
             }.get(mode, "the robot must be in move mode with the controller running")
-    return f"robot mode: {name} (robot_mode {mode}); {hint}"
+    return Problem("robot_mode", f"{name} (robot_mode {mode}); {hint}")
 
 
 @dataclass(frozen=True)
@@ -84,19 +97,20 @@ class CollisionThresholds:
     upper_n: float
 
 
-def collision_problem(th: CollisionThresholds, max_force: float, max_offset: float) -> str:
-    """Why the thresholds do not fit the press ('' if they do): the reflex threshold must lie
+def collision_problem(th: CollisionThresholds, max_force: float,
+                      max_offset: float) -> Problem | None:
+    """Why the thresholds do not fit the press (None if they do): the reflex threshold must lie
     above the largest raw force a press can reach, ``max_force + max_offset`` [N] (the press's
     limit acts on the tared force)."""
     if th.lower_n > th.upper_n:
-        return (f"collision thresholds: collision_force_lower_n {th.lower_n} N is above "
+        return Problem("collision", f"collision_force_lower_n {th.lower_n} N is above "
                 f"collision_force_upper_n {th.upper_n} N")
     need = max_force + max_offset
     if th.upper_n <= need:
-        return (f"collision thresholds: collision_force_upper_n {th.upper_n} N must be above "
+        return Problem("collision", f"collision_force_upper_n {th.upper_n} N must be above "
                 f"max_force + tare_max_offset_n = {need:g} N, so that the press's own limit "
                 "acts before franka's reflex")
-    return ""
+    return None
 
 
 def collision_request(th: CollisionThresholds) -> dict[str, list[float]]:
@@ -137,45 +151,46 @@ def texture(frame: np.ndarray) -> float:
     return float(np.abs(g - cv2.GaussianBlur(g, (41, 41), 0)).mean())
 
 
-def frame_problem(frames: Sequence[np.ndarray], limits: FrameLimits) -> str:
+def frame_problem(frames: Sequence[np.ndarray], limits: FrameLimits) -> Problem | None:
     """Why the no-contact frames (reference frames, (H, W, 3) uint8) are not sane ('' if they
     are); the no-contact frame is their mean."""
     if not len(frames):
-        return "camera: no frame read"
+        return Problem("no_frame", "the camera gave no frame")
     ref = np.mean(np.asarray(frames, dtype=np.float32), axis=0).round().astype(np.uint8)
     std = float(ref.std())
     if std < limits.min_std:
-        return (f"camera: the no-contact frame is blank (grey-level spread {std:.1f} < "
+        return Problem("blank", f"the no-contact frame is blank (grey-level spread {std:.1f} < "
                 f"frame_min_std {limits.min_std}; mean {ref.mean():.0f}): LED off, lens "
                 "covered or a wrong device")
     sat = float((ref >= 250).mean())
     if sat > limits.max_saturated:
-        return (f"camera: the no-contact frame is saturated ({sat:.1%} of pixels at 250 or "
-                f"above > frame_max_saturated {limits.max_saturated:.1%}): exposure or LED "
-                "too strong")
+        return Problem("saturated", f"the no-contact frame is saturated ({sat:.1%} of pixels "
+                                    f"at 250 or above > frame_max_saturated "
+                                    f"{limits.max_saturated:.1%}): exposure or LED too strong")
     tex = texture(ref)
     if tex > limits.max_texture:
-        return (f"camera: the no-contact frame shows contact (texture {tex:.2f} > "
+        return Problem("contact", f"the no-contact frame shows contact (texture {tex:.2f} > "
                 f"frame_max_texture {limits.max_texture}): the gel touches something at "
                 "start-up; lift the sensor clear")
     rb = blur(ref)
     change = max(contact_score(f, rb) for f in frames)
     if change > limits.max_change:
-        return (f"camera: the no-contact frames change (contact score {change:.2f} > "
+        return Problem("unsteady", f"the no-contact frames change (contact score {change:.2f} > "
                 f"frame_max_change {limits.max_change}): something moves on the gel or the "
                 "lighting is not steady")
-    return ""
+    return None
 
 
-def fps_problem(stamps: Sequence[float], requested: float, min_fraction: float) -> str:
-    """Why the camera's measured frame rate is too low ('' if it is not): below
+def fps_problem(stamps: Sequence[float], requested: float,
+                min_fraction: float) -> Problem | None:
+    """Why the camera's measured frame rate is too low (None if it is not): below
     ``min_fraction`` of the ``requested`` rate [Hz]."""
     r = rate_hz(stamps)
     if r < min_fraction * requested:
-        return (f"camera: measured {r:.1f} frames/s over {len(stamps)} frames, below "
+        return Problem("fps", f"measured {r:.1f} frames/s over {len(stamps)} frames, below "
                 f"min_fps_fraction {min_fraction} x the requested {requested:g} frames/s "
                 "(USB bandwidth, capture mode or exposure too long)")
-    return ""
+    return None
 
 
 @dataclass(frozen=True)

@@ -270,21 +270,22 @@ class GelsightNode(TactexNode):
         end = time.monotonic() + s.open_timeout_s + n / self.cfg.fps
         while len(frames) < n:
             if time.monotonic() > end:
-                raise TactexError(f"camera: only {len(frames)} of {n} frames read within "
-                                  f"{s.open_timeout_s + n / self.cfg.fps:.1f} s")
+                raise TactexError(str(checks.Problem(
+                    "no_frame", f"only {len(frames)} of {n} frames read within "
+                                f"{s.open_timeout_s + n / self.cfg.fps:.1f} s")))
             frame = self._read_frame()
             if frame is not None:
                 frames.append(frame)
                 stamps.append(time.monotonic())
         refs = frames[-s.reference_frames:]
         if s.preflight:
-            problem = "" if self.is_file else checks.fps_problem(stamps, self.cfg.fps,
+            problem = None if self.is_file else checks.fps_problem(stamps, self.cfg.fps,
                                                                  s.min_fps_fraction)
             problem = problem or checks.frame_problem(refs, checks.FrameLimits(
                 s.frame_min_std, s.frame_max_saturated, s.frame_max_texture,
                 s.frame_max_change))
             if problem:
-                raise TactexError(f"pre-flight: {problem}")
+                raise TactexError(str(problem))
             self.get_logger().info(
                 "pre-flight: camera " + ("(recording: frame rate not measured)" if self.is_file
                                          else f"{checks.rate_hz(stamps):.1f} frames/s")

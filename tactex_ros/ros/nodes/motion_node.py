@@ -116,7 +116,7 @@ class MotionNode(TactexNode):
         th = checks.CollisionThresholds(s.collision_force_lower_n, s.collision_force_upper_n)
         problem = checks.collision_problem(th, press.max_force, press.tare_max_offset_n)
         if prof.collision_service and problem:
-            raise TactexError(f"pre-flight: {problem}")
+            raise TactexError(str(problem))
         probe = Probe(self.context, f"{self.get_name()}_preflight")
         try:
             if prof.franka_state:
@@ -131,7 +131,7 @@ class MotionNode(TactexNode):
                 problem = checks.state_problem(stamps, s.min_state_rate_hz,
                                                s.preflight_window_s, topic)
                 if problem:
-                    raise TactexError(f"pre-flight: {problem}")
+                    raise TactexError(str(problem))
                 self.get_logger().info(f"pre-flight: {topic} at "
                                        f"{checks.rate_hz(stamps):.0f} Hz")
                 if prof.franka_state:
@@ -140,7 +140,7 @@ class MotionNode(TactexNode):
                 mode = self._preflight_mode(probe)
             problem = checks.mode_problem(mode)
             if problem:
-                raise TactexError(f"pre-flight: {problem}")
+                raise TactexError(str(problem))
             if prof.collision_service:
                 self._preflight_collision(probe, th)
             else:
@@ -160,8 +160,9 @@ class MotionNode(TactexNode):
         topic = s.mode_topic or prof.mode_topic
         stamps, last = probe.sample(mtype, topic, 10, 0.0, s.preflight_deadline_s)
         if last is None:
-            raise TactexError(f"pre-flight: robot mode: no message on {topic} within "
-                              f"preflight_deadline_s ({s.preflight_deadline_s} s)")
+            raise TactexError(str(checks.Problem(
+                "robot_mode", f"no message on {topic} within preflight_deadline_s "
+                              f"({s.preflight_deadline_s} s)")))
         return int(last.robot_mode)
 
     def _preflight_collision(self, probe: Probe, th: checks.CollisionThresholds) -> None:
@@ -176,15 +177,17 @@ class MotionNode(TactexNode):
                 self.get_logger().warning("pre-flight: collision thresholds set by hand "
                                           "(collision_set_by_hand), not verified here")
                 return
-            raise TactexError(f"pre-flight: collision thresholds cannot be set from here "
-                              f"({exc}); set them with `{command}` and start again with "
-                              "the motion parameter collision_set_by_hand: true") from None
+            raise TactexError(str(checks.Problem(
+                "collision", f"the thresholds cannot be set from here ({exc}); set them with "
+                             f"`{command}` and start again with the motion parameter "
+                             "collision_set_by_hand: true"))) from None
         try:
             probe.call(ctype, prof.collision_service, checks.collision_request(th), "success",
                        s.preflight_deadline_s)
         except TactexError as exc:
-            raise TactexError(f"pre-flight: collision thresholds: {exc}; the robot's "
-                              f"bring-up must run (or set them with `{command}`)") from None
+            raise TactexError(str(checks.Problem(
+                "collision", f"{exc}; the robot's bring-up must run (or set them with "
+                             f"`{command}`)"))) from None
         self.get_logger().info(f"pre-flight: franka collision thresholds set (force "
                                f"{th.lower_n:g} / {th.upper_n:g} N)")
 
