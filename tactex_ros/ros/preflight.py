@@ -28,7 +28,8 @@ class Probe:
 
     def __init__(self, context: Context, name: str) -> None:
         self.context = context
-        self.node = Node(name, context=context)
+        # not renamed by the process's `-r __node:=...` (that names the lifecycle node)
+        self.node = Node(name, context=context, use_global_arguments=False)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
