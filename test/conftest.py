@@ -35,11 +35,17 @@ def keys_fixture() -> Path:
     return p
 
 
-def press_frames(octopi_dir: Path, material: str, index: int = 0):
-    """The frames of one recorded octopi-dev press (``material/index.mov``), sensor-sized RGB
-    uint8 (F, 240, 320, 3), read in place (never copied into the repository)."""
+
+@pytest.fixture(scope="session")
+def octopi_press(octopi_dir):
+    """``octopi_press(material, index=0)``: the frames of one recorded octopi-dev press
+    (``material/index.mov``), sensor-sized RGB uint8 (F, 240, 320, 3), read in place (never
+    copied into the repository)."""
     from tactex_ros.sources.replay import read_video
-    path = octopi_dir / material / f"{index}.mov"
-    if not path.is_file():
-        pytest.skip(f"octopi-dev press {material}/{index}.mov not found")
-    return read_video(path)[..., ::-1].copy()
+
+    def load(material: str, index: int = 0):
+        path = octopi_dir / material / f"{index}.mov"
+        if not path.is_file():
+            pytest.skip(f"octopi-dev press {material}/{index}.mov not found")
+        return read_video(path)[..., ::-1].copy()
+    return load

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import press_frames
 from tactex_ros.core.contact import strongest_contact
 from tactex_ros.robot import preflight as pf
 from tactex_ros.robot.scene import PressSettings
@@ -18,17 +17,17 @@ MATERIALS = ("hairbrush_bristles", "steel_wool", "wires", "masking_tape", "alumi
 
 
 @pytest.mark.parametrize("material", MATERIALS)
-def test_recorded_no_contact_frames_pass(octopi_dir, material: str) -> None:
-    frames = press_frames(octopi_dir, material, 1)
+def test_recorded_no_contact_frames_pass(octopi_press, material: str) -> None:
+    frames = octopi_press(material, 1)
     assert pf.frame_problem(list(frames[:5]), LIMITS) is None
 
 
 @pytest.mark.parametrize("material", ["hairbrush_bristles", "steel_wool", "wires",
                                       "masking_tape", "aluminium_foil", "tissue"])
-def test_recorded_contact_is_refused(octopi_dir, material: str) -> None:
+def test_recorded_contact_is_refused(octopi_press, material: str) -> None:
     """Frames around the strongest contact of a recorded press, as if the sensor started in
     contact: refused (textured materials by their texture)."""
-    frames = press_frames(octopi_dir, material, 1)
+    frames = octopi_press(material, 1)
     i, _ = strongest_contact(frames)
     problem = pf.frame_problem(list(frames[i - 2:i + 3]), LIMITS)
     assert problem is not None and problem.check in ("contact", "unsteady")
@@ -36,8 +35,8 @@ def test_recorded_contact_is_refused(octopi_dir, material: str) -> None:
         assert problem.check == "contact"
 
 
-def test_blank_and_saturated_frames_are_refused(octopi_dir) -> None:
-    nc = press_frames(octopi_dir, "tissue", 1)[:5]
+def test_blank_and_saturated_frames_are_refused(octopi_press) -> None:
+    nc = octopi_press("tissue", 1)[:5]
     dark = [(f // 40).astype(np.uint8) for f in nc]          # LED off: a few grey levels
     assert pf.frame_problem(dark, LIMITS).check == "blank"
     black = [np.zeros_like(nc[0])] * 3
