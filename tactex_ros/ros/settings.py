@@ -100,6 +100,8 @@ class MotionSettings(Schema):
                                   "('' = the profile's)")
     mode_topic: str = param("", "robot mode (reflex) topic, for profiles that read one "
                                 "('' = the profile's)")
+    mode_rate_hz: float = param(20.0, "robot_mode is decoded from the mode topic's full "
+                                      "state (1 kHz) at most this often [Hz]", 1.0, 1000.0)
     stiffness: float = param(0.0, "the impedance controller's translational stiffness [N/m] "
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")

@@ -34,6 +34,7 @@ from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
 
 from .. import adapter
 from ...core.errors import TactexError
@@ -86,9 +87,13 @@ class MotionNode(TactexNode):
             self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
                                      self._on_wrench, qos_profile_sensor_data)
         if prof.mode_topic:
+            # franka's full state comes at 1 kHz and only robot_mode is wanted: taken raw and
+            # decoded at most mode_rate_hz (decoding every message cost about half a core)
             try:
-                self.create_subscription(import_interface(prof.mode_type),
-                                         s.mode_topic or prof.mode_topic, self._on_mode, 10)
+                self._mode_type = import_interface(prof.mode_type)
+                self._mode_next = 0.0
+                self.create_subscription(self._mode_type, s.mode_topic or prof.mode_topic,
+                                         self._on_mode_raw, 10, raw=True)
             except TactexError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
@@ -251,8 +256,15 @@ class MotionNode(TactexNode):
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
         self.pose_t = self.wrench_t = time.monotonic()
 
-    def _on_mode(self, msg) -> None:
-        self.robot_mode = int(msg.robot_mode)
+    def _on_mode_raw(self, data: bytes) -> None:
+        """A serialized full state: its robot_mode decoded at most ``mode_rate_hz`` times a
+        second (a reflex is then seen within 1 / mode_rate_hz; the state stopping is seen by
+        the pose and wrench deadlines anyway)."""
+        now = time.monotonic()
+        if now < self._mode_next:
+            return
+        self._mode_next = now + 1.0 / self.settings.mode_rate_hz
+        self.robot_mode = int(deserialize_message(data, self._mode_type).robot_mode)
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s
