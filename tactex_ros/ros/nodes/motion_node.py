@@ -33,7 +33,7 @@ import numpy as np
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
 
 from .. import adapter
@@ -45,6 +45,9 @@ from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
 from .common import TactexNode, in_thread, run, wait_for
+
+
+MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 class RobotError(Exception):
@@ -87,13 +90,16 @@ class MotionNode(TactexNode):
             self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
                                      self._on_wrench, qos_profile_sensor_data)
         if prof.mode_topic:
-            # franka's full state comes at 1 kHz and only robot_mode is wanted: taken raw and
-            # decoded at most mode_rate_hz (decoding every message cost about half a core)
+            # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
+            # franka_robot_state_broadcaster.cpp:149-150, reliable, depth 10) and only
+            # robot_mode is wanted: best effort, depth 1 (a late message may be dropped), taken
+            # raw and decoded at most mode_rate_hz (decoding every message cost about half a
+            # core)
             try:
                 self._mode_type = import_interface(prof.mode_type)
                 self._mode_next = 0.0
                 self.create_subscription(self._mode_type, s.mode_topic or prof.mode_topic,
-                                         self._on_mode_raw, 10, raw=True)
+                                         self._on_mode_raw, MODE_QOS, raw=True)
             except TactexError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
