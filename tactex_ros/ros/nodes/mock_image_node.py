@@ -23,6 +23,7 @@ from ...core.errors import TactexError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
+from ..preflight import Stopped
 from .common import TactexNode, run
 
 
@@ -50,6 +51,8 @@ class MockImageNode(TactexNode):
         self.src = open_source(s.source)
         if kind == "sim":
             for p in self.scene.platforms:
+                if not self.context.ok():  # a stop (SIGINT, SIGTERM) ends the building: a
+                    raise Stopped()        # tile takes seconds on a loaded machine
                 self.src.fabric(p.sim_fabric)  # names the unknown fabric
                 # build the fabric's height tile now: doing it at the first press stalls the
                 # frame timer for a moment and the capture window then holds no contact frame
