@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .names import FRAME_H, FRAME_W
+from .touch import FRAME_H, FRAME_W
 
 _BLUR = (5, 5)
 
