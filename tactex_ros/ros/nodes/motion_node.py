@@ -35,6 +35,7 @@ from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
+from rclpy.subscription_content_filter_options import ContentFilterOptions
 
 from .. import adapter
 from ...core.errors import TactexError
@@ -48,6 +49,10 @@ from .common import TactexNode, in_thread, run, wait_for
 
 
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+# only franka states not in move mode (libfranka RobotMode 2), where the middleware filters
+MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
+                                   expression_parameters=["2"])
+MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
 
 
 class RobotError(Exception):
@@ -92,14 +97,26 @@ class MotionNode(TactexNode):
         if prof.mode_topic:
             # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
             # franka_robot_state_broadcaster.cpp:149-150, reliable, depth 10) and only
-            # robot_mode is wanted: best effort, depth 1 (a late message may be dropped), taken
-            # raw and decoded at most mode_rate_hz (decoding every message cost about half a
-            # core)
+            # robot_mode is wanted. Where the middleware filters content (Fast DDS), only
+            # messages whose robot_mode is not move reach this process at all; otherwise they
+            # are taken raw (best effort, depth 1) and decoded at most mode_rate_hz times a
+            # second. A mode counts for MODE_HOLD_S after the last message.
             try:
                 self._mode_type = import_interface(prof.mode_type)
-                self._mode_next = 0.0
-                self.create_subscription(self._mode_type, s.mode_topic or prof.mode_topic,
-                                         self._on_mode_raw, MODE_QOS, raw=True)
+                self._mode_next, self._mode_t, self.topic_mode = 0.0, float("-inf"), None
+                try:
+                    sub = self.create_subscription(
+                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        MODE_QOS, raw=True, content_filter_options=MODE_FILTER)
+                except TypeError:           # an rclpy without content filters
+                    sub = self.create_subscription(
+                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        MODE_QOS, raw=True)
+                cft = getattr(sub, "is_cft_enabled", False)   # a property or a method
+                self.get_logger().info(
+                    "robot mode: " + ("only non-move states delivered (content filter)"
+                                      if (cft() if callable(cft) else cft)
+                                      else f"decoded at most {s.mode_rate_hz:g} Hz"))
             except TactexError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
@@ -267,10 +284,11 @@ class MotionNode(TactexNode):
         second (a reflex is then seen within 1 / mode_rate_hz; the state stopping is seen by
         the pose and wrench deadlines anyway)."""
         now = time.monotonic()
+        self._mode_t = now
         if now < self._mode_next:
             return
         self._mode_next = now + 1.0 / self.settings.mode_rate_hz
-        self.robot_mode = int(deserialize_message(data, self._mode_type).robot_mode)
+        self.topic_mode = int(deserialize_message(data, self._mode_type).robot_mode)
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s
@@ -279,7 +297,9 @@ class MotionNode(TactexNode):
 
     def _robot_fault(self, now: float) -> str:
         """Why the robot cannot be commanded now ("" when it can)."""
-        if self.robot_mode == adapter.FRANKA_MODE_REFLEX:
+        if self.robot_mode == adapter.FRANKA_MODE_REFLEX or (
+                getattr(self, "topic_mode", None) == adapter.FRANKA_MODE_REFLEX and
+                now - self._mode_t <= MODE_HOLD_S):
             return "robot in reflex mode (franka state robot_mode)"
         if not self._fresh(now):
             return ("robot stopped: no robot state within state_timeout_s "
