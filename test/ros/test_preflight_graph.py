@@ -195,7 +195,8 @@ def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[in
             time.sleep(0.005)
     th = threading.Thread(target=publish, daemon=True)
     th.start()
-    cmd = [sys.executable, "-m", "tactex_ros.cli.main", "robot", "check-wrench", "--robot",
+    cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
+           "sys.exit(main())", "robot", "check-wrench", "--robot",
            "sim", "--topic", topic, "--baseline-s", "1.0", "--deadline-s", "4.0"] + extra
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(listener.domain_id))
@@ -205,7 +206,8 @@ def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[in
                 if push_fz is not None:
                     value[0] = push_fz
                 break
-        out, _ = proc.communicate(timeout=60)
+        out, err = proc.communicate(timeout=60)
+        assert out.strip().startswith("{"), f"no result; stderr: {err[-2000:]}"
     finally:
         stop.set()
         th.join(timeout=2.0)
