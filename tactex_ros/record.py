@@ -31,7 +31,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .core.errors import TactexError
+from .core.errors import InputError, TrialError
 
 
 def _fsync_write(path: Path, data: bytes, append: bool) -> None:
@@ -70,7 +70,7 @@ class TrialRecord:
 
     def __init__(self, root: str | Path, trial_id: str, resume: bool = False) -> None:
         if not trial_id or "/" in trial_id or trial_id in (".", ".."):
-            raise TactexError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+            raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
         self.dir = Path(root) / trial_id
         self.n_touches = 0
         self._no_contact: tuple[np.ndarray, str] | None = None
@@ -78,12 +78,12 @@ class TrialRecord:
         self.closed = False
         if resume:
             if not (self.dir / "config.json").is_file():
-                raise TactexError(f"resume: {str(self.dir)!r} is not a trial record "
-                                  "(no config.json)")
+                raise InputError(f"resume: {str(self.dir)!r} is not a trial record "
+                                 "(no config.json)")
             res = read_result(self.dir)
             if res is not None and "error" not in res:
-                raise TactexError(f"resume: trial record {str(self.dir)!r} already has its "
-                                  "result; nothing to resume")
+                raise InputError(f"resume: trial record {str(self.dir)!r} already has its "
+                                 "result; nothing to resume")
             if res is not None:                 # a failed trial: its error goes to the events
                 append_event(self.dir, {"event": "failed", "result": res})
                 os.remove(self.dir / "result.json")
@@ -94,8 +94,8 @@ class TrialRecord:
             self.n_touches = _last_seq(self.dir)
             return
         if (self.dir / "touches.jsonl").exists():
-            raise TactexError(f"trial record {str(self.dir)!r} already exists: choose another "
-                              "trial_id (records are never overwritten)")
+            raise InputError(f"trial record {str(self.dir)!r} already exists: choose another "
+                             "trial_id (records are never overwritten)")
         self.dir.mkdir(parents=True, exist_ok=True)
 
     def close(self, timeout_s: float = 5.0) -> None:
@@ -108,7 +108,7 @@ class TrialRecord:
 
     def _open(self) -> None:
         if self.closed:
-            raise TactexError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
+            raise TrialError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
 
     def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
         if scene_file:
@@ -118,7 +118,7 @@ class TrialRecord:
     def _png(self, path: Path, image: np.ndarray) -> None:
         ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
         if not ok:
-            raise TactexError(f"could not encode {path.name} as PNG")
+            raise InputError(f"could not encode {path.name} as PNG")
         _fsync_write(path, buf.tobytes(), False)
 
     def add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
@@ -202,7 +202,7 @@ def read_result(folder: str | Path) -> dict | None:
     try:
         return json.loads(p.read_text())
     except json.JSONDecodeError as exc:
-        raise TactexError(f"{str(p)!r} is not valid JSON ({exc})") from None
+        raise InputError(f"{str(p)!r} is not valid JSON ({exc})") from None
 
 
 def _read_png(path: Path) -> np.ndarray | None:
@@ -215,7 +215,7 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
     decisions, events, result (or None). ``images=False`` skips the PNGs."""
     d = Path(folder)
     if not d.is_dir():
-        raise TactexError(f"trial record {str(d)!r} not found")
+        raise InputError(f"trial record {str(d)!r} not found")
     touches = _read_jsonl(d / "touches.jsonl")
     rejected = {r["seq"]: r["reason"] for r in _read_jsonl(d / "rejections.jsonl")}
     for t in touches:

@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from .main import bounded
+from .main import bounded, builds
 
 
 def cmd_check_wrench(args: argparse.Namespace) -> int:
@@ -75,11 +75,13 @@ def cmd_check_wrench(args: argparse.Namespace) -> int:
     return code
 
 
-def add_commands(sub) -> None:
+def add_commands(sub, command: str | None = None) -> None:
     r = sub.add_parser("robot", help="checks on the real robot")
+    if not builds(command, "robot"):
+        return
     rsub = r.add_subparsers(dest="rcmd", required=True)
     c = rsub.add_parser("check-wrench", help="the wrench sign, checked with a hand push")
-    c.add_argument("--robot", default="fr3_jazzy", help="robot profile (name or file)")
+    c.add_argument("--robot", default="fr3_crisp", help="robot profile (name or file)")
     c.add_argument("--topic", default="", help="wrench (or franka state) topic "
                                                "(default: the profile's)")
     c.add_argument("--force-sign", type=float, default=0.0, choices=(-1.0, 0.0, 1.0),

@@ -6,11 +6,12 @@ refusal with what the lab does.
 - robot state: its rate [Hz] over a window, and franka's ``robot_mode`` where it is read
   (libfranka's ``RobotMode``, franka_msgs ``FrankaRobotState.msg`` lines 64-71 in franka_ros2
   v3.4.0: 2 = move, the only mode in which a running controller follows targets);
-- franka's collision thresholds: the press needs the reflex (upper) force threshold above the
-  largest raw force a press can reach (``max_force`` + ``tare_max_offset_n``), else franka's
-  reflex, not the press's own limit, ends a press; set through franka_hardware's
-  ``/service_server/set_force_torque_collision_behavior`` (franka_ros2 v3.4.0
-  franka_hardware/src/franka_param_service_server.cpp:65-71, request fields
+- franka's collision thresholds (the robot profile's ``collision``: service, type and the
+  request file, config/bringup/collision_thresholds.yaml): the press needs the reflex (upper)
+  force thresholds above the largest raw force a press can reach (``max_force`` +
+  ``tare_max_offset_n``), else franka's reflex, not the press's own limit, ends a press; set
+  through franka_hardware's ``/service_server/set_force_torque_collision_behavior`` (franka_ros2
+  v3.4.0 franka_hardware/src/franka_param_service_server.cpp:65-71, request fields
   franka_msgs/srv/SetForceTorqueCollisionBehavior.srv:1-4, answer ``success`` + ``error``), or
   by hand with the command ``collision_command`` prints;
 - the tactile camera: its measured frame rate, and a no-contact frame that is not blank, not
@@ -32,26 +33,6 @@ ROBOT_MODES = {0: "other", 1: "idle", 2: "move", 3: "guiding", 4: "reflex", 5: "
                6: "automatic error recovery"}
 ROBOT_MODE_MOVE = 2
 
-# franka's joint torque thresholds [Nm] for the request, as franka_ros2's example controllers
-# set them (franka_example_controllers/include/.../default_robot_behavior_utils.hpp:25-28,
-# v3.4.0): lower (contact flag) and upper (reflex), joints 1..7
-JOINT_TORQUE_LOWER = (25.0, 25.0, 22.0, 20.0, 19.0, 17.0, 14.0)
-JOINT_TORQUE_UPPER = (35.0, 35.0, 32.0, 30.0, 29.0, 27.0, 24.0)
-# ... and their Cartesian torque thresholds [Nm] (same file, lines 33-36: elements 4-6)
-CARTESIAN_TORQUE_LOWER, CARTESIAN_TORQUE_UPPER = 25.0, 35.0
-
-
-@dataclass(frozen=True)
-class Problem:
-    """A pre-flight refusal: ``check`` names it (docs/hardware_checks.md lists each: state,
-    state_rate, robot_mode, collision, fps, no_frame, blank, saturated, contact, unsteady),
-    ``text`` says what was measured and what to do."""
-
-    check: str
-    text: str
-
-    def __str__(self) -> str:
-        return f"pre-flight {self.check}: {self.text}"
 
 
 def rate_hz(stamps: Sequence[float]) -> float:
@@ -88,43 +69,33 @@ def mode_problem(mode: int | None) -> Problem | None:
     return Problem("robot_mode", f"{name} (robot_mode {mode}); {hint}")
 
 
-@dataclass(frozen=True)
-class CollisionThresholds:
-    """Cartesian force thresholds [N] for x, y, z: ``lower`` (franka's contact flag) and
-    ``upper`` (franka's reflex)."""
-
-    lower_n: float
-    upper_n: float
+FORCE_FIELDS = ("lower_force_thresholds_nominal", "upper_force_thresholds_nominal")
 
 
-def collision_problem(th: CollisionThresholds, max_force: float,
-                      max_offset: float) -> Problem | None:
-    """Why the thresholds do not fit the press (None if they do): the reflex threshold must lie
-    above the largest raw force a press can reach, ``max_force + max_offset`` [N] (the press's
-    limit acts on the tared force)."""
-    if th.lower_n > th.upper_n:
-        return Problem("collision", f"collision_force_lower_n {th.lower_n} N is above "
-                f"collision_force_upper_n {th.upper_n} N")
+def collision_problem(request: dict, max_force: float, max_offset: float) -> Problem | None:
+    """Why franka's collision request (``SetForceTorqueCollisionBehavior`` fields, the
+    profile's ``collision.request_file``) does not fit the press (None if it does): the reflex
+    (upper) force thresholds x, y, z must lie above the largest raw force a press can reach,
+    ``max_force + max_offset`` [N] (the press's limit acts on the tared force)."""
+    missing = [f for f in FORCE_FIELDS if len(request.get(f, ())) < 3]
+    if missing:
+        return Problem("collision", f"the collision request lacks {missing} (x, y, z at least)")
+    lower, upper = (list(map(float, request[f][:3])) for f in FORCE_FIELDS)
+    if any(lo > hi for lo, hi in zip(lower, upper)):
+        return Problem("collision", f"lower_force_thresholds_nominal {lower} N above "
+                                    f"upper_force_thresholds_nominal {upper} N")
     need = max_force + max_offset
-    if th.upper_n <= need:
-        return Problem("collision", f"collision_force_upper_n {th.upper_n} N must be above "
-                f"max_force + tare_max_offset_n = {need:g} N, so that the press's own limit "
-                "acts before franka's reflex")
+    if min(upper) <= need:
+        return Problem("collision", f"upper_force_thresholds_nominal x, y, z {upper} N must "
+                                    f"be above max_force + tare_max_offset_n = {need:g} N, so "
+                                    "that the press's own limit acts before franka's reflex")
     return None
 
 
-def collision_request(th: CollisionThresholds) -> dict[str, list[float]]:
-    """The fields of franka_msgs/srv/SetForceTorqueCollisionBehavior's request."""
-    return {"lower_torque_thresholds_nominal": list(JOINT_TORQUE_LOWER),
-            "upper_torque_thresholds_nominal": list(JOINT_TORQUE_UPPER),
-            "lower_force_thresholds_nominal": [th.lower_n] * 3 + [CARTESIAN_TORQUE_LOWER] * 3,
-            "upper_force_thresholds_nominal": [th.upper_n] * 3 + [CARTESIAN_TORQUE_UPPER] * 3}
-
-
-def collision_command(service: str, type_name: str, th: CollisionThresholds) -> str:
-    """The ``ros2 service call`` that sets the thresholds by hand."""
-    fields = ", ".join(f"{k}: [{', '.join(f'{v:g}' for v in vals)}]"
-                       for k, vals in collision_request(th).items())
+def collision_command(service: str, type_name: str, request: dict) -> str:
+    """The ``ros2 service call`` that sets the thresholds of ``request`` by hand."""
+    fields = ", ".join(f"{k}: [{', '.join(f'{float(v):g}' for v in vals)}]"
+                       for k, vals in request.items())
     return f"ros2 service call {service} {type_name} \"{{{fields}}}\""
 
 

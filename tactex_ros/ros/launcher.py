@@ -29,7 +29,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .graph import NodeSpec, params_file
 
 _PR_SET_PDEATHSIG = 1
@@ -203,7 +203,7 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
     processes are started (tests use it to inject faults)."""
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
-        raise TactexError("the graph has no explorer_node")
+        raise InputError("the graph has no explorer_node")
     ex.parameters["exit_when_done"] = True
     if not ex.parameters.get("trial_id"):
         ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")

@@ -13,7 +13,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from ..core.errors import TactexError
+from ..core.errors import TrialError
 from ..robot.robots import fill_message
 
 SPIN_S = 0.02     # [s] longest single wait of the probe's executor
@@ -64,7 +64,7 @@ class Probe:
 
     def call(self, srv_type: type, name: str, request: dict[str, Any], ok_field: str,
              deadline_s: float) -> Any:
-        """Call service ``name`` with ``request``'s fields; the response, or TactexError when
+        """Call service ``name`` with ``request``'s fields; the response, or TrialError when
         the service is not there within ``deadline_s``, does not answer in time, or answers
         ``ok_field`` false (its ``error`` / ``message`` text named)."""
         client = self.node.create_client(srv_type, name)
@@ -72,18 +72,18 @@ class Probe:
             end = time.monotonic() + deadline_s
             while not client.service_is_ready():
                 if time.monotonic() > end:
-                    raise TactexError(f"service {name} is not offered (waited {deadline_s} s)")
+                    raise TrialError(f"service {name} is not offered (waited {deadline_s} s)")
                 self._spin()
             fut = client.call_async(fill_message(srv_type.Request(), request, name))
             while not fut.done():
                 if time.monotonic() > end:
                     client.remove_pending_request(fut)
-                    raise TactexError(f"service {name} did not answer within {deadline_s} s")
+                    raise TrialError(f"service {name} did not answer within {deadline_s} s")
                 self._spin()
             resp = fut.result()
             if not getattr(resp, ok_field, False):
                 detail = getattr(resp, "error", "") or getattr(resp, "message", "")
-                raise TactexError(f"service {name} answered {ok_field} = false"
+                raise TrialError(f"service {name} answered {ok_field} = false"
                                   + (f": {detail}" if detail else ""))
             return resp
         finally:
@@ -99,7 +99,7 @@ def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s:
                deadline_s: float, push_n: float, hold_s: float, prompt: Any) -> tuple:
     """The wrench-sign check: ``baseline_s`` [s] of hands-off samples of ``topic`` (raw f_z by
     ``fz_of(msg)``), then ``prompt()``, then samples until a push is seen (``push_sign``) or
-    ``deadline_s`` [s]. Returns (PushReading, hands-off samples, push samples); TactexError
+    ``deadline_s`` [s]. Returns (PushReading, hands-off samples, push samples); TrialError
     when no message comes within the baseline window."""
     from ..robot.preflight import push_sign
     fz: list[float] = []
@@ -114,7 +114,7 @@ def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s:
         while time.monotonic() < end:
             probe._spin()
         if not fz:
-            raise TactexError(f"no message on {topic} within {baseline_s} s: is the robot's "
+            raise TrialError(f"no message on {topic} within {baseline_s} s: is the robot's "
                               "bring-up running (or the topic name right)?")
         baseline, n0 = list(fz), len(fz)
         prompt()

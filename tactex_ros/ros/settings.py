@@ -1,6 +1,6 @@
 """Parameters of every node, in the one schema system (``core/config.py``: type, default,
 range, choices, description), pure Python. The nodes declare their ROS parameters from these
-models (``nodes/common.declare_settings``); the graph description fills and checks them; tests
+models (``nodes/lifecycle.declare_settings``); the graph description fills and checks them; tests
 validate them without ROS. Every topic, service and action name is a parameter.
 
 The explorer's settings are composed from the core's: ``ExplorerSettings`` is a
@@ -88,8 +88,8 @@ class GelsightSettings(Schema):
 
 class MotionSettings(Schema):
     scene_file: str = param("", "scene YAML (platforms, workspace, press settings)")
-    robot: str = param("fr3_jazzy", "robot profile: a name from config/robots/ (fr3_jazzy, "
-                                    "panda_multipanda, sim) or a path; gives the controller, "
+    robot: str = param("fr3_crisp", "robot profile: a name from config/robots/ (fr3_crisp, "
+                                    "panda_crisp, sim) or a path; gives the controller, "
                                     "topics, message types, stiffness and recovery interface")
     pose_topic: str = param("", "current end-effector pose (PoseStamped) ('' = the profile's)")
     wrench_topic: str = param("", "external wrench in the base frame (WrenchStamped) "
@@ -129,16 +129,11 @@ class MotionSettings(Schema):
     min_state_rate_hz: float = param(50.0, "robot state slower than this refuses the start "
                                            "[Hz] (franka_robot_state_broadcaster: 1000)",
                                      0.0, 10000.0)
-    collision_force_lower_n: float = param(20.0, "franka's Cartesian contact threshold for "
-                                                 "x, y, z, set at start-up [N]", 0.0, 200.0)
-    collision_force_upper_n: float = param(30.0, "franka's Cartesian reflex threshold for "
-                                                 "x, y, z, set at start-up; must be above "
-                                                 "max_force + tare_max_offset_n [N]",
-                                           0.0, 200.0)
-    collision_set_by_hand: bool = param(False, "franka's collision thresholds were set with "
+    collision_set_by_hand: bool = param(False, "franka's collision thresholds (the robot "
+                                               "profile's collision request) were set with "
                                                "the `ros2 service call` a refused start "
-                                               "printed (where franka_msgs is not installed "
-                                               "for this node)")
+                                               "printed, e.g. in the bring-up before the "
+                                               "controller was spawned")
 
 
 class ExplorerSettings(TrialSettings):
@@ -195,11 +190,11 @@ class MockArmSettings(Schema):
     target_topic: str = param("", "where the mock reads equilibrium poses ('' = profile's)")
     stiffness: float = param(0.0, "impedance controller stiffness [N/m] (0 = the profile's)",
                              0.0, 1e6)
-    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = 2 sqrt(stiffness) "
-                                 "as franka's controllers)", -1.0, 1e5)
+    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = the profile's)",
+                           -1.0, 1e5)
     mass: float = param(3.0, "apparent end-effector mass [kg]", 0.1, 100.0)
-    target_filter_s: float = param(-1.0, "controller filter on the equilibrium [s] (< 0 = the "
-                                         "profile's)", -1.0, 5.0)
+    target_filter: float = param(-1.0, "controller's EMA weight kept of the filtered target "
+                                       "per cycle (< 0 = the profile's)", -1.0, 0.999)
     platform_stiffness: float = param(2e4, "contact stiffness of gel, fabric and platform in "
                                            "series [N/m]", 1.0, 1e7)
     platform_damping: float = param(50.0, "contact damping [N s/m]", 0.0, 1e5)

@@ -22,7 +22,7 @@ import yaml
 from geometry_msgs.msg import WrenchStamped
 
 from tactex_ros.core.contact import strongest_contact
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError, TrialError
 from tactex_ros.paths import config_dir
 from tactex_ros.ros.graph import NodeSpec
 from tactex_ros.ros.launcher import Graph, ros_env
@@ -64,7 +64,8 @@ def _collision_profile(tmp_path: Path) -> Path:
     prof = yaml.safe_load((config_dir() / "robots" / "sim.yaml").read_text())
     prof["name"] = "sim_with_collision"
     prof["collision"] = {"service": "/service_server/set_force_torque_collision_behavior",
-                         "type": "franka_msgs/srv/SetForceTorqueCollisionBehavior"}
+                         "type": "franka_msgs/srv/SetForceTorqueCollisionBehavior",
+                         "request_file": "bringup/collision_thresholds.yaml"}
     out = tmp_path / "sim_with_collision.yaml"
     out.write_text(yaml.safe_dump(prof))
     return out
@@ -116,10 +117,16 @@ def test_collision_thresholds_set_by_hand_let_the_start_go_on(tmp_path: Path,
 
 
 def test_collision_thresholds_below_the_press_refuse(tmp_path: Path, domain_id) -> None:
+    """The profile's request (upper force 25 N) against a scene whose max_force 22 N plus the
+    tare's largest offset 5 N exceeds it: refused before any state is read."""
+    scene = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
+    scene["press"]["max_force"] = 22.0
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(scene))
     prof = str(_collision_profile(tmp_path))
-    with Graph([_motion(robot=prof, collision_force_upper_n=15.0, collision_set_by_hand=True)],
+    with Graph([_motion(robot=prof, scene_file=str(path), collision_set_by_hand=True)],
                tmp_path / "logs", domain_id) as g:
-        assert g.wait("motion", 60.0) == 2               # before any state is read
+        assert g.wait("motion", 60.0) == 2
     assert "pre-flight collision:" in _log(tmp_path, "motion")
 
 
@@ -135,7 +142,7 @@ def test_probe_calls_stand_in_services(tmp_path: Path, listener) -> None:
         try:
             assert probe.call(SetBool, "/tactex_test/set_hardware_active", {"data": False},
                               "success", 30.0).success
-            with pytest.raises(TactexError, match="success = false"):
+            with pytest.raises(TrialError, match="success = false"):
                 probe.call(SetBool, "/tactex_test/activate_controller", {"data": True},
                            "success", 5.0)
             assert probe.call(SetBool, "/tactex_test/set_hardware_active", {"data": True},
@@ -143,11 +150,11 @@ def test_probe_calls_stand_in_services(tmp_path: Path, listener) -> None:
             assert probe.call(SetBool, "/tactex_test/activate_controller", {"data": True},
                               "success", 5.0).success
             t0 = time.monotonic()
-            with pytest.raises(TactexError, match="not offered"):
+            with pytest.raises(TrialError, match="not offered"):
                 probe.call(SetBool, "/tactex_test/nothing_here", {"data": True}, "success",
                            1.0)
             assert 1.0 <= time.monotonic() - t0 < 5.0
-            with pytest.raises(TactexError, match="no field"):
+            with pytest.raises(InputError, match="no field"):
                 probe.call(SetBool, "/tactex_test/set_hardware_active",
                            {"lower_force_thresholds_nominal": [1.0]}, "success", 5.0)
         finally:

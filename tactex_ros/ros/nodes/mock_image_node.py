@@ -19,12 +19,13 @@ from sensor_msgs.msg import Image
 from .. import adapter
 from ...robot.frames import FrameRing
 from ...robot.press import platform_under
-from ...core.errors import TactexError
+from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
 from ..preflight import Stopped
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 class MockImageNode(TactexNode):
@@ -38,15 +39,15 @@ class MockImageNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         kind = s.source.partition(":")[0]
         if kind not in ("sim", "replay"):
-            raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
+            raise InputError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
         if kind == "sim" and s.source.endswith(":recorded"):
-            raise TactexError(f"source {s.source!r}: the mock camera is live (one session); "
-                              "'recorded' is for offline trials: use sim[:difficulty]")
+            raise InputError(f"source {s.source!r}: the mock camera is live (one session); "
+                             "'recorded' is for offline trials: use sim[:difficulty]")
         field = "sim_fabric" if kind == "sim" else "replay_class"
         missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
         if missing:
-            raise TactexError(f"scene: platforms {missing} have no {field} for source "
-                              f"{s.source!r}")
+            raise InputError(f"scene: platforms {missing} have no {field} for source "
+                             f"{s.source!r}")
         from ...sources import open_source
         self.src = open_source(s.source)
         if kind == "sim":
@@ -90,7 +91,7 @@ class MockImageNode(TactexNode):
     def _on_pose(self, msg: PoseStamped) -> None:
         try:
             self.position = adapter.pose_to_array(msg)[0]
-        except TactexError:
+        except InputError:
             pass
 
     def _on_wrench(self, msg: WrenchStamped) -> None:

@@ -38,14 +38,15 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription_content_filter_options import ContentFilterOptions
 
 from .. import adapter
-from ...core.errors import TactexError
+from ...core.errors import InputError, TrialError
 from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
 from ..preflight import Probe
 from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
-from .common import TactexNode, in_thread, run, wait_for
+from .lifecycle import TactexNode, in_thread, wait_for
+from .process import run
 
 
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -72,11 +73,11 @@ class MotionNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         prof = self.profile = load_profile(s.robot)
         if self.scene.frame_id != prof.frame_id:
-            raise TactexError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
-                              f"{prof.name!r}'s base frame {prof.frame_id!r}")
+            raise InputError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
+                             f"{prof.name!r}'s base frame {prof.frame_id!r}")
         self.k = s.stiffness or prof.stiffness
         self.sign = s.force_sign or prof.force_sign
-        check_press(self.scene, self.k, f"scene with robot {prof.name!r}")
+        check_press(self.scene, self.k, f"scene with robot {prof.name!r}", prof.law.error_clip)
         self.quat = np.array(self.scene.tool_orientation)
         self.position: np.ndarray | None = None
         self.pose_t = -1.0
@@ -117,7 +118,7 @@ class MotionNode(TactexNode):
                     "robot mode: " + ("only non-move states delivered (content filter)"
                                       if (cft() if callable(cft) else cft)
                                       else f"decoded at most {s.mode_rate_hz:g} Hz"))
-            except TactexError as exc:
+            except InputError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
         self.target_type = prof.target_type
@@ -139,12 +140,13 @@ class MotionNode(TactexNode):
                                       "mode and collision thresholds not checked")
 
     def _preflight(self) -> None:
-        """The robot's pre-flight (module doc); TactexError names the first problem."""
+        """The robot's pre-flight (module doc); InputError names the first problem."""
         s, prof, press = self.settings, self.profile, self.scene.press
-        th = checks.CollisionThresholds(s.collision_force_lower_n, s.collision_force_upper_n)
-        problem = checks.collision_problem(th, press.max_force, press.tare_max_offset_n)
-        if prof.collision_service and problem:
-            raise TactexError(str(problem))
+        if prof.collision is not None:
+            problem = checks.collision_problem(prof.collision.request, press.max_force,
+                                               press.tare_max_offset_n)
+            if problem:
+                raise InputError(str(problem))
         probe = Probe(self.context, f"{self.get_name()}_preflight")
         try:
             if prof.franka_state:
@@ -159,7 +161,7 @@ class MotionNode(TactexNode):
                 problem = checks.state_problem(stamps, s.min_state_rate_hz,
                                                s.preflight_window_s, topic)
                 if problem:
-                    raise TactexError(str(problem))
+                    raise InputError(str(problem))
                 self.get_logger().info(f"pre-flight: {topic} at "
                                        f"{checks.rate_hz(stamps):.0f} Hz")
                 if prof.franka_state:
@@ -168,9 +170,9 @@ class MotionNode(TactexNode):
                 mode = self._preflight_mode(probe)
             problem = checks.mode_problem(mode)
             if problem:
-                raise TactexError(str(problem))
-            if prof.collision_service:
-                self._preflight_collision(probe, th)
+                raise InputError(str(problem))
+            if prof.collision is not None:
+                self._preflight_collision(probe)
             else:
                 self.get_logger().info(f"pre-flight: robot profile {prof.name!r} names no "
                                        "collision-threshold service (nothing to set)")
@@ -182,42 +184,46 @@ class MotionNode(TactexNode):
         s, prof = self.settings, self.profile
         try:
             mtype = import_interface(prof.mode_type)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
             return None
         topic = s.mode_topic or prof.mode_topic
         stamps, last = probe.sample(mtype, topic, 10, 0.0, s.preflight_deadline_s)
         if last is None:
-            raise TactexError(str(checks.Problem(
+            raise InputError(str(checks.Problem(
                 "robot_mode", f"no message on {topic} within preflight_deadline_s "
                               f"({s.preflight_deadline_s} s)")))
         return int(last.robot_mode)
 
-    def _preflight_collision(self, probe: Probe, th: checks.CollisionThresholds) -> None:
-        """Set franka's collision thresholds through the profile's service; where its type
-        is not installed, refuse with the command to run (unless ``collision_set_by_hand``)."""
-        s, prof = self.settings, self.profile
-        command = checks.collision_command(prof.collision_service, prof.collision_type, th)
+    def _preflight_collision(self, probe: Probe) -> None:
+        """Set franka's collision thresholds (the profile's request) through the profile's
+        service; refuse with the command to run where its type is not installed or franka
+        refuses (it takes the call only while no controller claims the arm), unless
+        ``collision_set_by_hand``."""
+        s, col = self.settings, self.profile.collision
+        command = checks.collision_command(col.service, col.type, col.request)
+        if s.collision_set_by_hand:
+            self.get_logger().warning("pre-flight: collision thresholds set by hand "
+                                      f"(collision_set_by_hand; {col.request_file}), not "
+                                      "verified here")
+            return
         try:
-            ctype = import_interface(prof.collision_type)
-        except TactexError as exc:
-            if s.collision_set_by_hand:
-                self.get_logger().warning("pre-flight: collision thresholds set by hand "
-                                          "(collision_set_by_hand), not verified here")
-                return
-            raise TactexError(str(checks.Problem(
+            ctype = import_interface(col.type)
+        except InputError as exc:
+            raise InputError(str(checks.Problem(
                 "collision", f"the thresholds cannot be set from here ({exc}); set them with "
                              f"`{command}` and start again with the motion parameter "
                              "collision_set_by_hand: true"))) from None
         try:
-            probe.call(ctype, prof.collision_service, checks.collision_request(th), "success",
-                       s.preflight_deadline_s)
-        except TactexError as exc:
-            raise TactexError(str(checks.Problem(
-                "collision", f"{exc}; the robot's bring-up must run (or set them with "
-                             f"`{command}`)"))) from None
-        self.get_logger().info(f"pre-flight: franka collision thresholds set (force "
-                               f"{th.lower_n:g} / {th.upper_n:g} N)")
+            probe.call(ctype, col.service, col.request, "success", s.preflight_deadline_s)
+        except TrialError as exc:
+            raise InputError(str(checks.Problem(
+                "collision", f"{exc}; franka takes the call only while no controller claims "
+                             f"the arm: run `{command}` before the controller is spawned (the "
+                             "bring-up in docs/hardware.md does) and start again with the "
+                             "motion parameter collision_set_by_hand: true"))) from None
+        self.get_logger().info(f"pre-flight: franka collision thresholds set "
+                               f"({col.request_file})")
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
@@ -237,7 +243,7 @@ class MotionNode(TactexNode):
                 ctype = import_interface(call.type)
                 fill_message(ctype.Request(), call.request, f"recovery.then {call.service}")
                 self.reactivate.append((call, ctype, self.create_client(ctype, call.service)))
-        except TactexError as exc:
+        except InputError as exc:
             self.recovery_off = f"recovery off: {exc}"
             self.recovery_client, self.reactivate = None, []
             self.get_logger().warning(self.recovery_off)
@@ -260,20 +266,20 @@ class MotionNode(TactexNode):
         try:
             self.position = adapter.pose_to_array(msg)[0]
             self.pose_t = time.monotonic()
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"pose ignored: {exc}")
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         try:
             self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
             self.wrench_t = time.monotonic()
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"wrench ignored: {exc}")
 
     def _on_state(self, msg) -> None:
         try:
             pos, fn, mag, mode = adapter.franka_state_to_array(msg, self.sign)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"robot state ignored: {exc}")
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
@@ -313,7 +319,7 @@ class MotionNode(TactexNode):
             return GoalResponse.REJECT
         try:
             self.scene.platform(goal.platform_id)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"press goal rejected: {exc}")
             return GoalResponse.REJECT
         if self.busy.locked():
@@ -438,11 +444,11 @@ class MotionNode(TactexNode):
         return False
 
     def _wait(self, fut, deadline_s: float, what: str):
-        """Wait for a future from this worker thread; its result, or TactexError at the
+        """Wait for a future from this worker thread; its result, or TrialError at the
         deadline."""
         if not wait_for(fut, deadline_s):
             fut.cancel()
-            raise TactexError(f"{what}: no answer within recovery_timeout_s "
+            raise TrialError(f"{what}: no answer within recovery_timeout_s "
                               f"({deadline_s} s)")
         return fut.result()
 
@@ -457,14 +463,14 @@ class MotionNode(TactexNode):
         try:
             if rec.kind == "action":
                 if not self.recovery_client.wait_for_server(timeout_sec=lim):
-                    raise TactexError(f"error recovery action {name} not available")
+                    raise TrialError(f"error recovery action {name} not available")
                 handle = self._wait(self.recovery_client.send_goal_async(
                     self.recovery_type.Goal()), lim, f"error recovery {name} (goal)")
                 if not handle.accepted:
-                    raise TactexError(f"error recovery {name}: goal rejected")
+                    raise TrialError(f"error recovery {name}: goal rejected")
                 res = self._wait(handle.get_result_async(), lim, f"error recovery {name}")
                 if res.status != GoalStatus.STATUS_SUCCEEDED:
-                    raise TactexError(f"error recovery {name} ended with status {res.status}")
+                    raise TrialError(f"error recovery {name} ended with status {res.status}")
             else:
                 self._call(self.recovery_client, self.recovery_type.Request(), rec.ok_field,
                            name, lim)
@@ -474,21 +480,21 @@ class MotionNode(TactexNode):
             end = time.monotonic() + lim
             while self._robot_fault(time.monotonic()):
                 if time.monotonic() > end:
-                    raise TactexError("no fresh robot state after recovery within "
+                    raise TrialError("no fresh robot state after recovery within "
                                       f"recovery_timeout_s ({lim} s)")
                 time.sleep(0.02)
-        except TactexError as exc:
+        except TrialError as exc:
             self.get_logger().error(f"recovery failed: {exc}")
             return False, f"recovery failed: {exc}"
         return True, ""
 
     def _call(self, client, request, ok_field: str, name: str, deadline_s: float) -> None:
         if not client.wait_for_service(timeout_sec=deadline_s):
-            raise TactexError(f"service {name} not available")
+            raise TrialError(f"service {name} not available")
         resp = self._wait(client.call_async(request), deadline_s, f"service {name}")
         if not getattr(resp, ok_field, False):
             detail = getattr(resp, "message", "") or getattr(resp, "error", "")
-            raise TactexError(f"service {name} answered {ok_field} = false"
+            raise TrialError(f"service {name} answered {ok_field} = false"
                               + (f" ({detail})" if detail else ""))
 
 

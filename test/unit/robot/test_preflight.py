@@ -63,25 +63,22 @@ def test_robot_mode() -> None:
         assert pf.mode_problem(mode).check == "robot_mode"
 
 
-def test_collision_thresholds_fit_the_press() -> None:
+def test_collision_request_fits_the_press() -> None:
+    """The shipped request (config/bringup/collision_thresholds.yaml, upper force 25 N)
+    against the press; the command carries every field."""
+    from tactex_ros.robot.robots import load_profile
+    col = load_profile("fr3_crisp").collision
     press = PressSettings()
-    need = press.max_force + press.tare_max_offset_n
-    assert pf.collision_problem(pf.CollisionThresholds(20.0, need + 0.1), press.max_force,
-                                press.tare_max_offset_n) is None
-    assert pf.collision_problem(pf.CollisionThresholds(10.0, need), press.max_force,
-                                press.tare_max_offset_n).check == "collision"
-    assert pf.collision_problem(pf.CollisionThresholds(40.0, 30.0), 12.0, 5.0).check == \
-        "collision"
-    req = pf.collision_request(pf.CollisionThresholds(20.0, 30.0))
-    assert req["upper_force_thresholds_nominal"][:3] == [30.0] * 3
-    assert req["lower_force_thresholds_nominal"][:3] == [20.0] * 3
-    assert [len(v) for v in req.values()] == [7, 7, 6, 6]
-    cmd = pf.collision_command("/service_server/set_force_torque_collision_behavior",
-                               "franka_msgs/srv/SetForceTorqueCollisionBehavior",
-                               pf.CollisionThresholds(20.0, 30.0))
+    assert pf.collision_problem(col.request, 12.0, press.tare_max_offset_n) is None
+    assert pf.collision_problem(col.request, 22.0, 5.0).check == "collision"      # 27 > 25
+    bad = dict(col.request, lower_force_thresholds_nominal=[40.0] * 6)
+    assert pf.collision_problem(bad, 12.0, 5.0).check == "collision"
+    assert pf.collision_problem({}, 12.0, 5.0).check == "collision"
+    cmd = pf.collision_command(col.service, col.type, col.request)
     assert cmd.startswith("ros2 service call /service_server/set_force_torque_collision_"
                           "behavior franka_msgs/srv/SetForceTorqueCollisionBehavior ")
-    assert "upper_force_thresholds_nominal: [30, 30, 30, 35, 35, 35]" in cmd
+    assert "upper_force_thresholds_nominal: [25, 25, 25, 35, 35, 35]" in cmd
+    assert "lower_torque_thresholds_nominal: [25, 25, 22, 20, 19, 17, 14]" in cmd
 
 
 def test_push_sign() -> None:
