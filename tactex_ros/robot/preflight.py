@@ -34,6 +34,18 @@ ROBOT_MODES = {0: "other", 1: "idle", 2: "move", 3: "guiding", 4: "reflex", 5: "
 ROBOT_MODE_MOVE = 2
 
 
+@dataclass(frozen=True)
+class Problem:
+    """A pre-flight refusal: ``check`` names it (docs/hardware_checks.md lists each: state,
+    state_rate, robot_mode, collision, fps, no_frame, blank, saturated, contact, unsteady),
+    ``text`` says what was measured and what to do."""
+
+    check: str
+    text: str
+
+    def __str__(self) -> str:
+        return f"pre-flight {self.check}: {self.text}"
+
 
 def rate_hz(stamps: Sequence[float]) -> float:
     """Message rate [Hz] from arrival times [s] (0 with fewer than 2)."""

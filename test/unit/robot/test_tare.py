@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from tactex_ros.paths import config_dir
-from tactex_ros.robot.press import (DESCEND, ArmModel, PressController, Tare, TareResult,
-                                   tared)
+from tactex_ros.robot.press import (DESCEND, ArmModel, ControlLaw, PressController, Tare,
+                                   TareResult, tared)
 from tactex_ros.robot.scene import load_scene
 
 
@@ -27,7 +27,7 @@ def _press(scene, *, offset: float = 0.0, noise: float = 0.0, drift: float = 0.0
     ``noise`` (std) + ``drift`` * t [N]. Returns (outcome, contact force per tick, controller,
     the contact force when the descent ended)."""
     rng = np.random.default_rng(seed)
-    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), stiffness=1000.0, substep=1e-3)
+    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), ControlLaw(stiffness=1000.0))
     ctrl = PressController(scene, scene.platform("c3"), arm.position, 0.0, stiffness=1000.0)
     t, dt, contact, at_stop = 0.0, 1.0 / rate_hz, [], None
     while not ctrl.done and t < t_max:
