@@ -141,7 +141,7 @@ def test_probe_calls_stand_in_services(tmp_path: Path, listener) -> None:
         probe = Probe(listener.ctx, "test_probe")
         try:
             assert probe.call(SetBool, "/tactex_test/set_hardware_active", {"data": False},
-                              "success", 30.0).success
+                              "success", 90.0).success      # the stand-in's start-up
             with pytest.raises(TrialError, match="success = false"):
                 probe.call(SetBool, "/tactex_test/activate_controller", {"data": True},
                            "success", 5.0)
@@ -153,7 +153,7 @@ def test_probe_calls_stand_in_services(tmp_path: Path, listener) -> None:
             with pytest.raises(TrialError, match="not offered"):
                 probe.call(SetBool, "/tactex_test/nothing_here", {"data": True}, "success",
                            1.0)
-            assert 1.0 <= time.monotonic() - t0 < 5.0
+            assert 1.0 <= time.monotonic() - t0 < 15.0     # the deadline, not a hang
             with pytest.raises(InputError, match="no field"):
                 probe.call(SetBool, "/tactex_test/set_hardware_active",
                            {"lower_force_thresholds_nominal": [1.0]}, "success", 5.0)
