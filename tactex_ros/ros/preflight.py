@@ -97,10 +97,10 @@ class Probe:
 
 def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s: float,
                deadline_s: float, push_n: float, hold_s: float, prompt: Any) -> tuple:
-    """The wrench-sign check: ``baseline_s`` [s] of hands-off samples of ``topic`` (raw f_z by
-    ``fz_of(msg)``), then ``prompt()``, then samples until a push is seen (``push_sign``) or
-    ``deadline_s`` [s]. Returns (PushReading, hands-off samples, push samples); TrialError
-    when no message comes within the baseline window."""
+    """The wrench-sign check: the first message of ``topic`` within ``deadline_s`` [s], then
+    ``baseline_s`` [s] of hands-off samples (raw f_z by ``fz_of(msg)``), then ``prompt()``, then
+    samples until a push is seen (``push_sign``) or ``deadline_s``. Returns (PushReading,
+    hands-off samples, push samples); TrialError when no message comes."""
     from ..robot.preflight import push_sign
     fz: list[float] = []
     times: list[float] = []
@@ -110,12 +110,15 @@ def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s:
         fz.append(float(fz_of(msg)))
     sub = probe.node.create_subscription(msg_type, topic, got, 10)
     try:
+        end = time.monotonic() + deadline_s
+        while not fz and time.monotonic() < end:     # the first message (discovery)
+            probe._spin()
+        if not fz:
+            raise TrialError(f"no message on {topic} within {deadline_s} s: is the robot's "
+                             "bring-up running (or the topic name right)?")
         end = time.monotonic() + baseline_s
         while time.monotonic() < end:
             probe._spin()
-        if not fz:
-            raise TrialError(f"no message on {topic} within {baseline_s} s: is the robot's "
-                              "bring-up running (or the topic name right)?")
         baseline, n0 = list(fz), len(fz)
         prompt()
         end = time.monotonic() + deadline_s

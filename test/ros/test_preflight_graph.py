@@ -204,17 +204,19 @@ def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[in
     th.start()
     cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
            "sys.exit(main())", "robot", "check-wrench", "--robot",
-           "sim", "--topic", topic, "--baseline-s", "1.0", "--deadline-s", "4.0"] + extra
+           "sim", "--topic", topic, "--baseline-s", "1.0", "--deadline-s", "8.0"] + extra
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(listener.domain_id))
+    seen = []
     try:
         for line in proc.stderr:
+            seen.append(line)
             if line.startswith("now push"):
                 if push_fz is not None:
                     value[0] = push_fz
                 break
         out, err = proc.communicate(timeout=60)
-        assert out.strip().startswith("{"), f"no result; stderr: {err[-2000:]}"
+        assert out.strip().startswith("{"), f"no result; stderr: {''.join(seen)}{err}"
     finally:
         stop.set()
         th.join(timeout=2.0)
