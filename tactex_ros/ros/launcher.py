@@ -197,10 +197,11 @@ def append_event(record: Path, event: dict) -> None:
 
 def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600.0,
               domain_id: int | None = None, poll_s: float = 0.1,
-              on_start=None) -> GraphRun:
+              on_start=None, on_poll=None) -> GraphRun:
     """Run the graph until the explorer finishes its trial, a node exits, a signal arrives or
     ``timeout_s`` passes; then stop every node. ``on_start(graph)`` is called once all
-    processes are started (tests use it to inject faults)."""
+    processes are started (tests use it to inject faults); ``on_poll()`` at every poll
+    (progress lines)."""
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
         raise InputError("the graph has no explorer_node")
@@ -219,6 +220,8 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
                 on_start(g)
             deadline = t0 + timeout_s
             while True:
+                if on_poll is not None:
+                    on_poll()
                 gone = g.first_exit()
                 if gone is not None:
                     name, code = gone
