@@ -345,6 +345,8 @@ class ExplorerNode(TactexNode):
         touch = res.touch
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
+                    tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
+                          "samples": int(touch.tare_samples)},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")

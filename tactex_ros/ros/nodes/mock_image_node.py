@@ -30,6 +30,7 @@ from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
+from ..preflight import Stopped
 from .lifecycle import TactexNode
 from .process import run
 
@@ -107,6 +108,8 @@ class MockImageNode(TactexNode):
         """Build each fabric's height tile now: doing it at the first press stalls the frame
         timer for a moment and the capture window then holds no contact frame."""
         for f in dict.fromkeys(fabrics):
+            if not self.context.ok():   # a stop (SIGINT, SIGTERM) ends the building: a tile
+                raise Stopped()         # takes seconds on a loaded machine
             self.src.press(f, np.random.default_rng(0))
 
     def _on_parameters(self, params) -> SetParametersResult:
