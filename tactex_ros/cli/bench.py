@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..core.errors import TactexError
-from .main import write_json
+from .main import bounded, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
@@ -32,9 +32,10 @@ def add_commands(sub) -> None:
     b = sub.add_parser("bench", help="benchmarks (print figures)")
     bsub = b.add_subparsers(dest="bcmd", required=True)
     bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
-    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
-    bl.add_argument("--repeats", type=int, default=5)
-    bl.add_argument("--seed-epochs", type=int, default=1,
+    bl.add_argument("--touches", type=bounded(int, 1, 1000), nargs="+", default=[5, 15, 25],
+                    help="stored touches at which a decision is timed, 1..1000 each")
+    bl.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
+    bl.add_argument("--seed-epochs", type=bounded(int, 1, 10), default=1,
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
                     help="configurations to time (ratios are to the last one)")
@@ -42,7 +43,7 @@ def add_commands(sub) -> None:
     bl.set_defaults(func=cmd_bench_latency)
 
     bs = bsub.add_parser("sim", help="simulator frames per second")
-    bs.add_argument("--frames", type=int, default=400)
-    bs.add_argument("--repeats", type=int, default=5)
+    bs.add_argument("--frames", type=bounded(int, 1, 1000000), default=400)
+    bs.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
     bs.add_argument("--json")
     bs.set_defaults(func=cmd_bench_sim)

@@ -66,10 +66,43 @@ def cmd_describe(args: argparse.Namespace) -> int:
     return 0
 
 
+def preflight(nodes: list, logs: Path) -> Path:
+    """Before any node starts: the log folder can be written, and the explorer's record is a
+    new one (trial id a plain name, no record there, record folder writable) or, for a resume,
+    one that can be continued (``record.check_new_record`` / ``check_resumable``). Returns
+    the record folder; TactexError (exit status 2) naming the path otherwise."""
+    from ..core.outputs import check_dir
+    from ..record import check_new_record, check_resumable
+    check_dir(logs, "--log-dir")
+    ex = next(n for n in nodes if n.executable == "explorer_node")
+    p = ex.parameters
+    if p.get("resume"):
+        check_resumable(p["resume"])
+        return Path(p["resume"])
+    if not p.get("trial_id"):
+        p["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
+    return check_new_record(p.get("record_dir") or "runs/trials", p["trial_id"])
+
+
+def resume_hint(run, sim: bool) -> str | None:
+    """``tactex graph run --resume <record>`` when a resume of this run can work: the record
+    exists and can be continued, and no node refused its input (exit status 2: the same
+    input would be refused again)."""
+    from ..record import check_resumable
+    if run.record is None or 2 in run.node_exit.values():
+        return None
+    try:
+        check_resumable(run.record)
+    except TactexError:
+        return None
+    return f"tactex graph run{' --sim' if sim else ''} --resume {run.record}"
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from ..ros.launcher import exit_text, run_trial
     nodes = _nodes(args)
     logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
+    preflight(nodes, logs)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id)
     if run.left_running:
@@ -79,12 +112,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         why = (run.failure or (run.result or {}).get("error")
                or f"explorer ended without a result ({exit_text(run.exit_code)})")
         print(f"tactex: trial ended without a result: {why}; logs in {logs}", file=sys.stderr)
-        if run.record is not None:
+        if run.reason:
+            print(f"tactex: {run.failed_node}: {run.reason} (from "
+                  f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
+        hint = resume_hint(run, args.sim)
+        if hint is not None:
             from ..record import read_record
             n = len(read_record(run.record, images=False)["touches"])
-            print(f"tactex: {n} touches on disk in {run.record}; continue with: tactex graph "
-                  f"run{' --sim' if args.sim else ''} --resume {run.record}", file=sys.stderr)
-        return 128 + run.signal if run.signal else 1
+            print(f"tactex: {n} touches on disk in {run.record}; continue with: {hint}",
+                  file=sys.stderr)
+        if run.signal:
+            return 128 + run.signal
+        return 2 if 2 in run.node_exit.values() else 1
     r = run.result
     print(f"reference matches {r['prediction']} after {r['touches']} touches "
           f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "

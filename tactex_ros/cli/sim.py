@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import cv2
@@ -32,10 +31,12 @@ def cmd_render(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     img = (src.renderer.no_contact(rng) if args.no_contact
            else src.press(args.fabric, rng, depth_mm=args.depth))
+    from ..core.outputs import write_bytes
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
-        raise TactexError(f"--out {out}: cannot write an image there")
+    ok, buf = cv2.imencode(out.suffix.lower(), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise TactexError(f"--out {out}: cannot encode an image as {out.suffix}")
+    write_bytes(out, buf.tobytes())
     print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} RGB)")
     return 0
 
@@ -138,8 +139,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
                             ranking, fabrics)
     _print_report(res)
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res, indent=2))
+        from .main import write_json
+        write_json(args.json, res)
     print(f"wrote {args.out}")
     return 0
 
