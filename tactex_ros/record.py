@@ -111,6 +111,12 @@ def check_resumable(folder: str | Path) -> dict | None:
         raise TactexError(f"resume: touch images in {str(d)!r} that no line of touches.jsonl "
                           f"names: {', '.join(orphans[:5])}"
                           f"{' ...' if len(orphans) > 5 else ''}")
+    missing = [t["image"] for t in lines if t.get("image") and not t.get("interrupted")
+               and not (d / t["image"]).is_file()]
+    if missing:
+        raise TactexError(f"resume: touch images named in touches.jsonl are missing from "
+                          f"{str(d)!r}: {', '.join(missing[:5])}"
+                          f"{' ...' if len(missing) > 5 else ''}")
     check_dir(d, "resume")
     if not os.access(d, os.W_OK):
         raise TactexError(f"resume: {str(d)!r} is not writable")

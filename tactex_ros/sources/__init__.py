@@ -44,8 +44,11 @@ def open_source(spec: str) -> TouchSource:
             parts = parts[:-1]
         if len(parts) > 1:
             raise TactexError(f"source {spec!r}: use sim[:difficulty][:recorded]")
-        return SimSource(parts[0] if parts and parts[0] else "medium",
-                         catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
+        try:
+            return SimSource(parts[0] if parts and parts[0] else "medium",
+                             catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
+        except TactexError as exc:
+            raise TactexError(f"source {spec!r}: {exc}") from None
     raise TactexError(f"unknown source {spec!r}; use replay:DIR[:one-session] or "
                       "sim[:easy|medium|hard|<number>][:recorded]")
 

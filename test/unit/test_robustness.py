@@ -263,3 +263,21 @@ def test_one_unreadable_press_is_a_failed_touch_and_the_trial_goes_on(tmp_path):
     res = json.loads(out.read_text())
     assert any("0.mov" in f.get("reason", "") for f in res["failed_touches"]), res
     assert res["touches"] >= 3 + 12 - len(res["failed_touches"])
+
+
+def test_record_with_a_missing_image_refused_up_front(tmp_path):
+    rec = TrialRecord(tmp_path, "t")
+    rec.save_inputs(None, {"explorer": {}})
+    path = rec.add_touch(np.zeros((240, 320, 3), np.uint8), {"platform_index": 0,
+                                                             "platform_id": "reference"})
+    path.unlink()
+    with pytest.raises(TactexError, match=path.name):
+        check_resumable(rec.dir)
+
+
+@pytest.mark.parametrize("spec, named", [("sim:7", "sim:7"), ("replay:/nonexistent/x", "x"),
+                                         ("sim:a:b", "sim:a:b"), ("camera", "camera")])
+def test_bad_source_spec_named(spec, named):
+    from tactex_ros.sources import open_source
+    with pytest.raises(TactexError, match=named):
+        open_source(spec)

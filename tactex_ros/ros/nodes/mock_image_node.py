@@ -41,16 +41,20 @@ class MockImageNode(TactexNode):
         if kind == "sim" and s.source.endswith(":recorded"):
             raise TactexError(f"source {s.source!r}: the mock camera is live (one session); "
                               "'recorded' is for offline trials: use sim[:difficulty]")
+        from ...sources import open_source
+        self.src = open_source(s.source)         # first: a bad source is named as such
         field = "sim_fabric" if kind == "sim" else "replay_class"
         missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
         if missing:
-            raise TactexError(f"scene: platforms {missing} have no {field} for source "
-                              f"{s.source!r}")
-        from ...sources import open_source
-        self.src = open_source(s.source)
+            raise TactexError(f"scene {s.scene_file!r}: platforms {missing} have no {field} "
+                              f"for source {s.source!r}")
         if kind == "sim":
             for p in self.scene.platforms:
-                self.src.fabric(p.sim_fabric)  # names the unknown fabric
+                try:
+                    self.src.fabric(p.sim_fabric)
+                except TactexError as exc:
+                    raise TactexError(f"scene {s.scene_file!r}: platform {p.id} sim_fabric: "
+                                      f"{exc}") from None
                 # build the fabric's height tile now: doing it at the first press stalls the
                 # frame timer for a moment and the capture window then holds no contact frame
                 self.src.press(p.sim_fabric, np.random.default_rng(0))
