@@ -110,6 +110,11 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     with the field named."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
+    if scene_file and not Path(scene_file).is_file() and "/" not in str(scene_file):
+        for cand in (config_dir() / str(scene_file), config_dir() / f"{scene_file}.yaml"):
+            if cand.is_file():          # a shipped scene by name: scene_replay, scene_sim
+                scene_file = cand
+                break
     scene_file = str(Path(scene_file) if scene_file else
                      config_dir() / ("scene_sim.yaml" if sim else "scene.yaml"))
     scene = load_scene(scene_file)

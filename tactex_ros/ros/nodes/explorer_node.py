@@ -38,7 +38,7 @@ from ..bag import TOUCH_TOPIC
 from ...record import TrialRecord
 from ...robot.scene import load_scene
 from .common import TactexNode, run
-from ..goal import GoalRequest
+from ..goal import GoalRequest, Silence
 
 
 class PressServerLost(TactexError):
@@ -78,7 +78,7 @@ class ExplorerNode(TactexNode):
         self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, 10)
         self.last_state = None
         self.result: dict | None = None
-        self._feedback_t = time.monotonic()
+        self._silence = Silence()        # of the press server, since the last message
         self._stopping = False
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
@@ -201,13 +201,17 @@ class ExplorerNode(TactexNode):
         gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
         absent_since = None
         while not ready():
+            stall = self._silence.tick()     # this process was stopped: not the server's fault
+            deadline += stall
             now = time.monotonic()
+            if absent_since is not None:
+                absent_since += stall
             if now > deadline:
                 return False
             if self._stopping or not self.context.ok():
                 raise TactexError("the explorer is stopping")
             if watch:
-                silent = now - self._feedback_t
+                silent = self._silence.silent_s()
                 if silent > self.settings.press_silence_s:
                     raise PressServerLost(f"no answer or feedback from the press server for "
                                           f"{silent:.1f} s (press_silence_s)")
@@ -230,7 +234,7 @@ class ExplorerNode(TactexNode):
             raise TactexError("the explorer is stopping")
 
     def _on_feedback(self, _msg) -> None:
-        self._feedback_t = time.monotonic()
+        self._silence.heard()
 
     def _touch(self, platform: int) -> Touch:
         """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
@@ -248,7 +252,7 @@ class ExplorerNode(TactexNode):
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
-        self._feedback_t = time.monotonic()
+        self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
         req = GoalRequest(self.press, Press.Goal(platform_id=pid),
