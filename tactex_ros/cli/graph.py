@@ -172,6 +172,10 @@ def cmd_summary(args: argparse.Namespace) -> int:
         from ..ros.bag import read_bag
         s = summarise_bag(read_bag(args.record))
     else:
+        from ..record import RECORD_FILES
+        if not any((Path(args.record) / f).is_file() for f in RECORD_FILES):
+            raise TactexError(f"{args.record!r} is not a trial record (none of "
+                              f"{', '.join(RECORD_FILES)}) nor an MCAP file")
         s = summarise(read_record(args.record, images=False))
     print(json.dumps(s, indent=2))
     return 0

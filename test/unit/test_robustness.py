@@ -281,3 +281,17 @@ def test_bad_source_spec_named(spec, named):
     from tactex_ros.sources import open_source
     with pytest.raises(TactexError, match=named):
         open_source(spec)
+
+
+@pytest.mark.parametrize("what", ["empty_folder", "text_file", "png_file"])
+def test_graph_summary_refuses_what_is_not_a_record(tmp_path, capsys, what):
+    target = tmp_path / what
+    if what == "empty_folder":
+        target.mkdir()
+    elif what == "text_file":
+        target.write_text("hello\n")
+    else:
+        cv2.imwrite(str(target.with_suffix(".png")), np.zeros((4, 4, 3), np.uint8))
+        target = target.with_suffix(".png")
+    assert main(["graph", "summary", str(target)]) == 2
+    assert str(target) in capsys.readouterr().err
