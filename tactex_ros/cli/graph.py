@@ -104,7 +104,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
     preflight(nodes, logs)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
-    run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id)
+    run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
+                    idle_s=args.idle_timeout)
     if run.left_running:
         print(f"tactex: nodes still running after the stop: {run.left_running}",
               file=sys.stderr)
@@ -203,8 +204,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         for option in EXPLORER_OPTIONS + DEVICE_OPTIONS:
             add_option(p, option)
         if name == "run":
-            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
-                           help="deadline [s], 1..86400")
+            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=None,
+                           help="deadline of the whole trial [s], 1..86400 (default: none, "
+                                "only --idle-timeout)")
+            p.add_argument("--idle-timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
+                           help="end the trial when no new touch or decision reaches the "
+                                "record for this long [s], 1..86400 (default 600: a slow "
+                                "method finishes as long as it makes progress)")
             p.add_argument("--log-dir")
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")

@@ -240,12 +240,51 @@ def node_reason(log: Path, max_chars: int = 400) -> str | None:
     return None
 
 
-def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600.0,
+def progress_stamp(record: Path) -> tuple:
+    """What changes when a trial makes progress: the sizes of its touch and decision files."""
+    out = []
+    for f in ("touches.jsonl", "decisions.jsonl"):
+        try:
+            out.append((record / f).stat().st_size)
+        except OSError:
+            out.append(-1)
+    return tuple(out)
+
+
+class Deadlines:
+    """The runner's two deadlines: ``total_s`` from the start (None: none) and ``idle_s``
+    without progress (a new touch or decision in the record; None: none). A slow method
+    (the thesis CNN: decisions of 30-100 s) finishes as long as it makes progress."""
+
+    def __init__(self, record: Path, total_s: float | None, idle_s: float | None,
+                 clock=time.monotonic) -> None:
+        self.record, self.total_s, self.idle_s, self.clock = record, total_s, idle_s, clock
+        self.t0 = self.last = clock()
+        self.stamp = progress_stamp(record)
+
+    def expired(self) -> str | None:
+        """Why the trial is out of time, or None."""
+        now = self.clock()
+        stamp = progress_stamp(self.record)
+        if stamp != self.stamp:
+            self.stamp, self.last = stamp, now
+        if self.total_s is not None and now - self.t0 > self.total_s:
+            return f"trial not finished within {self.total_s:g} s"
+        if self.idle_s is not None and now - self.last > self.idle_s:
+            return (f"trial not finished: no new touch or decision for {self.idle_s:g} s "
+                    f"(idle deadline)")
+        return None
+
+
+def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
               domain_id: int | None = None, poll_s: float = 0.1,
-              on_start=None) -> GraphRun:
-    """Run the graph until the explorer finishes its trial, a node exits, a signal arrives or
-    ``timeout_s`` passes; then stop every node. ``on_start(graph)`` is called once all
+              on_start=None, idle_s: float | None = None) -> GraphRun:
+    """Run the graph until the explorer finishes its trial, a node exits, a signal arrives,
+    ``timeout_s`` passes (None: no total deadline) or ``idle_s`` passes without a new touch or
+    decision (``Deadlines``); then stop every node. ``on_start(graph)`` is called once all
     processes are started (tests use it to inject faults)."""
+    if timeout_s is None and idle_s is None:
+        raise TactexError("run_trial needs a deadline: timeout_s or idle_s")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
         raise TactexError("the graph has no explorer_node")
@@ -264,7 +303,7 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
             g.start()
             if on_start is not None:
                 on_start(g)
-            deadline = t0 + timeout_s
+            deadlines = Deadlines(record, timeout_s, idle_s)
             while True:
                 gone = g.first_exit()
                 if gone is not None:
@@ -279,8 +318,9 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
                     failure = (f"interrupted by {signal.Signals(sig.received).name} "
                                f"{time.monotonic() - t0:.1f} s into the trial")
                     break
-                if time.monotonic() > deadline:
-                    failure = f"trial not finished within {timeout_s:g} s"
+                expired = deadlines.expired()
+                if expired is not None:
+                    failure = expired
                     break
                 time.sleep(poll_s)
             elapsed = time.monotonic() - t0

@@ -295,3 +295,19 @@ def test_graph_summary_refuses_what_is_not_a_record(tmp_path, capsys, what):
         target = target.with_suffix(".png")
     assert main(["graph", "summary", str(target)]) == 2
     assert str(target) in capsys.readouterr().err
+
+
+def test_idle_deadline_counts_from_the_last_progress(tmp_path):
+    from tactex_ros.ros.launcher import Deadlines
+    now = [0.0]
+    d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0])
+    for _ in range(10):                  # a decision every 90 s: 900 s in all, never idle
+        now[0] += 90.0
+        with open(tmp_path / "decisions.jsonl", "a") as f:
+            f.write("{}\n")
+        assert d.expired() is None
+    now[0] += 101.0                      # then nothing for 101 s
+    assert "100" in d.expired()
+    total = Deadlines(tmp_path, 50.0, 100.0, clock=lambda: now[0])
+    now[0] += 51.0
+    assert "50" in total.expired()
