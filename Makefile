@@ -1,4 +1,5 @@
-# The two commands of this project: `make demo` and `make test`.
+# The two commands of this project: `make demo` and `make test` (`make test-fast`: the product's
+# pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests).
 # Each first installs what is missing into .venv (pinned, see requirements.txt) and builds the
 # ROS 2 package with colcon into it; a second run finds the stamps and installs nothing.
 SHELL := /bin/bash
@@ -7,9 +8,9 @@ PY := $(VENV)/bin/python
 DEPS_STAMP := $(VENV)/.tactex-deps.stamp
 BUILD_STAMP := $(VENV)/.tactex-build.stamp
 BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.srv action/*.action) \
-	$(shell find tactex_ros launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)
+	$(shell find tactex_ros tactex_lab launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)
 
-.PHONY: demo test setup clean
+.PHONY: demo test test-fast test-lab setup clean
 
 setup: $(BUILD_STAMP)
 
@@ -26,6 +27,12 @@ demo: $(BUILD_STAMP)
 
 test: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra test
+
+test-fast: $(BUILD_STAMP)
+	$(PY) -m pytest -q -ra -m "not slow and not ros and not lab" test/unit
+
+test-lab: $(BUILD_STAMP)
+	$(PY) -m pytest -q -ra test/lab
 
 clean:
 	rm -rf $(VENV) .colcon

@@ -1,3 +1,4 @@
-"""tactex: active tactile texture recognition (ROS 2 application with a ROS-free core)."""
+"""tactex: active tactile texture recognition; the product (ROS 2 application, torch-free core).
+The thesis lab is the package ``tactex_lab`` beside it."""
 
 __version__ = "0.1.0"

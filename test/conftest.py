@@ -1,4 +1,8 @@
-"""Shared test helpers: where the shared fixtures and recordings live (never copied in-repo)."""
+"""Shared test helpers: where the shared fixtures and recordings live (never copied in-repo), and
+the lanes: every test under ``test/lab/`` is marked ``lab`` (the thesis lab: CNN training, Ray),
+every test under ``test/ros/`` and ``test/launch/`` ``ros`` (real processes), so
+``make test-fast`` (``-m "not slow and not ros and not lab"`` over ``test/unit``) runs the
+product's pure tests and ``make test`` runs everything."""
 
 from __future__ import annotations
 
@@ -33,3 +37,15 @@ def keys_fixture() -> Path:
     if p is None:
         pytest.skip("inception_v3_torchvision_keys.json not found (set TACTEX_SHARED)")
     return p
+
+
+_LANES = {"lab": "lab", "ros": "ros", "launch": "ros"}
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark each test by the folder below ``test/`` it lives in (``_LANES``)."""
+    for item in items:
+        rel = Path(str(item.fspath)).resolve().relative_to(REPO / "test")
+        marker = _LANES.get(rel.parts[0]) if len(rel.parts) > 1 else None
+        if marker is not None:
+            item.add_marker(marker)

@@ -1,5 +1,5 @@
-"""The ``tactex`` command: ``main.py`` (parser, trial, prepare, weights) and one module per
-command group (``bench``, ``experiment``, ``graph``, ``sim``)."""
+"""The ``tactex`` command: ``main.py`` (parser, trial, prepare, the plug-in commands) and one
+module per command group (``graph``, ``sim``); the lab adds its commands through entry points."""
 
 from .main import main
 

@@ -1,4 +1,6 @@
-"""``tactex`` command line: trials, weights, benchmarks, simulator, experiments.
+"""``tactex`` command line: trials, representations, the simulator, the ROS graph; the lab's
+commands (experiments, benchmarks, checkpoint tools, ``sim compare``) are plug-ins of group
+``tactex.commands`` (``core/plugins.py``).
 
 Exit status: 0 success, 1 a check failed (e.g. weights mismatch), 2 bad input (named).
 """
@@ -13,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import plugins
 from ..core.errors import TactexError
 
 
@@ -70,20 +73,23 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
+def command_group(sub: argparse._SubParsersAction, name: str,
+                  help: str) -> argparse._SubParsersAction:
+    """The sub-commands of group ``name`` (``tactex <name> ...``), made on first use, so a
+    plug-in can add a command to a group of the product (``sim compare``)."""
+    parser = sub.choices.get(name) or sub.add_parser(name, help=help)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action
+    return parser.add_subparsers(dest=f"{name}_cmd", required=True)
+
+
 def write_json(path: str | None, obj: dict) -> None:
     """Write ``obj`` as strict indented JSON to ``path`` atomically (folders made; NaN ->
     null, ``core.outputs``); nothing when None."""
     if path:
         from ..core.outputs import write_json as _write
         _write(path, obj)
-
-
-def check_json_option(path: str | None, option: str = "--json") -> None:
-    """Refuse (TactexError naming ``option`` and the path) a JSON output that cannot be
-    written, before any work; nothing when None."""
-    if path:
-        from ..core.outputs import check_file
-        check_file(path, option, (".json",))
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
@@ -174,16 +180,6 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_weights_inspect(args: argparse.Namespace) -> int:
-    from ..core.models import build_model, load_weights, read_checkpoint
-    state = read_checkpoint(args.path)
-    model, _ = build_model(args.model, args.classes)
-    report = load_weights(model, state)
-    print(report.summary())
-    write_json(args.json, report.to_dict())
-    return 0 if report.ok else 1
-
-
 def build_parser() -> argparse.ArgumentParser:
     from ..core.config import TrialSettings
     p = argparse.ArgumentParser(prog="tactex", description=__doc__)
@@ -213,23 +209,17 @@ def build_parser() -> argparse.ArgumentParser:
                     help="ridge added to the within-class covariance (standardised units), "
                          "0..1e6")
     pr.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
-    pr.add_argument("--out", required=True, help="representation file to write (.pt)")
+    pr.add_argument("--out", required=True, help="representation file to write (.npz)")
     pr.set_defaults(func=cmd_prepare)
 
-    w = sub.add_parser("weights", help="checkpoint tools")
-    wsub = w.add_subparsers(dest="wcmd", required=True)
-    wi = wsub.add_parser("inspect", help="what a checkpoint loads into a model")
-    wi.add_argument("path")
-    wi.add_argument("--model", default="inception_v3")
-    wi.add_argument("--classes", type=int, default=4, help="platforms (classifier size)")
-    wi.add_argument("--json")
-    wi.set_defaults(func=cmd_weights_inspect)
-
-    from . import bench, experiment, graph, sim
-    bench.add_commands(sub)
+    from . import graph, sim
     sim.add_commands(sub)
     graph.add_commands(sub)
-    experiment.add_commands(sub)
+    for name, ep in plugins.available(plugins.COMMANDS).items():
+        try:
+            ep.load()(sub)
+        except ImportError as exc:        # a plug-in whose package is not installed
+            print(f"tactex: commands {name!r} unavailable: {exc}", file=sys.stderr)
 
     return p
 

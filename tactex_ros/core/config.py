@@ -22,7 +22,7 @@ from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
                       model_validator)
 
 from .errors import TactexError
-from .names import MODEL_NAMES, STRATEGY_NAMES
+from .strategies import STRATEGIES
 
 
 def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,
@@ -210,7 +210,10 @@ def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[s
     return nest({k: dumped[k] for k in flatten(given)})
 
 
-ModelName = Literal[("descriptor",) + MODEL_NAMES + ("auto",)]
+# the CNN learners (the thesis method) are a plug-in (``core/learners.py``): the schema names them,
+# the lab implements them
+CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
+ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
 
 
 class LearnerConfig(Schema):
@@ -238,7 +241,7 @@ class LearnerConfig(Schema):
     mc_passes: int = param(20, "Monte-Carlo dropout passes per decision (uncertainty "
                                "'laplace': posterior draws per decision)", 1, 1000)
     uncertainty: Literal["mc_dropout", "ensemble", "laplace"] = param(
-        "mc_dropout", "CNN uncertainty (core/uncertainty.py): 'mc_dropout' (mc_passes stochastic "
+        "mc_dropout", "CNN uncertainty (tactex_lab/cnn/uncertainty.py): 'mc_dropout' (mc_passes stochastic "
                       "passes), 'ensemble' (ensemble_heads heads over the shared stem, their "
                       "disagreement) or 'laplace' (last-layer Laplace posterior, mc_passes "
                       "draws; small_inception with at most 15 comparisons)")
@@ -330,7 +333,7 @@ class LearnerConfig(Schema):
 class TrialConfig(Schema):
     """What a trial does (the learner's settings live in LearnerConfig)."""
 
-    strategy: Literal[STRATEGY_NAMES] = param("variance", "exploration strategy")
+    strategy: Literal[tuple(STRATEGIES)] = param("variance", "exploration strategy")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(0.0, "stop once the belief in one comparison reaches this "
                                         "(0 = never: all rounds)", 0.0, 1.0)

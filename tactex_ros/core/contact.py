@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from .errors import TactexError
-from .names import FRAME_H, FRAME_W
+from .touch import FRAME_H, FRAME_W
 
 _BLUR = (5, 5)
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .config import LearnerConfig, validate
 from .errors import TactexError
-from .learner import TrainStats
+from .learners import TrainStats
 from .match import MatchModel
 from .representation import Representation, load
 from .texture import describe_touch

@@ -4,9 +4,9 @@ The engine does not know where touches come from. Platform indices: 0 is the ref
 are the comparison platforms (class c-1 of the learner). Every reference touch is a test sample
 (the decision uses all of them); every comparison touch is data for its platform's class.
 
-Learners (``LearnerConfig.model``): ``descriptor`` (``core/descriptor.py``: texture descriptors
-and a closed-form belief over the matching comparison; nothing is trained) or a CNN
-(``core/learner.py``). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
+Learners (``LearnerConfig.model``, ``core/learners.py``): ``descriptor`` (``core/descriptor.py``:
+texture descriptors and a closed-form belief over the matching comparison; nothing is trained) or
+a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
 
 Drive it with ``run(touch_fn)``: the command line and experiments pass a simulated or replayed
@@ -20,22 +20,9 @@ the strategy's per-platform scores, the choice of the next platform (or none). A
 prediction; the stop rule ends earlier when the belief in one platform reaches
 ``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
 
-Model ``auto`` (``LearnerConfig.auto_*``): the trial starts on the first, cheapest stage of
-``auto_ladder`` (by default ``small_inception`` at 48 px, then 96 px) and moves one stage up only on evidence from
-the trial itself, checked at the start of every decision:
-
-- *held-back touches*: every comparison touch added after the first round is classified by the
-  current model before it is trained on; if fewer than ``auto_heldout_acc`` of the last
-  ``auto_window`` such touches were right, the model is not enough;
-- *uncertainty that does not fall*: after ``auto_patience`` rounds on a stage, the predictive
-  entropy of the reference fell by less than ``auto_min_drop`` (relative) over the last
-  ``auto_patience`` rounds and is still above ``auto_entropy`` x log C.
-
-On escalation the engine builds the next stage's learner, starts it from the old weights where
-they fit (same variant: all; small -> full Inception: the stem), re-adds every stored touch from
-the raw frames it keeps, and trains ``auto_catchup`` extra rounds at once. Each round records the
-model and input size it used (``RoundRecord.model``, ``input_size``) and why it escalated
-(``escalation``).
+Model ``auto`` (``LearnerConfig.auto_*``) is a wrapper learner of the lab (``tactex_lab/cnn/auto.py``):
+it moves up its ladder of CNNs on evidence from the trial itself; the round records the model and
+input size it used (``RoundRecord.model``, ``input_size``) and why it escalated (``escalation``).
 
 Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
 ``TouchRejected`` (a TactexError) for a blank or no-contact frame, which ``run`` records as a
@@ -45,7 +32,6 @@ then falls to the least-touched platform, ``strategies.break_ties``).
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Callable
@@ -53,15 +39,11 @@ from typing import Callable
 import numpy as np
 
 from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
-from .descriptor import DescriptorLearner
 from .errors import TactexError
 from .guards import ContactGuard
-from .learner import OnlineLearner
-from .models import MODEL_NAMES
-from .preprocess import validate_frame
-from .strategies import make_strategy
-from .touch import Touch, as_touch
-from .uncertainty import predictive_entropy
+from .learners import Learner, make_learner
+from .strategies import make_strategy, predictive_entropy
+from .touch import Touch, as_touch, validate_frame
 
 
 class TouchFailed(RuntimeError):
@@ -77,30 +59,6 @@ class TouchFailed(RuntimeError):
 
 class TouchRejected(TactexError):
     """A touch frame was refused by the contact guard (blank or no contact); not stored."""
-
-
-def parse_ladder(text: str, default_size: int) -> list[tuple[str, int]]:
-    """``'small_inception@32,inception_v3_random@96'`` -> [(model, input px), ...]."""
-    out = []
-    for part in (p.strip() for p in text.split(",")):
-        if not part:
-            continue
-        name, _, size = part.partition("@")
-        if name not in MODEL_NAMES:
-            raise TactexError(f"auto_ladder: unknown model {name!r}; choose from "
-                              f"{', '.join(MODEL_NAMES)}")
-        try:
-            px = int(size) if size else default_size
-        except ValueError:
-            raise TactexError(f"auto_ladder: bad input size {size!r} in {part!r}") from None
-        if not 32 <= px <= 512:
-            raise TactexError(f"auto_ladder: input size {px} outside 32..512")
-        if name != "small_inception" and px < 75:
-            raise TactexError(f"auto_ladder: {name} needs an input of at least 75 px, got {px}")
-        out.append((name, px))
-    if not out:
-        raise TactexError("auto_ladder is empty")
-    return out
 
 
 @dataclass
@@ -193,15 +151,11 @@ class TrialEngine:
         if len(self.platform_ids) != n_comparisons + 1:
             raise TactexError(f"platform_ids needs {n_comparisons + 1} names, "
                               f"got {len(self.platform_ids)}")
-        self.ladder = (parse_ladder(self.learner_cfg.auto_ladder, self.learner_cfg.input_size)
-                       if self.learner_cfg.model == "auto"
-                       else [(self.learner_cfg.model, self.learner_cfg.input_size)])
         if self.strategy.includes_reference and self.learner_cfg.model != "descriptor":
             raise TactexError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
                               f"(got {self.learner_cfg.model!r}); with a CNN model choose "
                               "another strategy, e.g. variance")
-        self.stage = 0
-        self.learner = self._make_learner(self.learner_cfg.model)
+        self.learner: Learner = make_learner(n_comparisons, self.learner_cfg, seed=seed)
         self.rng = np.random.default_rng([seed, 7])
         self.touches = np.zeros(n_comparisons, dtype=np.int64)
         self.reference_touches = 0
@@ -212,28 +166,7 @@ class TrialEngine:
         self.next_platform: int | None = None
         g = self.learner_cfg
         self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
-        self._ref_touches: list[Touch] = []                 # raw touches, for re-adding on
-        self._frames: list[tuple[int, Touch]] = []          # escalation: (class, touch)
-        self._heldout: list[bool] = []                     # this stage's held-back outcomes
         self._pending_heldout: list[bool] = []             # since the last decision
-        self._stage_round0 = 0                             # first round index of this stage
-
-    @property
-    def is_auto(self) -> bool:
-        return self.learner_cfg.model == "auto"
-
-    def _stage_cfg(self, stage: int) -> LearnerConfig:
-        name, size = self.ladder[stage]
-        return self.learner_cfg.replace(model=name, input_size=size)
-
-    def _make_learner(self, model: str) -> "OnlineLearner | DescriptorLearner":
-        """The learner of the current stage (model 'auto') or of ``model``."""
-        if model == "descriptor":
-            return DescriptorLearner(self.C, self.learner_cfg, seed=self.seed)
-        if model == "auto":
-            cfg = self._stage_cfg(self.stage)
-            return OnlineLearner(self.C, cfg, seed=self.seed, model_name=cfg.model)
-        return OnlineLearner(self.C, self.learner_cfg, seed=self.seed, model_name=model)
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
         """A no-contact frame of this sensor session: enables the guard's contact test."""
@@ -273,19 +206,13 @@ class TrialEngine:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
             self.learner.add_reference(touch)
-            if self.is_auto:
-                self._ref_touches.append(touch)
             self.reference_touches += 1
         else:
             x = self.learner.add_touch(touch, platform - 1)
             self.touches[platform - 1] += 1
-            if self.is_auto:
-                self._frames.append((platform - 1, touch))
             if self.learner.rounds_trained > 0:
                 p = self.learner.heldout_proba(x)
-                ok = bool(int(np.argmax(p)) == platform - 1)
-                self._pending_heldout.append(ok)
-                self._heldout.append(ok)
+                self._pending_heldout.append(bool(int(np.argmax(p)) == platform - 1))
 
     def record_failure(self, platform: int, reason: str) -> None:
         self.failed.append({"platform": self.platform_ids[platform], "reason": reason,
@@ -304,10 +231,6 @@ class TrialEngine:
             raise TactexError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
-        escalation = self._escalation_reason() if self.is_auto else None
-        extra_s = 0.0
-        if escalation:
-            extra_s = self._escalate()
         stats = self.learner.train_round()
         t0 = time.perf_counter()
         probs = self.learner.reference_probs()
@@ -326,11 +249,11 @@ class TrialEngine:
         rec = RoundRecord(
             round=len(self.records) + 1, platform=choice,
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
-            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds + extra_s,
+            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds,
             score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
             touches=self.touches.tolist(), reference_touches=self.reference_touches,
             model=self.learner.model_name,
-            input_size=self.learner.cfg.input_size, escalation=escalation,
+            input_size=self.learner.cfg.input_size, escalation=stats.escalation,
             heldout=list(self._pending_heldout), degenerate=degenerate,
             skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm,
             cpu_s=time.process_time() - c0)
@@ -353,46 +276,6 @@ class TrialEngine:
         if not self._budget_left():
             return "max_touches"
         return None
-
-    # ------------------------------------------------------------------ model auto
-    def _escalation_reason(self) -> str | None:
-        """Evidence from this trial that the current stage is not enough (None = stay)."""
-        if self.stage + 1 >= len(self.ladder):
-            return None
-        c = self.learner_cfg
-        w = c.auto_window
-        if len(self._heldout) >= w:
-            acc = float(np.mean(self._heldout[-w:]))
-            if acc < c.auto_heldout_acc:
-                return (f"held-back touches: {acc:.2f} of the last {w} classified right "
-                        f"< {c.auto_heldout_acc:g}")
-        hist = [r.predictive_entropy for r in self.records[self._stage_round0:]]
-        k = c.auto_patience
-        if len(hist) > k:
-            h_now, h_then = hist[-1], hist[-1 - k]
-            floor = c.auto_entropy * math.log(self.C)
-            if h_now > floor and h_now > (1.0 - c.auto_min_drop) * h_then:
-                return (f"entropy not falling: {h_then:.3f} -> {h_now:.3f} nats over {k} rounds, "
-                        f"above {floor:.3f}")
-        return None
-
-    def _escalate(self) -> float:
-        """Move to the next stage; returns the seconds spent (re-adding, catch-up training)."""
-        t0 = time.perf_counter()
-        old = self.learner
-        self.stage += 1
-        self.learner = self._make_learner("auto")
-        self.learner.transfer_from(old)
-        for label, touch in self._frames:
-            self.learner.add_touch(touch, label)
-        for touch in self._ref_touches:
-            self.learner.add_reference(touch)
-        catchup = min(self.learner_cfg.auto_catchup, len(self.records))
-        for _ in range(catchup):
-            self.learner.train_round()
-        self._heldout = []
-        self._stage_round0 = len(self.records)
-        return time.perf_counter() - t0
 
     def result(self, truth: int | None = None) -> TrialResult:
         if self.final is None:

@@ -9,9 +9,10 @@ it toward its diagonal, and keeps the whitening W = (S_w + ``shrink`` I)^(-1/2).
 trial's descriptors, distances are then counted in units of "how much presses of one material
 differ", learnt on materials the trial does not contain (class-disjoint by construction).
 
-The file is a plain dict of tensors and numbers (``save`` / ``load``), read with
-``torch.load(weights_only=True)``; it holds no frames or descriptors of the library, only the
-(D,) mean, (D,) std and (D, D) whitening, and the library's size. Without a file the product
+The file is a numpy ``.npz`` archive of arrays (``save`` / ``load``, read with
+``allow_pickle=False``, so no torch on the shipped path); it holds no frames or descriptors of
+the library, only the (D,) mean, (D,) std and (D, D) whitening, and the library's size. (Files
+of the earlier torch format are refused with the command that remakes them.) Without a file the product
 works as before (scene units, ``core/match.py``).
 """
 
@@ -25,7 +26,7 @@ import numpy as np
 from .errors import TactexError
 from .texture import DIM
 
-FORMAT = "tactex-representation-1"
+FORMAT = "tactex-representation-2"
 
 
 @dataclass
@@ -68,30 +69,32 @@ def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0) -> Representati
 
 
 def save(rep: Representation, path: str | Path) -> Path:
-    """Write ``rep`` as a dict of tensors (loadable with weights_only=True)."""
-    import torch
+    """Write ``rep`` as an ``.npz`` archive of arrays at ``path`` (exactly that name)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"format": FORMAT, "mean": torch.from_numpy(rep.mean),
-                "std": torch.from_numpy(rep.std), "whiten": torch.from_numpy(rep.whiten),
-                "classes": rep.classes, "presses": rep.presses, "shrink": rep.shrink}, path)
+    with path.open("wb") as f:
+        np.savez(f, format=np.array(FORMAT), mean=rep.mean, std=rep.std, whiten=rep.whiten,
+                 classes=np.array(rep.classes), presses=np.array(rep.presses),
+                 shrink=np.array(rep.shrink))
     return path
 
 
 def load(path: str | Path) -> Representation:
     """Read a representation file; TactexError naming the file and what is wrong."""
-    import torch
     p = Path(path)
     if not p.is_file():
         raise TactexError(f"representation file not found: {p}")
     try:
-        d = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises several types for a corrupt or foreign file
-        raise TactexError(f"representation file {p} is not loadable: {exc}") from None
-    if not isinstance(d, dict) or d.get("format") != FORMAT:
-        raise TactexError(f"representation file {p}: not a {FORMAT} file")
+        with np.load(p, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+    except Exception as exc:  # numpy raises several types for a corrupt or foreign file
+        raise TactexError(f"representation file {p} is not loadable ({exc}); make it with "
+                          "`tactex prepare`") from None
+    if str(d.get("format", "")) != FORMAT:
+        raise TactexError(f"representation file {p}: not a {FORMAT} file; make it with "
+                          "`tactex prepare`")
     try:
-        mean, std, w = (d[k].double().numpy() for k in ("mean", "std", "whiten"))
+        mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
     except KeyError as exc:
         raise TactexError(f"representation file {p}: missing {exc}") from None
     if mean.shape != (DIM,) or std.shape != (DIM,) or w.shape != (DIM, DIM):

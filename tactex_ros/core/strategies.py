@@ -17,10 +17,37 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import uncertainty as unc
 from .errors import TactexError
 
 TIE_TOL = 1e-9
+_EPS = 1e-12
+
+
+# ----------------------------------------------------------------------------- scores
+# Read only the (T, C) table, so they apply to MC-dropout passes, ensemble members or
+# posterior draws alike; (C,) float64, higher = more uncertain.
+def expected_variance(probs: np.ndarray) -> np.ndarray:
+    """(T, C) -> (C,) variance over passes of each class probability."""
+    return np.asarray(probs, dtype=np.float64).var(axis=0)
+
+
+def entropy_contribution(probs: np.ndarray) -> np.ndarray:
+    """(T, C) -> (C,) -pbar_i log pbar_i, pbar = mean over passes (nats)."""
+    pbar = np.asarray(probs, dtype=np.float64).mean(axis=0)
+    return -pbar * np.log(pbar + _EPS)
+
+
+def bald_contribution(probs: np.ndarray) -> np.ndarray:
+    """(T, C) -> (C,) per-class terms of the mutual information (nats); they sum to BALD."""
+    p = np.asarray(probs, dtype=np.float64)
+    pbar = p.mean(axis=0)
+    term = -pbar * np.log(pbar + _EPS) + (p * np.log(p + _EPS)).mean(axis=0)
+    return np.maximum(term, 0.0)
+
+
+def predictive_entropy(probs: np.ndarray) -> float:
+    """(T, C) -> entropy of the mean softmax (nats)."""
+    return float(entropy_contribution(probs).sum())
 
 
 class Strategy:
@@ -69,21 +96,21 @@ class VarianceStrategy(Strategy):
     name = "variance"
 
     def score(self, probs, touches, rng, model=None):
-        return unc.expected_variance(probs)
+        return expected_variance(probs)
 
 
 class EntropyStrategy(Strategy):
     name = "entropy"
 
     def score(self, probs, touches, rng, model=None):
-        return unc.entropy_contribution(probs)
+        return entropy_contribution(probs)
 
 
 class BaldStrategy(Strategy):
     name = "bald"
 
     def score(self, probs, touches, rng, model=None):
-        return unc.bald_contribution(probs)
+        return bald_contribution(probs)
 
 
 class RandomStrategy(Strategy):

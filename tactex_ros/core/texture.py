@@ -33,7 +33,7 @@ import numpy as np
 from skimage.feature import local_binary_pattern
 
 from .errors import TactexError
-from .preprocess import validate_frame
+from .touch import validate_frame
 from .touch import Touch, as_touch
 
 BORDER = 16                                   # px cropped from every side (dark rim)

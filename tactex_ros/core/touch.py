@@ -13,6 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import TactexError
+
+FRAME_H, FRAME_W = 240, 320            # GelSight Mini frame [px]
+
 
 @dataclass(frozen=True)
 class Touch:
@@ -31,3 +35,20 @@ class Touch:
 def as_touch(touch: "Touch | np.ndarray") -> Touch:
     """A Touch as it is, or a bare frame wrapped as a Touch without a no-contact frame."""
     return touch if isinstance(touch, Touch) else Touch(frame=touch)
+
+
+def validate_frame(img: np.ndarray, what: str = "image") -> np.ndarray:
+    """Check a frame is uint8 RGB 240x320 with some content; return it C-contiguous.
+
+    Raises TactexError naming ``what`` when the shape, dtype or content is wrong (a constant
+    frame, e.g. a blank or corrupt capture, is rejected: it carries no texture).
+    """
+    if not isinstance(img, np.ndarray):
+        raise TactexError(f"{what}: expected a numpy array, got {type(img).__name__}")
+    if img.dtype != np.uint8:
+        raise TactexError(f"{what}: expected dtype uint8, got {img.dtype}")
+    if img.shape != (FRAME_H, FRAME_W, 3):
+        raise TactexError(f"{what}: expected shape ({FRAME_H}, {FRAME_W}, 3), got {img.shape}")
+    if int(img.max()) == int(img.min()):
+        raise TactexError(f"{what}: constant frame (every pixel {int(img.max())}), no texture")
+    return np.ascontiguousarray(img)

@@ -22,7 +22,7 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.errors import TactexError
-from ..core.names import FRAME_H, FRAME_W
+from ..core.touch import FRAME_H, FRAME_W
 from ..robot.scene import Scene
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..core.names import FRAME_H, FRAME_W
+from ..core.touch import FRAME_H, FRAME_W
 from .calibration import OpticalCalibration, load_calibration
 
 MM_PER_PX = 0.0634

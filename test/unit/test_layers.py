@@ -1,15 +1,19 @@
 """The layers hold: read every module's imports (``ast``, nothing is imported) and check the
-rules of the package's layering. A violation names the module, the line and the import."""
+rules of the packages' layering: the product (``tactex_ros``) imports neither torch nor the lab;
+the lab (``tactex_lab``) may import the product and has layers of its own. A violation names the
+module, the line and the import."""
 
 import ast
 from pathlib import Path
 
 import pytest
 
+import tactex_lab
 import tactex_ros
 
 PKG = Path(tactex_ros.__file__).resolve().parent
-EXPERIMENTS = PKG / "experiments"
+LAB = Path(tactex_lab.__file__).resolve().parent
+EXPERIMENTS = LAB / "experiments"
 # shared helpers of the experiments; every other module there is one command
 SHARED = {"__init__", "common", "runner", "trials"}
 
@@ -40,6 +44,7 @@ def imports(path: Path) -> list[tuple[int, str, list[str]]]:
 
 
 def _files(folder: Path = PKG) -> list[Path]:
+    """The product's modules (or those under ``folder``)."""
     return sorted(p for p in folder.rglob("*.py") if "__pycache__" not in p.parts)
 
 
@@ -50,12 +55,12 @@ def _violations(files, bad, root: Path = PKG.parent) -> list[str]:
 
 def test_the_import_reader_resolves_relative_imports():
     # a file inside the package: relative imports are resolved against its own package
-    got = imports(PKG / "experiments" / "runner.py")
+    got = imports(PKG / "core" / "engine.py")
     mods = {m for _, m, _ in got}
-    assert "tactex_ros.core.engine" in mods and "tactex_ros.experiments.common" in mods
-    got = imports(PKG / "experiments" / "bench" / "latency.py")
-    assert "tactex_ros.core.engine" in {m for _, m, _ in got}
-    assert (PKG / "core" / "__init__.py").is_file()
+    assert "tactex_ros.core.learners" in mods and "tactex_ros.core.touch" in mods
+    got = imports(PKG / "cli" / "sim.py")
+    assert "tactex_ros.sources" in {m for _, m, _ in got}
+    assert (PKG / "core" / "__init__.py").is_file() and (LAB / "__init__.py").is_file()
 
 
 # layer of a module = its first part below tactex_ros (top-level modules are their own layer);
@@ -68,10 +73,18 @@ ALLOWED = {
     "paths": {"core", "paths"},
     "record": {"core", "record"},
     "resume": {"core", "record", "resume"},
-    "analysis": {"core", "robot", "sim", "sources", "paths", "analysis"},
-    "experiments": {"core", "robot", "sim", "sources", "paths", "record", "resume",
-                    "analysis", "experiments"},
     "ros": {"core", "robot", "sim", "sources", "paths", "record", "resume", "ros"},
+}
+PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
+
+# the lab's layers (first part below tactex_lab): what each may import of the lab and of the
+# product (the lab's cli: everything but ros, nothing of the lab imports it)
+LAB_ALLOWED = {
+    "cnn": ({"cnn"}, {"core"}),
+    "analysis": ({"analysis"}, {"core", "robot", "sim", "sources", "paths"}),
+    "experiments": ({"cnn", "analysis", "experiments"},
+                    {"core", "robot", "sim", "sources", "paths", "record", "resume"}),
+    "cli": ({"cnn", "analysis", "experiments", "cli"}, PRODUCT_BELOW_CLI | {"cli"}),
 }
 
 
@@ -83,6 +96,41 @@ def _layer(mod: str) -> str:
 def test_every_module_belongs_to_a_known_layer():
     layers = {_layer(_module(p)) for p in _files()} - {""}
     assert layers == set(ALLOWED) | {"cli"}
+    assert {_layer(_module(p)) for p in _files(LAB)} - {""} == set(LAB_ALLOWED)
+
+
+def _torch_or_lab(p, mod, names) -> bool:
+    return mod.split(".")[0] in ("torch", "torchvision", "captum", "tactex_lab")
+
+
+def test_the_product_imports_neither_torch_nor_the_lab():
+    """The shipped method runs without torch; the lab plugs in through entry points
+    (``core/plugins.py``), never by an import."""
+    assert _violations(_files(), _torch_or_lab) == []
+
+
+def test_the_product_rule_flags_torch_and_the_lab():
+    found = _violations([LAB / "cnn" / "auto.py", LAB / "cnn" / "learner.py"], _torch_or_lab)
+    assert any(": torch" in v for v in found) and any(": tactex_lab.cnn" in v for v in found)
+
+
+@pytest.mark.parametrize("layer", sorted(LAB_ALLOWED))
+def test_lab_layer_imports_only_what_it_may(layer):
+    files = [p for p in _files(LAB) if _layer(_module(p)) == layer]
+    assert files
+    lab_ok, product_ok = LAB_ALLOWED[layer]
+
+    def bad(p, mod, names):
+        if mod.startswith("tactex_lab."):
+            return _layer(mod) not in lab_ok
+        return mod.startswith("tactex_ros.") and _layer(mod) not in product_ok
+    assert _violations(files, bad) == []
+
+
+def test_lab_learners_need_no_ros_and_no_plotting():
+    def bad(p, mod, names):
+        return mod.split(".")[0] in ("rclpy", "matplotlib", "tactex")
+    assert _violations(_files(LAB / "cnn"), bad) == []
 
 
 @pytest.mark.parametrize("layer", sorted(ALLOWED))
@@ -114,7 +162,8 @@ def test_only_ros_imports_rclpy_or_messages():
 
     def bad(p, mod, names):
         return mod.split(".")[0] in ros_tops
-    outside = [p for p in _files() if _layer(_module(p)) not in ("ros", "cli")]
+    outside = [p for p in _files() + _files(LAB) if _layer(_module(p)) not in ("ros", "cli")
+               or p.is_relative_to(LAB)]
     assert _violations(outside, bad) == []
 
 
@@ -133,14 +182,16 @@ def test_sim_takes_its_paths_and_knows_no_ros():
 
 
 def test_experiments_import_no_command_module_no_private_name_and_no_cli():
-    commands = {f"tactex_ros.experiments.{p.stem}" for p in _files(EXPERIMENTS)
+    commands = {f"tactex_lab.experiments.{p.stem}" for p in _files(EXPERIMENTS)
                 if p.stem not in SHARED and p.parent == EXPERIMENTS}
 
     def bad(p, mod, names):
         own = _module(p)
-        return (mod.startswith("tactex_ros.cli") or mod.split(".")[0] == "rclpy"
+        return (mod.startswith(("tactex_ros.cli", "tactex_lab.cli"))
+                or mod.split(".")[0] == "rclpy"
                 or (mod in commands and mod != own)
-                or (mod.startswith("tactex_ros") and any(n.startswith("_") for n in names)))
+                or (mod.startswith(("tactex_ros", "tactex_lab"))
+                    and any(n.startswith("_") for n in names)))
     assert _violations(_files(EXPERIMENTS), bad) == []
 
 
@@ -150,20 +201,20 @@ def test_one_chart_module_one_statistics_module_one_progress_display():
         return ((top == "matplotlib" and p.name != "charts.py")
                 or (mod == "scipy.stats" and p.name != "stats.py")
                 or (top == "rich" and p.name != "common.py"))
-    assert _violations(_files(), bad) == []
+    assert _violations(_files() + _files(LAB), bad) == []
 
 
 def test_no_module_imports_a_private_name_of_another_package():
     """``from x import _y`` across packages: private helpers stay in their package."""
     def bad(p, mod, names):
         pkg = _module(p).rpartition(".")[0]
-        return (mod.startswith("tactex_ros") and mod.rpartition(".")[0] != pkg
+        return (mod.startswith(("tactex_ros", "tactex_lab")) and mod.rpartition(".")[0] != pkg
                 and mod != pkg and any(n.startswith("_") for n in names))
-    assert _violations(_files(), bad) == []
+    assert _violations(_files() + _files(LAB), bad) == []
 
 
 def test_no_machine_path_in_the_package():
-    hits = [f"{p.relative_to(PKG.parent)}: {s.value}" for p in _files()
+    hits = [f"{p.relative_to(PKG.parent)}: {s.value}" for p in _files() + _files(LAB)
             for s in ast.walk(ast.parse(p.read_text()))
             if isinstance(s, ast.Constant) and isinstance(s.value, str)
             and s.value.startswith(("/work/", "/home/", "/root/", "/tmp/"))]
@@ -173,7 +224,7 @@ def test_no_machine_path_in_the_package():
 def test_no_module_uses_a_private_member_of_another_module():
     """``mod._helper`` where ``mod`` is an imported tactex module (e.g. ``real._run``)."""
     hits = []
-    for p in _files():
+    for p in _files() + _files(LAB):
         tree = ast.parse(p.read_text())
         modules = {}       # local name -> module it names
         for _, mod, names in imports(p):
@@ -188,7 +239,7 @@ def test_no_module_uses_a_private_member_of_another_module():
             if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
                     and node.attr.startswith("_") and not node.attr.startswith("__")):
                 target = modules.get(node.value.id, "")
-                if target.startswith("tactex_ros") and target != own \
+                if target.startswith(("tactex_ros", "tactex_lab")) and target != own \
                         and (PKG.parent / (target.replace(".", "/") + ".py")).is_file():
                     hits.append(f"{p.relative_to(PKG.parent)}:{node.lineno}: "
                                 f"{node.value.id}.{node.attr}")

@@ -70,6 +70,7 @@ def _run(tmp: Path, trial_id: str, cut_after: int | None):
         return None, src_fn, nc
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cut_after", [3, 5, 8, 10])
 def test_resumed_trial_equals_uninterrupted(tmp_path: Path, cut_after: int) -> None:
     full, _, _ = _run(tmp_path, "full", None)

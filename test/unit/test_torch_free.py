@@ -1,6 +1,9 @@
-"""Nodes that do not learn must not import torch or the learner: each module below is imported
-in a fresh interpreter and ``sys.modules`` is checked. The launch file imports ``launch`` (not
-installable here), so its tactex imports are read from its source and checked the same way."""
+"""The product runs the shipped method without torch: the engine, every node (the explorer under
+the default configuration included), the command line and the launch file's imports load neither
+torch nor the lab (``tactex_lab``). Each module below is imported in a fresh interpreter and
+``sys.modules`` is checked; the launch file imports ``launch`` (not installable here), so its
+tactex imports are read from its source and checked the same way. The thesis method is one
+option away: the same engine with ``config seed_faithful`` loads the lab's learner (and torch)."""
 
 from __future__ import annotations
 
@@ -12,10 +15,10 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-FORBIDDEN = ("torch", "tactex_ros.core.learner", "tactex_ros.core.models",
-             "tactex_ros.core.engine", "tactex_ros.core.uncertainty",
-             "tactex_ros.core.strategies")
-MODULES = ["tactex_ros.ros.nodes.motion_node", "tactex_ros.ros.nodes.mock_arm_node",
+FORBIDDEN = ("torch", "tactex_lab")
+MODULES = ["tactex_ros.core.engine", "tactex_ros.ros.nodes.explorer_node",
+           "tactex_ros.cli.main", "tactex_ros.sources",
+           "tactex_ros.ros.nodes.motion_node", "tactex_ros.ros.nodes.mock_arm_node",
            "tactex_ros.ros.nodes.gelsight_node", "tactex_ros.ros.nodes.mock_image_node",
            "tactex_ros.ros.graph", "tactex_ros.robot.robots", "tactex_ros.ros.settings",
            "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.scene",
@@ -29,42 +32,74 @@ def _launch_imports() -> list[str]:
     return sorted(m for m in mods if m.startswith("tactex_ros"))
 
 
-def _loaded(module: str) -> list[str]:
-    code = ("import importlib, sys; importlib.import_module(%r); "
-            "print('\\n'.join(sorted(sys.modules)))" % module)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT)
+def _run(code: str) -> list[str]:
+    """``sys.modules`` after ``code`` in a fresh interpreter (run from the repository)."""
+    out = subprocess.run([sys.executable, "-c", code + "; import sys; "
+                          "print('\\n'.join(sorted(sys.modules)))"], capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     return out.stdout.split()
 
 
-@pytest.mark.parametrize("module", MODULES + _launch_imports())
-def test_module_does_not_import_torch_or_the_learner(module: str) -> None:
-    bad = [m for m in _loaded(module)
-           if any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
-    assert not bad, f"{module} imports {bad}"
+def _forbidden(modules: list[str]) -> list[str]:
+    return [m for m in modules if any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
 
 
-def test_mock_image_sources_do_not_import_torch() -> None:
-    """What the mock image node loads at configure time: the simulator source and a press."""
-    code = ("import sys, numpy as np; from tactex_ros.sources import open_source; "
-            "src = open_source('sim'); src.press('satin', np.random.default_rng(0)); "
-            "import tactex_ros.sources.replay; "
-            "print('\\n'.join(sorted(sys.modules)))")
+def _loaded(module: str) -> list[str]:
+    return _run("import importlib; importlib.import_module(%r)" % module)
+
+
+def test_no_module_imports_torch_or_the_lab() -> None:
+    """The modules are imported one after another in one interpreter; the first one after
+    which a forbidden module is loaded is named."""
+    code = ("import importlib, sys\n"
+            "for m in %r:\n"
+            "    importlib.import_module(m)\n"
+            "    bad = [k for k in sys.modules if any(k == f or k.startswith(f + '.') "
+            "for f in %r)]\n"
+            "    if bad:\n"
+            "        print(m, 'imports', sorted(bad)[:5]); break\n"
+            "else:\n"
+            "    print('clean')" % (MODULES + _launch_imports(), FORBIDDEN))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
-    bad = [m for m in out.stdout.split() if any(m == f or m.startswith(f + ".")
-                                                for f in FORBIDDEN)]
+    assert out.stdout.strip() == "clean"
+
+
+@pytest.mark.slow
+def test_the_check_names_a_module_that_imports_torch() -> None:
+    bad = _forbidden(_loaded("tactex_lab.cnn.uncertainty"))
+    assert "torch" in bad and "tactex_lab" in bad
+
+
+@pytest.mark.slow
+def test_mock_image_sources_do_not_import_torch() -> None:
+    """What the mock image node loads at configure time: the simulator source and a press."""
+    bad = _forbidden(_run("import numpy as np; from tactex_ros.sources import open_source; "
+                          "src = open_source('sim'); src.press('satin', np.random.default_rng(0)); "
+                          "import tactex_ros.sources.replay"))
     assert not bad, bad
+
+
+# a trial's engine as the explorer node builds it (``ExplorerNode``: TrialSettings -> TrialEngine)
+ENGINE = ("from tactex_ros.core.config import TrialSettings; "
+          "from tactex_ros.core.engine import TrialEngine; "
+          "s = TrialSettings.check({'config': %r}, 'test'); "
+          "TrialEngine(4, s.learner, s.trial, seed=0)")
+
+
+def test_the_default_trial_engine_loads_no_torch() -> None:
+    bad = _forbidden(_run(ENGINE % "default"))
+    assert not bad, bad
+
+
+@pytest.mark.slow
+def test_the_thesis_method_is_one_option_away() -> None:
+    """``config seed_faithful`` finds the lab's CNN learner through its entry point."""
+    loaded = _run(ENGINE % "seed_faithful")
+    assert "torch" in loaded and "tactex_lab.cnn.learner" in loaded
 
 
 def test_launch_file_imports_were_found() -> None:
     assert "tactex_ros.ros.graph" in _launch_imports()
-
-
-def test_names_match_the_learning_code() -> None:
-    from tactex_ros.core import models, names, preprocess, strategies
-    assert names.MODEL_NAMES == models.MODEL_NAMES
-    assert set(names.STRATEGY_NAMES) == set(strategies.STRATEGIES)
-    assert (names.FRAME_H, names.FRAME_W) == (preprocess.FRAME_H, preprocess.FRAME_W)

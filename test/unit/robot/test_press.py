@@ -144,6 +144,7 @@ def test_capture_failure_and_deadline() -> None:
     assert t <= scene.press.approach_deadline_s + 0.1
 
 
+@pytest.mark.slow
 def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
     """Property: for controller stiffness 150-3000 N/m, platform stiffness 2e3-5e4 N/m, mass
     1-5 kg, platform damping 0-100 N s/m, with and without the controller's 0.2 s target

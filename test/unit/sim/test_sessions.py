@@ -20,6 +20,7 @@ def _means(frames: list[np.ndarray]) -> np.ndarray:
     return np.array([f.reshape(-1, 3).mean(axis=0) for f in frames])
 
 
+@pytest.mark.slow
 def test_session_and_press_spreads_follow_the_sensor_model(renderer):
     s = renderer.sensor
     rng = np.random.default_rng(0)

@@ -40,6 +40,7 @@ def test_shape_dtype_and_determinism(src):
     assert a1.no_contact.shape == (240, 320, 3) and a1.no_contact.dtype == np.uint8
 
 
+@pytest.mark.slow
 def test_every_catalogue_fabric_renders_with_contact(src):
     assert len(src.classes) >= 25
     rng = np.random.default_rng(0)
@@ -52,6 +53,7 @@ def test_every_catalogue_fabric_renders_with_contact(src):
         assert 0.5 < np.abs(img - blank).mean() < 30, name
 
 
+@pytest.mark.slow
 def test_fabrics_differ_more_than_presses_and_gap_shrinks_with_difficulty():
     """between-fabric / within-fabric distance of a rotation-invariant spectrum statistic,
     both as distances between means of two presses (equal noise on both sides)."""

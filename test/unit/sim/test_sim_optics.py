@@ -144,6 +144,7 @@ def reference_shading(r: GelSightRenderer, indent: np.ndarray) -> np.ndarray:
     return out.reshape(indent.shape + (3,))
 
 
+@pytest.mark.slow
 def test_fast_lookup_equals_the_plain_formula_up_to_float_rounding(src, monkeypatch):
     """The renderer's restructured lookup (one row gather per pixel, flat gel folded into
     the table) gives the frames of the plain formula: intensity changes within 2e-3 grey
@@ -196,6 +197,7 @@ def test_fused_press_equals_the_plain_formula(step):
         np.testing.assert_allclose(fast, plain, atol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("step", [1, 2])
 def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
     """The numba lookup (one compiled pass) and the numpy row gather it replaces where numba

@@ -13,7 +13,6 @@ import pytest
 from tactex_ros.core.errors import TactexError
 from tactex_ros.sources import open_source, trial_scene
 from tactex_ros.sources.base import TouchSource
-from tactex_ros.experiments.trials import class_name
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +49,6 @@ def test_replay_scene_numbers_no_contact_and_depth(replay):
     assert replay.draw_scene(2, 0) is None and replay.no_contact(0) is None
     with pytest.raises(TactexError, match="class number 2"):
         replay.by_number(2)
-    with pytest.raises(TactexError, match="trial entry 2: class number 2"):
-        class_name(replay, 2)
     with pytest.raises(TactexError, match="depth spread 0.3 mm"):
         replay.trial(["a", "a", "b"], 0, depth_spread_mm=0.3)
     classes, truth = trial_scene(replay, 2, seed=3)
@@ -64,9 +61,6 @@ def test_sim_scene_numbers_no_contact_and_depth(sim):
     assert all(c in sim.known_classes and c not in sim.classes for c in classes[1:])
     assert classes[0] == classes[truth]
     assert sim.by_number(1) == sim.classes[0]
-    assert class_name(sim, 2) == sim.classes[1]
-    with pytest.raises(TactexError, match="trial entry 99: fabric number 99"):
-        class_name(sim, 99)
     # the trial's touches carry the no-contact frame the source names for the seed
     t = sim.trial(classes, 4)(1)
     np.testing.assert_array_equal(t.no_contact, sim.no_contact(4))

@@ -1,0 +1,19 @@
+"""``tactex experiment <name>``: each experiment module registers its own sub-command.
+
+A module listed in ``MODULES`` defines ``register(subparsers)`` that adds one parser whose
+``func(args) -> int`` runs the experiment.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real"]
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    e = sub.add_parser("experiment", help="experiments: results folder with JSON and figures")
+    esub = e.add_subparsers(dest="ecmd", required=True)
+    for name in MODULES:
+        importlib.import_module(f"tactex_lab.experiments.{name}").register(esub)

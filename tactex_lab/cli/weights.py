@@ -1,0 +1,28 @@
+"""``tactex weights inspect``: what a checkpoint loads into a thesis model."""
+
+from __future__ import annotations
+
+import argparse
+
+from tactex_ros.cli.main import write_json
+
+
+def cmd_weights_inspect(args: argparse.Namespace) -> int:
+    from tactex_lab.cnn.models import build_model, load_weights, read_checkpoint
+    state = read_checkpoint(args.path)
+    model, _ = build_model(args.model, args.classes)
+    report = load_weights(model, state)
+    print(report.summary())
+    write_json(args.json, report.to_dict())
+    return 0 if report.ok else 1
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    w = sub.add_parser("weights", help="checkpoint tools")
+    wsub = w.add_subparsers(dest="wcmd", required=True)
+    wi = wsub.add_parser("inspect", help="what a checkpoint loads into a model")
+    wi.add_argument("path")
+    wi.add_argument("--model", default="inception_v3")
+    wi.add_argument("--classes", type=int, default=4, help="platforms (classifier size)")
+    wi.add_argument("--json")
+    wi.set_defaults(func=cmd_weights_inspect)

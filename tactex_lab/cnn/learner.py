@@ -1,0 +1,329 @@
+"""The online learner: stores augmented touches, trains across rounds, scores its uncertainty.
+
+Classes are the C comparison platforms. Each stored touch becomes ``augment`` rotated views,
+converted to a tensor once when added (never again on the per-round path). Training uses
+cross-entropy weighted by the number of views per class, w_c = N / (C * n_c), and continues from
+the previous round's weights and optimiser state.
+
+Two training schedules:
+
+- ``epochs`` (thesis): E full shuffled passes over all N stored views; cost grows with N.
+- ``steps``: S minibatches drawn uniformly from the stored views; cost is constant in N.
+
+Uncertainty (``uncertainty``, ``cnn/uncertainty.py``): ``mc_dropout`` (the thesis), ``ensemble``
+(K heads over the shared stem, trained on the same minibatches with their own init and dropout
+masks, each with its own cross-entropy; the (K, C) table of the members) or ``laplace`` (after
+each round a last-layer Laplace posterior is fitted on the stored views' features; the table
+holds ``mc_passes`` posterior draws).
+
+Determinism: every random draw comes from generators seeded by ``seed`` (model init, view
+angles, minibatch order, dropout masks in training and scoring), never from global state that
+other code could have advanced.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from tactex_lab.cnn.models import build_model
+from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
+from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
+from tactex_ros.core.config import LearnerConfig, validate
+from tactex_ros.core.errors import TactexError
+from tactex_ros.core.learners import TrainStats
+from tactex_ros.core.touch import Touch, as_touch, validate_frame
+
+
+#: Largest last layer (weights incl. bias) given a full Laplace posterior: its (P, P) precision
+#: is decomposed every round (P = 3000: 72 MB, about a second).
+LAPLACE_MAX_WEIGHTS = 3000
+
+
+def class_weights(labels: np.ndarray, num_classes: int) -> np.ndarray:
+    """(N,) int labels -> (C,) weights N / (C * n_c); 0 for classes without samples."""
+    labels = np.asarray(labels)
+    counts = np.bincount(labels, minlength=num_classes).astype(np.float64)
+    w = np.zeros(num_classes)
+    present = counts > 0
+    w[present] = labels.size / (num_classes * counts[present])
+    return w
+
+
+class OnlineLearner:
+    """Model + stored views + optimiser for one trial (or one classification run)."""
+
+    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0,
+                 model_name: str | None = None) -> None:
+        self.cfg = validate(cfg)
+        self.num_classes = num_classes
+        self.seed = int(seed)
+        name = model_name or cfg.model
+        if name == "auto":
+            raise TactexError("model 'auto' is resolved by the trial engine, not the learner")
+        if cfg.threads:
+            torch.set_num_threads(cfg.threads)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self.seed)
+            self.model, self.load_report = build_model(
+                name, num_classes, dropout=cfg.dropout, block_dropout=cfg.block_dropout,
+                aux_logits=cfg.aux_logits, weights=cfg.weights or None,
+                heads=cfg.ensemble_heads if cfg.uncertainty == "ensemble" else 1)
+        self.model_name = name
+        if cfg.sensor_crops and cfg.input_size > int(safe_crop_side()):
+            raise TactexError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
+                              f"frame under rotation (at most {int(safe_crop_side())} px)")
+        if cfg.uncertainty == "laplace":
+            n_in = self.model.fc.in_features + 1
+            if num_classes * n_in > LAPLACE_MAX_WEIGHTS:
+                raise TactexError(
+                    f"uncertainty 'laplace' keeps a full posterior over the last layer's "
+                    f"{num_classes * n_in} weights ({num_classes} platforms x {n_in} inputs of "
+                    f"model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: with this "
+                    f"model at most {LAPLACE_MAX_WEIGHTS // n_in} comparisons, or a model with "
+                    f"a smaller last layer (small_inception), or uncertainty 'ensemble'")
+        self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
+        self.model = self.model.to(memory_format=self._fmt)
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,
+                                    weight_decay=cfg.weight_decay)
+        self._rng = np.random.default_rng([self.seed, 1])
+        self._gen = torch.Generator().manual_seed(self.seed + 2)
+        self._x_parts: list[torch.Tensor] = []
+        self._y_parts: list[np.ndarray] = []
+        self._x: torch.Tensor | None = None
+        self._y: torch.Tensor | None = None
+        self._ref_parts: list[torch.Tensor] = []
+        self.laplace: LastLayerLaplace | None = None
+        self.rounds_trained = 0
+
+    # ------------------------------------------------------------------ data
+    @property
+    def n_views(self) -> int:
+        return int(sum(len(y) for y in self._y_parts))
+
+    def labels(self) -> np.ndarray:
+        return np.concatenate(self._y_parts) if self._y_parts else np.zeros(0, dtype=np.int64)
+
+    def add_touch(self, img: "Touch | np.ndarray", label: int) -> torch.Tensor:
+        """Store ``augment`` random rotations of a (240, 320, 3) uint8 frame under ``label``.
+
+        A ``Touch`` contributes its contact frame (the CNN sees frames as they are).
+
+        Returns the stored views (augment, 3, S, S): until the next ``train_round`` the model
+        has not seen them, so they can serve as a held-back check (``heldout_proba``).
+        """
+        if not 0 <= label < self.num_classes:
+            raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
+        img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
+        views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng,
+                        native=self.cfg.sensor_crops)
+        x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
+        self._x_parts.append(x)
+        self._y_parts.append(np.full(len(views), label, dtype=np.int64))
+        self._x = self._y = None
+        return x
+
+    def _colour_norm(self, img: np.ndarray) -> np.ndarray:
+        """With ``drift_norm``: shift each channel so its frame mean is the catalogue-wide grey
+        128 (a per-touch lighting offset then no longer reaches the model)."""
+        if not self.cfg.drift_norm:
+            return img
+        m = img.reshape(-1, 3).mean(axis=0)
+        return np.clip(img.astype(np.float32) - m + 128.0, 0, 255).astype(np.uint8)
+
+    def add_reference(self, img: "Touch | np.ndarray") -> None:
+        """Store a reference touch's views; decisions average over every reference touch."""
+        self._ref_parts.append(self.test_tensor(img))
+
+    def reference_probs(self) -> np.ndarray:
+        """(T, C) softmax table of the reference, averaged over all its touches' views: T MC
+        dropout passes, K ensemble members or T Laplace posterior draws (``uncertainty``)."""
+        if not self._ref_parts:
+            raise TactexError("no reference touch stored")
+        return self.uncertainty_probs(torch.cat(self._ref_parts))
+
+    def uncertainty_probs(self, x: torch.Tensor) -> np.ndarray:
+        """(T, C) float64 table for the views ``x`` (V, 3, S, S) from the configured source."""
+        kind = self.cfg.uncertainty
+        if kind == "ensemble":
+            return ensemble_probs(self.model, x).double().numpy()
+        if kind == "laplace":
+            if self.laplace is None:
+                raise TactexError("uncertainty 'laplace': no posterior before the first "
+                                  "training round")
+            with torch.no_grad():
+                self.model.eval()
+                feats = self.model.features(x)
+            return self.laplace.sample_probs(feats, self.cfg.mc_passes, self._gen).numpy()
+        return self.mc_probs(x)
+
+    def belief(self, probs: np.ndarray) -> np.ndarray:
+        """(C,) mean softmax over the table's rows: the CNN's belief over the matching
+        platform."""
+        return np.asarray(probs, dtype=np.float64).mean(axis=0)
+
+    def test_tensor(self, img: "Touch | np.ndarray") -> torch.Tensor:
+        """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
+        img = self._colour_norm(validate_frame(as_touch(img).frame, "reference touch"))
+        if self.cfg.test_views == 1:
+            views = view(img, 0.0, self.cfg.input_size, native=self.cfg.sensor_crops)[None]
+        else:
+            views = augment(img, self.cfg.test_views, self.cfg.input_size,
+                            np.random.default_rng([self.seed, 3]), include_identity=True,
+                            native=self.cfg.sensor_crops)
+        return to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
+
+    def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
+        if self._x is None:
+            if not self._x_parts:
+                raise TactexError("no touches stored: nothing to train on")
+            self._x = torch.cat(self._x_parts).contiguous(memory_format=self._fmt)
+            self._y = torch.from_numpy(np.concatenate(self._y_parts))
+        return self._x, self._y  # type: ignore[return-value]
+
+    # ------------------------------------------------------------------ training
+    def train_round(self) -> TrainStats:
+        """One round of training (epochs or steps schedule); returns time and mean loss.
+
+        With ``guards`` (default): gradients are clipped to ``grad_clip``; a step whose loss or
+        gradient is not finite is skipped; when more than half the steps of a round were bad (or
+        the weights went non-finite) the round is rolled back to its starting weights and
+        optimiser state and the learning rate is halved. Without guards a non-finite loss
+        raises FloatingPointError (the trial fails).
+        """
+        t0 = time.perf_counter()
+        x, y = self._dataset()
+        n = x.shape[0]
+        weights = torch.from_numpy(class_weights(y.numpy(), self.num_classes)).float()
+        bs = min(self.cfg.batch_size, n)
+        if self.cfg.steps > 0:
+            batches = [torch.randint(0, n, (bs,), generator=self._gen)
+                       for _ in range(self.cfg.steps)]
+        else:
+            batches = []
+            for _ in range(self.cfg.epochs):
+                perm = torch.randperm(n, generator=self._gen)
+                batches += [perm[i:i + bs] for i in range(0, n, bs)]
+        guards = self.cfg.guards
+        clip = self.cfg.grad_clip if guards else 0.0
+        snapshot = None
+        if guards:
+            snapshot = ({k: v.detach().clone() for k, v in self.model.state_dict().items()},
+                        copy.deepcopy(self.opt.state_dict()))
+        params = [p for p in self.model.parameters() if p.requires_grad]
+        self.model.train()
+        losses, norms, skipped = [], [], 0
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=self._gen)))
+            for idx in batches:
+                if idx.numel() < 2:  # batch norm needs two samples in training mode
+                    continue
+                logits, aux = self.model.forward_train(x[idx])
+                target = y[idx]
+                if logits.dim() == 3:           # ensemble (B, K, C): every member's loss
+                    target = target.repeat_interleave(logits.shape[1])
+                    logits = logits.reshape(-1, logits.shape[2])
+                loss = F.cross_entropy(logits, target, weight=weights)
+                if aux is not None:
+                    loss = loss + 0.4 * F.cross_entropy(aux, y[idx], weight=weights)
+                if not torch.isfinite(loss):
+                    if not guards:
+                        raise FloatingPointError(f"training loss became {loss.item()}")
+                    skipped += 1
+                    continue
+                self.opt.zero_grad(set_to_none=True)
+                loss.backward()
+                if guards:
+                    gn = torch.nn.utils.clip_grad_norm_(params, clip if clip > 0 else float("inf"))
+                    if not torch.isfinite(gn):
+                        skipped += 1
+                        self.opt.zero_grad(set_to_none=True)
+                        continue
+                    norms.append(float(gn))
+                self.opt.step()
+                losses.append(float(loss.detach()))
+        restored = False
+        if guards and snapshot is not None and batches and (
+                skipped > len(batches) // 2 or
+                not all(bool(torch.isfinite(p).all()) for p in params)):
+            self.model.load_state_dict(snapshot[0])
+            self.opt.load_state_dict(snapshot[1])
+            for g in self.opt.param_groups:
+                g["lr"] *= 0.5
+            restored = True
+        if self.cfg.bn_recalibrate:
+            self._recalibrate_bn(x)
+        if self.cfg.uncertainty == "laplace":
+            self._fit_laplace(x, y)
+        self.rounds_trained += 1
+        return TrainStats(time.perf_counter() - t0, len(losses),
+                          float(np.mean(losses)) if losses else float("nan"), skipped,
+                          float(np.median(norms)) if norms else float("nan"), restored)
+
+    def transfer_from(self, other: "OnlineLearner") -> int:
+        """Start from ``other``'s weights where names and shapes match; returns tensors copied.
+
+        Same variant (e.g. a larger input for ``small_inception``): everything, classifier too.
+        ``small_inception`` -> ``inception_v3*``: the stem (its keys are a subset).
+        """
+        from tactex_lab.cnn.models import load_weights
+        rep = load_weights(self.model, other.model.state_dict(),
+                           keep_head=other.model_name == self.model_name)
+        self.model.to(memory_format=self._fmt)
+        return len(rep.loaded)
+
+    @torch.no_grad()
+    def heldout_proba(self, x: torch.Tensor) -> np.ndarray:
+        """(C,) eval-mode softmax averaged over the views of one not-yet-trained-on touch."""
+        return self.predict_proba(x).mean(axis=0)
+
+    @torch.no_grad()
+    def _fit_laplace(self, x: torch.Tensor, y: torch.Tensor, batch: int = 256) -> None:
+        """Last-layer Laplace posterior around the trained classifier, on the features of every
+        stored view (eval mode)."""
+        self.model.eval()
+        feats = torch.cat([self.model.features(x[i:i + batch]) for i in range(0, len(x), batch)])
+        self.laplace = LastLayerLaplace.fit(self.model.fc.weight, self.model.fc.bias, feats, y,
+                                            self.cfg.laplace_prior_precision)
+
+    @torch.no_grad()
+    def _recalibrate_bn(self, x: torch.Tensor) -> None:
+        """Re-estimate batch-norm running statistics on a random subset of the stored views.
+
+        After a few optimiser steps the exponential running averages still lag far behind the
+        weights, and every eval-mode pass (MC scoring, prediction) would use stale statistics.
+        A cumulative average over up to ``bn_recalibrate`` views under the current weights fixes
+        that at the cost of one forward pass, without touching the weights.
+        """
+        n = min(x.shape[0], self.cfg.bn_recalibrate)
+        idx = torch.randperm(x.shape[0], generator=self._gen)[:n]
+        bns = [m for m in self.model.modules() if isinstance(m, torch.nn.BatchNorm2d)]
+        saved = [m.momentum for m in bns]
+        for m in bns:
+            m.reset_running_stats()
+            m.momentum = None  # cumulative moving average
+        self.model.train()
+        bs = max(2, self.cfg.batch_size)
+        for i in range(0, n, bs):
+            chunk = idx[i:i + bs]
+            if chunk.numel() >= 2:
+                self.model(x[chunk])
+        for m, mom in zip(bns, saved):
+            m.momentum = mom
+
+    # ------------------------------------------------------------------ scoring
+    def mc_probs(self, x_test: torch.Tensor, passes: int | None = None) -> np.ndarray:
+        """(T, C) float64 softmax of the reference views over T stochastic passes."""
+        return mc_probs(self.model, x_test, passes or self.cfg.mc_passes,
+                        generator=self._gen).double().numpy()
+
+    @torch.inference_mode()
+    def predict_proba(self, x: torch.Tensor, batch: int = 256) -> np.ndarray:
+        """Deterministic (eval-mode) softmax for (N, 3, S, S) inputs -> (N, C)."""
+        self.model.eval()
+        out = [torch.softmax(self.model(x[i:i + batch]), 1) for i in range(0, len(x), batch)]
+        return torch.cat(out).double().numpy()

@@ -1,0 +1,577 @@
+"""``tactex experiment real``: accuracy against touches on real presses, class-disjoint.
+
+Every default of tactex is justified by this command on recorded real presses (a replay folder,
+e.g. ``../shared/datasets/octopi-dev``); the simulator is a second opinion.
+
+Scenes: 1 reference + C comparisons drawn from a set of classes with ``sources.assign_platforms``
+(the same draw as ``tactex trial --seed S``), the same scenes for every setting (paired).
+Each setting runs every scene *without* a stop rule up to ``--budget`` touches after the
+baseline and records the belief after every touch. From that one run:
+
+- accuracy after k touches (k = 0 .. budget) with Wilson 95 % intervals;
+- for every stop threshold theta in ``--thresholds``: the trial stops at the first decision
+  whose belief reaches theta (or at the budget); accuracy at the stop, touches after the
+  baseline until the stop (mean), wrong-stop rate (stopped confident and wrong);
+- decision time (median over all decisions) and the share of touches spent on the platform the
+  belief favoured at that moment ("believed").
+
+The policy's choices do not depend on theta, so the sweep over theta is exact, not re-run.
+
+Class-disjoint protocol (``--folds K``, K >= 2): the classes are split into K folds (seeded). For
+fold k, ``--scenes`` scenes are drawn from the other folds' classes (*choose* scenes) and as many
+from fold k's classes (*report* scenes). On the choose scenes, every (setting, theta) pair is
+scored; the pair with the highest accuracy at the stop whose mean touches after the baseline are
+<= ``--target-touches`` wins (ties: fewer touches). That pair is then measured on the report
+scenes. The figure to trust pools the report scenes of all folds: classes never used for
+choosing. Each setting is also reported at its own chosen theta, with exact McNemar tests paired
+with the chosen setting on the same report scenes.
+
+``--report-only`` skips the choose scenes (no choosing): every setting is measured on the same
+report scenes of every fold at every theta of ``--thresholds`` (for settings too slow to run
+twice, e.g. the CNN's uncertainty variants). ``--paired-against A B`` adds exact McNemar tests
+(correct per scene, at fixed budgets and at every theta) and Wilcoxon tests (touches until the
+stop) of every setting against each of A, B on the pooled report scenes (``paired``).
+
+Output folder: ``config.json``, ``runs.json`` (per scene and setting: classes, the belief curve),
+``summary.json``, ``accuracy_vs_touches.png``, ``pareto.png`` (accuracy at the stop against
+touches, every setting x threshold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactex_lab.analysis import charts
+from tactex_ros.core.errors import TactexError
+from tactex_lab.experiments.common import budget_index, parse_set, results_dir, write_json
+from tactex_lab.experiments.runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
+from tactex_lab.analysis.stats import mcnemar_exact, spearman_interval, wilcoxon_paired, wilson
+
+DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
+                    "variance=default:strategy=variance")
+DEFAULT_THRESHOLDS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 1.01)
+
+
+def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
+    """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
+
+    ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
+    from tactex_ros.core.config import PRESETS
+    label, sep, rest = text.partition("=")
+    if not sep or not label:
+        raise TactexError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+    pre, _, kv = rest.partition(":")
+    if pre not in PRESETS:
+        raise TactexError(f"--setting {text!r}: unknown preset {pre!r}; one of "
+                          f"{', '.join(PRESETS)}")
+    items = [it for it in kv.split(",") if it]
+    strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
+    over = parse_set([it for it in items if not it.startswith("strategy=")],
+                     option=f"--setting {text!r}:")
+    return label, pre, strategy, over
+
+
+def class_folds(classes: list[str], k: int, seed: int) -> list[list[str]]:
+    """``classes`` shuffled (seeded) and split into ``k`` folds of near-equal size."""
+    if k < 2:
+        return [list(classes)]
+    order = [classes[i] for i in np.random.default_rng([seed, 41]).permutation(len(classes))]
+    return [sorted(order[i::k]) for i in range(k)]
+
+
+def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> list[list[str]]:
+    """``n`` scenes [reference, comparisons...] from ``classes`` (seeds seed0 ..)."""
+    from tactex_ros.sources import assign_platforms
+    if len(classes) < comparisons:
+        raise TactexError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
+    return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
+
+
+def curve(res: dict) -> dict:
+    """A runner result -> the belief after every decision (touches after the baseline)."""
+    recs = res["rounds"] + ([res["final"]] if res.get("final") else [])
+    base = len(res["classes"])
+    truth = res["truth_index"]
+    out = {"extra": [], "correct": [], "conf": [], "decision_s": [], "believed": 0,
+           "touched": 0, "error": res.get("error")}
+    prev = None
+    for r in recs:
+        probs = np.asarray(r["probs"])
+        out["extra"].append(int(sum(r["touches"]) + r.get("reference_touches", 1) - base))
+        out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
+        out["conf"].append(float(probs.max()))
+        out["decision_s"].append(float(r["train_s"] + r["score_s"] + r["choose_s"]))
+        if prev is not None and prev["platform"] not in (None, "reference", 0):
+            out["touched"] += 1
+            chosen = prev["platform"]
+            idx = int(chosen[1:]) if isinstance(chosen, str) else int(chosen)
+            out["believed"] += int(idx == int(np.argmax(prev["probs"])) + 1)
+        prev = r
+    return out
+
+
+def at_budget(c: dict, k: int) -> bool:
+    """Correct after ``k`` touches after the baseline (``common.budget_index``)."""
+    idx = budget_index(c["extra"], k)
+    return bool(idx >= 0 and c["correct"][idx])
+
+
+def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
+    """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
+    for i, conf in enumerate(c["conf"]):
+        if conf >= theta:
+            return c["correct"][i], c["extra"][i], True
+    return c["correct"][-1], c["extra"][-1], False
+
+
+def score_pairs(curves: dict[str, list[dict]], thresholds: list[float]) -> list[dict]:
+    """Every (setting, theta): accuracy at the stop, mean touches, wrong-stop rate, n."""
+    rows = []
+    for label, cs in curves.items():
+        for th in thresholds:
+            st = [at_stop(c, th) for c in cs]
+            acc = float(np.mean([s[0] for s in st]))
+            s = sum(x[0] for x in st)
+            rows.append({"setting": label, "theta": th, "accuracy": acc,
+                         "ci95": list(wilson(s, len(st))),
+                         "touches": float(np.mean([s[1] for s in st])),
+                         "wrong_stop": float(np.mean([s[2] and not s[0] for s in st])),
+                         "n": len(st)})
+    return rows
+
+
+def choose(rows: list[dict], target: float, settings: list[str] | None = None) -> dict:
+    """Best (setting, theta) row: highest accuracy with mean touches <= target; ties fewer
+    touches. If no row meets the target, the one with the fewest touches."""
+    cand = [r for r in rows if settings is None or r["setting"] in settings]
+    ok = [r for r in cand if r["touches"] <= target]
+    if not ok:
+        return min(cand, key=lambda r: (r["touches"], -r["accuracy"]))
+    return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
+
+
+def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
+                  budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
+                  quiet: bool = False) -> dict[str, list[dict]]:
+    """Run every scene (``[reference, comparisons...]`` classes) with every setting of
+    ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
+    i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
+    (see ``curve``, plus the scene's ``classes``)."""
+    from tactex_ros.core.engine import trial_preset
+    jobs = []
+    for i, classes in enumerate(scenes):
+        for label, pre, strategy, over in settings:
+            st = strategy or trial_preset(pre).strategy
+            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
+                                 rounds=budget, stop_confidence=0.0, preset=pre,
+                                 overrides=over, platform_classes=classes,
+                                 comparisons=len(classes) - 1, catch_errors=True,
+                                 no_contact_reference=False,
+                                 trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
+    res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
+                   quiet=quiet)
+    out: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    for r in res:
+        c = curve(r)
+        c["classes"] = r["classes"]
+        out[r["job"]["tags"]["setting"]].append(c)
+    return out
+
+
+def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+    return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
+                         backend_of(args), args.threads, args.quiet)
+
+
+def calibration(cs: list[dict], bins: int = 10) -> dict:
+    """How far the belief's top probability is from being right, over every decision of the
+    curves ``cs``: expected calibration error (``bins`` equal-width bins of the confidence in
+    [0, 1], weighted by decisions), mean confidence, accuracy, and the accuracy of decisions
+    with confidence >= 0.9 (``right_at_0.9``, None without such decisions)."""
+    conf = np.array([x for c in cs for x in c["conf"]], dtype=np.float64)
+    ok = np.array([x for c in cs for x in c["correct"]], dtype=np.float64)
+    if conf.size == 0:
+        return {"decisions": 0}
+    idx = np.minimum((conf * bins).astype(int), bins - 1)
+    ece = sum(abs(conf[idx == b].mean() - ok[idx == b].mean()) * np.sum(idx == b)
+              for b in range(bins) if np.any(idx == b)) / conf.size
+    hi = conf >= 0.9
+    return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
+            "accuracy": float(ok.mean()),
+            "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
+            "share_at_0.9": float(hi.mean())}
+
+
+def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
+    """Per setting: accuracy after k touches with intervals, decision time, believed share."""
+    out = {}
+    for label, cs in curves.items():
+        n = len(cs)
+        acc = []
+        for k in range(budget + 1):
+            s = sum(at_budget(c, k) for c in cs)
+            lo, hi = wilson(s, n)
+            acc.append({"touches": k, "accuracy": s / n, "ci95": [lo, hi]})
+        dec = [d for c in cs for d in c["decision_s"]]
+        touched = sum(c["touched"] for c in cs)
+        out[label] = {"scenes": n, "accuracy_vs_touches": acc,
+                      "decision_s_median": statistics.median(dec) if dec else None,
+                      "believed_share": (sum(c["believed"] for c in cs) / touched
+                                         if touched else None),
+                      "errors": sum(1 for c in cs if c["error"]),
+                      "calibration": calibration(cs)}
+    return out
+
+
+def _paired(curves: dict[str, list[dict]], reference: str, points, outcome) -> dict:
+    """Every setting against ``reference`` on the same scenes at each point (a budget or a
+    threshold): ``outcome(curve, point)`` gives (correct, touches after the baseline or None).
+    {setting: {str(point): {"reference", "setting" (accuracies), "p" (exact McNemar)[,
+    "touches_p" (Wilcoxon on touches, where outcomes carry touches)]}}}."""
+    out = {}
+    for lab, cs in curves.items():
+        if lab == reference:
+            continue
+        row = {}
+        for pt in points:
+            a = [outcome(c, pt) for c in curves[reference]]
+            b = [outcome(c, pt) for c in cs]
+            ok_a, ok_b = [x[0] for x in a], [x[0] for x in b]
+            row[str(pt)] = {"reference": float(np.mean(ok_a)), "setting": float(np.mean(ok_b)),
+                            "p": mcnemar_exact(ok_a, ok_b)["p"]}
+            if a and a[0][1] is not None:
+                row[str(pt)]["touches_p"] = wilcoxon_paired([x[1] for x in a],
+                                                            [x[1] for x in b])["p"]
+        out[lab] = row
+    return out
+
+
+def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
+                      budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
+    """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
+    rule), on the same scenes: {setting: {str(k): {"reference", "setting", "p"}}}."""
+    return _paired(curves, reference, budgets, lambda c, k: (at_budget(c, k), None))
+
+
+def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
+                         thresholds: list[float]) -> dict:
+    """Every setting against ``reference`` under each stop threshold, on the same scenes:
+    {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),
+    "touches_p" (Wilcoxon on touches after the baseline)}}}."""
+    return _paired(curves, reference, thresholds, at_stop)
+
+
+def run(args: argparse.Namespace) -> dict:
+    from tactex_ros.sources import open_source
+    settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
+    labels = [s[0] for s in settings]
+    if len(set(labels)) != len(labels):
+        raise TactexError(f"--setting labels must be unique, got {labels}")
+    src = open_source(args.source)
+    classes = sorted(src.classes)
+    thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
+    out = results_dir(args.out, "real", {k: v for k, v in vars(args).items() if k != "func"})
+    folds = class_folds(classes, args.folds, args.seed)
+    report_only = bool(getattr(args, "report_only", False))
+    against = list(getattr(args, "paired_against", None) or [labels[0]])
+    unknown = [a for a in against if a not in labels]
+    if unknown:
+        raise TactexError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
+    report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    fold_info = []
+    for k, fold in enumerate(folds):
+        if args.folds >= 2 and not report_only:
+            rest = sorted(set(classes) - set(fold))
+            choose_curves = _run(draw_scenes(rest, args.scenes, args.comparisons,
+                                             args.seed + 1000 * (k + 1)),
+                                 settings, args, f"choose{k}-")
+            rows = score_pairs(choose_curves, thresholds)
+            best = choose(rows, args.target_touches)
+            per_setting = {lab: choose(rows, args.target_touches, [lab]) for lab in labels}
+        else:
+            rest, rows, best, per_setting = [], [], None, {}
+        rep = _run(draw_scenes(fold, args.scenes, args.comparisons, args.seed + 100000 * k),
+                   settings, args, f"report{k}-")
+        for lab, cs in rep.items():
+            report_curves[lab].extend(cs)
+        fold_info.append({"fold": k, "report_classes": fold, "choose_classes": rest,
+                          "chosen": best, "chosen_per_setting": per_setting,
+                          "choose_rows": rows, "report_rows": score_pairs(rep, thresholds),
+                          "report_chosen": _report(rep, best, per_setting)})
+    summary = {"source": args.source, "comparisons": args.comparisons, "budget": args.budget,
+               "folds": fold_info, "settings": {s[0]: {"preset": s[1], "strategy": s[2],
+                                                       "overrides": s[3]} for s in settings},
+               "per_setting": summarise(report_curves, args.budget),
+               "report_rows": score_pairs(report_curves, thresholds),
+               "paired_at_budgets": paired_at_budgets(report_curves, labels[0],
+                                                      tuple(k for k in (0, 1, 3, 5, 10)
+                                                            if k <= args.budget)),
+               "paired": {ref: {"budgets": paired_at_budgets(
+                                    report_curves, ref, tuple(k for k in (0, 1, 3, 5, 10)
+                                                              if k <= args.budget)),
+                                "thresholds": paired_at_thresholds(report_curves, ref,
+                                                                   thresholds)}
+                          for ref in against}}
+    if args.folds >= 2 and not report_only:
+        summary["held_out"] = _pool_chosen(fold_info, labels)
+    write_json(out / "runs.json", report_curves)
+    write_json(out / "summary.json", summary)
+    _charts(out, summary, labels, args.budget)
+    _print(summary, labels, args)
+    return summary
+
+
+def _report(curves: dict[str, list[dict]], best: dict | None,
+            per_setting: dict[str, dict]) -> dict:
+    """Report-scene outcomes (per scene) of each setting at its chosen theta."""
+    out = {}
+    for lab, cs in curves.items():
+        th = per_setting.get(lab, {}).get("theta", 1.01)
+        out[lab] = {"theta": th, "outcomes": [at_stop(c, th) for c in cs]}
+    if best is not None:
+        out["__chosen__"] = {"setting": best["setting"], "theta": best["theta"],
+                             "outcomes": [at_stop(c, best["theta"])
+                                          for c in curves[best["setting"]]]}
+    return out
+
+
+def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
+    """Pool the report scenes of every fold: the chosen pair and each setting at its theta."""
+    def pooled(key: str) -> dict:
+        oc = [o for f in fold_info for o in f["report_chosen"][key]["outcomes"]]
+        s = sum(o[0] for o in oc)
+        return {"accuracy": s / len(oc), "ci95": list(wilson(s, len(oc))), "n": len(oc),
+                "touches_mean": float(np.mean([o[1] for o in oc])),
+                "wrong_stop": float(np.mean([o[2] and not o[0] for o in oc])),
+                "correct": [bool(o[0]) for o in oc], "touches": [int(o[1]) for o in oc]}
+    out = {"chosen": pooled("__chosen__"),
+           "chosen_pairs": [(f["chosen"]["setting"], f["chosen"]["theta"]) for f in fold_info],
+           "settings": {lab: pooled(lab) for lab in labels}}
+    base = out["chosen"]
+    for lab in labels:
+        st = out["settings"][lab]
+        st["mcnemar_vs_chosen"] = mcnemar_exact(base["correct"], st["correct"])
+        st["wilcoxon_touches_vs_chosen"] = wilcoxon_paired(base["touches"], st["touches"])
+    return out
+
+
+def _charts(out: Path, summary: dict, labels: list[str], budget: int) -> None:
+    series = {}
+    for lab in labels:
+        acc = summary["per_setting"][lab]["accuracy_vs_touches"]
+        series[lab] = ([a["accuracy"] for a in acc], None)
+    charts.lines(out / "accuracy_vs_touches.png", list(range(budget + 1)), series,
+                 "touches after the baseline", "accuracy (report scenes)",
+                 "real presses: accuracy against touches (no stop rule)", ylim=(0.0, 1.02))
+    charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
+
+
+def _print(summary: dict, labels: list[str], args) -> None:
+    print(f"real presses: {args.source}, {args.comparisons} comparisons, budget {args.budget}")
+    for lab in labels:
+        p = summary["per_setting"][lab]
+        acc = p["accuracy_vs_touches"]
+        ks = [k for k in (0, 1, 3, 5, 10, args.budget) if k <= args.budget]
+        print(f"  {lab:>14}: " + "  ".join(f"+{k}: {acc[k]['accuracy']:.3f}" for k in ks) +
+              f"  decision {p['decision_s_median']:.4f} s  believed-share "
+              f"{p['believed_share'] if p['believed_share'] is None else round(p['believed_share'], 2)}")
+    if "held_out" in summary:
+        h = summary["held_out"]["chosen"]
+        print(f"  held-out classes, chosen per fold {summary['held_out']['chosen_pairs']}: "
+              f"accuracy {h['accuracy']:.3f} [{h['ci95'][0]:.3f}, {h['ci95'][1]:.3f}] "
+              f"n={h['n']}, touches after baseline {h['touches_mean']:.2f}, wrong stops "
+              f"{h['wrong_stop']:.3f}")
+        for lab, s in summary["held_out"]["settings"].items():
+            print(f"    {lab:>14} at its theta: {s['accuracy']:.3f} "
+                  f"[{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] touches {s['touches_mean']:.2f}"
+                  f"  McNemar vs chosen p={s['mcnemar_vs_chosen']['p']:.3g}")
+    if getattr(args, "report_only", False):
+        for r in summary["report_rows"]:
+            print(f"    {r['setting']:>14} at theta {r['theta']:g}: {r['accuracy']:.3f} "
+                  f"[{r['ci95'][0]:.3f}, {r['ci95'][1]:.3f}] touches {r['touches']:.2f} "
+                  f"wrong stops {r['wrong_stop']:.3f}")
+    for ref, pr in summary["paired"].items():
+        for lab, row in pr["thresholds"].items():
+            print(f"    {lab:>14} vs {ref}: McNemar p at theta " +
+                  "  ".join(f"{th}: {v['p']:.3g}" for th, v in row.items()))
+
+
+def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: int,
+                 budget: int, seed: int, workers: int, out: str | None = None
+                 ) -> dict[str, Any]:
+    """Does a setting use the recording session? Every setting on the same ``scenes`` real
+    scenes (same seeds) replayed as recorded (``replay:DIR``) and moved onto one background
+    per trial (``replay:DIR:one-session``, as a live robot presses): accuracy after 0, 1, 3,
+    ``budget`` touches and at the stop 0.9 on both, exact McNemar of one-session against
+    recorded per setting (paired by scene), and the per-scene outcomes."""
+    parsed = [parse_setting(t) for t in settings]
+    labels = [q[0] for q in parsed]
+    if len(set(labels)) != len(labels):
+        raise TactexError(f"setting labels must be unique, got {labels}")
+    from tactex_ros.sources import open_source
+    classes = sorted(open_source(f"replay:{real_dir}").classes)
+    scene_list = draw_scenes(classes, scenes, comparisons, seed)
+    d = results_dir(out, "real_sessions", {"real": real_dir, "settings": settings,
+                                           "scenes": scenes, "comparisons": comparisons,
+                                           "budget": budget, "seed": seed})
+    curves = {side: belief_curves(scene_list, parsed, f"replay:{real_dir}{suffix}", seed,
+                                  budget, f"{side}-", Backend("joblib", workers))
+              for side, suffix in (("recorded", ""), ("one_session", ":one-session"))}
+    points = sorted({0, 1, 3, budget})
+    res: dict[str, Any] = {"scenes": scenes, "comparisons": comparisons, "budget": budget,
+                           "seed": seed, "settings": {}}
+    for lab in labels:
+        both = {side: curves[side][lab] for side in curves}
+        row: dict[str, Any] = {}
+        for side, cs in both.items():
+            row[side] = {"accuracy_at": {str(k): float(np.mean([at_budget(c, k) for c in cs]))
+                                         for k in points},
+                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[0]
+                                                                for c in cs])),
+                         "touches_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[1]
+                                                               for c in cs])),
+                         "correct_at_budget": [at_budget(c, budget) for c in cs],
+                         "failed_trials": sum(1 for c in cs if c["error"])}
+        row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
+                                                     tuple(points))["one_session"]
+        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded", [0.9])["one_session"]
+        res["settings"][lab] = row
+    write_json(d / "summary.json", res)
+    for lab, row in res["settings"].items():
+        r, o = row["recorded"], row["one_session"]
+        pb = row["paired_at_budgets"][str(budget)]["p"]
+        print(f"{lab:>16}: +{budget} recorded {r['accuracy_at'][str(budget)]:.3f} one-session "
+              f"{o['accuracy_at'][str(budget)]:.3f} (McNemar p {pb:.3g}); stop 0.9 "
+              f"{r['accuracy_at_stop_0.9']:.3f} / {o['accuracy_at_stop_0.9']:.3f} with "
+              f"{r['touches_at_stop_0.9']:.2f} / {o['touches_at_stop_0.9']:.2f} touches")
+    print(f"wrote {d}")
+    return res
+
+
+def register(esub: argparse._SubParsersAction) -> None:
+    q = esub.add_parser("real-sessions", help="real presses replayed as recorded and moved "
+                                              "onto one session: does a setting use the "
+                                              "recording session?")
+    q.add_argument("--real", required=True, help="folder of recorded presses")
+    q.add_argument("--setting", action="append", required=True,
+                   help="label=preset[:key=value,...] (repeat)")
+    q.add_argument("--scenes", type=int, default=30)
+    q.add_argument("--comparisons", type=int, default=4)
+    q.add_argument("--budget", type=int, default=5)
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--workers", type=int, default=1)
+    q.add_argument("--out")
+
+    def sessions(args: argparse.Namespace) -> int:
+        if args.scenes < 2 or args.budget < 0 or args.workers < 1 or args.comparisons < 2:
+            raise TactexError("--scenes >= 2, --budget >= 0, --workers >= 1, "
+                              "--comparisons >= 2")
+        run_sessions(args.real, args.setting, args.scenes, args.comparisons, args.budget,
+                     args.seed, args.workers, args.out)
+        return 0
+
+    q.set_defaults(func=sessions)
+    p = esub.add_parser("real", help="accuracy against touches on real presses "
+                                     "(class-disjoint folds)")
+    p.add_argument("--source", required=True, help="replay:DIR of recorded presses")
+    p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
+    p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
+    p.add_argument("--folds", type=int, default=3, help="class folds (1 = no choosing)")
+    p.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] (repeat); default: "
+                        + " ".join(DEFAULT_SETTINGS))
+    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--target-touches", type=float, default=5.0,
+                   help="choose the most accurate (setting, theta) with at most this many "
+                        "touches after the baseline on average")
+    p.add_argument("--report-only", action="store_true",
+                   help="no choose scenes: measure every setting on the report scenes of each "
+                        "fold at every threshold (no choosing)")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL",
+                   help="paired tests of every setting against these settings (default: the "
+                        "first --setting)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out")
+    add_runner_args(p)
+
+    def func(args: argparse.Namespace) -> int:
+        for name in ("comparisons", "scenes", "budget", "folds"):
+            if getattr(args, name) < (2 if name == "comparisons" else 1):
+                raise TactexError(f"--{name} too small: {getattr(args, name)}")
+        run(args)
+        return 0
+
+    p.set_defaults(func=func)
+
+
+def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: int,
+                comparisons: int, budget: int, seed: int, workers: int,
+                sim_spec: str = "sim:recorded", real_one_session: bool = False
+                ) -> dict[str, Any]:
+    """The ranking part of the sim-to-real report (``tactex sim compare``,
+    ``analysis/sim_vs_real.py``): every setting on the same ``scenes`` simulated and real
+    scenes (1 + ``comparisons`` distinct classes: catalogue fabrics / the folder's classes),
+    through this module's scene draw, runner and belief curves.
+
+    Per setting and side: accuracy after ``budget`` touches after the baseline (Wilson
+    interval), accuracy averaged over 0..budget touches, accuracy at the default's stop rule
+    (belief 0.9) and the touches it took. Then Spearman rho of the two sides' rankings with
+    a bootstrap interval, and the gaps real - sim. ``sim_spec``: the simulated source
+    (``sim[:difficulty][:recorded]``; recorded sessions as the real folder's);
+    ``real_one_session``: the real presses moved onto one background per trial
+    (``replay:DIR:one-session``, to rank against the live simulator ``sim``)."""
+    from tactex_ros.sources import open_source
+    if not (sim_spec == "sim" or sim_spec.startswith("sim:")):
+        raise TactexError(f"--sim-source {sim_spec!r}: use sim[:difficulty][:recorded]")
+    open_source(sim_spec)            # a bad spec is refused before any work
+    if scenes < 2:
+        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
+    if budget < 0:
+        raise TactexError(f"--budget must be >= 0, got {budget}")
+    parsed = [parse_setting(s) for s in settings]
+    labels = [p[0] for p in parsed]
+    if len(labels) < 2 or len(set(labels)) != len(labels):
+        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
+    theta = 0.9
+    out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
+                           "budget": budget, "stop_theta": theta, "seed": seed,
+                           "setting_specs": list(settings), "sim_source": sim_spec,
+                           "real_one_session": real_one_session}
+    real_spec = f"replay:{real_dir}" + (":one-session" if real_one_session else "")
+    scores: dict[str, dict[str, np.ndarray]] = {}
+    for side, spec in (("sim", sim_spec), ("real", real_spec)):
+        classes = sorted(open_source(spec).classes)
+        curves = belief_curves(draw_scenes(classes, scenes, comparisons, seed),
+                               parsed, spec, seed, budget, f"{side}-",
+                               Backend("joblib", workers))
+        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
+        at_b = np.array([[at_budget(c, budget) for c in curves[lab]] for lab in labels], float)
+        mean_b = np.array([[np.mean([at_budget(c, k) for k in range(budget + 1)])
+                            for c in curves[lab]] for lab in labels], float)
+        stops = [[at_stop(c, theta) for c in curves[lab]] for lab in labels]
+        scores[side] = {"at_budget": at_b, "mean_over_budgets": mean_b}
+        for i, lab in enumerate(labels):
+            k = int(at_b[i].sum())
+            out["settings"].setdefault(lab, {})[side] = {
+                "accuracy": k / scenes, "ci95": list(wilson(k, scenes)),
+                "accuracy_mean_over_budgets": float(mean_b[i].mean()),
+                "accuracy_at_stop": float(np.mean([st[0] for st in stops[i]])),
+                "touches_at_stop": float(np.mean([st[1] for st in stops[i]]))}
+        out[f"{side}_failed_trials"] = errors
+    for lab in labels:
+        v = out["settings"][lab]
+        v["gap_real_minus_sim"] = v["real"]["accuracy"] - v["sim"]["accuracy"]
+    gaps = [out["settings"][lab]["gap_real_minus_sim"] for lab in labels]
+    out["accuracy_spearman"] = spearman_interval(scores["sim"]["at_budget"],
+                                                 scores["real"]["at_budget"], seed=seed)
+    out["mean_over_budgets_spearman"] = spearman_interval(
+        scores["sim"]["mean_over_budgets"], scores["real"]["mean_over_budgets"], seed=seed)
+    out["mean_gap_real_minus_sim"] = float(np.mean(gaps))
+    out["mean_abs_gap"] = float(np.mean(np.abs(gaps)))
+    return out

@@ -1,0 +1,267 @@
+"""The one job runner of the experiments: a job is plain data, run in parallel with joblib,
+on this machine or on a Ray cluster, results in job order.
+
+``run_parallel(fn, items, backend)`` runs ``fn(item)`` for every item and returns the results in
+item order, with one progress display (``common.progress``). ``Backend`` says where:
+
+- ``joblib`` (default): ``workers`` processes on this machine (joblib's loky backend; 0 = one per
+  core); ``workers=1`` runs in this process.
+- ``ray``: joblib's Ray backend (``ray.util.joblib``) on the cluster at ``address`` (e.g.
+  ``auto`` or ``ray://head:10001``; none = a local Ray instance is started), ``workers``
+  parallel tasks (0 = every CPU of the cluster). Ray is imported only when this backend is
+  asked for. Every node of the cluster needs this package installed (same versions), since a
+  job names its function by module path. A job's result does not depend on where it runs.
+
+A ``TrialJob`` is everything one trial needs as plain data (so it pickles into a worker):
+the source spec (``sim[:q]`` or ``replay:DIR``), the scene (explicit platform classes, or drawn
+from the seed), learner preset + overrides, trial settings, the seed, and an optional
+``perturb`` dict that experiments use to degrade touches (see ``apply_perturbation``).
+``run_jobs`` returns one result dict per job in job order: the engine's ``TrialResult.to_dict``
+plus ``job`` (the job as a dict), ``decision_s`` per decision and ``wall_s``.
+
+Each trial runs with ``threads`` torch threads (default 1), so timings within one run are
+comparable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import os
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Iterator, Sequence, TypeVar
+
+import numpy as np
+
+from tactex_ros.core.engine import TrialConfig, TrialEngine
+from tactex_ros.core.errors import TactexError
+from tactex_ros.core.touch import Touch, as_touch
+from tactex_ros.sources.base import TouchSource
+from tactex_lab.experiments.common import progress
+
+T = TypeVar("T")
+R = TypeVar("R")
+BACKENDS = ("joblib", "ray")
+RAY_CHUNK = 4     # jobs per Ray worker between two progress updates
+
+
+@dataclass(frozen=True)
+class Backend:
+    """Where jobs run: ``name`` joblib|ray, ``workers`` (0 = every core / every cluster CPU),
+    ``address`` of an existing Ray cluster (ray only; None = start a local instance)."""
+
+    name: str = "joblib"
+    workers: int = 1
+    address: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.name not in BACKENDS:
+            raise TactexError(f"--backend {self.name!r}: choose one of {', '.join(BACKENDS)}")
+        if self.workers < 0:
+            raise TactexError(f"--workers must be >= 0 (0 = all), got {self.workers}")
+        if self.address is not None and self.name != "ray":
+            raise TactexError("--address names a Ray cluster: it needs --backend ray")
+
+    def resolved(self) -> "Backend":
+        """This backend with ``workers`` 0 made explicit on this machine (joblib: the number of
+        cores); a Ray backend keeps 0 (every CPU of the cluster)."""
+        if self.name == "joblib" and self.workers == 0:
+            return replace(self, workers=default_workers())
+        return self
+
+
+def default_workers() -> int:
+    """Worker processes on this machine: one per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+def add_runner_args(p: argparse.ArgumentParser, threads: bool = True) -> None:
+    """The runner's options of an experiment command: --workers, --threads, --backend,
+    --address, --quiet (read back with ``backend_of``)."""
+    p.add_argument("--workers", type=int, default=0,
+                   help="parallel jobs (default 0: one per core; with ray: every cluster CPU)")
+    if threads:
+        p.add_argument("--threads", type=int, default=1, help="torch threads per job")
+    p.add_argument("--backend", default="joblib", choices=BACKENDS,
+                   help="joblib: processes on this machine; ray: a Ray cluster (--address)")
+    p.add_argument("--address", help="Ray cluster address (e.g. auto, ray://head:10001); "
+                                     "default: start a local Ray instance")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def backend_of(args: argparse.Namespace) -> Backend:
+    """The ``Backend`` of parsed ``add_runner_args`` options."""
+    return Backend(args.backend, args.workers, args.address)
+
+
+def _ray_ready(address: str | None) -> None:
+    try:
+        import ray
+        from ray.util.joblib import register_ray
+    except ImportError as exc:
+        raise TactexError(f"--backend ray needs the ray package ({exc}); pip install "
+                          "-r requirements.txt") from None
+    if not ray.is_initialized():
+        if address:     # an existing cluster: its own settings hold
+            ray.init(address=address)
+        else:           # a local instance for this run: no dashboard, quiet workers
+            ray.init(include_dashboard=False, log_to_driver=False)
+    register_ray()
+
+
+def run_parallel(fn: Callable[[T], R], items: Sequence[T], backend: Backend = Backend(),
+                 description: str = "jobs", quiet: bool = False) -> list[R]:
+    """``[fn(item) for item in items]`` on ``backend``, in item order, with a progress display.
+
+    ``fn`` must be picklable (a module-level function or a ``functools.partial`` of one) unless
+    it runs in this process (joblib with one worker or one item)."""
+    import joblib
+    items = list(items)
+    if backend.name == "joblib":
+        n = backend.workers or default_workers()
+        if n == 1 or len(items) <= 1:
+            return [fn(it) for it in progress(items, description, len(items), quiet)]
+        config = dict(backend="loky", n_jobs=min(n, len(items)))
+    else:
+        _ray_ready(backend.address)
+        config = dict(backend="ray", n_jobs=backend.workers or -1)
+    with joblib.parallel_config(**config):
+        if backend.name == "joblib":   # results stream back in item order as they finish
+            results: Iterator[R] = joblib.Parallel(return_as="generator")(
+                joblib.delayed(fn)(it) for it in items)
+        else:   # joblib's Ray backend returns whole lists: chunks keep the progress moving
+            results = _chunks(fn, items, RAY_CHUNK * (backend.workers or 8))
+        return list(progress(results, description, len(items), quiet))
+
+
+def _chunks(fn: Callable[[T], R], items: list[T], size: int) -> Iterator[R]:
+    import joblib
+    for i in range(0, len(items), size):
+        yield from joblib.Parallel()(joblib.delayed(fn)(it) for it in items[i:i + size])
+
+
+@dataclass
+class TrialJob:
+    source: str                                   # "sim:0.5", "replay:/path"
+    seed: int
+    strategy: str = "variance"
+    rounds: int = 20
+    max_touches: int = 0
+    stop_confidence: float = 0.0
+    preset: str = "cnn"
+    overrides: dict[str, Any] = field(default_factory=dict)
+    platform_classes: list[str] | None = None     # [reference, comp 1..C]; None = draw
+    comparisons: int = 4                          # used when drawing the scene
+    trial_id: str = ""
+    perturb: dict[str, Any] = field(default_factory=dict)
+    tags: dict[str, Any] = field(default_factory=dict)   # free labels carried to the result
+    catch_errors: bool = False    # a trial that raises gives a result with "error" (not a crash)
+    no_contact_reference: bool = True   # give the engine a no-contact frame when the source can
+
+
+_SOURCES: dict[str, TouchSource] = {}
+
+
+def cached_source(spec: str) -> TouchSource:
+    """The touch source of ``spec``, opened once per process (jobs of a sweep share it)."""
+    if spec not in _SOURCES:
+        from tactex_ros.sources import open_source
+        _SOURCES[spec] = open_source(spec)
+    return _SOURCES[spec]
+
+
+def scene(job: TrialJob) -> tuple[list[str], int]:
+    """Platform classes [reference, comparisons...] and the true match (1..C) of a job."""
+    if job.platform_classes is not None:
+        comps = list(job.platform_classes[1:])
+        ref = job.platform_classes[0]
+        if ref not in comps:
+            raise TactexError(f"trial {job.trial_id!r}: reference {ref!r} is not among the "
+                              f"comparisons {comps}")
+        return [ref] + comps, comps.index(ref) + 1
+    from tactex_ros.sources import trial_scene
+    return trial_scene(cached_source(job.source), job.comparisons, job.seed)
+
+
+def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
+                       rng: np.random.Generator) -> np.ndarray:
+    """Degrade one (240, 320, 3) uint8 touch.
+
+    Keys (all optional): ``noise`` extra Gaussian sensor noise std [grey levels];
+    ``drift`` lighting drift, a random per-channel offset with this std [grey levels];
+    ``blank`` probability that the touch is a flat no-contact frame (mean colour of the image).
+    """
+    out = img.astype(np.float32)
+    if perturb.get("blank", 0.0) and rng.random() < perturb["blank"]:
+        out[:] = out.reshape(-1, 3).mean(axis=0)
+        out += rng.normal(0.0, 1.0, out.shape)
+    if perturb.get("drift", 0.0):
+        out += rng.normal(0.0, perturb["drift"], 3).astype(np.float32)
+    if perturb.get("noise", 0.0):
+        out += rng.normal(0.0, perturb["noise"], out.shape).astype(np.float32)
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
+    base = cached_source(job.source).trial(classes, job.seed, job.perturb.get("depth_spread"))
+    keys = {k for k, v in job.perturb.items() if k != "depth_spread" and v}
+    if not keys:
+        return base
+    rng = np.random.default_rng([job.seed, 31])
+
+    def perturbed(p: int) -> Touch:
+        t = as_touch(base(p))
+        return replace(t, frame=apply_perturbation(t.frame, job.perturb, rng))
+
+    return perturbed
+
+
+def run_job(job: TrialJob, threads: int = 1,
+            engine_hook: Callable[[TrialEngine], None] | None = None) -> dict:
+    """Run one trial; returns the result dict (see module docstring)."""
+    import torch
+
+    from tactex_ros.core.config import preset
+    if threads:
+        torch.set_num_threads(threads)
+    classes, truth = scene(job)
+    n = len(classes) - 1
+    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
+    cfg = preset(job.preset, **job.overrides)
+    tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
+                       stop_confidence=job.stop_confidence)
+    eng = TrialEngine(n, cfg, tcfg, seed=job.seed, platform_ids=ids)
+    src = cached_source(job.source)
+    no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
+    if no_contact is not None:
+        eng.set_no_contact_reference(no_contact)
+    if engine_hook:
+        engine_hook(eng)
+    t0 = time.perf_counter()
+    try:
+        res = eng.run(_touch_fn(job, classes), truth=truth)
+    except (TactexError, FloatingPointError, RuntimeError) as exc:
+        if not job.catch_errors:
+            raise
+        recs = eng.records
+        return {"correct": False, "prediction": None, "truth": ids[truth], "touches":
+                eng.total_touches, "rounds": [dataclasses.asdict(r) for r in recs],
+                "final": None, "failed_touches": list(eng.failed),
+                "error": f"{type(exc).__name__}: {exc}", "job": dataclasses.asdict(job),
+                "classes": classes, "truth_index": truth, "prediction_index": None,
+                "decision_s": [r.decision_s for r in recs], "wall_s": time.perf_counter() - t0}
+    out = res.to_dict()
+    out.update(job=dataclasses.asdict(job), classes=classes, truth_index=truth,
+               prediction_index=res.prediction,
+               decision_s=[r.decision_s for r in res.rounds + [res.final]],
+               wall_s=time.perf_counter() - t0)
+    return out
+
+
+def run_jobs(jobs: list[TrialJob], backend: Backend = Backend(), threads: int = 1,
+             description: str = "trials", quiet: bool = False) -> list[dict]:
+    """Run ``jobs`` on ``backend`` (``threads`` torch threads each), results in job order."""
+    return run_parallel(functools.partial(run_job, threads=threads), jobs, backend,
+                        description, quiet)

@@ -1,0 +1,68 @@
+"""What the trial engine asks of a learner, and how it gets one by name.
+
+A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
+engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
+shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
+``LearnerConfig.model`` (the thesis CNNs, ``auto``) is a plug-in of group ``tactex.learners``
+(``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
+for a configuration that names a CNN.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from .config import LearnerConfig
+from .plugins import LEARNERS, load
+from .touch import Touch
+
+
+@dataclass
+class TrainStats:
+    """What one training round did (a learner that trains nothing reports steps 0)."""
+
+    seconds: float
+    steps: int
+    mean_loss: float
+    skipped: int = 0              # steps skipped for a non-finite loss or gradient (guards)
+    grad_norm: float = float("nan")   # median gradient norm before clipping
+    restored: bool = False        # round rolled back (too many bad steps), learning rate halved
+    escalation: str | None = None  # a wrapper learner ('auto') moved up a stage: why
+
+
+class Learner(Protocol):
+    """The engine's view of a learner (``core/engine.py``)."""
+
+    model_name: str
+    cfg: LearnerConfig
+    rounds_trained: int
+
+    def add_touch(self, touch: Touch, label: int) -> Any:
+        """Store a comparison touch of class ``label`` (0..C-1); returns its stored sample."""
+
+    def add_reference(self, touch: Touch) -> None:
+        """Store a reference touch (every one counts for the decision)."""
+
+    def heldout_proba(self, x: Any) -> np.ndarray:
+        """(C,) probabilities of the sample ``x`` just added, before it was trained on."""
+
+    def train_round(self) -> TrainStats:
+        """One round of training (or nothing); what it did."""
+
+    def reference_probs(self) -> np.ndarray:
+        """(T, C) class probabilities of the reference (passes, members or draws)."""
+
+    def belief(self, probs: np.ndarray) -> np.ndarray:
+        """(C,) belief over which comparison matches, from ``reference_probs``' table."""
+
+
+def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
+    """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
+    plug-in (TactexError when it is not installed)."""
+    if cfg.model == "descriptor":
+        from .descriptor import DescriptorLearner
+        return DescriptorLearner(num_classes, cfg, seed=seed)
+    return load(LEARNERS, cfg.model)(num_classes, cfg, seed)

@@ -1,0 +1,84 @@
+"""`tactex experiment real` end to end on tiny settings, its pure helpers on constructed cases,
+and the replayed press order that its paired scenes rely on."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from tactex_ros.cli.main import main
+from tactex_lab.experiments.real import at_budget, at_stop, choose, class_folds, parse_setting
+from tactex_ros.core.errors import TactexError
+
+
+def _curve(correct, conf):
+    return {"extra": list(range(len(correct))), "correct": correct, "conf": conf}
+
+
+def test_stop_and_budget_read_the_belief_curve():
+    c = _curve([False, False, True, True], [0.5, 0.91, 0.97, 0.999])
+    assert at_stop(c, 0.9) == (False, 1, True)      # stops wrong at +1
+    assert at_stop(c, 0.95) == (True, 2, True)
+    assert at_stop(c, 1.01) == (True, 3, False)     # never confident: the budget's end
+    assert [at_budget(c, k) for k in range(4)] == [False, False, True, True]
+
+
+def test_choose_takes_the_most_accurate_pair_within_the_touch_target():
+    rows = [{"setting": "a", "theta": 0.9, "accuracy": 0.90, "touches": 2.0},
+            {"setting": "a", "theta": 0.99, "accuracy": 0.97, "touches": 6.0},
+            {"setting": "b", "theta": 0.95, "accuracy": 0.93, "touches": 4.0},
+            {"setting": "b", "theta": 0.98, "accuracy": 0.93, "touches": 3.0}]
+    assert choose(rows, 5.0) == rows[3]
+    assert choose(rows, 6.0) == rows[1]
+    assert choose(rows, 1.0) == rows[0]             # none meets it: fewest touches
+    assert choose(rows, 5.0, ["a"]) == rows[0]
+
+
+def test_class_folds_are_disjoint_and_cover():
+    classes = [f"k{i}" for i in range(26)]
+    f = class_folds(classes, 3, 0)
+    assert sorted(sum(f, [])) == sorted(classes) and [len(x) for x in f] == [9, 9, 8]
+    assert class_folds(classes, 3, 0) == f and class_folds(classes, 3, 1) != f
+
+
+def test_parse_setting_names_what_is_wrong():
+    assert parse_setting("r=default:strategy=random,match_temperature=0.1") == (
+        "r", "default", "random", {"match_temperature": 0.1})
+    with pytest.raises(TactexError, match="unknown preset"):
+        parse_setting("x=nope")
+    with pytest.raises(TactexError, match="colour=1"):
+        parse_setting("x=default:colour=1")
+
+
+def test_replayed_presses_do_not_depend_on_string_hashing(octopi_dir):
+    code = ("import sys; from tactex_ros.sources.replay import ReplaySource\n"
+            f"t = ReplaySource({str(octopi_dir)!r}).trial(['rice', 'sponge', 'rice', 'tissue'], 3)\n"
+            "[t(p) for p in (0, 1, 2, 3, 1, 1)]\n"
+            "print([f for _, f in t.log])")
+    outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           env={"PYTHONHASHSEED": str(h), "PATH": ""}, check=True).stdout
+            for h in (1, 2, 3)}
+    assert len(outs) == 1
+
+
+def test_real_evaluation_end_to_end(octopi_dir, tmp_path):
+    out = tmp_path / "real"
+    assert main(["experiment", "real", "--source", f"replay:{octopi_dir}", "--scenes", "2",
+                 "--budget", "2", "--folds", "2", "--workers", "1", "--out", str(out),
+                 "--setting", "d=default", "--setting", "r=default:strategy=random",
+                 "--thresholds", "0.9", "1.01"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    ho = s["held_out"]
+    assert ho["chosen"]["n"] == 4 and len(ho["chosen_pairs"]) == 2
+    assert set(ho["settings"]) == {"d", "r"}
+    acc = s["per_setting"]["d"]["accuracy_vs_touches"]
+    assert [a["touches"] for a in acc] == [0, 1, 2]
+    assert all(a["ci95"][0] <= a["accuracy"] <= a["ci95"][1] for a in acc)
+    # paired scenes: after the baseline alone the strategy has not acted yet, so both
+    # settings saw the same presses and hold the same belief
+    p0 = s["paired_at_budgets"]["r"]["0"]
+    assert p0["reference"] == p0["setting"] and p0["p"] == 1.0
+    assert set(ho["settings"]["r"]["wilcoxon_touches_vs_chosen"]) >= {"p", "mean_difference"}
+    assert (out / "accuracy_vs_touches.png").stat().st_size > 0
+    assert (out / "pareto.png").stat().st_size > 0

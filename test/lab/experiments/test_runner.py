@@ -1,0 +1,76 @@
+"""The one job runner: a tiny sweep gives the same results in this process, on joblib worker
+processes and on a local Ray instance; bad runner options are refused by name."""
+
+import argparse
+import os
+
+import pytest
+
+from tactex_ros.core.errors import TactexError
+from tactex_lab.experiments.runner import (Backend, TrialJob, add_runner_args, backend_of,
+                                           run_jobs, run_parallel)
+
+# descriptor trials: a few hundred ms each, so the sweep costs little beyond starting workers
+JOBS = [TrialJob(source="sim", seed=s, preset="default", strategy=st, rounds=2, comparisons=3,
+                 trial_id=f"{st}{s}")
+        for s in (0, 1) for st in ("infogain", "random")]
+
+
+def _outcome(res: dict) -> dict:
+    """Everything a trial decided (no timings)."""
+    return {"trial": res["job"]["trial_id"], "classes": res["classes"],
+            "truth": res["truth_index"], "prediction": res["prediction_index"],
+            "touches": res["touches"],
+            "rounds": [(r["platform"], r["touches"], r["probs"]) for r in res["rounds"]],
+            "final": (res["final"]["touches"], res["final"]["probs"])}
+
+
+@pytest.fixture(scope="module")
+def in_process():
+    return [_outcome(r) for r in run_jobs(JOBS, Backend("joblib", 1), quiet=True)]
+
+
+def _pid(_: int) -> int:
+    return os.getpid()
+
+
+def test_joblib_workers_give_the_in_process_results(in_process):
+    res = run_jobs(JOBS, Backend("joblib", 2), quiet=True)
+    assert [_outcome(r) for r in res] == in_process
+    # they ran in worker processes, not here
+    assert os.getpid() not in run_parallel(_pid, range(4), Backend("joblib", 2), quiet=True)
+    assert [r["job"]["trial_id"] for r in res] == ["infogain0", "random0", "infogain1", "random1"]
+
+
+def test_a_local_ray_instance_gives_the_joblib_results(in_process):
+    ray = pytest.importorskip("ray", reason="ray is not installed")
+    try:
+        ray.init(num_cpus=2, object_store_memory=80 * 1024 ** 2, include_dashboard=False,
+                 log_to_driver=False)
+    except Exception as exc:  # noqa: BLE001 - any failure to start Ray here is a skip reason
+        pytest.skip(f"a local Ray instance cannot start here: {exc}")
+    try:
+        res = run_jobs(JOBS, Backend("ray", 2), quiet=True)
+    finally:
+        ray.shutdown()
+    assert [_outcome(r) for r in res] == in_process
+
+
+def test_run_parallel_keeps_item_order_in_process():
+    assert run_parallel(abs, [-3, 1, -2], Backend("joblib", 1), quiet=True) == [3, 1, 2]
+
+
+def test_runner_options_and_bad_backends():
+    p = argparse.ArgumentParser()
+    add_runner_args(p)
+    b = backend_of(p.parse_args(["--backend", "ray", "--address", "auto", "--workers", "3"]))
+    assert b == Backend("ray", 3, "auto")
+    assert backend_of(p.parse_args([])) == Backend("joblib", 0, None)
+    assert Backend("joblib", 0).resolved().workers >= 1
+    assert Backend("ray", 0).resolved().workers == 0          # every CPU of the cluster
+    with pytest.raises(TactexError, match="--backend 'dask'"):
+        Backend("dask")
+    with pytest.raises(TactexError, match="--workers"):
+        Backend("joblib", -1)
+    with pytest.raises(TactexError, match="--address"):
+        Backend("joblib", 2, "auto")
