@@ -4,7 +4,6 @@ ranking of learner settings on both sides), added to the product's ``sim`` group
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from tactex_ros.cli.main import command_group
 from tactex_ros.core.errors import TactexError

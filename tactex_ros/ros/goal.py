@@ -92,6 +92,15 @@ class GoalRequest:
         """How many times the goal was sent again."""
         return len(self.sent) - 1
 
+    def ask_again(self) -> None:
+        """Request the followed goal's result once more (e.g. after this process was stopped
+        long enough for the server to forget it and drop the answer): the server answers a
+        goal that has ended with its stored result. Nothing when no goal is followed or the
+        result is in."""
+        if self.handle is None or (self._result_fut is not None and self._result_fut.done()):
+            return
+        self._result_fut = self.handle.get_result_async()
+
     def cancel(self) -> None:
         """Ask the server to cancel the followed goal and every unanswered one."""
         if self.handle is not None:

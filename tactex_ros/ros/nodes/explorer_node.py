@@ -195,14 +195,22 @@ class ExplorerNode(TactexNode):
         return True
 
     # ------------------------------------------------------------------ the trial
-    def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
+    def _wait(self, ready, deadline: float, watch: bool = False,
+              on_stall=None) -> bool:
         """Poll ``ready()`` (a ``GoalRequest`` is polled by design, ros/goal.py) until it is
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
-        gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+        gone (left the graph for 1 s, or silent for ``press_silence_s``). Time this process
+        was stopped counts for neither (``goal.Silence``); after such a stall ``on_stall()`` is
+        called once the server is visible again (the answer may have been dropped meanwhile)."""
         absent_since = None
+        reask = False
         while not ready():
             stall = self._silence.tick()     # this process was stopped: not the server's fault
             deadline += stall
+            reask = reask or (stall > 0 and on_stall is not None)
+            if reask and self.press.server_is_ready():
+                on_stall()                   # an answer dropped while we were away: ask again
+                reask = False
             now = time.monotonic()
             if absent_since is not None:
                 absent_since += stall
@@ -263,7 +271,7 @@ class ExplorerNode(TactexNode):
                 self._failed(platform, meta, "press goal not answered before the deadline")
             if req.refused:
                 self._failed(platform, meta, "press goal rejected by the motion node")
-            if not self._wait(req.finished, deadline, watch=True):
+            if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
                 req.cancel()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
                                              f"({self.settings.press_timeout_s} s)")

@@ -182,3 +182,20 @@ def test_silence_does_not_count_time_the_caller_was_stopped():
         now[0] += 0.01
         s.tick()
     assert s.silent_s() == pytest.approx(10.3)
+
+
+def test_result_dropped_during_a_stall_is_asked_for_again() -> None:
+    """The result request's answer is lost (the server forgot the stalled client): asking
+    again gets the ended goal's stored result; the press is used, not made again."""
+    s = Server(duration=3.0)
+    req = GoalRequest(Client(s), "c1", answer_s=2.0, clock=lambda: s.now)
+    while not req.answered():
+        s.tick(0.1)
+    s.waiting.clear()                      # the pending result request dropped
+    for _ in range(100):
+        s.tick(0.1)
+    assert not req.finished()
+    req.ask_again()
+    s.tick(0.0)
+    assert req.finished() and req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid) and len(s.goals) == 1
