@@ -60,9 +60,9 @@ def _nodes(args: argparse.Namespace):
 
 def cmd_describe(args: argparse.Namespace) -> int:
     nodes = _nodes(args)
-    print(json.dumps([{"executable": n.executable, "name": n.name,
-                       "parameters": n.parameters, "remappings": n.remappings}
-                      for n in nodes], indent=2))
+    from ..core.outputs import dumps
+    print(dumps([{"executable": n.executable, "name": n.name,
+                  "parameters": n.parameters, "remappings": n.remappings} for n in nodes]))
     return 0
 
 
@@ -178,7 +178,8 @@ def cmd_summary(args: argparse.Namespace) -> int:
             raise TactexError(f"{args.record!r} is not a trial record (none of "
                               f"{', '.join(RECORD_FILES)}) nor an MCAP file")
         s = summarise(read_record(args.record, images=False))
-    print(json.dumps(s, indent=2))
+    from ..core.outputs import dumps
+    print(dumps(s))
     return 0
 
 
