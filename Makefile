@@ -36,3 +36,9 @@ test-lab: $(BUILD_STAMP)
 
 clean:
 	rm -rf $(VENV) .colcon
+
+# docs/reference.md from the code (node parameters, launch arguments, options, settings files);
+# test/unit/cli/test_reference.py fails when it is stale
+.PHONY: reference
+reference: $(BUILD_STAMP)
+	$(PY) -m tactex_ros.cli.reference

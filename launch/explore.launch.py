@@ -1,4 +1,4 @@
-"""ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_jazzy|panda_multipanda|
+"""ros2 launch tactex explore.launch.py [sim:=true] [rviz:=true] [robot:=fr3_crisp|panda_crisp|
 sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:=S] [model:=M]
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
@@ -41,11 +41,13 @@ def arguments() -> list[tuple[str, str, str]]:
     args = [("sim", "false", "mock arm + mock image instead of the hardware"),
             ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
                               "base frame)"),
-            ("robot", "", "robot profile: fr3_jazzy | panda_multipanda | sim | FILE "
-                          "('' = fr3_jazzy, sim: sim)"),
+            ("robot", "", "robot profile: fr3_crisp | panda_crisp | sim | FILE "
+                          "('' = fr3_crisp, sim: sim)"),
             ("motion_params", "", "YAML of motion_node parameters (topics, stiffness, "
                                   "force_sign, recovery_name, ...) over the profile's"),
-            ("scene", "", "scene YAML (default config/scene.yaml, sim: config/scene_sim.yaml)"),
+            ("scene", "", "scene YAML (default: the robot profile's, config/scene.yaml for the "
+                          "FR3, config/scene_panda.yaml for the Panda; sim: "
+                          "config/scene_sim.yaml)"),
             ("bag", "false", "also record the trial's topics with `ros2 bag record` (MCAP) "
                              "into record_dir/bag_<time> (needs rosbag2)")]
     for name, (node, path) in OPTIONS.items():
@@ -60,9 +62,10 @@ def arguments() -> list[tuple[str, str, str]]:
 def plan(values: dict[str, str]) -> dict[str, Any]:
     """The graph the launch arguments ``values`` ({name: text}) ask for: ``nodes``
     (``graph.NodeSpec``), ``sim``, ``rviz``, ``bag``, the rviz ``frame``, the robot's
-    ``pose_topic`` and ``wrench_topic``, the ``record_dir``. Everything is checked here;
+    ``pose_topic``, ``wrench_topic`` and ``state_topic`` (the topics of its state), the
+    ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
-    from tactex_ros.core.errors import TactexError
+    from tactex_ros.core.errors import InputError
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile
 
@@ -89,8 +92,11 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                 "frame": fixed_frame(nodes),
                 "pose_topic": motion.parameters.get("pose_topic") or profile.pose_topic,
                 "wrench_topic": motion.parameters.get("wrench_topic") or profile.wrench_topic,
+                # a franka state message (the Panda's): the robot state the bag records
+                "state_topic": (motion.parameters.get("state_topic") or profile.state_topic
+                                if profile.franka_state else ""),
                 "record_dir": explorer.parameters.get("record_dir") or "runs/trials"}
-    except TactexError as exc:
+    except InputError as exc:
         raise LaunchArgumentError(f"launch argument {exc}") from None
 
 
@@ -133,7 +139,7 @@ def _nodes(context, *args, **kwargs):
         from tactex_ros.ros.settings import MARKER_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC
         out = Path(p["record_dir"]) / time.strftime("bag_%Y%m%d_%H%M%S")
         topics = [t for t in (STATE_TOPIC, MARKER_TOPIC, TOUCH_IMAGE_TOPIC, p["pose_topic"],
-                              p["wrench_topic"]) if t]
+                              p["wrench_topic"], p["state_topic"]) if t]
         actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o",
                                            str(out)] + topics, output="screen",
                                       sigterm_timeout="10"))

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .core.errors import TactexError
+from .core.errors import InputError
 
 
 def config_dir() -> Path:
@@ -37,9 +37,9 @@ def config_names(folder: str) -> list[str]:
 
 def config_file(name_or_path: str, folder: str, what: str) -> Path:
     """An existing file as given, else ``config/<folder>/<name>`` or ``<name>.yaml`` (for a name
-    without ``/``); TactexError naming ``what``, where it looked and the names available."""
+    without ``/``); InputError naming ``what``, where it looked and the names available."""
     if not name_or_path:
-        raise TactexError(f"{what}: empty; give a name from config/{folder}/ or a path")
+        raise InputError(f"{what}: empty; give a name from config/{folder}/ or a path")
     p = Path(name_or_path)
     if p.is_file():
         return p
@@ -48,15 +48,15 @@ def config_file(name_or_path: str, folder: str, what: str) -> Path:
                      config_dir() / folder / f"{name_or_path}.yaml"):
             if cand.is_file():
                 return cand
-    raise TactexError(f"{what} {name_or_path!r} not found (a path, or a name in "
-                      f"{config_dir() / folder}: {', '.join(config_names(folder))})")
+    raise InputError(f"{what} {name_or_path!r} not found (a path, or a name in "
+                     f"{config_dir() / folder}: {', '.join(config_names(folder))})")
 
 
 def read_yaml(path: str | Path, what: str) -> Any:
-    """The YAML document of a file; TactexError naming ``what`` and the file if it cannot be
+    """The YAML document of a file; InputError naming ``what`` and the file if it cannot be
     read or parsed."""
     import yaml
     try:
         return yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as exc:
-        raise TactexError(f"{what} {str(path)!r}: not readable YAML ({exc})") from None
+        raise InputError(f"{what} {str(path)!r}: not readable YAML ({exc})") from None

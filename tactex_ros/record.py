@@ -31,7 +31,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .core.errors import TactexError
+from .core.errors import InputError, TrialError
 from .core.outputs import check_dir, dumps
 
 
@@ -69,7 +69,7 @@ RECORD_FILES = ("touches.jsonl", "config.json", "result.json", "decisions.jsonl"
 def check_trial_id(trial_id: str) -> None:
     """A trial id is a plain folder name: non-empty, no '/', not '.' or '..'."""
     if not trial_id or "/" in trial_id or "\\" in trial_id or trial_id in (".", ".."):
-        raise TactexError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+        raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
 
 
 def check_new_record(root: str | Path, trial_id: str) -> Path:
@@ -79,7 +79,7 @@ def check_new_record(root: str | Path, trial_id: str) -> Path:
     check_trial_id(trial_id)
     d = Path(root) / trial_id
     if any((d / f).exists() for f in RECORD_FILES):
-        raise TactexError(f"trial record {str(d)!r} already exists: choose another trial_id "
+        raise InputError(f"trial record {str(d)!r} already exists: choose another trial_id "
                           "(records are never overwritten) or continue it with resume")
     check_dir(d, "record_dir")
     return d
@@ -92,15 +92,15 @@ def check_resumable(folder: str | Path) -> dict | None:
     that cannot be written. Returns the failed result to set aside, or None."""
     d = Path(folder)
     if not (d / "config.json").is_file():
-        raise TactexError(f"resume: {str(d)!r} is not a trial record (no config.json)")
+        raise InputError(f"resume: {str(d)!r} is not a trial record (no config.json)")
     res = read_result(d)
     if res is not None and "error" not in res:
-        raise TactexError(f"resume: trial record {str(d)!r} already has its result; nothing "
+        raise InputError(f"resume: trial record {str(d)!r} already has its result; nothing "
                           "to resume")
     lines = _read_jsonl(d / "touches.jsonl")
     decisions = _read_jsonl(d / "decisions.jsonl")
     if len(decisions) > len(lines):
-        raise TactexError(f"resume: {str(d / 'decisions.jsonl')!r} holds {len(decisions)} "
+        raise InputError(f"resume: {str(d / 'decisions.jsonl')!r} holds {len(decisions)} "
                           f"decisions but {str(d / 'touches.jsonl')!r} only {len(lines)} "
                           "touches: the files do not belong together")
     named = {t.get("image") for t in lines}
@@ -108,18 +108,18 @@ def check_resumable(folder: str | Path) -> dict | None:
     orphans = sorted(f.name for f in d.glob("touch_*.png") if f.name not in named
                      and _seq_of(f) != last + 1)
     if orphans:
-        raise TactexError(f"resume: touch images in {str(d)!r} that no line of touches.jsonl "
+        raise InputError(f"resume: touch images in {str(d)!r} that no line of touches.jsonl "
                           f"names: {', '.join(orphans[:5])}"
                           f"{' ...' if len(orphans) > 5 else ''}")
     missing = [t["image"] for t in lines if t.get("image") and not t.get("interrupted")
                and not (d / t["image"]).is_file()]
     if missing:
-        raise TactexError(f"resume: touch images named in touches.jsonl are missing from "
+        raise InputError(f"resume: touch images named in touches.jsonl are missing from "
                           f"{str(d)!r}: {', '.join(missing[:5])}"
                           f"{' ...' if len(missing) > 5 else ''}")
     check_dir(d, "resume")
     if not os.access(d, os.W_OK):
-        raise TactexError(f"resume: {str(d)!r} is not writable")
+        raise InputError(f"resume: {str(d)!r} is not writable")
     return res
 
 
@@ -168,7 +168,7 @@ class TrialRecord:
 
     def _open(self) -> None:
         if self.closed:
-            raise TactexError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
+            raise TrialError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
 
     def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
         if scene_file:
@@ -178,7 +178,7 @@ class TrialRecord:
     def _png(self, path: Path, image: np.ndarray) -> None:
         ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
         if not ok:
-            raise TactexError(f"could not encode {path.name} as PNG")
+            raise InputError(f"could not encode {path.name} as PNG")
         _fsync_write(path, buf.tobytes(), False)
 
     def add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
@@ -261,7 +261,7 @@ def read_result(folder: str | Path) -> dict | None:
     try:
         return json.loads(p.read_text())
     except json.JSONDecodeError as exc:
-        raise TactexError(f"{str(p)!r} is not valid JSON ({exc})") from None
+        raise InputError(f"{str(p)!r} is not valid JSON ({exc})") from None
 
 
 def _read_png(path: Path) -> np.ndarray | None:
@@ -274,7 +274,7 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
     decisions, events, result (or None). ``images=False`` skips the PNGs."""
     d = Path(folder)
     if not d.is_dir():
-        raise TactexError(f"trial record {str(d)!r} not found")
+        raise InputError(f"trial record {str(d)!r} not found")
     touches = _read_jsonl(d / "touches.jsonl")
     rejected = {r["seq"]: r["reason"] for r in _read_jsonl(d / "rejections.jsonl")}
     for t in touches:

@@ -12,7 +12,7 @@ and the trial goes on to the same number of rounds or stop rule.
 A press that was cut off by the fault itself (the record marks it ``interrupted``) is not
 replayed: the resumed trial makes that touch again, as the uninterrupted one did. If the
 engine asks for another platform than the record holds next, the record was made with other
-settings or code, and ``Replay`` raises a ``TactexError`` naming the touch.
+settings or code, and ``Replay`` raises a ``InputError`` naming the touch.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .core.engine import TouchFailed
-from .core.errors import TactexError
+from .core.errors import InputError
 from .core.touch import Touch
 from .record import read_record
 
@@ -50,16 +50,16 @@ def recorded_touches(record: dict) -> list[RecordedTouch]:
             continue
         seq = int(t.get("seq", 0))
         if "platform_index" not in t:
-            raise TactexError(f"resume: touch {seq} of the record has no platform_index")
+            raise InputError(f"resume: touch {seq} of the record has no platform_index")
         touch = None
         if t.get("image"):
             arr = t.get("array")
             if arr is None:
-                raise TactexError(f"resume: image {t['image']!r} of touch {seq} is missing or "
-                                  "unreadable")
+                raise InputError(f"resume: image {t['image']!r} of touch {seq} is missing or "
+                                 "unreadable")
             touch = Touch(frame=arr, no_contact=t.get("no_contact_array"))
         elif t.get("accepted", False):
-            raise TactexError(f"resume: touch {seq} is marked accepted but has no image")
+            raise InputError(f"resume: touch {seq} is marked accepted but has no image")
         out.append(RecordedTouch(seq=seq, platform_index=int(t["platform_index"]),
                                  platform_id=str(t.get("platform_id", "")), touch=touch,
                                  reason=str(t.get("reason") or "touch failed"),
@@ -96,9 +96,9 @@ class Replay:
         if r.platform_index != platform:
             want = self.platform_ids[platform] if 0 <= platform < len(self.platform_ids) \
                 else str(platform)
-            raise TactexError(f"resume: the record diverges at touch {r.seq}: it holds a touch "
-                              f"of {r.platform_id or r.platform_index}, the trial asks for "
-                              f"{want} (other settings or code than the interrupted run)")
+            raise InputError(f"resume: the record diverges at touch {r.seq}: it holds a touch "
+                             f"of {r.platform_id or r.platform_index}, the trial asks for "
+                             f"{want} (other settings or code than the interrupted run)")
         if r.touch is None:
             raise TouchFailed(r.reason, retry=False)
         return r.touch
@@ -129,12 +129,12 @@ def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
     try:
         was = json.loads(p.read_text())
     except (OSError, json.JSONDecodeError) as exc:
-        raise TactexError(f"resume: cannot read {str(p)!r} ({exc})") from None
+        raise InputError(f"resume: cannot read {str(p)!r} ({exc})") from None
     for section, free in _FREE.items():
         a = json.loads(json.dumps(was.get(section, {}), default=str))
         b = json.loads(json.dumps(now.get(section, {}), default=str))
         for k in sorted(set(a) | set(b)):
             if k not in free and a.get(k) != b.get(k):
-                raise TactexError(f"resume: {section}.{k} is {b.get(k)!r} now but "
-                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "
-                                  "trial runs with the settings it started with")
+                raise InputError(f"resume: {section}.{k} is {b.get(k)!r} now but "
+                                 f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "
+                                 "trial runs with the settings it started with")

@@ -26,7 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 
 # How octopi-dev's classes press (by looking at the objects, not at their frames).
 REAL_FAMILIES: dict[str, tuple[str, ...]] = {
@@ -209,7 +209,7 @@ def real_presses(real_dir: str, per_class: int) -> list[Press]:
         for path in rep.presses(cls)[:per_class]:
             try:
                 arr = read_video(path)[..., ::-1]            # BGR -> RGB
-            except TactexError:
+            except InputError:
                 continue                                     # an image, not a press video
             if len(arr) < 3:
                 continue
@@ -218,7 +218,7 @@ def real_presses(real_dir: str, per_class: int) -> list[Press]:
             out.append(Press(fam, fam, cls, np.ascontiguousarray(arr[0]),
                              np.ascontiguousarray(arr[1]), np.ascontiguousarray(arr[idx])))
     if not out:
-        raise TactexError(f"--real {real_dir}: no press videos found")
+        raise InputError(f"--real {real_dir}: no press videos found")
     return out
 
 

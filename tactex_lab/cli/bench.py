@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.core.errors import TactexError
-from tactex_ros.cli.main import bounded, write_json
+from tactex_ros.core.errors import InputError
+from tactex_ros.cli.main import bounded, builds, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
@@ -13,8 +13,8 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
     from tactex_lab.experiments.bench import latency
     unknown = [c for c in args.configs if c not in PRESETS]
     if unknown:
-        raise TactexError(f"--configs: unknown configuration(s) {unknown}; choose from "
-                          f"{', '.join(PRESETS)}")
+        raise InputError(f"--configs: unknown configuration(s) {unknown}; choose from "
+                         f"{', '.join(PRESETS)}")
     out = latency.run(touch_counts=args.touches, repeats=args.repeats,
                       seed_epochs=args.seed_epochs, configs=tuple(args.configs))
     write_json(args.json, out)
@@ -22,14 +22,16 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_sim(args: argparse.Namespace) -> int:
-    from tactex_lab.experiments.bench import sim
-    out = sim.run(args.frames, args.repeats)
+    from tactex_lab.experiments.bench import sim_speed
+    out = sim_speed.run(args.frames, args.repeats)
     write_json(args.json, out)
     return 0
 
 
-def add_commands(sub) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     b = sub.add_parser("bench", help="benchmarks (print figures)")
+    if not builds(command, "bench"):
+        return
     bsub = b.add_subparsers(dest="bcmd", required=True)
     bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
     bl.add_argument("--touches", type=bounded(int, 1, 1000), nargs="+", default=[5, 15, 25],

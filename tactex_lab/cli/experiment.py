@@ -9,11 +9,15 @@ from __future__ import annotations
 import argparse
 import importlib
 
+from tactex_ros.cli.main import builds
+
 MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real"]
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     e = sub.add_parser("experiment", help="experiments: results folder with JSON and figures")
+    if not builds(command, "experiment"):
+        return                        # the experiments import torch: only when asked for
     esub = e.add_subparsers(dest="ecmd", required=True)
     for name in MODULES:
         importlib.import_module(f"tactex_lab.experiments.{name}").register(esub)

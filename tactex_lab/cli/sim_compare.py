@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.cli.main import command_group
-from tactex_ros.core.errors import TactexError
+from tactex_ros.cli.main import builds, command_group
+from tactex_ros.core.errors import InputError
 
 
 def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int = 2,
@@ -64,14 +64,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from tactex_lab.analysis.sim_vs_real import DEFAULT_SETTINGS
     ranking = None
     if args.presses < 1 or args.real_presses < 1:
-        raise TactexError("--presses and --real-presses must be >= 1")
+        raise InputError("--presses and --real-presses must be >= 1")
     if args.scenes > 0:
         if not 2 <= args.comparisons <= 24:
-            raise TactexError(f"--comparisons must be in 2..24, got {args.comparisons}")
+            raise InputError(f"--comparisons must be in 2..24, got {args.comparisons}")
         if not 0 <= args.budget <= 100:
-            raise TactexError(f"--budget must be in 0..100, got {args.budget}")
+            raise InputError(f"--budget must be in 0..100, got {args.budget}")
         if args.workers < 1:
-            raise TactexError(f"--workers must be >= 1, got {args.workers}")
+            raise InputError(f"--workers must be >= 1, got {args.workers}")
         from tactex_lab.experiments.real import parse_setting
         for text in args.setting or []:
             parse_setting(text)          # a bad setting is refused before any work
@@ -79,7 +79,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                        comparisons=args.comparisons, budget=args.budget, workers=args.workers,
                        sim_spec=args.sim_source, real_one_session=args.real_one_session)
     elif args.scenes < 0:
-        raise TactexError(f"--scenes must be >= 0, got {args.scenes}")
+        raise InputError(f"--scenes must be >= 0, got {args.scenes}")
     fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
     if fabrics:
         from tactex_ros.sim.fabrics import load_catalogue
@@ -87,7 +87,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         known = load_catalogue(config_dir() / "fabrics.yaml")
         unknown = [f for f in fabrics if f not in known]
         if unknown:
-            raise TactexError(f"--fabrics: unknown {unknown}; `tactex sim fabrics` lists them")
+            raise InputError(f"--fabrics: unknown {unknown}; `tactex sim fabrics` lists them")
     res = compare_with_real(args.real, args.out, args.seed, args.presses, args.real_presses,
                             ranking, fabrics)
     _print_report(res)
@@ -98,9 +98,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
-    c = command_group(sub, "sim", "fabric simulator").add_parser("compare", help="sim-to-real report: frame statistics per family and "
-                                        "the ranking of learner settings on both sides")
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
+    if not builds(command, "sim"):
+        return
+    c = command_group(sub, "sim", "fabric simulator").add_parser(
+        "compare", help="sim-to-real report: frame statistics per family and the ranking of "
+                        "learner settings on both sides")
     c.add_argument("--real", required=True, help="folder of real presses (<class>/<file>)")
     c.add_argument("--out", required=True, help="PNG: side-by-side frames (+ ranking)")
     c.add_argument("--seed", type=int, default=0)

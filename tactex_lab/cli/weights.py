@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.cli.main import write_json
+from tactex_ros.cli.main import builds, write_json
 
 
 def cmd_weights_inspect(args: argparse.Namespace) -> int:
@@ -17,8 +17,10 @@ def cmd_weights_inspect(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     w = sub.add_parser("weights", help="checkpoint tools")
+    if not builds(command, "weights"):
+        return
     wsub = w.add_subparsers(dest="wcmd", required=True)
     wi = wsub.add_parser("inspect", help="what a checkpoint loads into a model")
     wi.add_argument("path")

@@ -27,7 +27,7 @@ import numpy as np
 
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_ros.core.config import CNN_MODELS, LearnerConfig, validate
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.strategies import predictive_entropy
 from tactex_ros.core.touch import Touch
@@ -41,27 +41,25 @@ def parse_ladder(text: str, default_size: int) -> list[tuple[str, int]]:
             continue
         name, _, size = part.partition("@")
         if name not in CNN_MODELS:
-            raise TactexError(f"auto_ladder: unknown model {name!r}; choose from "
-                              f"{', '.join(CNN_MODELS)}")
+            raise InputError(f"auto_ladder: unknown model {name!r}; choose from "
+                             f"{', '.join(CNN_MODELS)}")
         try:
             px = int(size) if size else default_size
         except ValueError:
-            raise TactexError(f"auto_ladder: bad input size {size!r} in {part!r}") from None
+            raise InputError(f"auto_ladder: bad input size {size!r} in {part!r}") from None
         if not 32 <= px <= 512:
-            raise TactexError(f"auto_ladder: input size {px} outside 32..512")
+            raise InputError(f"auto_ladder: input size {px} outside 32..512")
         if name != "small_inception" and px < 75:
-            raise TactexError(f"auto_ladder: {name} needs an input of at least 75 px, got {px}")
+            raise InputError(f"auto_ladder: {name} needs an input of at least 75 px, got {px}")
         out.append((name, px))
     if not out:
-        raise TactexError("auto_ladder is empty")
+        raise InputError("auto_ladder is empty")
     return out
 
 
 class AutoLearner:
     """The learner of the current ladder stage, plus what escalation needs (raw touches, the
     stage's held-back outcomes and reference entropies)."""
-
-    model_name = "auto"
 
     def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
         self.base_cfg = validate(cfg)
@@ -83,6 +81,10 @@ class AutoLearner:
                              seed=self.seed, model_name=name)
 
     # the stage learner's identity, for the round records
+    @property
+    def model_name(self) -> str:
+        return self.inner.model_name
+
     @property
     def cfg(self) -> LearnerConfig:
         return self.inner.cfg

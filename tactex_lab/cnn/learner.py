@@ -34,7 +34,7 @@ from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
 from tactex_ros.core.config import LearnerConfig, validate
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.touch import Touch, as_touch, validate_frame
 
@@ -64,7 +64,7 @@ class OnlineLearner:
         self.seed = int(seed)
         name = model_name or cfg.model
         if name == "auto":
-            raise TactexError("model 'auto' is resolved by the trial engine, not the learner")
+            raise InputError("model 'auto' is resolved by the trial engine, not the learner")
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
         with torch.random.fork_rng(devices=[]):
@@ -75,12 +75,12 @@ class OnlineLearner:
                 heads=cfg.ensemble_heads if cfg.uncertainty == "ensemble" else 1)
         self.model_name = name
         if cfg.sensor_crops and cfg.input_size > int(safe_crop_side()):
-            raise TactexError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
-                              f"frame under rotation (at most {int(safe_crop_side())} px)")
+            raise InputError(f"sensor_crops: input_size {cfg.input_size} px does not fit the "
+                             f"frame under rotation (at most {int(safe_crop_side())} px)")
         if cfg.uncertainty == "laplace":
             n_in = self.model.fc.in_features + 1
             if num_classes * n_in > LAPLACE_MAX_WEIGHTS:
-                raise TactexError(
+                raise InputError(
                     f"uncertainty 'laplace' keeps a full posterior over the last layer's "
                     f"{num_classes * n_in} weights ({num_classes} platforms x {n_in} inputs of "
                     f"model {name}); at most {LAPLACE_MAX_WEIGHTS} are supported: with this "
@@ -117,7 +117,7 @@ class OnlineLearner:
         has not seen them, so they can serve as a held-back check (``heldout_proba``).
         """
         if not 0 <= label < self.num_classes:
-            raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
+            raise InputError(f"label {label} outside 0..{self.num_classes - 1}")
         img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
         views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng,
                         native=self.cfg.sensor_crops)
@@ -143,7 +143,7 @@ class OnlineLearner:
         """(T, C) softmax table of the reference, averaged over all its touches' views: T MC
         dropout passes, K ensemble members or T Laplace posterior draws (``uncertainty``)."""
         if not self._ref_parts:
-            raise TactexError("no reference touch stored")
+            raise InputError("no reference touch stored")
         return self.uncertainty_probs(torch.cat(self._ref_parts))
 
     def uncertainty_probs(self, x: torch.Tensor) -> np.ndarray:
@@ -153,8 +153,8 @@ class OnlineLearner:
             return ensemble_probs(self.model, x).double().numpy()
         if kind == "laplace":
             if self.laplace is None:
-                raise TactexError("uncertainty 'laplace': no posterior before the first "
-                                  "training round")
+                raise InputError("uncertainty 'laplace': no posterior before the first "
+                                 "training round")
             with torch.no_grad():
                 self.model.eval()
                 feats = self.model.features(x)
@@ -180,7 +180,7 @@ class OnlineLearner:
     def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
         if self._x is None:
             if not self._x_parts:
-                raise TactexError("no touches stored: nothing to train on")
+                raise InputError("no touches stored: nothing to train on")
             self._x = torch.cat(self._x_parts).contiguous(memory_format=self._fmt)
             self._y = torch.from_numpy(np.concatenate(self._y_parts))
         return self._x, self._y  # type: ignore[return-value]

@@ -34,7 +34,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.config import CNN_MODELS as MODEL_NAMES
 
 
@@ -185,13 +185,13 @@ class TactileInception(nn.Module):
                  transform_input: bool = False, heads: int = 1) -> None:
         super().__init__()
         if num_classes < 2:
-            raise TactexError(f"num_classes must be >= 2, got {num_classes}")
+            raise InputError(f"num_classes must be >= 2, got {num_classes}")
         if heads < 1:
-            raise TactexError(f"heads must be >= 1, got {heads}")
+            raise InputError(f"heads must be >= 1, got {heads}")
         self.heads = int(heads)
         for name, rate in (("dropout", dropout), ("block_dropout", block_dropout)):
             if not 0.0 <= rate < 1.0:
-                raise TactexError(f"{name} must be in [0, 1), got {rate}")
+                raise InputError(f"{name} must be in [0, 1), got {rate}")
         self.small = small
         self.transform_input = transform_input
         self.block_dropout = block_dropout
@@ -386,26 +386,26 @@ def read_checkpoint(path: str | Path) -> "OrderedDict[str, torch.Tensor]":
     """Read a state_dict from ``path`` safely (``weights_only=True``).
 
     Accepts a bare state_dict or a dict holding one under ``state_dict`` / ``model``; strips a
-    ``module.`` prefix (DataParallel). Raises TactexError naming the file on any problem.
+    ``module.`` prefix (DataParallel). Raises InputError naming the file on any problem.
     """
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"weights file not found: {p}")
+        raise InputError(f"weights file not found: {p}")
     try:
         obj = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any unpickling failure is a bad file
-        raise TactexError(f"weights file {p} is not a readable torch checkpoint: {exc}") from exc
+        raise InputError(f"weights file {p} is not a readable torch checkpoint: {exc}") from exc
     if isinstance(obj, dict) and not all(isinstance(v, torch.Tensor) for v in obj.values()):
         for key in ("state_dict", "model", "model_state_dict"):
             if isinstance(obj.get(key), dict):
                 obj = obj[key]
                 break
     if not isinstance(obj, dict) or not obj:
-        raise TactexError(f"weights file {p} holds no state_dict")
+        raise InputError(f"weights file {p} holds no state_dict")
     out: OrderedDict[str, torch.Tensor] = OrderedDict()
     for k, v in obj.items():
         if not isinstance(v, torch.Tensor):
-            raise TactexError(f"weights file {p}: entry {k!r} is not a tensor")
+            raise InputError(f"weights file {p}: entry {k!r} is not a tensor")
         out[k[7:] if k.startswith("module.") else k] = v
     return out
 
@@ -447,13 +447,13 @@ def build_model(name: str, num_classes: int, dropout: float = 0.5, block_dropout
     """Build a model variant by name; optionally load a torchvision-format checkpoint.
 
     ``inception_v3`` with ``weights`` uses torchvision's ``transform_input`` convention.
-    With ``strict_weights`` a checkpoint with missing or mismatched tensors raises TactexError
+    With ``strict_weights`` a checkpoint with missing or mismatched tensors raises InputError
     listing them.
     """
     if name not in MODEL_NAMES:
-        raise TactexError(f"unknown model {name!r}; choose one of {', '.join(MODEL_NAMES)}")
+        raise InputError(f"unknown model {name!r}; choose one of {', '.join(MODEL_NAMES)}")
     if weights is not None and name == "inception_v3_random":
-        raise TactexError("model inception_v3_random takes no weights file; use inception_v3")
+        raise InputError("model inception_v3_random takes no weights file; use inception_v3")
     model = TactileInception(num_classes, small=(name == "small_inception"), dropout=dropout,
                              block_dropout=block_dropout,
                              aux_logits=aux_logits and name != "small_inception",
@@ -462,6 +462,6 @@ def build_model(name: str, num_classes: int, dropout: float = 0.5, block_dropout
     if weights is not None:
         report = load_weights(model, read_checkpoint(weights))
         if strict_weights and not report.ok:
-            raise TactexError(f"weights file {weights} does not fit {name}:\n{report.summary()}")
+            raise InputError(f"weights file {weights} does not fit {name}:\n{report.summary()}")
     return model, report
 

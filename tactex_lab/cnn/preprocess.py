@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import torch
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import FRAME_H, FRAME_W
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
@@ -38,8 +38,8 @@ def view(img: np.ndarray, angle_deg: float, size: int, native: bool = False,
     (x, y) [px] (default: the frame centre)."""
     h, w = img.shape[:2]
     if native and size > safe_crop_side(h, w):
-        raise TactexError(f"a {size} px crop at sensor resolution does not fit a {w}x{h} frame "
-                          f"under rotation (at most {int(safe_crop_side(h, w))} px)")
+        raise InputError(f"a {size} px crop at sensor resolution does not fit a {w}x{h} frame "
+                         f"under rotation (at most {int(safe_crop_side(h, w))} px)")
     scale = 1.0 if native else size / safe_crop_side(h, w)
     # Map the output square's centre to the frame centre (pixel-centre convention), rotated.
     cx, cy, co = (w - 1) / 2.0, (h - 1) / 2.0, (size - 1) / 2.0

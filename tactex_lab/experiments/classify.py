@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import add_runner_args, backend_of, cached_source, run_parallel
@@ -63,7 +63,7 @@ def sim_split(source: Any, classes: list[str], counts: tuple[int, int, int], see
 def replay_counts(n: int, fractions: tuple[float, float, float]) -> tuple[int, int, int]:
     """Presses per split for a class with ``n`` presses (>= 1 each; needs n >= 3)."""
     if n < 3:
-        raise TactexError(f"a class needs >= 3 presses for a train/val/test split, has {n}")
+        raise InputError(f"a class needs >= 3 presses for a train/val/test split, has {n}")
     tot = sum(fractions)
     n_tr = max(1, int(round(fractions[0] / tot * n)))
     n_va = max(1, int(round(fractions[1] / tot * n)))
@@ -84,8 +84,8 @@ def replay_split(source: Any, classes: list[str], fractions: tuple[float, float,
         presses = source.presses(c)
         try:
             n_tr, n_va, _ = replay_counts(len(presses), fractions)
-        except TactexError as exc:
-            raise TactexError(f"class {c!r}: {exc}") from None
+        except InputError as exc:
+            raise InputError(f"class {c!r}: {exc}") from None
         order = np.random.default_rng([seed, 103, ci]).permutation(len(presses))
         parts = {"train": order[:n_tr], "val": order[n_tr:n_tr + n_va],
                  "test": order[n_tr + n_va:]}
@@ -165,37 +165,37 @@ def build_specs(args: argparse.Namespace) -> tuple[list[dict], list[str], dict]:
             if c.isdigit() and c not in all_classes:
                 c = src.by_number(int(c))
             if c not in all_classes:
-                raise TactexError(f"--classes: unknown class {c!r}; available: "
-                                  f"{', '.join(all_classes)}")
+                raise InputError(f"--classes: unknown class {c!r}; available: "
+                                 f"{', '.join(all_classes)}")
             classes.append(c)
     else:
         classes = all_classes
     if len(classes) < 2:
-        raise TactexError("classification needs at least 2 classes")
+        raise InputError("classification needs at least 2 classes")
     models = args.models or (["inception_v3"] if args.weights else []) + \
         ["inception_v3_random", "small_inception"]
     base = parse_set(args.set)
     if args.fourier:
         base["fourier"] = True
     if min(args.train, args.val, args.test) < 1:
-        raise TactexError("--train, --val and --test need at least 1 touch per class")
+        raise InputError("--train, --val and --test need at least 1 touch per class")
     fr = tuple(float(x) for x in args.replay_split.split(","))
     if len(fr) != 3 or min(fr) <= 0:
-        raise TactexError("--replay-split: three positive fractions, e.g. 0.2,0.4,0.4")
+        raise InputError("--replay-split: three positive fractions, e.g. 0.2,0.4,0.4")
     specs, sizes = [], {}
     for m in models:
         if m not in MODEL_NAMES:
-            raise TactexError(f"unknown model {m!r}; choose from {', '.join(MODEL_NAMES)}")
+            raise InputError(f"unknown model {m!r}; choose from {', '.join(MODEL_NAMES)}")
         over = dict(base)
         if m == "inception_v3":
             if not args.weights:
-                raise TactexError("model inception_v3 needs --weights (torchvision checkpoint);"
-                                  " inception_v3_random is the untrained network")
+                raise InputError("model inception_v3 needs --weights (torchvision checkpoint);"
+                                 " inception_v3_random is the untrained network")
             over["weights"] = args.weights
         size = args.input_size if m == "small_inception" else args.inception_input_size
         if m != "small_inception" and size < MIN_INCEPTION_PX:
-            raise TactexError(f"--inception-input-size {size}: the full network needs >= "
-                              f"{MIN_INCEPTION_PX} px")
+            raise InputError(f"--inception-input-size {size}: the full network needs >= "
+                             f"{MIN_INCEPTION_PX} px")
         over["input_size"] = size
         sizes[m] = size
         preset(args.config, **over)  # validate here

@@ -54,14 +54,14 @@ def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
     import yaml
 
     from tactex_ros.core.config import LearnerConfig
-    from tactex_ros.core.errors import TactexError
+    from tactex_ros.core.errors import InputError
     names = set(LearnerConfig.model_fields)
     out: dict[str, Any] = {}
     for it in items or []:
         key, sep, val = it.partition("=")
         if not sep or key not in names:
-            raise TactexError(f"{option} {it!r}: expected key=value with key one of "
-                              f"{', '.join(sorted(names))}")
+            raise InputError(f"{option} {it!r}: expected key=value with key one of "
+                             f"{', '.join(sorted(names))}")
         out[key] = yaml.safe_load(val)
     return out
 

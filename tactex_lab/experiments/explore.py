@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
@@ -72,8 +72,8 @@ def build_jobs(trials: list[dict], source: str, strategies: list[str], models: l
         over = dict(overrides, model=model)
         if model == "inception_v3":
             if not weights:
-                raise TactexError("model inception_v3 needs --weights (a torchvision checkpoint);"
-                                  " use inception_v3_random for random weights")
+                raise InputError("model inception_v3 needs --weights (a torchvision checkpoint);"
+                                 " use inception_v3_random for random weights")
             over["weights"] = str(weights)
         preset(preset_name, **over)  # validate once, here, with a readable error
         for seed in seeds:
@@ -162,7 +162,7 @@ def summarise(runs: list[dict], strategies: list[str], budgets: list[int],
                 for s in strategies}
         keys = {s: [(r["trial"], r["seed"]) for r in by_s[s]] for s in strategies}
         if len({tuple(k) for k in keys.values()}) > 1:
-            raise TactexError("strategies ran on different trials/seeds; cannot pair them")
+            raise InputError("strategies ran on different trials/seeds; cannot pair them")
         fixed, budget, matched, curves, per_trial, conf, shares = {}, {}, {}, {}, {}, {}, {}
         fabrics = sorted({c for r in rr for c in r["classes"][1:]})
         for s, runs_s in by_s.items():
@@ -248,15 +248,15 @@ def run(args: argparse.Namespace) -> dict:
         want = [t.strip() for t in args.trials.split(",") if t.strip()]
         unknown = [w for w in want if w not in {t["id"] for t in trials}]
         if unknown:
-            raise TactexError(f"--trials: unknown trial id(s) {unknown} in {tf['path']}")
+            raise InputError(f"--trials: unknown trial id(s) {unknown} in {tf['path']}")
         trials = [t for t in trials if t["id"] in want]
     from tactex_ros.core.strategies import STRATEGIES
     for s in args.strategies:
         if s not in STRATEGIES:
-            raise TactexError(f"unknown strategy {s!r}; choose from {', '.join(STRATEGIES)}")
+            raise InputError(f"unknown strategy {s!r}; choose from {', '.join(STRATEGIES)}")
     budgets = sorted(set(args.budgets))
     if not budgets or budgets[0] < 1:
-        raise TactexError("--budgets must be positive touch counts")
+        raise InputError("--budgets must be positive touch counts")
     overrides = parse_set(args.set)
     jobs = build_jobs(trials, args.source, args.strategies, args.models, args.seeds,
                       args.rounds, args.config, overrides, args.weights)

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_file, read_yaml
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import decision_at_budget, results_dir, write_json
@@ -49,17 +49,17 @@ def _record(e: dict, pid: str, tid: str, trial: dict, where: str) -> dict:
     C = len(trial["comparisons"])
     ans = e["answer"]
     if not isinstance(ans, int) or isinstance(ans, bool) or not 1 <= ans <= C:
-        raise TactexError(f"{where}: answer {ans!r} must be a platform 1..{C}")
+        raise InputError(f"{where}: answer {ans!r} must be a platform 1..{C}")
     time_c = np.zeros(C)
     ref_s = 0.0
     visits = []
     if not isinstance(e["visits"], list) or not e["visits"]:
-        raise TactexError(f"{where}: visits must be a non-empty list of [platform, seconds]")
+        raise InputError(f"{where}: visits must be a non-empty list of [platform, seconds]")
     for v in e["visits"]:
         if (not isinstance(v, (list, tuple)) or len(v) != 2 or
                 not isinstance(v[0], int) or not 0 <= v[0] <= C or
                 not isinstance(v[1], (int, float)) or v[1] < 0):
-            raise TactexError(f"{where}: visit {v!r} must be [platform 0..{C}, seconds >= 0]")
+            raise InputError(f"{where}: visit {v!r} must be [platform 0..{C}, seconds >= 0]")
         visits.append((int(v[0]), float(v[1])))
         if v[0] == 0:
             ref_s += float(v[1])
@@ -80,7 +80,7 @@ def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, An
     path = Path(path)
     doc = read_yaml(path, "human trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("participants"), list):
-        raise TactexError(f"human trial file {path}: needs a list 'participants'")
+        raise InputError(f"human trial file {path}: needs a list 'participants'")
     tf = load_trials(find_trial_file(trial_file or doc.get("trial_file")))
     trials = {t["id"]: t for t in tf["trials"]}
     records = []
@@ -88,26 +88,26 @@ def load_humans(path: str | Path, trial_file: str | None = None) -> dict[str, An
     for pi, part in enumerate(doc["participants"]):
         if not isinstance(part, dict) or "id" not in part or not isinstance(part.get("trials"),
                                                                             list):
-            raise TactexError(f"{path}: participant {pi + 1} needs 'id' and a list 'trials'")
+            raise InputError(f"{path}: participant {pi + 1} needs 'id' and a list 'trials'")
         pid = str(part["id"])
         if pid in seen_ids:
-            raise TactexError(f"{path}: duplicate participant id {pid!r}")
+            raise InputError(f"{path}: duplicate participant id {pid!r}")
         seen_ids.add(pid)
         done: set[str] = set()
         for e in part["trials"]:
             where = f"{path}: participant {pid}"
             if not isinstance(e, dict) or not {"trial", "visits", "answer"} <= set(e):
-                raise TactexError(f"{where}: each trial needs trial, visits and answer")
+                raise InputError(f"{where}: each trial needs trial, visits and answer")
             tid = str(e["trial"])
             where += f", trial {tid}"
             if tid not in trials:
-                raise TactexError(f"{where}: no such trial in {tf['path']}")
+                raise InputError(f"{where}: no such trial in {tf['path']}")
             if tid in done:
-                raise TactexError(f"{where}: listed twice")
+                raise InputError(f"{where}: listed twice")
             done.add(tid)
             records.append(_record(e, pid, tid, trials[tid], where))
     if not records:
-        raise TactexError(f"{path}: no human trials")
+        raise InputError(f"{path}: no human trials")
     return {"path": str(path), "trial_file": tf, "records": records}
 
 
@@ -117,13 +117,13 @@ def load_robot(spec: str) -> list[dict]:
     if p.is_dir():
         p = p / "runs.json"
     if not p.is_file():
-        raise TactexError(f"--robot {spec}: no runs.json of an explore run there")
+        raise InputError(f"--robot {spec}: no runs.json of an explore run there")
     try:
         runs = json.loads(p.read_text())
     except json.JSONDecodeError as exc:
-        raise TactexError(f"--robot {p}: not JSON ({exc})") from None
+        raise InputError(f"--robot {p}: not JSON ({exc})") from None
     if not isinstance(runs, list) or not runs or "final_touches" not in runs[0]:
-        raise TactexError(f"--robot {p}: not the runs.json of an explore run")
+        raise InputError(f"--robot {p}: not the runs.json of an explore run")
     return runs
 
 
@@ -162,7 +162,7 @@ def _compare_robot(out: dict, js: dict, recs: list[dict], robot: list[dict],
     models = sorted({r["model"] for r in robot})
     model = model or models[0]
     if model not in models:
-        raise TactexError(f"--model {model!r} not in the robot runs ({', '.join(models)})")
+        raise InputError(f"--model {model!r} not in the robot runs ({', '.join(models)})")
     rob = [r for r in robot if r["model"] == model]
     strategies = list(dict.fromkeys(r["strategy"] for r in rob))
     out["robot"] = {"model": model, "strategies": strategies,

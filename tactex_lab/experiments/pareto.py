@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
@@ -355,11 +355,11 @@ def run_touches(args, out: Path) -> dict:
 # ------------------------------------------------------------------------------ command
 def run(args) -> int:
     if args.grid not in GRIDS:
-        raise TactexError(f"unknown grid {args.grid!r}; choose one of {', '.join(GRIDS)}")
+        raise InputError(f"unknown grid {args.grid!r}; choose one of {', '.join(GRIDS)}")
     parts = set(args.parts)
     if "faithful" in parts and not args.faithful_source:
-        raise TactexError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
-                          "presses)")
+        raise InputError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
+                         "presses)")
     args.workers = backend_of(args).resolved().workers
     args.overrides = parse_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}

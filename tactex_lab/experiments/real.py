@@ -47,7 +47,9 @@ from typing import Any
 import numpy as np
 
 from tactex_lab.analysis import charts
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.config import SHIPPED_STOP
+from tactex_ros.core.engine import confident
+from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import budget_index, parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact, spearman_interval, wilcoxon_paired, wilson
@@ -64,11 +66,11 @@ def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     from tactex_ros.core.config import PRESETS
     label, sep, rest = text.partition("=")
     if not sep or not label:
-        raise TactexError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+        raise InputError(f"--setting {text!r}: expected label=preset[:key=value,...]")
     pre, _, kv = rest.partition(":")
     if pre not in PRESETS:
-        raise TactexError(f"--setting {text!r}: unknown preset {pre!r}; one of "
-                          f"{', '.join(PRESETS)}")
+        raise InputError(f"--setting {text!r}: unknown preset {pre!r}; one of "
+                         f"{', '.join(PRESETS)}")
     items = [it for it in kv.split(",") if it]
     strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
     over = parse_set([it for it in items if not it.startswith("strategy=")],
@@ -88,7 +90,7 @@ def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> lis
     """``n`` scenes [reference, comparisons...] from ``classes`` (seeds seed0 ..)."""
     from tactex_ros.sources import assign_platforms
     if len(classes) < comparisons:
-        raise TactexError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
+        raise InputError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
     return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
 
 
@@ -124,7 +126,7 @@ def at_budget(c: dict, k: int) -> bool:
 def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
     """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
     for i, conf in enumerate(c["conf"]):
-        if conf >= theta:
+        if confident(conf, theta):
             return c["correct"][i], c["extra"][i], True
     return c["correct"][-1], c["extra"][-1], False
 
@@ -200,7 +202,7 @@ def calibration(cs: list[dict], bins: int = 10) -> dict:
     idx = np.minimum((conf * bins).astype(int), bins - 1)
     ece = sum(abs(conf[idx == b].mean() - ok[idx == b].mean()) * np.sum(idx == b)
               for b in range(bins) if np.any(idx == b)) / conf.size
-    hi = conf >= 0.9
+    hi = conf >= SHIPPED_STOP
     return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
             "accuracy": float(ok.mean()),
             "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
@@ -271,7 +273,7 @@ def run(args: argparse.Namespace) -> dict:
     settings = [parse_setting(s) for s in args.setting or DEFAULT_SETTINGS]
     labels = [s[0] for s in settings]
     if len(set(labels)) != len(labels):
-        raise TactexError(f"--setting labels must be unique, got {labels}")
+        raise InputError(f"--setting labels must be unique, got {labels}")
     src = open_source(args.source)
     classes = sorted(src.classes)
     thresholds = sorted(args.thresholds or DEFAULT_THRESHOLDS)
@@ -281,7 +283,7 @@ def run(args: argparse.Namespace) -> dict:
     against = list(getattr(args, "paired_against", None) or [labels[0]])
     unknown = [a for a in against if a not in labels]
     if unknown:
-        raise TactexError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
+        raise InputError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
     report_curves: dict[str, list[dict]] = {s[0]: [] for s in settings}
     fold_info = []
     for k, fold in enumerate(folds):
@@ -412,7 +414,7 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
     parsed = [parse_setting(t) for t in settings]
     labels = [q[0] for q in parsed]
     if len(set(labels)) != len(labels):
-        raise TactexError(f"setting labels must be unique, got {labels}")
+        raise InputError(f"setting labels must be unique, got {labels}")
     from tactex_ros.sources import open_source
     classes = sorted(open_source(f"replay:{real_dir}").classes)
     scene_list = draw_scenes(classes, scenes, comparisons, seed)
@@ -431,15 +433,16 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
         for side, cs in both.items():
             row[side] = {"accuracy_at": {str(k): float(np.mean([at_budget(c, k) for c in cs]))
                                          for k in points},
-                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[0]
+                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[0]
                                                                 for c in cs])),
-                         "touches_at_stop_0.9": float(np.mean([at_stop(c, 0.9)[1]
+                         "touches_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[1]
                                                                for c in cs])),
                          "correct_at_budget": [at_budget(c, budget) for c in cs],
                          "failed_trials": sum(1 for c in cs if c["error"])}
         row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
                                                      tuple(points))["one_session"]
-        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded", [0.9])["one_session"]
+        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded",
+                                                         [SHIPPED_STOP])["one_session"]
         res["settings"][lab] = row
     write_json(d / "summary.json", res)
     for lab, row in res["settings"].items():
@@ -469,8 +472,8 @@ def register(esub: argparse._SubParsersAction) -> None:
 
     def sessions(args: argparse.Namespace) -> int:
         if args.scenes < 2 or args.budget < 0 or args.workers < 1 or args.comparisons < 2:
-            raise TactexError("--scenes >= 2, --budget >= 0, --workers >= 1, "
-                              "--comparisons >= 2")
+            raise InputError("--scenes >= 2, --budget >= 0, --workers >= 1, "
+                             "--comparisons >= 2")
         run_sessions(args.real, args.setting, args.scenes, args.comparisons, args.budget,
                      args.seed, args.workers, args.out)
         return 0
@@ -503,7 +506,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     def func(args: argparse.Namespace) -> int:
         for name in ("comparisons", "scenes", "budget", "folds"):
             if getattr(args, name) < (2 if name == "comparisons" else 1):
-                raise TactexError(f"--{name} too small: {getattr(args, name)}")
+                raise InputError(f"--{name} too small: {getattr(args, name)}")
         run(args)
         return 0
 
@@ -528,17 +531,17 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
     (``replay:DIR:one-session``, to rank against the live simulator ``sim``)."""
     from tactex_ros.sources import open_source
     if not (sim_spec == "sim" or sim_spec.startswith("sim:")):
-        raise TactexError(f"--sim-source {sim_spec!r}: use sim[:difficulty][:recorded]")
+        raise InputError(f"--sim-source {sim_spec!r}: use sim[:difficulty][:recorded]")
     open_source(sim_spec)            # a bad spec is refused before any work
     if scenes < 2:
-        raise TactexError(f"--scenes must be >= 2 for a ranking, got {scenes}")
+        raise InputError(f"--scenes must be >= 2 for a ranking, got {scenes}")
     if budget < 0:
-        raise TactexError(f"--budget must be >= 0, got {budget}")
+        raise InputError(f"--budget must be >= 0, got {budget}")
     parsed = [parse_setting(s) for s in settings]
     labels = [p[0] for p in parsed]
     if len(labels) < 2 or len(set(labels)) != len(labels):
-        raise TactexError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
-    theta = 0.9
+        raise InputError(f"the ranking needs >= 2 settings with unique labels, got {labels}")
+    theta = SHIPPED_STOP
     out: dict[str, Any] = {"settings": {}, "scenes": scenes, "comparisons": comparisons,
                            "budget": budget, "stop_theta": theta, "seed": seed,
                            "setting_specs": list(settings), "sim_source": sim_spec,

@@ -16,7 +16,7 @@ A ``TrialJob`` is everything one trial needs as plain data (so it pickles into a
 the source spec (``sim[:q]`` or ``replay:DIR``), the scene (explicit platform classes, or drawn
 from the seed), learner preset + overrides, trial settings, the seed, and an optional
 ``perturb`` dict that experiments use to degrade touches (see ``apply_perturbation``).
-``run_jobs`` returns one result dict per job in job order: the engine's ``TrialResult.to_dict``
+``run_jobs`` returns one result dict per job in job order: the engine's ``TrialOutcome.to_dict``
 plus ``job`` (the job as a dict), ``decision_s`` per decision and ``wall_s``.
 
 Each trial runs with ``threads`` torch threads (default 1), so timings within one run are
@@ -35,8 +35,8 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 
 import numpy as np
 
-from tactex_ros.core.engine import TrialConfig, TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.engine import TrialConfig, TrialEngine, TrialSpec, run_trial
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.sources.base import TouchSource
 from tactex_lab.experiments.common import progress
@@ -58,11 +58,11 @@ class Backend:
 
     def __post_init__(self) -> None:
         if self.name not in BACKENDS:
-            raise TactexError(f"--backend {self.name!r}: choose one of {', '.join(BACKENDS)}")
+            raise InputError(f"--backend {self.name!r}: choose one of {', '.join(BACKENDS)}")
         if self.workers < 0:
-            raise TactexError(f"--workers must be >= 0 (0 = all), got {self.workers}")
+            raise InputError(f"--workers must be >= 0 (0 = all), got {self.workers}")
         if self.address is not None and self.name != "ray":
-            raise TactexError("--address names a Ray cluster: it needs --backend ray")
+            raise InputError("--address names a Ray cluster: it needs --backend ray")
 
     def resolved(self) -> "Backend":
         """This backend with ``workers`` 0 made explicit on this machine (joblib: the number of
@@ -101,8 +101,8 @@ def _ray_ready(address: str | None) -> None:
         import ray
         from ray.util.joblib import register_ray
     except ImportError as exc:
-        raise TactexError(f"--backend ray needs the ray package ({exc}); pip install "
-                          "-r requirements.txt") from None
+        raise InputError(f"--backend ray needs the ray package ({exc}); pip install "
+                         "-r requirements.txt") from None
     if not ray.is_initialized():
         if address:     # an existing cluster: its own settings hold
             ray.init(address=address)
@@ -178,8 +178,8 @@ def scene(job: TrialJob) -> tuple[list[str], int]:
         comps = list(job.platform_classes[1:])
         ref = job.platform_classes[0]
         if ref not in comps:
-            raise TactexError(f"trial {job.trial_id!r}: reference {ref!r} is not among the "
-                              f"comparisons {comps}")
+            raise InputError(f"trial {job.trial_id!r}: reference {ref!r} is not among the "
+                             f"comparisons {comps}")
         return [ref] + comps, comps.index(ref) + 1
     from tactex_ros.sources import trial_scene
     return trial_scene(cached_source(job.source), job.comparisons, job.seed)
@@ -232,17 +232,16 @@ def run_job(job: TrialJob, threads: int = 1,
     cfg = preset(job.preset, **job.overrides)
     tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
                        stop_confidence=job.stop_confidence)
-    eng = TrialEngine(n, cfg, tcfg, seed=job.seed, platform_ids=ids)
     src = cached_source(job.source)
     no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
-    if no_contact is not None:
-        eng.set_no_contact_reference(no_contact)
+    spec = TrialSpec(n, cfg, tcfg, seed=job.seed, platform_ids=tuple(ids), no_contact=no_contact)
+    eng = spec.engine()
     if engine_hook:
         engine_hook(eng)
     t0 = time.perf_counter()
     try:
-        res = eng.run(_touch_fn(job, classes), truth=truth)
-    except (TactexError, FloatingPointError, RuntimeError) as exc:
+        res = run_trial(spec, _touch_fn(job, classes), truth=truth, engine=eng)
+    except (InputError, FloatingPointError, RuntimeError) as exc:
         if not job.catch_errors:
             raise
         recs = eng.records

@@ -29,8 +29,8 @@ import numpy as np
 import torch
 
 from tactex_ros.core.config import preset
-from tactex_ros.core.engine import TrialConfig, TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.engine import TrialConfig, TrialSpec, run_trial
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.saliency import display_image, grad_cam, input_x_gradient
 from tactex_lab.analysis import charts
@@ -48,7 +48,7 @@ class Pool:
         if self.kind == "replay":
             ok = [c for c in self.src.classes if len(self.src.presses(c)) >= 5]
             if len(ok) < n_classes:
-                raise TactexError(f"{spec}: only {len(ok)} classes with >= 5 presses")
+                raise InputError(f"{spec}: only {len(ok)} classes with >= 5 presses")
             self.classes = sorted(rng.choice(ok, n_classes, replace=False).tolist())
             self.frames = {c: [self.src.frame(p) for p in self.src.presses(c)]
                            for c in self.classes}
@@ -136,8 +136,10 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
         i = used[c] % max(1, len(fr) - (1 if c == ref_cls else 0))
         used[c] += 1
         return fr[i]
-    eng = TrialEngine(len(comps), cfg, TrialConfig(strategy="variance", rounds=args.explore_rounds),
-                      seed=args.seed, platform_ids=["reference"] + comps)
+    spec = TrialSpec(len(comps), cfg, TrialConfig(strategy="variance", rounds=args.explore_rounds,
+                                                  stop_confidence=0.0),
+                     seed=args.seed, platform_ids=tuple(["reference"] + comps))
+    eng = spec.engine()
     per_round = []
     maps = []
 
@@ -150,7 +152,7 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
                           "ixg_concentration_top10": concentration(ixg),
                           "reference_probs": rec.probs, "next": rec.platform})
         maps.append((rec.round, imgs, ixg, cam, probs))
-    res = eng.run(touch, truth=comps.index(ref_cls) + 1, on_round=on_round)
+    res = run_trial(spec, touch, truth=comps.index(ref_cls) + 1, on_round=on_round, engine=eng)
     for r_i in (0, len(maps) - 1):
         rnd, imgs, ixg, cam, probs = maps[r_i]
         charts.saliency_rows(out / f"explore_{kind}_round{rnd}.png", comps, imgs, ixg, cam, probs,

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import parse_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, run_jobs
@@ -295,9 +295,9 @@ def figures(out: Path, summary: dict, args) -> None:
 def run(args) -> int:
     for a in args.axes:
         if a not in AXES:
-            raise TactexError(f"unknown axis {a!r}; choose from {', '.join(AXES)}")
+            raise InputError(f"unknown axis {a!r}; choose from {', '.join(AXES)}")
     if len(args.seeds) < 1:
-        raise TactexError("need at least one seed")
+        raise InputError("need at least one seed")
     backend = backend_of(args).resolved()
     args.workers = backend.workers
     args.overrides = parse_set(args.set)

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_file, read_yaml
 from tactex_ros.sources.base import TouchSource
 
@@ -34,23 +34,23 @@ def load_trials(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     doc = read_yaml(path, "trial file")
     if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
-        raise TactexError(f"trial file {path}: needs a non-empty list 'trials'")
+        raise InputError(f"trial file {path}: needs a non-empty list 'trials'")
     seen: set[str] = set()
     trials = []
     for i, t in enumerate(doc["trials"]):
         where = f"trial file {path}, entry {i + 1}"
         if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
-            raise TactexError(f"{where}: needs id, reference and comparisons")
+            raise InputError(f"{where}: needs id, reference and comparisons")
         tid = str(t["id"])
         if tid in seen:
-            raise TactexError(f"{where}: duplicate id {tid!r}")
+            raise InputError(f"{where}: duplicate id {tid!r}")
         seen.add(tid)
         comps = t["comparisons"]
         if not isinstance(comps, list) or len(comps) < 2:
-            raise TactexError(f"{where} (id {tid}): comparisons must list >= 2 classes")
+            raise InputError(f"{where} (id {tid}): comparisons must list >= 2 classes")
         if t["reference"] not in comps:
-            raise TactexError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
-                              f"the comparisons {comps}")
+            raise InputError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
+                             f"the comparisons {comps}")
         trials.append({"id": tid, "reference": t["reference"], "comparisons": list(comps)})
     return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}
 
@@ -58,17 +58,17 @@ def load_trials(path: str | Path) -> dict[str, Any]:
 def class_name(source: TouchSource, item: Any) -> str:
     """A trial-file entry -> the source's class name (int = catalogue fabric number)."""
     if isinstance(item, bool):
-        raise TactexError(f"trial entry {item!r}: expected a fabric number or a class name")
+        raise InputError(f"trial entry {item!r}: expected a fabric number or a class name")
     if isinstance(item, int):
         try:
             return source.by_number(item)
-        except TactexError as exc:
-            raise TactexError(f"trial entry {item}: {exc}") from None
+        except InputError as exc:
+            raise InputError(f"trial entry {item}: {exc}") from None
     name = str(item)
     known = source.known_classes
     if name not in known:
-        raise TactexError(f"trial entry {name!r}: not a class of the source; available: "
-                          f"{', '.join(known)}")
+        raise InputError(f"trial entry {name!r}: not a class of the source; available: "
+                         f"{', '.join(known)}")
     return name
 
 

@@ -2,7 +2,8 @@
 commands (experiments, benchmarks, checkpoint tools, ``sim compare``) are plug-ins of group
 ``tactex.commands`` (``core/plugins.py``).
 
-Exit status: 0 success, 1 a check failed (e.g. weights mismatch), 2 bad input (named).
+Exit status: 0 success, 1 a run-time failure or a failed check (e.g. weights mismatch), 2 bad
+input (named).
 """
 
 from __future__ import annotations
@@ -11,12 +12,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from ..core import plugins
-from ..core.errors import TactexError
+from ..core.errors import InputError, TrialError
+
+if TYPE_CHECKING:                    # start-up imports no numpy (``tactex --help``)
+    import numpy as np
 
 
 # a trial touches every platform at least once first; a bench holds a handful (the lab scene
@@ -94,7 +96,7 @@ def write_json(path: str | None, obj: dict) -> None:
 
 def cmd_trial(args: argparse.Namespace) -> int:
     from ..core.config import TrialSettings
-    from ..core.engine import TrialEngine
+    from ..core.engine import TrialSpec, run_trial
     from ..sources import open_source, trial_scene
     settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
                                    "tactex trial")
@@ -104,20 +106,22 @@ def cmd_trial(args: argparse.Namespace) -> int:
     if chosen is not None:
         dup = sorted({c for c in chosen if chosen.count(c) > 1})
         if dup or "" in chosen:
-            raise TactexError(f"--classes {args.classes!r}: "
+            raise InputError(f"--classes {args.classes!r}: "
                               + (f"{', '.join(dup)} given more than once (each comparison "
                                  "platform holds another class)" if dup else "an empty name"))
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
-        raise TactexError(f"--classes: {len(chosen)} comparison classes; at most "
-                          f"{MAX_COMPARISONS}")
+        raise InputError(f"--classes: {len(chosen)} comparison classes; at most "
+                         f"{MAX_COMPARISONS}")
     if chosen is None and args.comparisons < 2:
-        raise TactexError(f"--comparisons must be >= 2, got {args.comparisons}")
+        raise InputError(f"--comparisons must be >= 2, got {args.comparisons}")
     platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
                                           args.reference)
     n = len(platform_classes) - 1
     ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
-    engine = TrialEngine(n, cfg, tcfg, seed=args.seed, platform_ids=ids)
+    spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
     touch = src.trial(platform_classes, args.seed)
+
+    import numpy as np
 
     def progress(rec) -> None:
         if not args.quiet:
@@ -125,7 +129,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
                   f"decision {rec.decision_s:.2f}s", file=sys.stderr)
 
-    res = engine.run(touch, truth=truth, on_round=progress)
+    res = run_trial(spec, touch, truth=truth, on_round=progress)
     out = res.to_dict()
     out.update(classes={i: c for i, c in zip(ids, platform_classes)},
                prediction_class=platform_classes[res.prediction],
@@ -143,6 +147,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
                         seed: int = 0) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of a library: every press of ``replay:DIR``, or
     ``sim_presses`` simulated presses of every catalogue fabric for ``sim``."""
+    import numpy as np
     from ..core.texture import describe_touch
     from ..core.touch import Touch
     from ..sources import open_source
@@ -154,7 +159,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
             for path in src.presses(cls):
                 try:
                     xs.append(describe_touch(src.touch(path), frames))
-                except TactexError as exc:
+                except InputError as exc:
                     print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
             if xs:
                 out[f"{spec}/{cls}"] = np.stack(xs)
@@ -180,12 +185,37 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from ..core.config import TrialSettings
+def builds(command: str | None, name: str) -> bool:
+    """Whether ``build_parser(command)`` builds the options of command group ``name`` (all of
+    them for None; otherwise only the group asked for, the rest are listed by name and help so
+    that start-up imports nothing they need)."""
+    return command is None or command == name
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``tactex`` parser; with ``command``, the options of that command only (``builds``).
+    Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``."""
     p = argparse.ArgumentParser(prog="tactex", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
+    _trial_parser(sub, command)
+    _prepare_parser(sub, command)
 
+    from . import graph_commands, sim_commands
+    sim_commands.add_commands(sub, command)
+    graph_commands.add_commands(sub, command)
+    for name, ep in plugins.available(plugins.COMMANDS).items():
+        try:
+            ep.load()(sub, command)
+        except ImportError as exc:        # a plug-in whose package is not installed
+            print(f"tactex: commands {name!r} unavailable: {exc}", file=sys.stderr)
+    return p
+
+
+def _trial_parser(sub: argparse._SubParsersAction, command: str | None) -> None:
     t = sub.add_parser("trial", help="run one active-exploration trial")
+    if not builds(command, "trial"):
+        return
+    from ..core.config import TrialSettings
     t.add_argument("--source", required=True, help="replay:DIR or sim[:difficulty]")
     t.add_argument("--comparisons", type=bounded(int, 2, MAX_COMPARISONS), default=4,
                    help=f"comparison platforms, 2..{MAX_COMPARISONS}")
@@ -197,8 +227,12 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=cmd_trial)
 
+
+def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> None:
     pr = sub.add_parser("prepare", help="build a representation (descriptor metric) from a "
                                         "library of presses of other materials")
+    if not builds(command, "prepare"):
+        return
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
     pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
@@ -211,17 +245,6 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     pr.add_argument("--out", required=True, help="representation file to write (.npz)")
     pr.set_defaults(func=cmd_prepare)
-
-    from . import graph, sim
-    sim.add_commands(sub)
-    graph.add_commands(sub)
-    for name, ep in plugins.available(plugins.COMMANDS).items():
-        try:
-            ep.load()(sub)
-        except ImportError as exc:        # a plug-in whose package is not installed
-            print(f"tactex: commands {name!r} unavailable: {exc}", file=sys.stderr)
-
-    return p
 
 
 # output options checked before any work: (command, option attribute) -> (kind, suffixes);
@@ -254,14 +277,18 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = argv[0] if argv and not argv[0].startswith("-") else ""
+    args = build_parser(command).parse_args(argv)
     try:
         check_outputs(args)
         return int(args.func(args) or 0)
-    except TactexError as exc:
+    except InputError as exc:
         print(f"tactex: error: {exc}", file=sys.stderr)
         return 2
+    except TrialError as exc:
+        print(f"tactex: failed: {exc}", file=sys.stderr)
+        return 1
     except OSError as exc:   # a run-time failure of a file or device (disk full, removed...)
         print(f"tactex: error: {exc}", file=sys.stderr)
         return 1

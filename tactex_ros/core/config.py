@@ -3,7 +3,7 @@
 A settings class derives from ``Schema``; each field carries its type, default, range
 (``param(..., lo, hi)``), choices (a ``Literal`` type) and description. The same declaration
 validates configs and files (errors located like ``platforms.2.position`` and naming the field),
-gives the ROS nodes their parameter descriptors (``nodes/common.declare_settings``), the
+gives the ROS nodes their parameter descriptors (``nodes/lifecycle.declare_settings``), the
 command line its options and the launch file its arguments (``fields``).
 
 ``LearnerConfig`` (how the learner trains and scores), ``TrialConfig`` (what a trial does) and
@@ -21,8 +21,7 @@ import annotated_types
 from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
                       model_validator)
 
-from .errors import TactexError
-from .strategies import STRATEGIES
+from .errors import InputError
 
 
 def param(default: Any, description: str, lo: float | None = None, hi: float | None = None,
@@ -44,7 +43,7 @@ class FieldError(ValueError):
 class Schema(BaseModel):
     """Base of every settings model. Strict types (an int is taken where a float is expected;
     a bool or a string for a number is not), unknown names refused, assignments checked.
-    Constructing one with bad values raises TactexError naming the field."""
+    Constructing one with bad values raises InputError naming the field."""
 
     model_config = ConfigDict(strict=True, extra="forbid", validate_assignment=True,
                               validate_default=True)
@@ -57,7 +56,7 @@ class Schema(BaseModel):
 
     @classmethod
     def check(cls, data: Any, origin: str | None = None) -> Any:
-        """``data`` (a mapping) validated into ``cls``; TactexError names every bad field as
+        """``data`` (a mapping) validated into ``cls``; InputError names every bad field as
         ``origin: location: problem``."""
         try:
             return cls.model_validate(data)
@@ -84,7 +83,7 @@ def _model_at(cls: type | None, loc: tuple) -> type | None:
     return cls
 
 
-class SchemaError(TactexError):
+class SchemaError(InputError):
     """Bad settings: ``problems`` lists (location, problem) pairs; the message names them all."""
 
     def __init__(self, origin: str, problems: list[tuple[tuple, str]]) -> None:
@@ -157,12 +156,12 @@ def field_spec(cls: type, name: str) -> FieldSpec:
     for spec in fields(cls):
         if spec.name == name:
             return spec
-    raise TactexError(f"{cls.__name__} has no setting {name!r}")
+    raise InputError(f"{cls.__name__} has no setting {name!r}")
 
 
 def parse_text(cls: type, name: str, text: str, origin: str) -> Any:
     """The dotted field ``name`` of ``cls`` read from ``text`` (e.g. a launch argument) and
-    checked against its type, range and choices; TactexError names ``origin``."""
+    checked against its type, range and choices; InputError names ``origin``."""
     *heads, last = name.split(".")
     for part in heads:
         cls = cls.model_fields[part].annotation
@@ -204,7 +203,7 @@ def merge(*dicts: dict[str, Any] | None) -> dict[str, Any]:
 def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[str, Any]:
     """``given`` (nested, a subset of ``cls``'s fields) checked against ``cls`` and returned with
     the schema's types (an int given for a float comes back as a float), e.g. for a ROS
-    parameters file. TactexError names the field."""
+    parameters file. InputError names the field."""
     model = cls.check(given, origin)
     dumped = flatten(model.model_dump())
     return nest({k: dumped[k] for k in flatten(given)})
@@ -213,13 +212,17 @@ def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[s
 # the CNN learners (the thesis method) are a plug-in (``core/learners.py``): the schema names them,
 # the lab implements them
 CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
+# the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
+# that the schema, and with it `tactex trial --help`, imports no numpy
+STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
 ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
 
 
 class LearnerConfig(Schema):
-    """How the online learner trains and scores (units in the descriptions)."""
+    """How the learner describes, trains and scores (units in the descriptions). The defaults
+    are the shipped method's (model 'descriptor'); the CNN fields apply to the lab's models."""
 
-    model: ModelName = param("small_inception",
+    model: ModelName = param("descriptor",
                              "model: 'descriptor' (texture descriptor + Gaussian match belief, "
                              "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
@@ -330,13 +333,19 @@ class LearnerConfig(Schema):
         return self
 
 
-class TrialConfig(Schema):
-    """What a trial does (the learner's settings live in LearnerConfig)."""
+#: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3
+#: class folds of octopi-dev (docs/real_presses.md); ``stop_reason`` (core/engine.py) applies it.
+SHIPPED_STOP = 0.9
 
-    strategy: Literal[tuple(STRATEGIES)] = param("variance", "exploration strategy")
+
+class TrialConfig(Schema):
+    """What a trial does (the learner's settings live in LearnerConfig). The defaults are the
+    shipped method's: information-gain touches, stop at belief ``SHIPPED_STOP``."""
+
+    strategy: Literal[STRATEGY_NAMES] = param("infogain", "exploration strategy")
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
-    stop_confidence: float = param(0.0, "stop once the belief in one comparison reaches this "
-                                        "(0 = never: all rounds)", 0.0, 1.0)
+    stop_confidence: float = param(SHIPPED_STOP, "stop once the belief in one comparison "
+                                                 "reaches this (0 = never: all rounds)", 0.0, 1.0)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)
@@ -349,7 +358,7 @@ class TrialConfig(Schema):
 # `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
 # and the default, chosen on real presses (`tactex evaluate`, docs/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
-    "default": dict(model="descriptor"),
+    "default": dict(),          # the class defaults of LearnerConfig are the shipped method
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
@@ -361,7 +370,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 # What a trial does under each preset (TrialConfig fields); the default stops on a calibrated
 # belief and picks touches by expected information about the match (docs/real_presses.md).
 TRIAL_PRESETS: dict[str, dict[str, Any]] = {
-    "default": dict(strategy="infogain", stop_confidence=0.9),
+    "default": dict(),          # the class defaults of TrialConfig are the shipped method
     "seed_faithful": dict(strategy="variance", stop_confidence=0.0),
     "cnn": dict(strategy="variance", stop_confidence=0.0),
 }
@@ -369,7 +378,7 @@ TRIAL_PRESETS: dict[str, dict[str, Any]] = {
 
 def _known_preset(name: str) -> None:
     if name not in PRESETS:
-        raise TactexError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
+        raise InputError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
 
 
 def preset(name: str, **overrides: Any) -> LearnerConfig:

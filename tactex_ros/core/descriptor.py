@@ -3,20 +3,17 @@
 The engine's cheapest model (``LearnerConfig.model = 'descriptor'``): nothing is trained; each
 touch becomes a rotation-invariant descriptor (``core/texture.py``) once, when it is added, and a
 decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
-It offers the same interface the trial engine uses for the CNN learner (``add_touch``,
-``add_reference``, ``train_round``, ``reference_probs``, ``belief``) plus ``info_gain`` for the
-``infogain`` strategy.
+It is a ``core.learners.Learner`` (``add_touch``, ``add_reference``, ``heldout_proba``,
+``reference_probs``, ``belief``; no ``train_round``: nothing is trained) plus ``info_gain`` for
+the ``infogain`` strategy.
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from .config import LearnerConfig, validate
-from .errors import TactexError
-from .learners import TrainStats
+from .errors import InputError
 from .match import MatchModel
 from .representation import Representation, load
 from .texture import describe_touch
@@ -49,7 +46,6 @@ class DescriptorLearner:
         self.representation: Representation | None = (
             _load_representation(cfg.representation) if cfg.representation else None)
         self._rng = np.random.default_rng([int(seed), 31])
-        self.rounds_trained = 0
         self._heldout: np.ndarray | None = None
 
     def _describe(self, touch: Touch) -> np.ndarray:
@@ -61,7 +57,7 @@ class DescriptorLearner:
     def add_touch(self, touch: Touch, label: int) -> np.ndarray:
         """Store the descriptor of a comparison touch under ``label`` (0..C-1); returns it."""
         if not 0 <= label < self.num_classes:
-            raise TactexError(f"label {label} outside 0..{self.num_classes - 1}")
+            raise InputError(f"label {label} outside 0..{self.num_classes - 1}")
         x = self._describe(touch)
         self._heldout = self.match.comparison_proba(x) if self.match.ready else None
         self.match.add(label + 1, x)
@@ -75,15 +71,8 @@ class DescriptorLearner:
         """(C,) probabilities of the comparison descriptor ``x`` just added, computed by
         ``add_touch`` before it was stored (the held-back check of the engine)."""
         if self._heldout is None:
-            raise TactexError("no held-back probabilities: the belief was not ready yet")
+            raise InputError("no held-back probabilities: the belief was not ready yet")
         return self._heldout
-
-    def train_round(self) -> TrainStats:
-        """Nothing to train: checks the belief can be computed; returns its time."""
-        t0 = time.perf_counter()
-        self.match.stats()
-        self.rounds_trained += 1
-        return TrainStats(time.perf_counter() - t0, 0, float("nan"))
 
     def reference_probs(self) -> np.ndarray:
         """(T, C) beliefs under posterior draws of the platform means (T = ``DRAWS``)."""

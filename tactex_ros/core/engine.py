@@ -9,10 +9,12 @@ texture descriptors and a closed-form belief over the matching comparison; nothi
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
 
-Drive it with ``run(touch_fn)``: the command line and experiments pass a simulated or replayed
-touch, the ROS explorer node a press over the graph (in its trial thread, off the executor).
-``add_touch`` / ``decide`` / ``done`` are the steps ``run`` takes, for callers that need them
-one by one.
+One contract for every caller: ``TrialSpec`` (what decides the outcome besides the touches) ->
+``run_trial(spec, touch_fn)`` -> ``TrialOutcome`` (typed, platform indices; ``to_dict`` is the
+JSON at the file edge). The command line and experiments pass a simulated or replayed touch, the
+ROS explorer node its press over the graph (in its trial thread, off the executor).
+``TrialSpec.engine`` is the one place a trial's engine is built; ``add_touch`` / ``decide`` /
+``done`` are the steps ``run`` takes, for callers that need them one by one (the latency bench).
 
 A round (``decide``): train one round (CNN), the (T, C) table of the reference and the belief,
 the strategy's per-platform scores, the choice of the next platform (or none). At most
@@ -25,7 +27,7 @@ it moves up its ladder of CNNs on evidence from the trial itself; the round reco
 input size it used (``RoundRecord.model``, ``input_size``) and why it escalated (``escalation``).
 
 Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
-``TouchRejected`` (a TactexError) for a blank or no-contact frame, which ``run`` records as a
+``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
 failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
 then falls to the least-touched platform, ``strategies.break_ties``).
 """
@@ -39,9 +41,9 @@ from typing import Callable
 import numpy as np
 
 from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
-from .errors import TactexError
+from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, make_learner
+from .learners import Learner, TrainStats, make_learner, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
@@ -57,8 +59,28 @@ class TouchFailed(RuntimeError):
         self.retry = retry
 
 
-class TouchRejected(TactexError):
+class TouchRejected(InputError):
     """A touch frame was refused by the contact guard (blank or no contact); not stored."""
+
+
+def confident(belief_max: float, stop_confidence: float) -> bool:
+    """The stop rule: the belief in one comparison reached ``stop_confidence`` (0 = never)."""
+    return stop_confidence > 0 and belief_max >= stop_confidence
+
+
+def stop_reason(belief_max: float, stop_confidence: float, decisions: int, rounds: int,
+                budget_left: bool = True) -> str | None:
+    """Why a trial ends at a decision after ``decisions`` earlier ones: 'confident' (the stop
+    rule), 'rounds' (all ``rounds`` used), 'max_touches' (no budget left), or None to go on.
+    The offline evaluation of recorded belief curves applies the same rule
+    (``tactex_lab/experiments/real.py``)."""
+    if confident(belief_max, stop_confidence):
+        return "confident"
+    if decisions >= rounds:
+        return "rounds"
+    if not budget_left:
+        return "max_touches"
+    return None
 
 
 @dataclass
@@ -92,7 +114,7 @@ class RoundRecord:
 
 
 @dataclass
-class TrialResult:
+class TrialOutcome:
     prediction: int               # 1..C
     truth: int | None             # 1..C when known
     touches: int                  # total touches incl. baseline
@@ -140,7 +162,7 @@ class TrialEngine:
                  trial_cfg: TrialConfig | None = None, seed: int = 0,
                  platform_ids: list[str] | None = None) -> None:
         if n_comparisons < 2:
-            raise TactexError(f"comparisons must be >= 2, got {n_comparisons}")
+            raise InputError(f"comparisons must be >= 2, got {n_comparisons}")
         self.C = n_comparisons
         self.trial_cfg = validate(trial_cfg or TrialConfig())
         self.learner_cfg = validate(learner_cfg)
@@ -149,12 +171,12 @@ class TrialEngine:
         self.platform_ids = platform_ids or (["reference"] +
                                              [f"c{i}" for i in range(1, n_comparisons + 1)])
         if len(self.platform_ids) != n_comparisons + 1:
-            raise TactexError(f"platform_ids needs {n_comparisons + 1} names, "
-                              f"got {len(self.platform_ids)}")
+            raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
+                             f"got {len(self.platform_ids)}")
         if self.strategy.includes_reference and self.learner_cfg.model != "descriptor":
-            raise TactexError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
-                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
-                              "another strategy, e.g. variance")
+            raise InputError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
+                             f"(got {self.learner_cfg.model!r}); with a CNN model choose "
+                             "another strategy, e.g. variance")
         self.learner: Learner = make_learner(n_comparisons, self.learner_cfg, seed=seed)
         self.rng = np.random.default_rng([seed, 7])
         self.touches = np.zeros(n_comparisons, dtype=np.int64)
@@ -193,11 +215,11 @@ class TrialEngine:
 
         ``touch``: a ``Touch`` (contact frame, optional no-contact frame and more contact
         frames) or a bare (240, 320, 3) uint8 frame. Every reference touch counts for the
-        decision. Raises TouchRejected (a TactexError) when the guard finds a blank or
+        decision. Raises TouchRejected (a InputError) when the guard finds a blank or
         no-contact frame; nothing is stored then and the platform still counts as untouched.
         """
         if not 0 <= platform <= self.C:
-            raise TactexError(f"platform {platform} outside 0..{self.C}")
+            raise InputError(f"platform {platform} outside 0..{self.C}")
         touch = as_touch(touch)
         frame = validate_frame(touch.frame, f"touch of platform {platform}")
         if self.guard is not None:
@@ -210,7 +232,7 @@ class TrialEngine:
         else:
             x = self.learner.add_touch(touch, platform - 1)
             self.touches[platform - 1] += 1
-            if self.learner.rounds_trained > 0:
+            if self.records or self.final is not None:   # after the first decision
                 p = self.learner.heldout_proba(x)
                 self._pending_heldout.append(bool(int(np.argmax(p)) == platform - 1))
 
@@ -226,12 +248,12 @@ class TrialEngine:
         """Train, score, choose. Sets ``next_platform`` (0 = the reference again, 1..C, or
         None) and maybe ``done`` (``stop_reason`` says why)."""
         if self.done:
-            raise TactexError("trial already finished")
+            raise TrialError("trial already finished")
         if self.reference_touches == 0 or np.any(self.touches == 0):
-            raise TactexError("decide() before every platform has its baseline touch: "
+            raise TrialError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
-        stats = self.learner.train_round()
+        stats = train_round(self.learner) or TrainStats(0.0, 0, float("nan"))  # untrained
         t0 = time.perf_counter()
         probs = self.learner.reference_probs()
         pbar = self.learner.belief(probs)
@@ -268,20 +290,14 @@ class TrialEngine:
 
     def _stop_reason(self, belief: np.ndarray) -> str | None:
         """Why the trial ends at this decision, or None to go on."""
-        c = self.trial_cfg
-        if c.stop_confidence > 0 and float(belief.max()) >= c.stop_confidence:
-            return "confident"
-        if len(self.records) >= c.rounds:
-            return "rounds"
-        if not self._budget_left():
-            return "max_touches"
-        return None
+        return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
+                           len(self.records), self.trial_cfg.rounds, self._budget_left())
 
-    def result(self, truth: int | None = None) -> TrialResult:
+    def result(self, truth: int | None = None) -> TrialOutcome:
         if self.final is None:
-            raise TactexError("trial not finished")
+            raise TrialError("trial not finished")
         pred = int(np.argmax(self.final.probs)) + 1
-        return TrialResult(prediction=pred, truth=truth, touches=self.total_touches,
+        return TrialOutcome(prediction=pred, truth=truth, touches=self.total_touches,
                            rounds=list(self.records), final=self.final,
                            failed_touches=list(self.failed), platform_ids=self.platform_ids,
                            stop_reason=self.stop_reason,
@@ -290,7 +306,7 @@ class TrialEngine:
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
-            on_rejected: Callable[[int, TactexError], None] | None = None) -> TrialResult:
+            on_rejected: Callable[[int, InputError], None] | None = None) -> TrialOutcome:
         """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
         (240, 320, 3) uint8 frame.
 
@@ -308,7 +324,7 @@ class TrialEngine:
                 break
         else:
             missing = [self.platform_ids[p] for p in self.baseline_platforms()]
-            raise TactexError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
+            raise TrialError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
                               f"for {missing}")
         while not self.done:
             rec = self.decide()
@@ -319,7 +335,7 @@ class TrialEngine:
         return self.result(truth)
 
     def _touch(self, platform: int, touch_fn: Callable[[int], "Touch | np.ndarray"],
-               on_rejected: Callable[[int, TactexError], None] | None) -> bool:
+               on_rejected: Callable[[int, InputError], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""
         for _ in range(1 + self.trial_cfg.touch_retries):
@@ -333,8 +349,44 @@ class TrialEngine:
             try:
                 self.add_touch(platform, img)
                 return True
-            except TactexError as exc:   # TouchRejected (guard) or a frame that fails validation
+            except InputError as exc:   # TouchRejected (guard) or a frame that fails validation
                 self.record_failure(platform, str(exc))
                 if on_rejected is not None:
                     on_rejected(platform, exc)
         return False
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """What decides a trial's outcome besides its touches: ``comparisons`` platforms besides
+    the reference, the learner and trial settings, the seed, the platforms' names (default
+    ``reference, c1..cC``) and the sensor session's no-contact frame (240, 320, 3) uint8 for the
+    contact guard (None: the guard's flatness test only)."""
+
+    comparisons: int
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    trial: TrialConfig = field(default_factory=TrialConfig)
+    seed: int = 0
+    platform_ids: tuple[str, ...] | None = None
+    no_contact: np.ndarray | None = None
+
+    def engine(self) -> TrialEngine:
+        """The trial's engine, ready for its first touch (the one place one is built)."""
+        eng = TrialEngine(self.comparisons, self.learner, self.trial, seed=self.seed,
+                          platform_ids=list(self.platform_ids) if self.platform_ids else None)
+        if self.no_contact is not None:
+            eng.set_no_contact_reference(self.no_contact)
+        return eng
+
+
+def run_trial(spec: TrialSpec, touch_fn: Callable[[int], "Touch | np.ndarray"],
+              truth: int | None = None,
+              on_round: Callable[[RoundRecord], None] | None = None,
+              on_rejected: Callable[[int, InputError], None] | None = None,
+              engine: TrialEngine | None = None) -> TrialOutcome:
+    """Run the trial ``spec`` describes with ``touch_fn(platform)`` (0 = reference, 1..C) until
+    it ends (``TrialEngine.run``); ``truth`` (1..C) when known. ``engine``: the one
+    ``spec.engine()`` built when the caller needed it before the first touch (a node validates
+    its settings at configure, an experiment inspects it); a new one otherwise."""
+    eng = engine if engine is not None else spec.engine()
+    return eng.run(touch_fn, truth=truth, on_round=on_round, on_rejected=on_rejected)

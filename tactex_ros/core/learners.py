@@ -34,11 +34,11 @@ class TrainStats:
 
 
 class Learner(Protocol):
-    """The engine's view of a learner (``core/engine.py``)."""
+    """The engine's view of a learner (``core/engine.py``); one that trains is also a
+    ``TrainingLearner``."""
 
     model_name: str
     cfg: LearnerConfig
-    rounds_trained: int
 
     def add_touch(self, touch: Touch, label: int) -> Any:
         """Store a comparison touch of class ``label`` (0..C-1); returns its stored sample."""
@@ -49,9 +49,6 @@ class Learner(Protocol):
     def heldout_proba(self, x: Any) -> np.ndarray:
         """(C,) probabilities of the sample ``x`` just added, before it was trained on."""
 
-    def train_round(self) -> TrainStats:
-        """One round of training (or nothing); what it did."""
-
     def reference_probs(self) -> np.ndarray:
         """(T, C) class probabilities of the reference (passes, members or draws)."""
 
@@ -59,9 +56,23 @@ class Learner(Protocol):
         """(C,) belief over which comparison matches, from ``reference_probs``' table."""
 
 
+class TrainingLearner(Learner, Protocol):
+    """A learner that trains a model between decisions (the lab's CNNs)."""
+
+    def train_round(self) -> TrainStats:
+        """One round of training; what it did."""
+
+
+def train_round(learner: Learner) -> TrainStats | None:
+    """One round of training of a ``TrainingLearner``; None for a learner that trains
+    nothing (the descriptor)."""
+    train = getattr(learner, "train_round", None)
+    return None if train is None else train()
+
+
 def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
     """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
-    plug-in (TactexError when it is not installed)."""
+    plug-in (InputError when it is not installed)."""
     if cfg.model == "descriptor":
         from .descriptor import DescriptorLearner
         return DescriptorLearner(num_classes, cfg, seed=seed)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import TactexError
+from .errors import InputError
 
 _EPS = 1e-12
 
@@ -54,11 +54,11 @@ class MatchModel:
                  prior_strength: float = 4.0, temperature: float = 0.05,
                  scale_floor: float = 0.05, scene_units: bool = True) -> None:
         if n_comparisons < 2:
-            raise TactexError(f"MatchModel needs >= 2 comparisons, got {n_comparisons}")
+            raise InputError(f"MatchModel needs >= 2 comparisons, got {n_comparisons}")
         for name, v in (("prior_scale", prior_scale), ("prior_strength", prior_strength),
                         ("temperature", temperature)):
             if not v > 0:
-                raise TactexError(f"MatchModel.{name} must be > 0, got {v}")
+                raise InputError(f"MatchModel.{name} must be > 0, got {v}")
         self.C = n_comparisons
         self.kappa = float(prior_scale)
         self.nu0 = float(prior_strength)
@@ -71,12 +71,12 @@ class MatchModel:
     def add(self, platform: int, descriptor: np.ndarray) -> None:
         """Store the (D,) descriptor of a touch of ``platform`` (0 = reference, 1..C)."""
         if not 0 <= platform <= self.C:
-            raise TactexError(f"platform {platform} outside 0..{self.C}")
+            raise InputError(f"platform {platform} outside 0..{self.C}")
         x = np.asarray(descriptor, dtype=np.float64)
         if x.ndim != 1 or not np.all(np.isfinite(x)):
-            raise TactexError("descriptor must be a finite 1-D vector")
+            raise InputError("descriptor must be a finite 1-D vector")
         if any(s and s[0].shape != x.shape for s in self.samples_by_platform):
-            raise TactexError(f"descriptor of size {x.size} differs from the stored ones")
+            raise InputError(f"descriptor of size {x.size} differs from the stored ones")
         self.samples_by_platform[platform].append(x)
 
     @property
@@ -91,7 +91,7 @@ class MatchModel:
     def _check_ready(self) -> None:
         if not self.ready:
             missing = [p for p, n in enumerate(self.counts) if n == 0]
-            raise TactexError(f"belief needs a touch of every platform; missing {missing}")
+            raise InputError(f"belief needs a touch of every platform; missing {missing}")
 
     def stats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(means (C+1, D), counts (C+1,), sigma^2 (D,)) in scene units."""

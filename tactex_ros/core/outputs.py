@@ -3,7 +3,7 @@ before any work.
 
 ``check_file`` / ``check_dir`` refuse an output path that cannot be written (a parent that is a
 file, a folder without write permission, a path that is a folder, a suffix the writer cannot
-produce) with a ``TactexError`` naming the option and the path, so a command fails in its first
+produce) with a ``InputError`` naming the option and the path, so a command fails in its first
 second rather than after its work. ``write_json`` writes strict JSON (NaN and +-Infinity become
 ``null``: ``JSON.parse`` and other strict readers refuse them) through a temporary file in the
 same folder and ``os.replace``, so a reader never sees a torn file.
@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
-from .errors import TactexError
+from .errors import InputError
 
 
 def jsonable(o: Any) -> Any:
@@ -52,7 +52,7 @@ def _nearest_existing(p: Path) -> Path:
 
 
 def check_dir(path: str | Path, what: str) -> Path:
-    """A folder that exists and is writable, or can be made; TactexError naming ``what`` and
+    """A folder that exists and is writable, or can be made; InputError naming ``what`` and
     the path otherwise (nothing is left behind: a probe file is made and removed in the
     nearest existing folder)."""
     return _folder(Path(path).absolute(), what, str(path))
@@ -61,35 +61,35 @@ def check_dir(path: str | Path, what: str) -> Path:
 def _folder(p: Path, what: str, shown: str) -> Path:
     """``p`` (absolute) can be a folder we write into; errors show ``what`` and ``shown``."""
     if p.exists() and not p.is_dir():
-        raise TactexError(f"{what} {shown!r}: {str(p)!r} is a file, not a folder")
+        raise InputError(f"{what} {shown!r}: {str(p)!r} is a file, not a folder")
     base = _nearest_existing(p)
     if not base.is_dir():
-        raise TactexError(f"{what} {shown!r}: {str(base)!r} is a file, not a folder")
+        raise InputError(f"{what} {shown!r}: {str(base)!r} is a file, not a folder")
     try:      # a trial file: permissions, read-only and special file systems, also as root
         fd, probe = tempfile.mkstemp(prefix=".tactex-probe.", dir=base)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
-        raise TactexError(f"{what} {shown!r}: cannot write in {str(base)!r} "
+        raise InputError(f"{what} {shown!r}: cannot write in {str(base)!r} "
                           f"({exc.strerror or exc})") from None
     return p
 
 
 def check_file(path: str | Path, what: str, suffixes: Iterable[str] = ()) -> Path:
     """An output file that can be written (its folder exists and is writable, or can be made;
-    the path is not a folder; its suffix is one of ``suffixes`` when given); TactexError naming
+    the path is not a folder; its suffix is one of ``suffixes`` when given); InputError naming
     ``what`` and the path otherwise."""
     p = Path(path)
     if not str(path) or p.name in ("", ".", ".."):
-        raise TactexError(f"{what} {str(path)!r}: not a file name")
+        raise InputError(f"{what} {str(path)!r}: not a file name")
     suffixes = tuple(s.lower() for s in suffixes)
     if suffixes and p.suffix.lower() not in suffixes:
-        raise TactexError(f"{what} {str(path)!r}: the file name must end in "
+        raise InputError(f"{what} {str(path)!r}: the file name must end in "
                           f"{' or '.join(suffixes)}")
     if p.is_dir():
-        raise TactexError(f"{what} {str(path)!r}: is a folder")
+        raise InputError(f"{what} {str(path)!r}: is a folder")
     if p.exists() and not os.access(p, os.W_OK):
-        raise TactexError(f"{what} {str(path)!r}: not writable")
+        raise InputError(f"{what} {str(path)!r}: not writable")
     _folder(p.absolute().parent, what, str(path))
     return p
 

@@ -15,7 +15,7 @@ from functools import lru_cache
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
-from .errors import TactexError
+from .errors import InputError
 
 LEARNERS = "tactex.learners"
 COMMANDS = "tactex.commands"
@@ -32,13 +32,13 @@ def available(group: str) -> dict[str, EntryPoint]:
 
 
 def load(group: str, name: str) -> Any:
-    """The object of plug-in ``name`` in ``group``, imported now. TactexError when no installed
+    """The object of plug-in ``name`` in ``group``, imported now. InputError when no installed
     distribution declares it or it cannot be imported (the reason named)."""
     ep = available(group).get(name)
     if ep is None:
-        raise TactexError(f"{name!r} needs a plug-in of group {group!r} that is not installed "
-                          f"(installed: {', '.join(sorted(available(group))) or 'none'})")
+        raise InputError(f"{name!r} needs a plug-in of group {group!r} that is not installed "
+                         f"(installed: {', '.join(sorted(available(group))) or 'none'})")
     try:
         return ep.load()
     except ImportError as exc:
-        raise TactexError(f"plug-in {name!r} ({ep.value}) cannot be imported: {exc}") from None
+        raise InputError(f"plug-in {name!r} ({ep.value}) cannot be imported: {exc}") from None

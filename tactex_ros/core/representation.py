@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import TactexError
+from .errors import InputError
 from .texture import DIM
 
 FORMAT = "tactex-representation-2"
@@ -42,8 +42,8 @@ class Representation:
         """(..., D) descriptors -> (..., D) whitened coordinates."""
         x = np.asarray(x, dtype=np.float64)
         if x.shape[-1] != self.mean.shape[0]:
-            raise TactexError(f"representation expects descriptors of size {self.mean.shape[0]}, "
-                              f"got {x.shape[-1]}")
+            raise InputError(f"representation expects descriptors of size {self.mean.shape[0]}, "
+                             f"got {x.shape[-1]}")
         return ((x - self.mean) / self.std) @ self.whiten.T
 
 
@@ -51,12 +51,12 @@ def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0) -> Representati
     """Fit the metric on ``{class: (n_c, D) descriptors}`` (classes with >= 2 presses count for
     the within-class covariance; at least 2 such classes)."""
     if not shrink > 0:
-        raise TactexError(f"shrink must be > 0, got {shrink}")
+        raise InputError(f"shrink must be > 0, got {shrink}")
     groups = [np.asarray(v, dtype=np.float64) for v in descriptors.values()]
     usable = [g for g in groups if g.ndim == 2 and len(g) >= 2]
     if len(usable) < 2:
-        raise TactexError("a representation needs at least 2 library classes with 2 or more "
-                          f"presses each; got {len(usable)}")
+        raise InputError("a representation needs at least 2 library classes with 2 or more "
+                         f"presses each; got {len(usable)}")
     allx = np.concatenate(groups)
     mean, std = allx.mean(axis=0), allx.std(axis=0) + 1e-9
     resid = np.concatenate([(g - g.mean(axis=0)) / std for g in usable])
@@ -80,27 +80,27 @@ def save(rep: Representation, path: str | Path) -> Path:
 
 
 def load(path: str | Path) -> Representation:
-    """Read a representation file; TactexError naming the file and what is wrong."""
+    """Read a representation file; InputError naming the file and what is wrong."""
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"representation file not found: {p}")
+        raise InputError(f"representation file not found: {p}")
     try:
         with np.load(p, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
     except Exception as exc:  # numpy raises several types for a corrupt or foreign file
-        raise TactexError(f"representation file {p} is not loadable ({exc}); make it with "
-                          "`tactex prepare`") from None
+        raise InputError(f"representation file {p} is not loadable ({exc}); make it with "
+                         "`tactex prepare`") from None
     if str(d.get("format", "")) != FORMAT:
-        raise TactexError(f"representation file {p}: not a {FORMAT} file; make it with "
-                          "`tactex prepare`")
+        raise InputError(f"representation file {p}: not a {FORMAT} file; make it with "
+                         "`tactex prepare`")
     try:
         mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
     except KeyError as exc:
-        raise TactexError(f"representation file {p}: missing {exc}") from None
+        raise InputError(f"representation file {p}: missing {exc}") from None
     if mean.shape != (DIM,) or std.shape != (DIM,) or w.shape != (DIM, DIM):
-        raise TactexError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
-                          f"{w.shape} do not fit the descriptor of size {DIM}")
+        raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
+                         f"{w.shape} do not fit the descriptor of size {DIM}")
     if not (np.all(np.isfinite(w)) and np.all(std > 0)):
-        raise TactexError(f"representation file {p}: non-finite whitening or std <= 0")
+        raise InputError(f"representation file {p}: non-finite whitening or std <= 0")
     return Representation(mean, std, w, int(d.get("classes", 0)), int(d.get("presses", 0)),
                           float(d.get("shrink", 0.0)))

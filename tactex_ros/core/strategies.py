@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import TactexError
+from .errors import InputError
 
 TIE_TOL = 1e-9
 _EPS = 1e-12
@@ -144,9 +144,9 @@ class InfoGainStrategy(Strategy):
     def score(self, probs, touches, rng, model=None):
         gain = getattr(model, "info_gain", None)
         if gain is None:
-            raise TactexError("strategy 'infogain' needs the descriptor model (model "
-                              "'descriptor'); with a CNN model choose another strategy, e.g. "
-                              "--strategy variance")
+            raise InputError("strategy 'infogain' needs the descriptor model (model "
+                             "'descriptor'); with a CNN model choose another strategy, e.g. "
+                             "--strategy variance")
         return gain(rng)
 
 
@@ -157,9 +157,9 @@ STRATEGIES: dict[str, type[Strategy]] = {
 
 
 def make_strategy(name: str) -> Strategy:
-    """Strategy by name; TactexError naming the choices for an unknown one."""
+    """Strategy by name; InputError naming the choices for an unknown one."""
     try:
         return STRATEGIES[name]()
     except KeyError:
-        raise TactexError(f"unknown strategy {name!r}; choose one of "
-                          f"{', '.join(STRATEGIES)}") from None
+        raise InputError(f"unknown strategy {name!r}; choose one of "
+                         f"{', '.join(STRATEGIES)}") from None

@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from skimage.feature import local_binary_pattern
 
-from .errors import TactexError
+from .errors import InputError
 from .touch import validate_frame
 from .touch import Touch, as_touch
 
@@ -126,7 +126,7 @@ def describe(frame: np.ndarray, no_contact: np.ndarray | None = None) -> np.ndar
     feats.append(np.array([v for s in STRUCTURE_SCALES for v in _structure(grey, s)]))
     out = np.concatenate([np.asarray(f, dtype=np.float64).ravel() for f in feats])
     if out.shape != (DIM,) or not np.all(np.isfinite(out)):
-        raise TactexError("texture descriptor: non-finite or mis-sized result")
+        raise InputError("texture descriptor: non-finite or mis-sized result")
     return out
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import TactexError
+from .errors import InputError
 
 FRAME_H, FRAME_W = 240, 320            # GelSight Mini frame [px]
 
@@ -40,15 +40,15 @@ def as_touch(touch: "Touch | np.ndarray") -> Touch:
 def validate_frame(img: np.ndarray, what: str = "image") -> np.ndarray:
     """Check a frame is uint8 RGB 240x320 with some content; return it C-contiguous.
 
-    Raises TactexError naming ``what`` when the shape, dtype or content is wrong (a constant
+    Raises InputError naming ``what`` when the shape, dtype or content is wrong (a constant
     frame, e.g. a blank or corrupt capture, is rejected: it carries no texture).
     """
     if not isinstance(img, np.ndarray):
-        raise TactexError(f"{what}: expected a numpy array, got {type(img).__name__}")
+        raise InputError(f"{what}: expected a numpy array, got {type(img).__name__}")
     if img.dtype != np.uint8:
-        raise TactexError(f"{what}: expected dtype uint8, got {img.dtype}")
+        raise InputError(f"{what}: expected dtype uint8, got {img.dtype}")
     if img.shape != (FRAME_H, FRAME_W, 3):
-        raise TactexError(f"{what}: expected shape ({FRAME_H}, {FRAME_W}, 3), got {img.shape}")
+        raise InputError(f"{what}: expected shape ({FRAME_H}, {FRAME_W}, 3), got {img.shape}")
     if int(img.max()) == int(img.min()):
-        raise TactexError(f"{what}: constant frame (every pixel {int(img.max())}), no texture")
+        raise InputError(f"{what}: constant frame (every pixel {int(img.max())}), no texture")
     return np.ascontiguousarray(img)

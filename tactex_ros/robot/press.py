@@ -31,12 +31,12 @@ the reason. Units: m, s, N.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace as _replace
 from typing import Protocol, Sequence
 
 import numpy as np
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 
 APPROACH, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = ("approach", "descend", "settle", "capture",
                                                     "retract", "done")
@@ -111,24 +111,32 @@ def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
     return max(press.max_depth, 0.5 * (press.force_threshold + press.max_force) / stiffness)
 
 
-def check_press(scene: Workspace, stiffness: float, origin: str = "scene") -> None:
+def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
+                error_clip: float = float("inf")) -> None:
     """Refuse press settings a controller of ``stiffness`` [N/m] cannot carry out in time or
-    inside the workspace; TactexError names the field."""
+    inside the workspace; InputError names the field. ``error_clip`` [m]: the controller
+    clips the pose error there (CRISP ``task.error_clip``), so it never pushes with more than
+    ``stiffness * error_clip`` at rest."""
     s = scene.press
+    if stiffness * error_clip < 1.5 * s.force_threshold:
+        raise InputError(
+            f"{origin}: the controller pushes with at most stiffness x error_clip = "
+            f"{stiffness:g} N/m x {error_clip:g} m = {stiffness * error_clip:.1f} N, less than "
+            f"1.5 x press.force_threshold ({s.force_threshold} N)")
     floor = equilibrium_floor(s, stiffness)
     deepest = 0.0
     for i, p in enumerate(scene.platforms):
         room = min(floor, p.position[2] - scene.workspace_min[2])
         deepest = max(deepest, room)
         if stiffness * room < 1.5 * s.force_threshold:
-            raise TactexError(
+            raise InputError(
                 f"{origin}: platforms[{i}] ({p.id}): the equilibrium can go only {room:.4f} m "
                 f"below the surface (workspace.min z {scene.workspace_min[2]}), which at "
                 f"stiffness {stiffness:g} N/m gives less than 1.5 x force_threshold "
                 f"({s.force_threshold} N)")
     need = (s.approach_height + deepest) / s.descend_speed + 1.0
     if need > s.descend_deadline_s:
-        raise TactexError(
+        raise InputError(
             f"{origin}: press.descend_deadline_s ({s.descend_deadline_s} s) is shorter than a "
             f"descent can take at controller stiffness {stiffness:g} N/m: {need:.1f} s "
             f"(approach_height {s.approach_height} m + equilibrium floor {deepest:.4f} m at "
@@ -304,40 +312,91 @@ class PressController:
                             max_force_n=self.max_force)
 
 
-class ArmModel:
-    """Mock arm under Cartesian impedance control: a point mass ``mass`` [kg] pulled towards the
-    (optionally low-pass filtered) equilibrium ``target`` by a spring ``stiffness`` [N/m] and a
-    damper ``damping`` [N s/m] (default ``2 sqrt(stiffness)``, the damping franka_ros2's and
-    multipanda_ros2's Cartesian impedance controllers use), gravity compensated. Platforms push
-    back with a spring ``platform_stiffness`` [N/m] (gel, fabric and platform in series) and a
-    damper ``platform_damping`` when the sensor is below their surface within their radius.
-    ``target_filter_s``: time constant [s] of the controller's first-order filter on the
-    equilibrium (franka_ros2's example: 0.005 per 1 kHz cycle, i.e. 0.2 s; 0 = none).
-    Integrated with semi-implicit Euler at ``substep`` [s]; every substep is one sample.
-    Positions in m, time in s, forces in N.
+# ---------------------------------------------------------------------- mock arm physics
+# (kept apart from the press state machine above: the mock arm's model of the controller)
+
+
+@dataclass(frozen=True)
+class ControlLaw:
+    """The translational law of the Cartesian impedance controller a robot profile names, as the
+    mock arm runs it: one control cycle every ``1 / rate_hz`` s, the force held in between.
+
+    Per cycle, per axis (x_t the commanded target, x_f the filtered target, x, v the arm):
+
+    1. target filter: ``x_f <- (1 - target_filter) x_t + target_filter x_f`` (an exponential
+       moving average; 0 = none; CRISP ``filter.target_pose``);
+    2. error: ``e = clip(x_f - x, -error_clip, error_clip)`` (CRISP ``task.error_clip`` with
+       ``limit_error``; inf = none);
+    3. force: ``F = K e - D v`` with ``D = damping`` if > 0, else ``2 sqrt(K)`` (CRISP
+       ``task.d_pos_*``, franka_ros2's and multipanda_ros2's examples);
+    4. rate limit: ``F <- F_prev + clip(F - F_prev, -max_force_step, max_force_step)`` (CRISP's
+       ``max_delta_tau`` per joint and cycle, seen at the end effector; inf = none).
+
+    Units: N/m, N s/m, Hz, m, N.
     """
 
-    def __init__(self, scene: Workspace, start: np.ndarray, *, stiffness: float = 1000.0,
-                 damping: float | None = None, mass: float = 3.0,
-                 platform_stiffness: float = 2e4, platform_damping: float = 50.0,
-                 target_filter_s: float = 0.0, substep: float = 5e-4) -> None:
-        for name, v in (("stiffness", stiffness), ("mass", mass),
-                        ("platform_stiffness", platform_stiffness), ("substep", substep)):
+    stiffness: float
+    damping: float = 0.0
+    rate_hz: float = 1000.0
+    target_filter: float = 0.0
+    error_clip: float = float("inf")
+    max_force_step: float = float("inf")
+
+    def __post_init__(self) -> None:
+        if not self.stiffness > 0 or not self.rate_hz > 0:
+            raise ValueError(f"stiffness ({self.stiffness}) and rate_hz ({self.rate_hz}) must "
+                             "be positive")
+        if not 0.0 <= self.target_filter < 1.0:
+            raise ValueError(f"target_filter must be in [0, 1), got {self.target_filter}")
+        if not self.error_clip > 0 or not self.max_force_step > 0:
+            raise ValueError("error_clip and max_force_step must be positive (inf = none)")
+
+    @property
+    def d(self) -> float:
+        """The damping the controller computes [N s/m]."""
+        return self.damping if self.damping > 0 else 2.0 * float(np.sqrt(self.stiffness))
+
+    @property
+    def max_static_force(self) -> float:
+        """Largest force the law pushes with at rest [N] (``K * error_clip``; inf if unclipped)."""
+        return self.stiffness * self.error_clip
+
+    def replace(self, **kw: float) -> "ControlLaw":
+        return _replace(self, **kw)
+
+
+class ArmModel:
+    """Mock arm under the Cartesian impedance ``law``: a point mass ``mass`` [kg], gravity
+    compensated, pushed by the controller's force (``ControlLaw``: target filter, error clip,
+    spring ``K``, damper ``D``, force rate limit), computed once per control cycle and held over
+    it (the plant integrated exactly for a constant force). Platforms push back with a spring
+    ``platform_stiffness`` [N/m] (gel, fabric and platform in series) and a damper
+    ``platform_damping`` [N s/m] when the sensor is below their surface within their radius.
+    Every control cycle is one sample. Positions in m, time in s, forces in N.
+    """
+
+    def __init__(self, scene: Workspace, start: np.ndarray, law: ControlLaw | None = None, *,
+                 mass: float = 3.0, platform_stiffness: float = 2e4,
+                 platform_damping: float = 50.0) -> None:
+        for name, v in (("mass", mass), ("platform_stiffness", platform_stiffness)):
             if not v > 0:
                 raise ValueError(f"{name} must be positive, got {v}")
-        if platform_damping < 0 or target_filter_s < 0 or (damping is not None and damping < 0):
-            raise ValueError("damping, platform_damping and target_filter_s must be >= 0")
-        self.scene, self.k, self.m = scene, float(stiffness), float(mass)
-        self.d = 2.0 * np.sqrt(self.k) if damping is None else float(damping)
+        if platform_damping < 0:
+            raise ValueError("platform_damping must be >= 0")
+        self.scene, self.m = scene, float(mass)
+        self.law = law or ControlLaw(stiffness=1000.0)
+        self.k, self.d = self.law.stiffness, self.law.d
         self.kp, self.dp = float(platform_stiffness), float(platform_damping)
-        self.tau, self.h = float(target_filter_s), float(substep)
+        self.h = 1.0 / self.law.rate_hz
         self.position = np.asarray(start, dtype=float).copy()
         self.velocity = np.zeros(3)
         self.target = self.position.copy()
-        self.equilibrium = self.position.copy()
+        self.equilibrium = self.position.copy()   # the filtered target
+        self.command = np.zeros(3)     # the controller's force on the arm [N]
         self.force = np.zeros(3)       # contact force on the sensor (base frame) [N]
-        self.peak_force = 0.0          # largest contact force over the substeps of last step
+        self.peak_force = 0.0          # largest contact force over the cycles of the last step
         self.frozen = False            # a reflex stopped the arm
+        self._due = 0.0                # time not yet simulated [s]
 
     def contact(self, position: np.ndarray | None = None) -> tuple[Platform | None, float]:
         """Platform under the sensor and the penetration below its surface [m] (0 if none)."""
@@ -352,24 +411,40 @@ class ArmModel:
         fz = max(0.0, self.kp * pen - self.dp * self.velocity[2])
         return np.array([0.0, 0.0, fz])
 
+    def control(self) -> np.ndarray:
+        """One control cycle of the law: filter the target, clip the error, spring-damper,
+        rate limit; returns (and holds) the controller's force [N]."""
+        law = self.law
+        a = law.target_filter
+        self.equilibrium = (1.0 - a) * np.asarray(self.target, dtype=float) + a * self.equilibrium
+        err = np.clip(self.equilibrium - self.position, -law.error_clip, law.error_clip)
+        f = self.k * err - self.d * self.velocity
+        self.command = self.command + np.clip(f - self.command, -law.max_force_step,
+                                              law.max_force_step)
+        return self.command
+
+    def cycle(self) -> None:
+        """One control cycle of ``1 / rate_hz`` s (one sample)."""
+        h = self.h
+        self.force = self._contact_force()
+        if self.frozen:
+            self.command = np.zeros(3)
+        else:
+            acc = (self.control() + self.force) / self.m
+            self.position = self.position + self.velocity * h + 0.5 * acc * h * h
+            self.velocity = self.velocity + acc * h
+        self.force = self._contact_force()
+        self.peak_force = max(self.peak_force, float(np.linalg.norm(self.force)))
+
     def step(self, dt: float) -> None:
-        """Advance ``dt`` [s] in substeps; ``peak_force`` = largest contact force among them."""
-        n = max(1, int(np.ceil(dt / self.h)))
-        h = dt / n
-        self.peak_force = 0.0
+        """Advance ``dt`` [s] in whole control cycles (a remainder is carried to the next
+        step); ``peak_force`` = largest contact force among them."""
+        self._due += max(0.0, dt)
+        self.peak_force = float(np.linalg.norm(self.force))
+        n = int(np.floor(self._due / self.h + 1e-9))
+        self._due -= n * self.h
         for _ in range(n):
-            if self.tau > 0:
-                self.equilibrium += (self.target - self.equilibrium) * min(1.0, h / self.tau)
-            else:
-                self.equilibrium = np.asarray(self.target, dtype=float).copy()
-            self.force = self._contact_force()
-            if not self.frozen:
-                acc = (self.k * (self.equilibrium - self.position) - self.d * self.velocity +
-                       self.force) / self.m
-                self.velocity = self.velocity + acc * h
-                self.position = self.position + self.velocity * h
-            self.force = self._contact_force()
-            self.peak_force = max(self.peak_force, float(np.linalg.norm(self.force)))
+            self.cycle()
 
     def freeze(self) -> None:
         """A reflex: the arm stops where it is (brakes)."""
@@ -377,10 +452,12 @@ class ArmModel:
         self.velocity = np.zeros(3)
 
     def release(self) -> None:
-        """Control is back: the equilibrium restarts at the current pose (as controllers do)."""
+        """Control is back: the target restarts at the current pose (CRISP's ``on_activate``
+        sets it to the measured pose) and the held force at zero."""
         self.frozen = False
         self.target = self.position.copy()
         self.equilibrium = self.position.copy()
+        self.command = np.zeros(3)
 
     def normal_force(self) -> float:
         """Normal force on the sensor [N] (>= 0)."""

@@ -4,9 +4,14 @@ has (``config/robots/<name>.yaml``), validated once; every error names the field
 Pure Python (no rclpy). A profile says:
 
 - ``frame_id``: the robot's base frame (scene positions, rviz fixed frame);
-- ``controller``: the Cartesian impedance controller the motion node talks to, its
-  translational ``stiffness`` [N/m] (the press commands the equilibrium ``force / stiffness``
-  below the surface) and ``target_filter_s`` (its filter on the equilibrium, for the mock);
+- ``controller``: the Cartesian impedance controller the motion node talks to (``name`` in the
+  controller manager, ``plugin`` its pluginlib type) and its translational law, which the press
+  relies on and the mock arm runs (``press.ControlLaw``): ``stiffness`` [N/m] (the press
+  commands the equilibrium ``force / stiffness`` below the surface), ``damping`` [N s/m]
+  (<= 0: ``2 sqrt(stiffness)``), ``rate_hz``, ``target_filter`` (EMA weight kept of the
+  filtered target per cycle), ``error_clip`` [m] (0 = none), ``max_delta_tau`` [N m per joint
+  and cycle] (0 = none) over ``torque_lever_m`` [m]; ``parameters``: the controller's own
+  parameters (upstream names) as the shipped bring-up sets them;
 - ``target``: ``topic`` and ``type``: ``geometry_msgs/msg/PoseStamped`` or
   ``std_msgs/msg/Float64MultiArray`` (multipanda_ros2 layout: x y z, then the rotation matrix
   row by row);
@@ -17,6 +22,9 @@ Pure Python (no rclpy). A profile says:
   a full state message whose ``robot_mode`` reports a reflex (franka_ros2's
   ``franka_msgs/msg/FrankaRobotState``; read only where that type is installed);
 - ``force_sign``: normal force = ``force_sign * f_z`` of the base-frame wrench;
+- ``scene``: the default scene file under ``config/`` (its ``frame_id`` is the profile's);
+- ``collision`` (optional): franka's collision-threshold service (``service``, ``type``) and
+  ``request_file``, the request the press needs (a YAML file under ``config/``);
 - ``recovery``: ``kind`` (``action``, ``service`` or ``none``), ``name``, ``type``,
   ``ok_field`` (service: the response field that says it worked), and ``then``: the service
   calls that re-activate hardware and controllers after recovery, in order (``service``,
@@ -32,8 +40,9 @@ from typing import Annotated, Any, Literal
 from pydantic import StringConstraints, field_validator, model_validator
 
 from ..core.config import FieldError, Schema, param
-from ..core.errors import TactexError
-from ..paths import config_file, read_yaml
+from ..core.errors import InputError
+from ..paths import config_dir, config_file, read_yaml
+from .press import ControlLaw
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
@@ -61,6 +70,16 @@ class Recovery:
 
 
 @dataclass(frozen=True)
+class Collision:
+    """franka's collision-threshold service and the request (a mapping) the press needs."""
+
+    service: str
+    type: str
+    request: dict[str, Any]
+    request_file: str                    # where the request was read (config-relative)
+
+
+@dataclass(frozen=True)
 class RobotProfile:
     name: str
     frame_id: str
@@ -75,9 +94,18 @@ class RobotProfile:
     mode_topic: str = ""                 # optional: robot_mode of a full state message
     mode_type: str = ""
     force_sign: float = 1.0
-    target_filter_s: float = 0.0         # s, the controller's filter on the equilibrium
+    law: ControlLaw | None = None        # the controller's translational law (None: from stiffness)
+    plugin: str = ""                     # the controller's pluginlib type
+    parameters: dict[str, Any] = field(default_factory=dict)   # upstream names -> values
+    max_publishers: int = 0              # the controller ignores targets beyond this many (0: no)
+    collision: Collision | None = None
     recovery: Recovery = field(default_factory=Recovery)
+    scene: str = "scene.yaml"            # the default scene under config/ (in frame_id)
     notes: str = ""
+
+    def __post_init__(self) -> None:
+        if self.law is None:
+            object.__setattr__(self, "law", ControlLaw(stiffness=self.stiffness))
 
     @property
     def franka_state(self) -> bool:
@@ -93,15 +121,39 @@ def _interface(*kinds: str) -> Any:
 
 
 class ControllerSpec(Schema):
-    name: Text = param(..., "the Cartesian impedance controller")
+    name: Text = param(..., "the Cartesian impedance controller's name in the controller "
+                            "manager")
+    plugin: str = param("", "its pluginlib type (package/Class)")
     stiffness: float = param(..., "translational stiffness [N/m]", 10.0, 1e6)
-    target_filter_s: float = param(0.0, "the controller's filter on the equilibrium [s]",
-                                   0.0, 5.0)
+    damping: float = param(0.0, "translational damping [N s/m] (<= 0: 2 sqrt(stiffness))",
+                           -1.0, 1e5)
+    rate_hz: float = param(1000.0, "control loop rate [Hz]", 1.0, 1e4)
+    target_filter: float = param(0.0, "EMA weight kept of the filtered target per control "
+                                      "cycle (0 = no filter)", 0.0, 0.999)
+    error_clip: float = param(0.0, "pose error clipped per axis [m] (0 = not clipped)",
+                              0.0, 10.0)
+    max_delta_tau: float = param(0.0, "joint torque change per cycle at most [N m] (0 = no "
+                                      "limit)", 0.0, 100.0)
+    torque_lever_m: float = param(0.8, "longest lever from a joint to the sensor [m]: a "
+                                       "torque step max_delta_tau is a force step "
+                                       "max_delta_tau / torque_lever_m", 0.05, 2.0)
+    parameters: dict[str, Any] = param({}, "the controller's parameters (upstream names) as "
+                                           "the shipped bring-up sets them")
+
+    def law(self) -> ControlLaw:
+        inf = float("inf")
+        return ControlLaw(stiffness=self.stiffness, damping=self.damping, rate_hz=self.rate_hz,
+                          target_filter=self.target_filter,
+                          error_clip=self.error_clip or inf,
+                          max_force_step=(self.max_delta_tau / self.torque_lever_m
+                                          if self.max_delta_tau else inf))
 
 
 class TargetSpec(Schema):
     topic: Text = param(..., "equilibrium target topic")
     type: Literal[POSE_STAMPED, FLOAT64_MULTIARRAY] = param(..., "target message type")
+    max_publishers: int = param(0, "the controller ignores targets while more publishers than "
+                                   "this are on the topic (0 = no such check)", 0, 100)
 
 
 class StateSpec(Schema):
@@ -161,6 +213,12 @@ class RecoverySpec(Schema):
         return self
 
 
+class CollisionSpec(Schema):
+    service: Text = param(..., "franka's collision-threshold service")
+    type: _interface("srv") = param(..., "its type")
+    request_file: Text = param(..., "the request the press needs: a YAML file under config/")
+
+
 class ProfileFile(Schema):
     """A robot profile file (``config/robots/<name>.yaml``) as written."""
 
@@ -170,7 +228,9 @@ class ProfileFile(Schema):
     target: TargetSpec
     state: StateSpec
     force_sign: float = param(1.0, "normal force = force_sign * f_z (1 or -1)")
+    collision: CollisionSpec | None = param(None, "franka's collision thresholds for the press")
     recovery: RecoverySpec = RecoverySpec()
+    scene: Text = param("scene.yaml", "the default scene: a file under config/ in frame_id")
     notes: str = param("", "free text")
 
     @field_validator("force_sign")
@@ -182,7 +242,7 @@ class ProfileFile(Schema):
 
 
 def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
-    """Validate a profile mapping; TactexError names every bad field (``controller.stiffness``,
+    """Validate a profile mapping; InputError names every bad field (``controller.stiffness``,
     ``recovery.then.0.type``)."""
     f = ProfileFile.check(data, origin)
     st = f.state
@@ -194,12 +254,33 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
         kind=rec.kind, name=rec.name, type=rec.type, ok_field=rec.ok_field,
         then=tuple(ServiceCall(service=c.service, type=c.type, request=c.request,
                                ok_field=c.ok_field) for c in rec.then))
+    c = f.controller
+    try:
+        law = c.law()
+    except ValueError as exc:
+        raise InputError(f"{origin}: controller: {exc}") from None
     return RobotProfile(
-        name=f.name, frame_id=f.frame_id, controller=f.controller.name,
-        stiffness=float(f.controller.stiffness), target_topic=f.target.topic,
-        target_type=f.target.type, force_sign=float(f.force_sign),
-        target_filter_s=float(f.controller.target_filter_s), recovery=recovery,
+        name=f.name, frame_id=f.frame_id, controller=c.name, plugin=c.plugin,
+        stiffness=float(c.stiffness), law=law, parameters=dict(c.parameters),
+        target_topic=f.target.topic, target_type=f.target.type,
+        max_publishers=f.target.max_publishers, force_sign=float(f.force_sign),
+        collision=_collision(f.collision, origin), recovery=recovery, scene=f.scene,
         notes=f.notes, **state)
+
+
+def _collision(spec: CollisionSpec | None, origin: str) -> Collision | None:
+    """The collision block with its request read from ``config/<request_file>``."""
+    if spec is None:
+        return None
+    path = config_dir() / spec.request_file
+    if not path.is_file():
+        raise InputError(f"{origin}: collision.request_file: {str(path)!r} not found")
+    request = read_yaml(path, "collision request")
+    if not isinstance(request, dict):
+        raise InputError(f"{origin}: collision.request_file: {spec.request_file} is not a "
+                          "mapping of request fields")
+    return Collision(service=spec.service, type=spec.type, request=request,
+                     request_file=spec.request_file)
 
 
 def load_profile(name_or_path: str) -> RobotProfile:
@@ -209,25 +290,25 @@ def load_profile(name_or_path: str) -> RobotProfile:
 
 
 def import_interface(name: str) -> type:
-    """``pkg/msg|srv|action/Name`` -> the Python class; TactexError if its package is missing."""
+    """``pkg/msg|srv|action/Name`` -> the Python class; InputError if its package is missing."""
     pkg, kind, cls = name.split("/")
     try:
         return getattr(importlib.import_module(f"{pkg}.{kind}"), cls)
     except (ImportError, AttributeError) as exc:
-        raise TactexError(f"interface {name} is not available here ({exc}); install the "
-                          f"package {pkg} (e.g. from the robot's ROS 2 workspace)") from None
+        raise InputError(f"interface {name} is not available here ({exc}); install the "
+                         f"package {pkg} (e.g. from the robot's ROS 2 workspace)") from None
 
 
 def fill_message(msg: Any, values: dict[str, Any], where: str = "request") -> Any:
-    """Set ``msg``'s fields from a (nested) mapping; TactexError names an unknown field."""
+    """Set ``msg``'s fields from a (nested) mapping; InputError names an unknown field."""
     for key, v in values.items():
         if not hasattr(msg, key):
-            raise TactexError(f"{where}.{key}: {type(msg).__name__} has no field {key!r}")
+            raise InputError(f"{where}.{key}: {type(msg).__name__} has no field {key!r}")
         if isinstance(v, dict):
             fill_message(getattr(msg, key), v, f"{where}.{key}")
         else:
             try:
                 setattr(msg, key, v)
             except (TypeError, ValueError, AssertionError) as exc:
-                raise TactexError(f"{where}.{key}: {exc}") from None
+                raise InputError(f"{where}.{key}: {exc}") from None
     return msg

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from ..core.config import FieldError, Schema, param
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..paths import read_yaml
 
 
@@ -122,8 +122,8 @@ class Scene:
         for p in self.platforms:
             if p.id == pid:
                 return p
-        raise TactexError(f"unknown platform {pid!r}; the scene has "
-                          f"{[p.id for p in self.platforms]}")
+        raise InputError(f"unknown platform {pid!r}; the scene has "
+                         f"{[p.id for p in self.platforms]}")
 
 
 
@@ -186,9 +186,9 @@ class SceneFile(Schema):
 
 
 def parse_scene(data: Any, origin: str = "scene") -> Scene:
-    """Validate a scene mapping; TactexError names every bad field (``platforms.2.position``)."""
+    """Validate a scene mapping; InputError names every bad field (``platforms.2.position``)."""
     if not isinstance(data, dict):
-        raise TactexError(f"{origin}: expected a mapping at the top level")
+        raise InputError(f"{origin}: expected a mapping at the top level")
     f = SceneFile.check(data, origin)
     return Scene(frame_id=f.frame_id, workspace_min=f.workspace.min,
                  workspace_max=f.workspace.max, tool_orientation=f.tool_orientation,
@@ -198,9 +198,9 @@ def parse_scene(data: Any, origin: str = "scene") -> Scene:
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene YAML file."""
     if not str(path).strip():
-        raise TactexError("scene_file is empty: give the scene YAML (parameter scene_file, "
+        raise InputError("scene_file is empty: give the scene YAML (parameter scene_file, "
                           "e.g. config/scene_sim.yaml)")
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"scene file {str(p)!r} not found")
+        raise InputError(f"scene file {str(p)!r} not found")
     return parse_scene(read_yaml(p, "scene file"), origin=f"scene {p.name}")

@@ -31,7 +31,7 @@ from typing import Annotated, Any, Literal, Optional
 from pydantic import Field, StringConstraints
 
 from ..core.config import Schema, param
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..paths import config_file, read_yaml
 
 SERIAL_LOOKUPS = ("", "digit_interface")
@@ -114,7 +114,7 @@ class SensorFile(Schema):
 
 
 def parse_sensor(data: Any, origin: str = "sensor profile") -> SensorProfile:
-    """Validate a sensor profile mapping; TactexError names every bad field (``modes.0.fps``,
+    """Validate a sensor profile mapping; InputError names every bad field (``modes.0.fps``,
     ``capture``)."""
     f = SensorFile.check(data, origin)
     cap = f.capture
@@ -134,8 +134,8 @@ def check_mode(prof: SensorProfile, width: int, height: int, fps: float, where: 
     if not prof.modes or (width, height) == (0, 0):
         return
     if not any((m.width, m.height) == (width, height) and fps in m.fps for m in prof.modes):
-        raise TactexError(f"{where}: {width}x{height} at {fps:g} fps is not a mode of sensor "
-                          f"{prof.name!r} ({prof.mode_text()})")
+        raise InputError(f"{where}: {width}x{height} at {fps:g} fps is not a mode of sensor "
+                         f"{prof.name!r} ({prof.mode_text()})")
 
 
 def load_sensor(name_or_path: str) -> SensorProfile:
@@ -153,14 +153,14 @@ def sensor_config(s: Any, camera: bool = True) -> SensorConfig:
     cw = prof.capture_width if s.capture_width < 0 else s.capture_width
     ch = prof.capture_height if s.capture_height < 0 else s.capture_height
     if (cw == 0) != (ch == 0):
-        raise TactexError(f"gelsight capture_width x capture_height = {cw}x{ch}: give both or "
-                          "neither (0 = the camera's default mode)")
+        raise InputError(f"gelsight capture_width x capture_height = {cw}x{ch}: give both or "
+                         "neither (0 = the camera's default mode)")
     fps = s.fps or prof.fps
     if camera:
         check_mode(prof, cw, ch, fps, "gelsight capture_width x capture_height at fps")
     led = prof.led_intensity if s.led_intensity < 0 else int(s.led_intensity)
     if led is not None and not 0 <= led <= LED_MAX:
-        raise TactexError(f"gelsight led_intensity: 0..{LED_MAX}, got {led}")
+        raise InputError(f"gelsight led_intensity: 0..{LED_MAX}, got {led}")
     return SensorConfig(
         profile=prof, device=s.device or prof.device, capture_width=cw, capture_height=ch,
         fps=fps, crop_fraction=prof.crop_fraction if s.crop_fraction < 0 else s.crop_fraction,
@@ -175,9 +175,9 @@ def digit_led_value(level: int, revision: int | None) -> int:
     older firmware (1.01, no per-channel control) is refused. ``revision`` None: unknown (no
     digit-interface), taken as current firmware."""
     if not 0 <= level <= LED_MAX:
-        raise TactexError(f"DIGIT led_intensity: 0..{LED_MAX}, got {level}")
+        raise InputError(f"DIGIT led_intensity: 0..{LED_MAX}, got {level}")
     if revision is not None and revision < 200:
-        raise TactexError(f"DIGIT firmware revision {revision}: no per-channel LED control "
-                          "(digit-interface deprecates it); update the firmware or give the "
-                          "sensor profile led_intensity: null")
+        raise InputError(f"DIGIT firmware revision {revision}: no per-channel LED control "
+                         "(digit-interface deprecates it); update the firmware or give the "
+                         "sensor profile led_intensity: null")
     return (level << 8) | (level << 4) | level

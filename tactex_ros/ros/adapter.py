@@ -21,7 +21,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..core.touch import FRAME_H, FRAME_W
 from ..robot.scene import Scene
 
@@ -40,26 +40,26 @@ def seconds(t: Time) -> float:
 def image_to_array(msg: Image, what: str = "image") -> np.ndarray:
     """``sensor_msgs/Image`` (rgb8 | bgr8, 320 x 240) -> RGB uint8 (240, 320, 3).
 
-    Raises TactexError naming what is wrong (encoding, size, step, data length, blank frame).
+    Raises InputError naming what is wrong (encoding, size, step, data length, blank frame).
     """
     if msg.encoding not in ("rgb8", "bgr8"):
-        raise TactexError(f"{what}: encoding {msg.encoding!r} not supported (rgb8, bgr8)")
+        raise InputError(f"{what}: encoding {msg.encoding!r} not supported (rgb8, bgr8)")
     if (msg.height, msg.width) != (FRAME_H, FRAME_W):
-        raise TactexError(f"{what}: size {msg.width}x{msg.height}, expected "
-                          f"{FRAME_W}x{FRAME_H}")
+        raise InputError(f"{what}: size {msg.width}x{msg.height}, expected "
+                         f"{FRAME_W}x{FRAME_H}")
     if msg.step < msg.width * 3:
-        raise TactexError(f"{what}: step {msg.step} < width * 3 = {msg.width * 3}")
+        raise InputError(f"{what}: step {msg.step} < width * 3 = {msg.width * 3}")
     data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
     if data.size != msg.step * msg.height:
-        raise TactexError(f"{what}: {data.size} bytes of data, expected step * height = "
-                          f"{msg.step * msg.height}")
+        raise InputError(f"{what}: {data.size} bytes of data, expected step * height = "
+                         f"{msg.step * msg.height}")
     arr = data.reshape(msg.height, msg.step)[:, :msg.width * 3].reshape(msg.height,
                                                                         msg.width, 3)
     if msg.encoding == "bgr8":
         arr = arr[:, :, ::-1]
     arr = np.ascontiguousarray(arr)
     if int(arr.max()) == int(arr.min()):
-        raise TactexError(f"{what}: constant image (value {int(arr.max())}): no sensor signal")
+        raise InputError(f"{what}: constant image (value {int(arr.max())}): no sensor signal")
     return arr
 
 
@@ -67,7 +67,7 @@ def array_to_image(rgb: np.ndarray, t: float, frame_id: str) -> Image:
     """RGB uint8 (H, W, 3) -> ``sensor_msgs/Image`` rgb8 stamped ``t`` [s]."""
     rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise TactexError(f"image array must be (H, W, 3), got {rgb.shape}")
+        raise InputError(f"image array must be (H, W, 3), got {rgb.shape}")
     h, w = rgb.shape[:2]
     return Image(header=Header(stamp=stamp(t), frame_id=frame_id), height=h, width=w,
                  encoding="rgb8", is_bigendian=0, step=w * 3, data=rgb.tobytes())
@@ -75,12 +75,12 @@ def array_to_image(rgb: np.ndarray, t: float, frame_id: str) -> Image:
 
 # ---------------------------------------------------------------------- poses and wrenches
 def pose_to_array(msg: PoseStamped | Pose) -> tuple[np.ndarray, np.ndarray]:
-    """Pose -> position (3,) [m], quaternion (4,) x y z w; TactexError if not finite."""
+    """Pose -> position (3,) [m], quaternion (4,) x y z w; InputError if not finite."""
     p = msg.pose if isinstance(msg, PoseStamped) else msg
     xyz = np.array([p.position.x, p.position.y, p.position.z])
     q = np.array([p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w])
     if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(q))):
-        raise TactexError("pose with non-finite values")
+        raise InputError("pose with non-finite values")
     return xyz, q
 
 
@@ -100,18 +100,18 @@ def normal_force(force: Vector3, sign: float = 1.0) -> float:
     downward press reads as +z (sign +1)."""
     f = sign * float(force.z)
     if not math.isfinite(f):
-        raise TactexError("wrench with a non-finite force")
+        raise InputError("wrench with a non-finite force")
     return max(0.0, f)
 
 
 def force_components(force: Vector3 | np.ndarray, sign: float = 1.0) -> tuple[float, float]:
     """(signed normal force ``sign * f_z`` [N], force magnitude [N]) of a base-frame force;
-    TactexError if not finite. The magnitude does not depend on the sign convention, so the
+    InputError if not finite. The magnitude does not depend on the sign convention, so the
     force limit holds even where ``sign`` is wrong."""
     f = (np.array([force.x, force.y, force.z], dtype=float) if isinstance(force, Vector3)
          else np.asarray(force, dtype=float)[:3])
     if not np.all(np.isfinite(f)):
-        raise TactexError("wrench with a non-finite force")
+        raise InputError("wrench with a non-finite force")
     return float(sign * f[2]), float(np.linalg.norm(f))
 
 
@@ -148,8 +148,8 @@ def target_to_array(msg) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(msg, Float64MultiArray):
         d = np.asarray(msg.data, dtype=float)
         if d.shape != (12,) or not np.all(np.isfinite(d)):
-            raise TactexError(f"Float64MultiArray target: expected 12 finite values (x y z + "
-                              f"rotation row by row), got {d.size}")
+            raise InputError(f"Float64MultiArray target: expected 12 finite values (x y z + "
+                             f"rotation row by row), got {d.size}")
         return d[:3].copy(), matrix_to_quat(d[3:].reshape(3, 3))
     return pose_to_array(msg)
 
@@ -165,7 +165,7 @@ def franka_state_to_array(msg, sign: float) -> tuple[np.ndarray, float, float, i
     f = np.asarray(msg.o_f_ext_hat_k, dtype=float)
     if t.shape != (16,) or f.shape != (6,) or not (np.all(np.isfinite(t)) and
                                                    np.all(np.isfinite(f))):
-        raise TactexError("franka state: o_t_ee must hold 16 and o_f_ext_hat_k 6 finite values")
+        raise InputError("franka state: o_t_ee must hold 16 and o_f_ext_hat_k 6 finite values")
     fn, mag = force_components(f[:3], sign)
     return t[12:15].copy(), fn, mag, int(getattr(msg, "robot_mode", 0))
 

@@ -23,7 +23,7 @@ from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 
 _PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
                "int32", "uint32", "int64", "uint64", "string", "wstring"}
@@ -42,8 +42,8 @@ def _msg_text(pkg: str, kind: str, name: str) -> str:
         f = share / pkg / kind / f"{name}.{kind}"
         if f.is_file():
             return f.read_text()
-    raise TactexError(f"message definition {pkg}/{kind}/{name} not found under "
-                      f"{[str(s) for s in _share_dirs()]}")
+    raise InputError(f"message definition {pkg}/{kind}/{name} not found under "
+                     f"{[str(s) for s in _share_dirs()]}")
 
 
 def _deps(pkg: str, text: str) -> list[str]:
@@ -157,10 +157,10 @@ def read_bag(path: str | Path, decode: bool = True) -> list[tuple[str, int, Any]
     deserialise with the installed message classes (else the raw CDR bytes)."""
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"bag {str(p)!r} not found")
+        raise InputError(f"bag {str(p)!r} not found")
     with open(p, "rb") as f:
         if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-            raise TactexError(f"{str(p)!r} is not an MCAP file (it does not start with the "
+            raise InputError(f"{str(p)!r} is not an MCAP file (it does not start with the "
                               "MCAP magic bytes)")
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}

@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
 from ..paths import config_dir, read_yaml
@@ -55,7 +55,7 @@ def option_spec(name: str) -> FieldSpec:
 
 def parse_option(name: str, text: str) -> Any:
     """Option ``name`` given as text (a launch argument), typed and checked by its schema;
-    TactexError names the option."""
+    InputError names the option."""
     node, path = OPTIONS[name]
     return parse_text(SETTINGS[node], path, text, f"{name}:={text!r}")
 
@@ -79,7 +79,7 @@ def explorer_defaults(path: str | Path | None = None) -> dict[str, Any]:
     """Explorer settings from ``config/explorer.yaml`` (or ``path``)."""
     p = Path(path) if path else config_dir() / "explorer.yaml"
     if not p.is_file():
-        raise TactexError(f"explorer settings file {str(p)!r} not found")
+        raise InputError(f"explorer settings file {str(p)!r} not found")
     return _checked("explorer", params_from_file(p, "explorer"))
 
 
@@ -88,12 +88,12 @@ def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
     ``{<node>: {ros__parameters: {...}}}``."""
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"{node} parameters file {str(p)!r} not found")
+        raise InputError(f"{node} parameters file {str(p)!r} not found")
     data = read_yaml(p, f"{node} parameters file") or {}
     if isinstance(data, dict) and isinstance(data.get(node), dict):
         data = data[node].get("ros__parameters", {})
     if not isinstance(data, dict):
-        raise TactexError(f"{node} parameters file {str(p)!r}: expected a mapping")
+        raise InputError(f"{node} parameters file {str(p)!r}: expected a mapping")
     return data
 
 
@@ -103,8 +103,9 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
              mock_arm: dict[str, Any] | None = None,
              motion: dict[str, Any] | None = None, motion_file: str | Path | None = None,
              robot: str | None = None) -> list[NodeSpec]:
-    """The tactex graph. ``scene_file`` defaults to config/scene_sim.yaml (sim) or
-    config/scene.yaml; ``robot`` (profile name or path) to ``sim`` (sim) or ``fr3_jazzy``;
+    """The tactex graph. ``robot`` (profile name or path) defaults to ``sim`` (sim) or
+    ``fr3_crisp``; ``scene_file`` to config/scene_sim.yaml (sim) or the profile's ``scene``
+    (config/scene.yaml for the FR3, config/scene_panda.yaml for the Panda);
     ``motion_file``: a YAML of motion node parameters, under ``motion``. The scene, the robot
     profile and every parameter are validated here, so bad values fail before anything starts,
     with the field named."""
@@ -115,18 +116,22 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
             if cand.is_file():          # a shipped scene by name: scene_replay, scene_sim
                 scene_file = cand
                 break
+    given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
+                         motion)
+    prof = load_profile(given_motion.get("robot") or robot or ("sim" if sim else "fr3_crisp"))
     scene_file = str(Path(scene_file) if scene_file else
-                     config_dir() / ("scene_sim.yaml" if sim else "scene.yaml"))
+                     config_dir() / ("scene_sim.yaml" if sim else prof.scene))
     scene = load_scene(scene_file)
     ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
-    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_jazzy")},
-               params_from_file(motion_file, "motion") if motion_file else None, motion)
+    mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_crisp")},
+               given_motion)
     mo = _checked("motion", mo)
     prof = load_profile(mo["robot"])
     if prof.frame_id != scene.frame_id:
-        raise TactexError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
+        raise InputError(f"scene {Path(scene_file).name}: frame_id {scene.frame_id!r} is not "
                           f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
-    check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}")
+    check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}",
+                prof.law.error_clip)
     nodes = [NodeSpec("motion_node", "motion", mo),
              NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]
     if sim:

@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .graph import NodeSpec, params_file
 
 _PR_SET_PDEATHSIG = 1
@@ -216,7 +216,7 @@ def new_result(path: Path, before: tuple | None) -> tuple[dict | None, str | Non
         return None, None
     try:
         return read_result(path.parent), None
-    except TactexError as exc:
+    except InputError as exc:
         return None, str(exc)
 
 
@@ -284,10 +284,10 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     decision (``Deadlines``); then stop every node. ``on_start(graph)`` is called once all
     processes are started (tests use it to inject faults)."""
     if timeout_s is None and idle_s is None:
-        raise TactexError("run_trial needs a deadline: timeout_s or idle_s")
+        raise InputError("run_trial needs a deadline: timeout_s or idle_s")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
-        raise TactexError("the graph has no explorer_node")
+        raise InputError("the graph has no explorer_node")
     ex.parameters["exit_when_done"] = True
     if not ex.parameters.get("trial_id"):
         ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")

@@ -1,6 +1,6 @@
 """Parameters of every node, in the one schema system (``core/config.py``: type, default,
 range, choices, description), pure Python. The nodes declare their ROS parameters from these
-models (``nodes/common.declare_settings``); the graph description fills and checks them; tests
+models (``nodes/lifecycle.declare_settings``); the graph description fills and checks them; tests
 validate them without ROS. Every topic, service and action name is a parameter.
 
 The explorer's settings are composed from the core's: ``ExplorerSettings`` is a
@@ -69,8 +69,8 @@ class GelsightSettings(Schema):
 
 class MotionSettings(Schema):
     scene_file: str = param("", "scene YAML (platforms, workspace, press settings)")
-    robot: str = param("fr3_jazzy", "robot profile: a name from config/robots/ (fr3_jazzy, "
-                                    "panda_multipanda, sim) or a path; gives the controller, "
+    robot: str = param("fr3_crisp", "robot profile: a name from config/robots/ (fr3_crisp, "
+                                    "panda_crisp, sim) or a path; gives the controller, "
                                     "topics, message types, stiffness and recovery interface")
     pose_topic: str = param("", "current end-effector pose (PoseStamped) ('' = the profile's)")
     wrench_topic: str = param("", "external wrench in the base frame (WrenchStamped) "
@@ -152,11 +152,11 @@ class MockArmSettings(Schema):
     target_topic: str = param("", "where the mock reads equilibrium poses ('' = profile's)")
     stiffness: float = param(0.0, "impedance controller stiffness [N/m] (0 = the profile's)",
                              0.0, 1e6)
-    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = 2 sqrt(stiffness) "
-                                 "as franka's controllers)", -1.0, 1e5)
+    damping: float = param(-1.0, "impedance controller damping [N s/m] (< 0 = the profile's)",
+                           -1.0, 1e5)
     mass: float = param(3.0, "apparent end-effector mass [kg]", 0.1, 100.0)
-    target_filter_s: float = param(-1.0, "controller filter on the equilibrium [s] (< 0 = the "
-                                         "profile's)", -1.0, 5.0)
+    target_filter: float = param(-1.0, "controller's EMA weight kept of the filtered target "
+                                       "per cycle (< 0 = the profile's)", -1.0, 0.999)
     platform_stiffness: float = param(2e4, "contact stiffness of gel, fabric and platform in "
                                            "series [N/m]", 1.0, 1e7)
     platform_damping: float = param(50.0, "contact damping [N s/m]", 0.0, 1e5)

@@ -30,7 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 
 SENSORS = ("gelsight_mini", "gelsight")
 
@@ -38,16 +38,16 @@ SENSORS = ("gelsight_mini", "gelsight")
 def calibration_dir(sensor: str = "gelsight_mini") -> Path:
     """Folder of a sensor's calibration inside the installed ``taxim`` package."""
     if sensor not in SENSORS:
-        raise TactexError(f"sensor calibration {sensor!r}: choose one of {', '.join(SENSORS)}")
+        raise InputError(f"sensor calibration {sensor!r}: choose one of {', '.join(SENSORS)}")
     try:
         from taxim.calibration import CALIB_ROOT
     except ImportError as exc:
-        raise TactexError("the simulator's optics need the 'taxim' package (pinned in "
-                          "requirements.txt): pip install -r requirements.txt") from exc
+        raise InputError("the simulator's optics need the 'taxim' package (pinned in "
+                         "requirements.txt): pip install -r requirements.txt") from exc
     folder = Path(CALIB_ROOT) / sensor
     for name in ("polycalib.npz", "dataPack.npz", "params.json"):
         if not (folder / name).is_file():
-            raise TactexError(f"taxim calibration file missing: {folder / name}")
+            raise InputError(f"taxim calibration file missing: {folder / name}")
     return folder
 
 
@@ -90,10 +90,10 @@ def load_calibration(sensor: str = "gelsight_mini", shape: tuple[int, int] = (24
         with np.load(folder / "dataPack.npz", allow_pickle=False) as pack:
             f0 = np.asarray(pack["f0"])
     except (OSError, KeyError, ValueError, json.JSONDecodeError) as exc:
-        raise TactexError(f"taxim calibration in {folder} unreadable: {exc}") from exc
+        raise InputError(f"taxim calibration in {folder} unreadable: {exc}") from exc
     if table.shape != (nb, nb, 3, 6) or f0.shape != (ch, cw, 3):
-        raise TactexError(f"taxim calibration in {folder}: unexpected shapes {table.shape}, "
-                          f"{f0.shape} for {nb} bins and {cw}x{ch} px")
+        raise InputError(f"taxim calibration in {folder}: unexpected shapes {table.shape}, "
+                         f"{f0.shape} for {nb} bins and {cw}x{ch} px")
     # Slope bin 0 holds slopes below 0.7 deg, where the direction is meaningless: its rows
     # differ by direction by ~1.5 grey levels (fit noise), which would paint a flat gel with
     # direction noise. They are replaced by their mean over directions (= the flat gel).

@@ -30,7 +30,7 @@ import numpy as np
 from pydantic import create_model, model_validator
 
 from ..core.config import FieldError, Schema, param
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..paths import read_yaml
 
 FAMILIES = ("plain", "twill", "satin", "basket", "rib", "jersey", "corduroy", "felt")
@@ -63,18 +63,18 @@ class FabricParams:
 
     def validate(self, where: str = "fabric") -> "FabricParams":
         if self.family not in FAMILIES:
-            raise TactexError(f"{where}.family: {self.family!r} is not one of "
-                              f"{', '.join(FAMILIES)}")
+            raise InputError(f"{where}.family: {self.family!r} is not one of "
+                             f"{', '.join(FAMILIES)}")
         for name, (lo, hi) in RANGES.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-                raise TactexError(f"{where}.{name}: expected a number, got {v!r}")
+                raise InputError(f"{where}.{name}: expected a number, got {v!r}")
             if not lo <= v <= hi:
-                raise TactexError(f"{where}.{name}: {v} outside [{lo}, {hi}]")
+                raise InputError(f"{where}.{name}: {v} outside [{lo}, {hi}]")
         if self.family == "twill" and self.repeat < 3:
-            raise TactexError(f"{where}.repeat: twill needs repeat >= 3, got {self.repeat}")
+            raise InputError(f"{where}.repeat: twill needs repeat >= 3, got {self.repeat}")
         if self.family == "satin" and self.repeat < 5:
-            raise TactexError(f"{where}.repeat: satin needs repeat >= 5, got {self.repeat}")
+            raise InputError(f"{where}.repeat: satin needs repeat >= 5, got {self.repeat}")
         return self
 
     def vector(self) -> np.ndarray:
@@ -143,7 +143,7 @@ class Catalogue(Schema):
             seen.add(e.name)
             try:
                 _params(e).validate("fabric")
-            except TactexError as exc:      # a family's own rule (twill / satin repeat)
+            except InputError as exc:      # a family's own rule (twill / satin repeat)
                 field, _, msg = str(exc).partition(": ")
                 raise FieldError(f"fabrics.{i}.{field.rpartition('.')[2]}", msg) from None
         return self
@@ -158,7 +158,7 @@ def load_catalogue(path: str | Path) -> dict[str, FabricParams]:
     (errors located like ``fabrics.2.pitch_mm``)."""
     p = Path(path)
     if not p.is_file():
-        raise TactexError(f"fabric catalogue not found: {p}")
+        raise InputError(f"fabric catalogue not found: {p}")
     cat = Catalogue.check(read_yaml(p, "fabric catalogue"), f"fabric catalogue {p.name}")
     return {e.name: _params(e) for e in cat.fabrics}
 

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING, Literal, overload
 
 import numpy as np
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from .base import TouchSource
 
 if TYPE_CHECKING:
-    from .sim import SimSource
+    from .simulated import SimSource
 
 
 @overload
@@ -32,24 +32,24 @@ def open_source(spec: str) -> TouchSource:
         one = arg.endswith(":one-session")
         folder = arg[:-len(":one-session")] if one else arg
         if not folder:
-            raise TactexError("source replay needs a folder: replay:DIR[:one-session]")
+            raise InputError("source replay needs a folder: replay:DIR[:one-session]")
         from .replay import ReplaySource
         return ReplaySource(folder, one_session=one)
     if kind == "sim":
         from ..paths import config_dir
-        from .sim import SimSource
+        from .simulated import SimSource
         parts = arg.split(":") if arg else []
         recorded = bool(parts) and parts[-1] == "recorded"
         if recorded:
             parts = parts[:-1]
         if len(parts) > 1:
-            raise TactexError(f"source {spec!r}: use sim[:difficulty][:recorded]")
+            raise InputError(f"source {spec!r}: use sim[:difficulty][:recorded]")
         try:
             return SimSource(parts[0] if parts and parts[0] else "medium",
                              catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
-        except TactexError as exc:
-            raise TactexError(f"source {spec!r}: {exc}") from None
-    raise TactexError(f"unknown source {spec!r}; use replay:DIR[:one-session] or "
+        except InputError as exc:
+            raise InputError(f"source {spec!r}: {exc}") from None
+    raise InputError(f"unknown source {spec!r}; use replay:DIR[:one-session] or "
                       "sim[:easy|medium|hard|<number>][:recorded]")
 
 
@@ -63,21 +63,21 @@ def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | N
     if chosen:
         unknown = [c for c in chosen if c not in classes]
         if unknown:
-            raise TactexError(f"--classes: unknown class(es) {unknown}; available: "
-                              f"{', '.join(classes)}")
+            raise InputError(f"--classes: unknown class(es) {unknown}; available: "
+                             f"{', '.join(classes)}")
         comps = list(chosen)
     else:
         if len(classes) < comparisons:
-            raise TactexError(f"--comparisons {comparisons}: the source has only "
-                              f"{len(classes)} classes")
+            raise InputError(f"--comparisons {comparisons}: the source has only "
+                             f"{len(classes)} classes")
         comps = [str(c) for c in rng.choice(classes, comparisons, replace=False)]
     if len(comps) < 2:
-        raise TactexError("--classes: a trial needs at least 2 comparison platforms")
+        raise InputError("--classes: a trial needs at least 2 comparison platforms")
     if reference is None:
         reference = comps[int(rng.integers(len(comps)))]
     if reference not in comps:
-        raise TactexError(f"--reference {reference!r} is not one of the comparison classes "
-                          f"{comps}")
+        raise InputError(f"--reference {reference!r} is not one of the comparison classes "
+                         f"{comps}")
     return [reference] + comps, comps.index(reference) + 1
 
 

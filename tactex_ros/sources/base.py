@@ -32,7 +32,7 @@ class TouchSource(Protocol):
         ...
 
     def by_number(self, number: int) -> str:
-        """The class numbered ``number`` (1-based, the catalogue's order); TactexError where
+        """The class numbered ``number`` (1-based, the catalogue's order); InputError where
         classes have no numbers (recorded presses) or the number is out of range."""
         ...
 
@@ -50,6 +50,6 @@ class TouchSource(Protocol):
               depth_spread_mm: float | None = None) -> Callable[[int], Touch]:
         """The touch function of one trial: ``touch(platform) -> Touch`` for platform classes
         [reference, comparison 1..C], drawn from ``seed``. ``depth_spread_mm``: press depth
-        uniform in the sensor's nominal depth +- this [mm] (simulator only; TactexError
+        uniform in the sensor's nominal depth +- this [mm] (simulator only; InputError
         elsewhere)."""
         ...

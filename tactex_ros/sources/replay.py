@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from ..core.contact import strongest_contact, to_sensor_frame
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..core.touch import Touch
 
 EXTRA_FRAMES = 3       # in-contact frames kept per press besides the strongest
@@ -42,7 +42,7 @@ IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
 
 
 def read_video(path: str | Path) -> np.ndarray:
-    """All frames of a video as sensor-sized BGR uint8 (F, 240, 320, 3); TactexError if < 2."""
+    """All frames of a video as sensor-sized BGR uint8 (F, 240, 320, 3); InputError if < 2."""
     cap = cv2.VideoCapture(str(path))
     frames = []
     try:
@@ -52,12 +52,12 @@ def read_video(path: str | Path) -> np.ndarray:
                 break
             try:
                 frames.append(to_sensor_frame(frame))
-            except TactexError as exc:
-                raise TactexError(f"press file {path}: {exc}") from None
+            except InputError as exc:
+                raise InputError(f"press file {path}: {exc}") from None
     finally:
         cap.release()
     if len(frames) < 2:
-        raise TactexError(f"unreadable video (no frames decoded): {path}")
+        raise InputError(f"unreadable video (no frames decoded): {path}")
     return np.stack(frames)
 
 
@@ -75,11 +75,11 @@ def load_touch(path: str) -> tuple[Touch, float]:
     if ext in IMAGE_EXT:
         img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if img is None:
-            raise TactexError(f"unreadable image file: {p}")
+            raise InputError(f"unreadable image file: {p}")
         try:
             frame = to_sensor_frame(img)
-        except TactexError as exc:
-            raise TactexError(f"press file {p}: {exc}") from None
+        except InputError as exc:
+            raise InputError(f"press file {p}: {exc}") from None
         return Touch(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)), float("nan")
     arr = read_video(p)
     idx, scores = strongest_contact(arr)
@@ -101,7 +101,7 @@ class ReplaySource:
         self.root = Path(root)
         self.one_session = one_session
         if not self.root.is_dir():
-            raise TactexError(f"replay folder does not exist: {self.root}")
+            raise InputError(f"replay folder does not exist: {self.root}")
         self.files: dict[str, list[Path]] = {}
         for d in sorted(self.root.iterdir()):
             if not d.is_dir():
@@ -110,8 +110,8 @@ class ReplaySource:
                            if f.is_file() and f.suffix.lower() in VIDEO_EXT | IMAGE_EXT)
             self.files[d.name] = files
         if not any(self.files.values()):
-            raise TactexError(f"replay folder {self.root} has no <class>/<press file> entries "
-                              f"(videos {sorted(VIDEO_EXT)} or images {sorted(IMAGE_EXT)})")
+            raise InputError(f"replay folder {self.root} has no <class>/<press file> entries "
+                             f"(videos {sorted(VIDEO_EXT)} or images {sorted(IMAGE_EXT)})")
 
     @property
     def classes(self) -> list[str]:
@@ -123,8 +123,8 @@ class ReplaySource:
         return self.classes
 
     def by_number(self, number: int) -> str:
-        raise TactexError(f"class number {number}: numbers name the simulator's catalogue "
-                          "fabrics (source sim); name the classes of this source instead")
+        raise InputError(f"class number {number}: numbers name the simulator's catalogue "
+                         "fabrics (source sim); name the classes of this source instead")
 
     def draw_scene(self, comparisons: int, seed: int) -> None:
         """Scenes are drawn from ``classes``."""
@@ -136,10 +136,10 @@ class ReplaySource:
 
     def presses(self, cls: str) -> list[Path]:
         if cls not in self.files:
-            raise TactexError(f"class {cls!r} not in replay folder {self.root}; "
-                              f"available: {', '.join(self.classes)}")
+            raise InputError(f"class {cls!r} not in replay folder {self.root}; "
+                             f"available: {', '.join(self.classes)}")
         if not self.files[cls]:
-            raise TactexError(f"class {cls!r} in {self.root} has no readable press file")
+            raise InputError(f"class {cls!r} in {self.root} has no readable press file")
         return self.files[cls]
 
     def frame(self, path: Path) -> np.ndarray:
@@ -151,23 +151,23 @@ class ReplaySource:
         return load_touch(str(path))[0]
 
     def check_class(self, cls: str) -> None:
-        """Raise TactexError unless at least one press of ``cls`` decodes."""
+        """Raise InputError unless at least one press of ``cls`` decodes."""
         errors = []
         for f in self.presses(cls):
             try:
                 self.frame(f)
                 return
-            except TactexError as exc:
+            except InputError as exc:
                 errors.append(str(exc))
-        raise TactexError(f"class {cls!r} has no readable press: {'; '.join(errors)}")
+        raise InputError(f"class {cls!r} has no readable press: {'; '.join(errors)}")
 
     def trial(self, platform_classes: list[str], seed: int,
               depth_spread_mm: float | None = None) -> "ReplayTrial":
         """Touch function of one trial (``TouchSource.trial``): recorded presses drawn without
         repetition where possible."""
         if depth_spread_mm is not None:
-            raise TactexError(f"depth spread {depth_spread_mm} mm: recorded presses have their "
-                              "own depths; the depth perturbation needs the simulator (sim)")
+            raise InputError(f"depth spread {depth_spread_mm} mm: recorded presses have their "
+                             "own depths; the depth perturbation needs the simulator (sim)")
         return ReplayTrial(self, platform_classes, seed)
 
 
@@ -210,7 +210,7 @@ class ReplayTrial:
         self.log.append((platform, str(path)))
         try:
             touch = self.source.touch(path)
-        except TactexError as exc:     # one bad file among good ones: a failed touch, and the
+        except InputError as exc:     # one bad file among good ones: a failed touch, and the
             from ..core.engine import TouchFailed     # engine draws another press (retry)
             raise TouchFailed(str(exc)) from exc
         if not self.source.one_session or touch.no_contact is None:

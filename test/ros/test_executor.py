@@ -24,7 +24,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 
 from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC  # noqa: E402
-from tactex_ros.ros.nodes.common import in_thread  # noqa: E402
+from tactex_ros.ros.nodes.lifecycle import in_thread  # noqa: E402
 
 SCENE = Path(__file__).resolve().parents[2] / "config" / "scene_sim.yaml"
 

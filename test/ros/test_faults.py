@@ -22,7 +22,7 @@ from sensor_msgs.msg import Image
 
 from tactex_ros.ros import adapter
 from tactex_ros.ros.bag import TOUCH_TOPIC, read_bag
-from tactex_ros.cli.graph import summarise_bag
+from tactex_ros.cli.graph_commands import summarise_bag
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
 from tactex_ros.record import read_record, read_result

@@ -26,7 +26,7 @@ from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
-from tactex_ros.ros.nodes.common import entities, wait_for  # noqa: E402
+from tactex_ros.ros.nodes.lifecycle import entities, wait_for  # noqa: E402
 from tactex_ros.paths import config_dir  # noqa: E402
 
 pytestmark = pytest.mark.ros

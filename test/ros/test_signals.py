@@ -49,7 +49,7 @@ def test_two_sigints_exit_cleanly(tmp_path: Path, domain_id: int, listener,
 INTERRUPTED = """
 import os, signal, sys, time
 from pathlib import Path
-from tactex_ros.ros.nodes.common import run
+from tactex_ros.ros.nodes.process import run
 from tactex_ros.ros.nodes.mock_arm_node import MockArmNode
 
 where, marker = sys.argv[1], Path(sys.argv[2])

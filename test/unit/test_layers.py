@@ -58,7 +58,7 @@ def test_the_import_reader_resolves_relative_imports():
     got = imports(PKG / "core" / "engine.py")
     mods = {m for _, m, _ in got}
     assert "tactex_ros.core.learners" in mods and "tactex_ros.core.touch" in mods
-    got = imports(PKG / "cli" / "sim.py")
+    got = imports(PKG / "cli" / "sim_commands.py")
     assert "tactex_ros.sources" in {m for _, m, _ in got}
     assert (PKG / "core" / "__init__.py").is_file() and (LAB / "__init__.py").is_file()
 

@@ -11,7 +11,7 @@ import pytest
 
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TouchFailed, TrialEngine, trial_preset
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.record import TrialRecord, read_record
 from tactex_ros.resume import Replay, load_replay
@@ -112,17 +112,17 @@ def test_replay_refuses_a_record_that_diverges(tmp_path: Path) -> None:
     lines[0] = json.dumps(first)
     (tmp_path / "cut" / "touches.jsonl").write_text("\n".join(lines) + "\n")
     replay, _ = load_replay(tmp_path / "cut", lambda p: None, IDS)
-    with pytest.raises(TactexError, match="diverges at touch 1"):
+    with pytest.raises(InputError, match="diverges at touch 1"):
         _engine().run(replay)
 
 
 def test_resume_refuses_finished_or_missing_records(tmp_path: Path) -> None:
-    with pytest.raises(TactexError, match="not a trial record"):
+    with pytest.raises(InputError, match="not a trial record"):
         TrialRecord(tmp_path, "nothing", resume=True)
     rec = TrialRecord(tmp_path, "done")
     rec.save_inputs(None, {})
     rec.finish({"prediction": "c1"})
-    with pytest.raises(TactexError, match="already has its result"):
+    with pytest.raises(InputError, match="already has its result"):
         TrialRecord(tmp_path, "done", resume=True)
     rec.finish({"error": "press server gone"})           # a failed trial can be resumed
     assert TrialRecord(tmp_path, "done", resume=True).n_touches == 0

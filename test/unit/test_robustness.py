@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.outputs import check_dir, check_file, dumps, write_json
 from tactex_ros.record import (TrialRecord, check_new_record, check_resumable, read_record)
 
@@ -47,9 +47,9 @@ def test_unwritable_output_refused_before_any_work(tmp_path, capsys, argv_of, op
 
 def test_output_under_a_read_only_file_system_refused():
     # /proc refuses new files also for root (a chmod does not stop root)
-    with pytest.raises(TactexError, match="/proc"):
+    with pytest.raises(InputError, match="/proc"):
         check_file("/proc/tactex_out.json", "--json", (".json",))
-    with pytest.raises(TactexError, match="--log-dir"):
+    with pytest.raises(InputError, match="--log-dir"):
         check_dir("/proc/tactex_logs/x", "--log-dir")
 
 
@@ -59,7 +59,7 @@ def test_output_in_a_folder_without_write_permission_refused(tmp_path):
     d.mkdir()
     d.chmod(stat.S_IRUSR | stat.S_IXUSR)
     try:
-        with pytest.raises(TactexError, match="ro"):
+        with pytest.raises(InputError, match="ro"):
             check_file(d / "x.json", "--json", (".json",))
     finally:
         d.chmod(stat.S_IRWXU)
@@ -116,29 +116,29 @@ def _finished(tmp_path: Path, tid: str = "same") -> Path:
 def test_reused_trial_id_refused_and_nothing_overwritten(tmp_path):
     d = _finished(tmp_path)
     before = (d / "result.json").read_bytes()
-    with pytest.raises(TactexError, match="same"):
+    with pytest.raises(InputError, match="same"):
         check_new_record(tmp_path, "same")
-    with pytest.raises(TactexError, match="same"):
+    with pytest.raises(InputError, match="same"):
         TrialRecord(tmp_path, "same")
     assert (d / "result.json").read_bytes() == before
 
 
 @pytest.mark.parametrize("tid", ["../../x", "a/b", "..", ""])
 def test_trial_id_must_be_a_plain_name(tmp_path, tid):
-    with pytest.raises(TactexError, match="trial_id"):
+    with pytest.raises(InputError, match="trial_id"):
         check_new_record(tmp_path, tid)
 
 
 def test_finished_record_cannot_be_resumed(tmp_path):
     d = _finished(tmp_path)
-    with pytest.raises(TactexError, match="result"):
+    with pytest.raises(InputError, match="result"):
         check_resumable(d)
 
 
 def test_torn_result_json_refused_naming_the_file(tmp_path):
     d = _finished(tmp_path)
     (d / "result.json").write_text('{"prediction": "c')
-    with pytest.raises(TactexError, match="result.json"):
+    with pytest.raises(InputError, match="result.json"):
         check_resumable(d)
 
 
@@ -152,12 +152,12 @@ def test_empty_touches_with_old_decisions_and_images_refused(tmp_path):
         rec.add_decision({"round": 1})
     check_resumable(rec.dir)                     # consistent: accepted
     (rec.dir / "touches.jsonl").write_text("")   # the touch lines lost, images and decisions kept
-    with pytest.raises(TactexError, match="decisions.jsonl"):
+    with pytest.raises(InputError, match="decisions.jsonl"):
         check_resumable(rec.dir)
     (rec.dir / "decisions.jsonl").write_text("")
-    with pytest.raises(TactexError, match="touch_0002"):
+    with pytest.raises(InputError, match="touch_0002"):
         check_resumable(rec.dir)
-    with pytest.raises(TactexError):
+    with pytest.raises(InputError):
         TrialRecord(tmp_path, "t", resume=True)
 
 
@@ -271,7 +271,7 @@ def test_record_with_a_missing_image_refused_up_front(tmp_path):
     path = rec.add_touch(np.zeros((240, 320, 3), np.uint8), {"platform_index": 0,
                                                              "platform_id": "reference"})
     path.unlink()
-    with pytest.raises(TactexError, match=path.name):
+    with pytest.raises(InputError, match=path.name):
         check_resumable(rec.dir)
 
 
@@ -279,7 +279,7 @@ def test_record_with_a_missing_image_refused_up_front(tmp_path):
                                          ("sim:a:b", "sim:a:b"), ("camera", "camera")])
 def test_bad_source_spec_named(spec, named):
     from tactex_ros.sources import open_source
-    with pytest.raises(TactexError, match=named):
+    with pytest.raises(InputError, match=named):
         open_source(spec)
 
 

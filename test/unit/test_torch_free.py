@@ -34,7 +34,7 @@ def _launch_imports() -> list[str]:
 
 def _run(code: str) -> list[str]:
     """``sys.modules`` after ``code`` in a fresh interpreter (run from the repository)."""
-    out = subprocess.run([sys.executable, "-c", code + "; import sys; "
+    out = subprocess.run([sys.executable, "-c", code + "\nimport sys; "
                           "print('\\n'.join(sorted(sys.modules)))"], capture_output=True,
                          text=True, timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
@@ -103,3 +103,16 @@ def test_the_thesis_method_is_one_option_away() -> None:
 
 def test_launch_file_imports_were_found() -> None:
     assert "tactex_ros.ros.graph" in _launch_imports()
+
+
+@pytest.mark.parametrize("argv, absent", [
+    (["--help"], ("numpy", "pydantic", "torch", "tactex_lab.experiments")),
+    (["trial", "--help"], ("numpy", "torch", "tactex_lab.experiments")),
+])
+def test_help_imports_only_what_it_shows(argv, absent) -> None:
+    """Start-up: ``tactex --help`` lists the commands without building their options; ``tactex
+    trial --help`` builds only the trial's (from the schema, without numpy)."""
+    loaded = _run("import contextlib, io; from tactex_ros.cli.main import main\n"
+                  "with contextlib.redirect_stdout(io.StringIO()), "
+                  "contextlib.suppress(SystemExit):\n    main(%r)" % argv)
+    assert not [m for m in loaded if any(m == a or m.startswith(a + ".") for a in absent)]

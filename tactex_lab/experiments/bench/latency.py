@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from tactex_ros.core.config import preset
-from tactex_ros.core.engine import TrialEngine, trial_preset
+from tactex_ros.core.engine import TrialSpec, trial_preset
 from tactex_ros.core.texture import clear_cache
 from tactex_ros.sources import open_source
 
@@ -38,8 +38,8 @@ def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],
             epochs_override: int | None = None) -> dict:
     over = {"epochs": epochs_override} if epochs_override else {}
     cfg = preset(config, **over)
-    eng = TrialEngine(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
-                      seed=0)
+    eng = TrialSpec(4, cfg, trial_preset(config, rounds=10**3 - 1, stop_confidence=0.0),
+                    seed=0).engine()      # driven step by step: the steps are what is timed
     clear_cache()
     add_s = []
     for k in range(n_touches):

@@ -30,18 +30,19 @@ from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
-from ...core.engine import TouchFailed, TrialEngine
-from ...core.errors import TactexError
+from ...core.engine import TouchFailed, TrialSpec, run_trial
+from ...core.errors import InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
 from ...record import TrialRecord
 from ...robot.scene import load_scene
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 from ..goal import GoalRequest, Silence
 
 
-class PressServerLost(TactexError):
+class PressServerLost(InputError):
     """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
 
@@ -60,8 +61,9 @@ class ExplorerNode(TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        self.engine = TrialEngine(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
-                                  platform_ids=self.ids)
+        self.spec = TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
+                              platform_ids=tuple(self.ids))
+        self.engine = self.spec.engine()       # settings refused here, at configure
         inputs = {"explorer": s.model_dump(exclude={"learner", "trial"}),
                   "learner": s.learner.model_dump(), "trial": s.trial.model_dump()}
         self.replay = None
@@ -110,8 +112,8 @@ class ExplorerNode(TactexNode):
         check_settings(d, inputs)
         was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
         if was is not None and [p.id for p in was.ordered] != self.ids:
-            raise TactexError(f"resume: the scene's platforms {self.ids} are not the record's "
-                              f"{[p.id for p in was.ordered]}")
+            raise InputError(f"resume: the scene's platforms {self.ids} are not the record's "
+                             f"{[p.id for p in was.ordered]}")
         self.replay, rec = load_replay(d, self._press, self.ids)
         self._replay_decisions = rec["decisions"]
         self._decisions = 0
@@ -217,7 +219,7 @@ class ExplorerNode(TactexNode):
             if now > deadline:
                 return False
             if self._stopping or not self.context.ok():
-                raise TactexError("the explorer is stopping")
+                raise TrialError("the explorer is stopping")
             if watch:
                 silent = self._silence.silent_s()
                 if silent > self.settings.press_silence_s:
@@ -234,12 +236,12 @@ class ExplorerNode(TactexNode):
 
     def _wait_running(self) -> None:
         """Before a press: wait while the node is deactivated (paused), up to
-        ``pause_timeout_s``; TactexError when stopping or paused too long."""
+        ``pause_timeout_s``; TrialError when stopping or paused too long."""
         if not self._running.wait(timeout=self.settings.pause_timeout_s):
-            raise TactexError(f"the explorer stayed inactive longer than pause_timeout_s "
+            raise TrialError(f"the explorer stayed inactive longer than pause_timeout_s "
                               f"({self.settings.pause_timeout_s} s)")
         if self._stopping:
-            raise TactexError("the explorer is stopping")
+            raise TrialError("the explorer is stopping")
 
     def _on_feedback(self, _msg) -> None:
         self._silence.heard()
@@ -294,7 +296,7 @@ class ExplorerNode(TactexNode):
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
-        except TactexError as exc:
+        except InputError as exc:
             meta.update(accepted=False, reason=str(exc), encoding=touch.image.encoding,
                         width=touch.image.width, height=touch.image.height)
             self.record.add_touch(None, meta)
@@ -314,11 +316,11 @@ class ExplorerNode(TactexNode):
             return None
         try:
             return adapter.image_to_array(touch.no_contact_image, "no-contact frame")
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"no-contact frame unusable: {exc}")
             return None
 
-    def _on_rejected(self, platform: int, exc: TactexError) -> None:
+    def _on_rejected(self, platform: int, exc: InputError) -> None:
         """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
         cur = self.replay.current if self.replay is not None else None
         if cur is not None:              # a replayed touch: marked already, unless cut off
@@ -359,8 +361,8 @@ class ExplorerNode(TactexNode):
     def _run_trial(self) -> None:
         s = self.settings
         if not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
-            raise TactexError(f"press action {s.press_action!r} not available within "
-                              f"server_timeout_s ({s.server_timeout_s} s)")
+            raise InputError(f"press action {s.press_action!r} not available within "
+                             f"server_timeout_s ({s.server_timeout_s} s)")
         eng = self.engine
 
         def on_round(rec) -> None:
@@ -368,7 +370,8 @@ class ExplorerNode(TactexNode):
             self._publish_state(rec, eng.done, pred)
 
         touch_fn = self._press if self.replay is None else self._touch
-        res = eng.run(touch_fn, on_round=on_round, on_rejected=self._on_rejected)
+        res = run_trial(self.spec, touch_fn, on_round=on_round, on_rejected=self._on_rejected,
+                        engine=eng)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)

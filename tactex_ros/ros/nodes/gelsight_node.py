@@ -37,13 +37,14 @@ from sensor_msgs.msg import Image
 
 from .. import adapter
 from ...core.contact import crop_border
-from ...core.errors import TactexError
+from ...core.errors import InputError
 from ..settings import GelsightSettings
 from ...robot.frames import FrameRing
 from ...robot.sensors import (SensorConfig, SensorProfile, digit_led_value, load_sensor,
                               sensor_config)
 from .capture import serve_capture
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
@@ -67,8 +68,8 @@ def resolve_device(device: str, serial_lookup: str = "") -> Device:
     """The device for a path, by-id path, camera name, serial number, video file or folder of
     frames; ``serial_lookup`` ``digit_interface``: ask digit-interface (where installed)."""
     if not device:
-        raise TactexError("gelsight device: empty; give /dev/videoN, a /dev/v4l/by-id path, "
-                          "the camera's name, a serial number, a video file or a folder")
+        raise InputError("gelsight device: empty; give /dev/videoN, a /dev/v4l/by-id path, "
+                         "the camera's name, a serial number, a video file or a folder")
     p = Path(device)
     if p.exists():
         if p.is_dir():
@@ -87,8 +88,8 @@ def resolve_device(device: str, serial_lookup: str = "") -> Device:
     for link in sorted(glob.glob("/dev/v4l/by-id/*")):
         if device.lower().replace(" ", "_") in Path(link).name.lower():
             return Device(str(Path(link).resolve()), "camera")
-    raise TactexError(f"gelsight device {device!r}: no such file and no camera reports that "
-                      f"name (/sys/class/video4linux/*/name, /dev/v4l/by-id){hint}")
+    raise InputError(f"gelsight device {device!r}: no such file and no camera reports that "
+                     f"name (/sys/class/video4linux/*/name, /dev/v4l/by-id){hint}")
 
 
 def _digit_by_serial(serial: str) -> tuple[Device | None, str]:
@@ -129,11 +130,11 @@ class FrameFolder:
         self.files = sorted((f for f in Path(folder).iterdir()
                              if f.suffix.lower() in IMAGE_SUFFIXES), key=_natural)
         if not self.files:
-            raise TactexError(f"gelsight device {folder!r}: a folder without frames "
-                              f"({'/'.join(IMAGE_SUFFIXES)})")
+            raise InputError(f"gelsight device {folder!r}: a folder without frames "
+                             f"({'/'.join(IMAGE_SUFFIXES)})")
         bad = [f.name for f in self.files if not cv2.haveImageReader(str(f))]
         if bad:
-            raise TactexError(f"gelsight recording {folder!r}: not readable as images: {bad[:5]}")
+            raise InputError(f"gelsight recording {folder!r}: not readable as images: {bad[:5]}")
         self.pos = 0
 
     def isOpened(self) -> bool:  # noqa: N802 - cv2.VideoCapture's name
@@ -149,7 +150,7 @@ class FrameFolder:
         self.pos += 1
         bgr = cv2.imread(str(f), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise TactexError(f"gelsight recording: {str(f)!r} is not a readable image")
+            raise InputError(f"gelsight recording: {str(f)!r} is not a readable image")
         return True, bgr
 
     def set(self, prop: int, value: float) -> bool:
@@ -179,7 +180,7 @@ V4L2_EXPOSURE_MANUAL, V4L2_EXPOSURE_AUTO = 1.0, 3.0
 def camera_setup(cap, cfg: SensorConfig, revision: int | None = None) -> dict[str, float]:
     """Apply capture mode (and its frame rate where the profile lists modes), exposure, white
     balance and a DIGIT's LED level to an opened ``cv2.VideoCapture`` (V4L2). Returns the
-    values read back; TactexError names the parameter whose property the driver refused."""
+    values read back; InputError names the parameter whose property the driver refused."""
     wanted: list[tuple[str, int, float]] = []
     if cfg.capture_width and cfg.capture_height:
         wanted += [("capture_width", cv2.CAP_PROP_FRAME_WIDTH, float(cfg.capture_width)),
@@ -202,15 +203,15 @@ def camera_setup(cap, cfg: SensorConfig, revision: int | None = None) -> dict[st
     got = {}
     for name, prop, value in wanted:
         if not cap.set(prop, value):
-            raise TactexError(f"gelsight {name} = {value:g}: the camera driver refused it "
-                              "(v4l2-ctl --list-ctrls shows what the camera supports)")
+            raise InputError(f"gelsight {name} = {value:g}: the camera driver refused it "
+                             "(v4l2-ctl --list-ctrls shows what the camera supports)")
         got[name] = float(cap.get(prop))
     if cfg.capture_width and cfg.capture_height and \
             (got["capture_width"], got["capture_height"]) != (cfg.capture_width,
                                                               cfg.capture_height):
-        raise TactexError(f"gelsight capture_width x capture_height = {cfg.capture_width}x"
-                          f"{cfg.capture_height}: the camera runs "
-                          f"{got['capture_width']:g}x{got['capture_height']:g}")
+        raise InputError(f"gelsight capture_width x capture_height = {cfg.capture_width}x"
+                         f"{cfg.capture_height}: the camera runs "
+                         f"{got['capture_width']:g}x{got['capture_height']:g}")
     return got
 
 
@@ -235,8 +236,8 @@ class GelsightNode(TactexNode):
         end = time.monotonic() + s.open_timeout_s
         while not self.cap.isOpened():
             if time.monotonic() > end:
-                raise TactexError(f"gelsight device {cfg.device!r} ({path}): could not be "
-                                  f"opened within open_timeout_s ({s.open_timeout_s} s)")
+                raise InputError(f"gelsight device {cfg.device!r} ({path}): could not be "
+                                 f"opened within open_timeout_s ({s.open_timeout_s} s)")
             time.sleep(0.1)
             self.cap.open(path)
         if not self.is_file:
@@ -277,7 +278,7 @@ class GelsightNode(TactexNode):
     def _read(self) -> np.ndarray | None:
         try:
             return self._read_frame()
-        except TactexError as exc:     # a recorded frame that does not decode
+        except InputError as exc:     # a recorded frame that does not decode
             self.get_logger().error(str(exc))
             return None
 

@@ -3,10 +3,13 @@ impedance controller at the robot profile's topics (``robot``, default ``sim``).
 
 Reads equilibrium targets (PoseStamped, or multipanda_ros2's Float64MultiArray), publishes the
 current pose (PoseStamped) and the external wrench in the base frame (WrenchStamped, z =
-``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel``: a
-spring-damper impedance model (controller stiffness and damping, apparent mass, the
-controller's filter on the equilibrium) against platforms of ``platform_stiffness``, so the
-mock behaves as a real controller does: it pushes with K (x - x_eq), not as a position follower.
+``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel`` running
+the control law of the controller the profile names (``robot.press.ControlLaw``: stiffness,
+damping as the controller computes it, its target filter, error clip and force rate limit, one
+control cycle at the profile's ``rate_hz``) on an apparent mass against platforms of
+``platform_stiffness``, so the mock behaves as that controller does: it pushes with
+K (x_eq - x), not as a position follower. Like CRISP, it ignores targets while more publishers
+than the profile's ``target.max_publishers`` are on the target topic.
 
 Fault injection for tests: ``surface_offset`` (platforms lower or higher than the scene says);
 ``reflex_force``: above that contact force the arm stops and the state stops (the hardware
@@ -25,12 +28,13 @@ from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Header
 
 from .. import adapter
-from ...core.errors import TactexError
-from ...robot.press import ArmModel
+from ...core.errors import InputError
+from ...robot.press import ArmModel, ControlLaw
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile
 from ...robot.scene import load_scene
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 class MockArmNode(TactexNode):
@@ -43,8 +47,8 @@ class MockArmNode(TactexNode):
         s = self.settings
         prof = load_profile(s.robot)
         if prof.franka_state:
-            raise TactexError(f"robot profile {prof.name!r}: the mock arm publishes "
-                              "PoseStamped + WrenchStamped state only")
+            raise InputError(f"robot profile {prof.name!r}: the mock arm publishes "
+                             "PoseStamped + WrenchStamped state only")
         scene = load_scene(s.scene_file)
         if s.surface_offset:
             scene = replace(scene, platforms=tuple(
@@ -52,21 +56,22 @@ class MockArmNode(TactexNode):
                                     p.position[2] + s.surface_offset))
                 for p in scene.platforms))
         self.scene = scene
-        k = s.stiffness or prof.stiffness
-        self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]), stiffness=k,
-                            damping=None if s.damping < 0 else s.damping, mass=s.mass,
+        self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
+                            mock_law(prof.law, s), mass=s.mass,
                             platform_stiffness=s.platform_stiffness,
-                            platform_damping=s.platform_damping,
-                            target_filter_s=(prof.target_filter_s if s.target_filter_s < 0
-                                             else s.target_filter_s))
+                            platform_damping=s.platform_damping)
+        self.max_publishers = prof.max_publishers
         self.sign = s.wrench_sign or prof.force_sign
         self.quat = np.array(scene.tool_orientation)
         self.pose_pub = self.create_lifecycle_publisher(
             PoseStamped, s.pose_topic or prof.pose_topic, qos_profile_sensor_data)
         self.wrench_pub = self.create_lifecycle_publisher(
             WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
-        self.create_subscription(import_interface(prof.target_type),
-                                 s.target_topic or prof.target_topic, self._on_target, 10)
+        self.target_topic = s.target_topic or prof.target_topic
+        # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
+        self.create_subscription(import_interface(prof.target_type), self.target_topic,
+                                 self._on_target, 1)
+        self.ignored_targets = 0      # targets dropped for too many publishers
         self.error = False            # reflex not yet cleared by the recovery
         self.hardware_active = True
         self.controller_active = True
@@ -119,9 +124,12 @@ class MockArmNode(TactexNode):
     def _on_target(self, msg) -> None:
         if not self.controller_active:
             return     # a deactivated controller takes no targets
+        if self.max_publishers and self.count_publishers(self.target_topic) > self.max_publishers:
+            self.ignored_targets += 1
+            return     # as CRISP: conflicting command sources, every target ignored
         try:
             xyz, _ = adapter.target_to_array(msg)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"target ignored: {exc}")
             return
         self.arm.target = xyz
@@ -145,6 +153,19 @@ class MockArmNode(TactexNode):
         w = WrenchStamped(header=Header(stamp=adapter.stamp(now), frame_id=self.scene.frame_id))
         w.wrench.force = Vector3(x=0.0, y=0.0, z=float(self.sign * self.arm.normal_force()))
         self.wrench_pub.publish(w)
+
+
+def mock_law(law: ControlLaw, s: MockArmSettings) -> ControlLaw:
+    """The profile's control law with the mock's overrides (stiffness, damping, target filter;
+    a value < 0 or 0 keeps the profile's)."""
+    kw: dict[str, float] = {}
+    if s.stiffness:
+        kw["stiffness"] = s.stiffness
+    if s.damping >= 0:
+        kw["damping"] = s.damping
+    if s.target_filter >= 0:
+        kw["target_filter"] = s.target_filter
+    return law.replace(**kw) if kw else law
 
 
 def main(args: list[str] | None = None) -> int:

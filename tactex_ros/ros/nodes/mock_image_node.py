@@ -19,11 +19,12 @@ from sensor_msgs.msg import Image
 from .. import adapter
 from ...robot.frames import FrameRing
 from ...robot.press import platform_under
-from ...core.errors import TactexError
+from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
-from .common import TactexNode, run
+from .lifecycle import TactexNode
+from .process import run
 
 
 class MockImageNode(TactexNode):
@@ -37,23 +38,23 @@ class MockImageNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         kind = s.source.partition(":")[0]
         if kind not in ("sim", "replay"):
-            raise TactexError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
+            raise InputError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
         if kind == "sim" and s.source.endswith(":recorded"):
-            raise TactexError(f"source {s.source!r}: the mock camera is live (one session); "
+            raise InputError(f"source {s.source!r}: the mock camera is live (one session); "
                               "'recorded' is for offline trials: use sim[:difficulty]")
         from ...sources import open_source
         self.src = open_source(s.source)         # first: a bad source is named as such
         field = "sim_fabric" if kind == "sim" else "replay_class"
         missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
         if missing:
-            raise TactexError(f"scene {s.scene_file!r}: platforms {missing} have no {field} "
+            raise InputError(f"scene {s.scene_file!r}: platforms {missing} have no {field} "
                               f"for source {s.source!r}")
         if kind == "sim":
             for p in self.scene.platforms:
                 try:
                     self.src.fabric(p.sim_fabric)
-                except TactexError as exc:
-                    raise TactexError(f"scene {s.scene_file!r}: platform {p.id} sim_fabric: "
+                except InputError as exc:
+                    raise InputError(f"scene {s.scene_file!r}: platform {p.id} sim_fabric: "
                                       f"{exc}") from None
                 # build the fabric's height tile now: doing it at the first press stalls the
                 # frame timer for a moment and the capture window then holds no contact frame
@@ -91,7 +92,7 @@ class MockImageNode(TactexNode):
     def _on_pose(self, msg: PoseStamped) -> None:
         try:
             self.position = adapter.pose_to_array(msg)[0]
-        except TactexError:
+        except InputError:
             pass
 
     def _on_wrench(self, msg: WrenchStamped) -> None:

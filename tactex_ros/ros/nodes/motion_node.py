@@ -29,12 +29,13 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.qos import qos_profile_sensor_data
 
 from .. import adapter
-from ...core.errors import TactexError
+from ...core.errors import InputError, TrialError
 from ...robot.press import PressController, check_press
 from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
-from .common import TactexNode, in_thread, run, wait_for
+from .lifecycle import TactexNode, in_thread, wait_for
+from .process import run
 
 
 class RobotError(Exception):
@@ -54,11 +55,11 @@ class MotionNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         prof = self.profile = load_profile(s.robot)
         if self.scene.frame_id != prof.frame_id:
-            raise TactexError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
-                              f"{prof.name!r}'s base frame {prof.frame_id!r}")
+            raise InputError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
+                             f"{prof.name!r}'s base frame {prof.frame_id!r}")
         self.k = s.stiffness or prof.stiffness
         self.sign = s.force_sign or prof.force_sign
-        check_press(self.scene, self.k, f"scene with robot {prof.name!r}")
+        check_press(self.scene, self.k, f"scene with robot {prof.name!r}", prof.law.error_clip)
         self.quat = np.array(self.scene.tool_orientation)
         self.position: np.ndarray | None = None
         self.pose_t = -1.0
@@ -80,7 +81,7 @@ class MotionNode(TactexNode):
             try:
                 self.create_subscription(import_interface(prof.mode_type),
                                          s.mode_topic or prof.mode_topic, self._on_mode, 10)
-            except TactexError as exc:
+            except InputError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
         self.target_type = prof.target_type
@@ -114,7 +115,7 @@ class MotionNode(TactexNode):
                 ctype = import_interface(call.type)
                 fill_message(ctype.Request(), call.request, f"recovery.then {call.service}")
                 self.reactivate.append((call, ctype, self.create_client(ctype, call.service)))
-        except TactexError as exc:
+        except InputError as exc:
             self.recovery_off = f"recovery off: {exc}"
             self.recovery_client, self.reactivate = None, []
             self.get_logger().warning(self.recovery_off)
@@ -137,20 +138,20 @@ class MotionNode(TactexNode):
         try:
             self.position = adapter.pose_to_array(msg)[0]
             self.pose_t = time.monotonic()
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"pose ignored: {exc}")
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         try:
             self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
             self.wrench_t = time.monotonic()
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"wrench ignored: {exc}")
 
     def _on_state(self, msg) -> None:
         try:
             pos, fn, mag, mode = adapter.franka_state_to_array(msg, self.sign)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"robot state ignored: {exc}")
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
@@ -180,7 +181,7 @@ class MotionNode(TactexNode):
             return GoalResponse.REJECT
         try:
             self.scene.platform(goal.platform_id)
-        except TactexError as exc:
+        except InputError as exc:
             self.get_logger().warning(f"press goal rejected: {exc}")
             return GoalResponse.REJECT
         if self.busy.locked():
@@ -303,11 +304,11 @@ class MotionNode(TactexNode):
         return False
 
     def _wait(self, fut, deadline_s: float, what: str):
-        """Wait for a future from this worker thread; its result, or TactexError at the
+        """Wait for a future from this worker thread; its result, or TrialError at the
         deadline."""
         if not wait_for(fut, deadline_s):
             fut.cancel()
-            raise TactexError(f"{what}: no answer within recovery_timeout_s "
+            raise TrialError(f"{what}: no answer within recovery_timeout_s "
                               f"({deadline_s} s)")
         return fut.result()
 
@@ -322,14 +323,14 @@ class MotionNode(TactexNode):
         try:
             if rec.kind == "action":
                 if not self.recovery_client.wait_for_server(timeout_sec=lim):
-                    raise TactexError(f"error recovery action {name} not available")
+                    raise TrialError(f"error recovery action {name} not available")
                 handle = self._wait(self.recovery_client.send_goal_async(
                     self.recovery_type.Goal()), lim, f"error recovery {name} (goal)")
                 if not handle.accepted:
-                    raise TactexError(f"error recovery {name}: goal rejected")
+                    raise TrialError(f"error recovery {name}: goal rejected")
                 res = self._wait(handle.get_result_async(), lim, f"error recovery {name}")
                 if res.status != GoalStatus.STATUS_SUCCEEDED:
-                    raise TactexError(f"error recovery {name} ended with status {res.status}")
+                    raise TrialError(f"error recovery {name} ended with status {res.status}")
             else:
                 self._call(self.recovery_client, self.recovery_type.Request(), rec.ok_field,
                            name, lim)
@@ -339,21 +340,21 @@ class MotionNode(TactexNode):
             end = time.monotonic() + lim
             while self._robot_fault(time.monotonic()):
                 if time.monotonic() > end:
-                    raise TactexError("no fresh robot state after recovery within "
+                    raise TrialError("no fresh robot state after recovery within "
                                       f"recovery_timeout_s ({lim} s)")
                 time.sleep(0.02)
-        except TactexError as exc:
+        except TrialError as exc:
             self.get_logger().error(f"recovery failed: {exc}")
             return False, f"recovery failed: {exc}"
         return True, ""
 
     def _call(self, client, request, ok_field: str, name: str, deadline_s: float) -> None:
         if not client.wait_for_service(timeout_sec=deadline_s):
-            raise TactexError(f"service {name} not available")
+            raise TrialError(f"service {name} not available")
         resp = self._wait(client.call_async(request), deadline_s, f"service {name}")
         if not getattr(resp, ok_field, False):
             detail = getattr(resp, "message", "") or getattr(resp, "error", "")
-            raise TactexError(f"service {name} answered {ok_field} = false"
+            raise TrialError(f"service {name} answered {ok_field} = false"
                               + (f" ({detail})" if detail else ""))
 
 

@@ -11,7 +11,7 @@ import pytest
 from tactex_lab.analysis import sim_vs_real as compare
 from tactex_lab.analysis.stats import spearman_interval
 from tactex_ros.cli.main import main
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.real import run_ranking
 
 
@@ -119,7 +119,7 @@ def test_report_refuses_bad_input(tiny_real: Path, tmp_path: Path):
     assert main(base + ["--fabrics", "velvet"]) == 2
     assert main(base + ["--scenes", "2", "--setting", "x=nopreset"]) == 2
     assert main(base + ["--scenes", "2", "--comparisons", "1"]) == 2
-    with pytest.raises(TactexError, match="scenes"):
+    with pytest.raises(InputError, match="scenes"):
         run_ranking(str(tiny_real), ["a=default", "b=default"], scenes=1,
                     comparisons=2, budget=1, seed=0, workers=1)
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-from tactex_ros.core.config import preset
+from tactex_ros.core.config import preset, trial_preset
 from tactex_lab.cnn.auto import parse_ladder
-from tactex_ros.core.engine import TouchRejected, TrialConfig, TrialEngine
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.engine import TouchRejected, TrialEngine
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.guards import ContactGuard, flatness_score
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_ros.core.strategies import VarianceStrategy
@@ -30,11 +30,11 @@ def _touch_fn(seed=0, n=4):
 def test_parse_ladder_checks_names_and_sizes():
     assert parse_ladder("small_inception@32, small_inception", 64) == [
         ("small_inception", 32), ("small_inception", 64)]
-    with pytest.raises(TactexError, match="unknown model"):
+    with pytest.raises(InputError, match="unknown model"):
         parse_ladder("resnet@32", 64)
-    with pytest.raises(TactexError, match="at least 75"):
+    with pytest.raises(InputError, match="at least 75"):
         parse_ladder("inception_v3_random@48", 64)
-    with pytest.raises(TactexError, match="empty"):
+    with pytest.raises(InputError, match="empty"):
         parse_ladder(" , ", 64)
 
 
@@ -43,7 +43,7 @@ def test_auto_escalates_on_evidence_and_keeps_touches():
     cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_patience=1, auto_min_drop=1.0, auto_entropy=0.0, auto_catchup=1,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
-    eng = TrialEngine(3, cfg, TrialConfig(rounds=4), seed=1)
+    eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=4), seed=1)
     res = eng.run(_touch_fn(1, 3), truth=2)
     models = [(r.model, r.input_size) for r in res.rounds + [res.final]]
     assert models[0] == ("small_inception", 32)
@@ -62,14 +62,14 @@ def test_auto_stays_cheap_without_evidence():
     cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_heldout_acc=0.0, auto_entropy=1.0,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
-    res = TrialEngine(3, cfg, TrialConfig(rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)
+    res = TrialEngine(3, cfg, trial_preset("cnn", rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)
     assert {r.input_size for r in res.rounds + [res.final]} == {32}
     assert not res.to_dict()["escalations"]
 
 
 def test_heldout_touches_recorded_before_training():
     cfg = preset("cnn", **FAST)
-    res = TrialEngine(3, cfg, TrialConfig(rounds=3), seed=0).run(_touch_fn(0, 3), truth=1)
+    res = TrialEngine(3, cfg, trial_preset("cnn", rounds=3), seed=0).run(_touch_fn(0, 3), truth=1)
     assert res.rounds[0].heldout == []            # nothing trained before round 1
     assert all(len(r.heldout) == 1 for r in res.rounds[1:] + [res.final])
 
@@ -93,12 +93,12 @@ def test_engine_rejects_blank_touch_and_run_goes_on():
     cfg = preset("cnn", **FAST)
     flat = np.full((240, 320, 3), 90, np.uint8)
     flat[0, 0] = 91
-    eng = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0)
+    eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=2), seed=0)
     with pytest.raises(TouchRejected, match="blank"):
         eng.add_touch(1, flat)
     assert eng.touches[0] == 0 and 1 in eng.baseline_platforms()
     # unguarded: the same frame is stored
-    eng2 = TrialEngine(3, preset("cnn", guards=False, **FAST), TrialConfig(rounds=2))
+    eng2 = TrialEngine(3, preset("cnn", guards=False, **FAST), trial_preset("cnn", rounds=2))
     eng2.add_touch(1, flat)
     assert eng2.touches[0] == 1
     # in run(): a blank touch is a recorded failure, the platform is retried
@@ -108,7 +108,7 @@ def test_engine_rejects_blank_touch_and_run_goes_on():
     def touch(p):
         calls["n"] += 1
         return flat if calls["n"] == 2 else good(p)
-    res = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0).run(touch, truth=1)
+    res = TrialEngine(3, cfg, trial_preset("cnn", rounds=2), seed=0).run(touch, truth=1)
     assert len(res.failed_touches) == 1 and "blank" in res.failed_touches[0]["reason"]
 
 
@@ -181,7 +181,7 @@ def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
         def touch(p):
             calls["n"] += 1
             return flat if calls["n"] == 5 else good(p)     # the first round's touch is blank
-        eng = TrialEngine(3, cfg, TrialConfig(rounds=2, touch_retries=retries), seed=0)
+        eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=2, touch_retries=retries), seed=0)
         res = eng.run(touch, truth=1)
         return res, int(eng.touches.sum()) + eng.reference_touches, calls["n"]
 
@@ -194,8 +194,8 @@ def test_rejected_touch_is_repeated_at_once_not_a_lost_round():
 
 
 def test_touch_retries_validated():
-    with pytest.raises(TactexError, match="touch_retries"):
-        TrialEngine(3, preset("cnn", **FAST), TrialConfig(touch_retries=-1))
+    with pytest.raises(InputError, match="touch_retries"):
+        TrialEngine(3, preset("cnn", **FAST), trial_preset("cnn", touch_retries=-1))
 
 
 def test_run_reports_rejections_and_honours_no_retry_failures():
@@ -215,7 +215,7 @@ def test_run_reports_rejections_and_honours_no_retry_failures():
         if calls["n"] == 6:
             raise TouchFailed("motion node gave up", retry=False)
         return good(p)
-    eng = TrialEngine(3, cfg, TrialConfig(rounds=2), seed=0)
+    eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=2), seed=0)
     res = eng.run(touch, truth=1, on_rejected=lambda p, exc: seen.append((p, str(exc))))
     assert len(seen) == 1 and seen[0][0] == 1 and "constant" in seen[0][1]
     assert [f["reason"] for f in res.failed_touches][1] == "motion node gave up"

@@ -1,11 +1,12 @@
 import numpy as np
 import pytest
 
-from tactex_ros.core.config import LearnerConfig, preset
-from tactex_ros.core.engine import TrialConfig, TrialEngine, TouchFailed
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.config import LearnerConfig, preset, trial_preset
+from tactex_ros.core.engine import TouchFailed, TrialEngine
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner, class_weights
-from tactex_lab.cnn.preprocess import augment, validate_frame, view
+from tactex_lab.cnn.preprocess import augment, view
+from tactex_ros.core.touch import validate_frame
 from stripes import stripe_frames
 
 FAST = dict(input_size=48, steps=4, batch_size=16, mc_passes=8)
@@ -35,20 +36,20 @@ def test_view_rotation_is_a_rotation():
 
 
 def test_bad_frames_are_rejected_with_reason():
-    with pytest.raises(TactexError, match="shape"):
+    with pytest.raises(InputError, match="shape"):
         validate_frame(np.zeros((10, 10, 3), np.uint8))
-    with pytest.raises(TactexError, match="dtype"):
+    with pytest.raises(InputError, match="dtype"):
         validate_frame(np.zeros((240, 320, 3), np.float32))
-    with pytest.raises(TactexError, match="constant"):
+    with pytest.raises(InputError, match="constant"):
         validate_frame(np.zeros((240, 320, 3), np.uint8))
 
 
 def test_config_validation_names_the_field():
-    with pytest.raises(TactexError, match="input_size"):
+    with pytest.raises(InputError, match="input_size"):
         preset("cnn", input_size=8)
-    with pytest.raises(TactexError, match="model"):
+    with pytest.raises(InputError, match="model"):
         LearnerConfig(model="vgg").replace()
-    with pytest.raises(TactexError, match="configuration"):
+    with pytest.raises(InputError, match="configuration"):
         preset("turbo")
 
 
@@ -56,7 +57,7 @@ def _run(seed: int, strategy: str = "variance", rounds: int = 3, **over):
     frames = stripe_frames(1, 4)
     rng = np.random.default_rng(seed)
     cfg = preset("cnn", **{**FAST, **over})
-    eng = TrialEngine(4, cfg, TrialConfig(strategy=strategy, rounds=rounds), seed=seed)
+    eng = TrialEngine(4, cfg, trial_preset("cnn", strategy=strategy, rounds=rounds), seed=seed)
 
     def touch(p):
         k = 2 if p == 0 else p - 1
@@ -104,12 +105,12 @@ def test_failed_touch_is_recorded_and_trial_goes_on():
             raise TouchFailed("no contact before deadline")
         return frames[2 if p == 0 else p - 1]
 
-    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3), seed=0)
+    eng = TrialEngine(4, preset("cnn", **FAST), trial_preset("cnn", rounds=3), seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1 and "deadline" in res.failed_touches[0]["reason"]
     assert res.touches == 5 + 3          # the failed touch was repeated at once
     calls["n"] = 0
-    eng = TrialEngine(4, preset("cnn", **FAST), TrialConfig(rounds=3, touch_retries=0),
+    eng = TrialEngine(4, preset("cnn", **FAST), trial_preset("cnn", rounds=3, touch_retries=0),
                       seed=0)
     res = eng.run(touch, truth=3)
     assert len(res.failed_touches) == 1

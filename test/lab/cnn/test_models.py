@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from tactex_ros.cli.main import main
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.models import build_model, load_weights, read_checkpoint
 
 
@@ -64,7 +64,7 @@ def test_bad_checkpoint_is_reported_tensor_by_tensor(tmp_path, keys_fixture, cap
     rep = load_weights(build_model("inception_v3", 4)[0], read_checkpoint(bad))
     assert rep.missing == ["Conv2d_1a_3x3.bn.running_var"]
     assert [m[0] for m in rep.mismatched] == ["Mixed_6b.branch1x1.conv.weight"]
-    with pytest.raises(TactexError, match="Mixed_6b.branch1x1.conv.weight"):
+    with pytest.raises(InputError, match="Mixed_6b.branch1x1.conv.weight"):
         build_model("inception_v3", 4, weights=bad)
     assert main(["weights", "inspect", str(bad)]) == 1
     assert main(["weights", "inspect", str(path)]) == 0
@@ -75,7 +75,7 @@ def test_bad_checkpoint_is_reported_tensor_by_tensor(tmp_path, keys_fixture, cap
 
 
 def test_unknown_model_name_is_named():
-    with pytest.raises(TactexError, match="resnet"):
+    with pytest.raises(InputError, match="resnet"):
         build_model("resnet", 4)
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.config import preset
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.preprocess import augment, view
 
@@ -23,7 +23,7 @@ def test_native_view_is_the_frame_pixels():
     np.testing.assert_array_equal(b, img[18:82, 8:72])             # centre (x, y) = (39.5, 49.5)
     r = view(img, 90.0, 96, native=True).astype(int)
     np.testing.assert_allclose(np.rot90(r, k=-1), a.astype(int), atol=1)
-    with pytest.raises(TactexError, match="170 px crop"):
+    with pytest.raises(InputError, match="170 px crop"):
         view(img, 0.0, 170, native=True)
 
 
@@ -41,5 +41,5 @@ def test_learner_with_sensor_crops():
     lr = OnlineLearner(2, preset("cnn", input_size=96, sensor_crops=True, augment=3), seed=0)
     x = lr.add_touch(_gradient(), 0)
     assert tuple(x.shape) == (3, 3, 96, 96)
-    with pytest.raises(TactexError, match="sensor_crops"):
+    with pytest.raises(InputError, match="sensor_crops"):
         OnlineLearner(2, preset("cnn", input_size=200, sensor_crops=True), seed=0)

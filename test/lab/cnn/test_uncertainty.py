@@ -7,7 +7,7 @@ from tactex_lab.cnn import uncertainty as unc
 from tactex_ros.core import strategies
 from tactex_lab.cnn.models import build_model
 from tactex_ros.core.strategies import break_ties, make_strategy
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 
 
 def test_batched_passes_equal_sequential_in_distribution():
@@ -78,5 +78,5 @@ def test_ties_go_to_least_touched_then_lowest_index():
 
 
 def test_unknown_strategy_is_named():
-    with pytest.raises(TactexError, match="greedy"):
+    with pytest.raises(InputError, match="greedy"):
         make_strategy("greedy")

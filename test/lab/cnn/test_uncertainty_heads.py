@@ -10,7 +10,7 @@ import torch
 from tactex_lab.cnn import uncertainty as unc
 from tactex_ros.core import strategies
 from tactex_ros.core.config import LearnerConfig, preset
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.models import build_model
 from stripes import stripe_frames
@@ -153,13 +153,13 @@ def test_settings_default_unchanged_and_checked():
     assert LearnerConfig().uncertainty == "mc_dropout"
     for name in ("cnn", "seed_faithful"):
         assert preset(name).uncertainty == "mc_dropout"
-    with pytest.raises(TactexError, match="ensemble_heads"):
+    with pytest.raises(InputError, match="ensemble_heads"):
         preset("cnn", uncertainty="ensemble", ensemble_heads=1)
-    with pytest.raises(TactexError, match="ensemble_heads"):
+    with pytest.raises(InputError, match="ensemble_heads"):
         preset("cnn", uncertainty="ensemble", ensemble_heads=33)
-    with pytest.raises(TactexError, match="uncertainty"):
+    with pytest.raises(InputError, match="uncertainty"):
         preset("cnn", uncertainty="deep_ensemble")
-    with pytest.raises(TactexError, match="laplace_prior_precision"):
+    with pytest.raises(InputError, match="laplace_prior_precision"):
         preset("cnn", uncertainty="laplace", laplace_prior_precision=-1.0)
 
 
@@ -185,7 +185,7 @@ def test_learner_tables_for_each_uncertainty(kind, rows, one_thread):
             lr.add_touch(f[::-1].copy(), k)
         lr.add_reference(frames[2])
         if kind == "laplace":
-            with pytest.raises(TactexError, match="laplace"):
+            with pytest.raises(InputError, match="laplace"):
                 lr.reference_probs()
         for _ in range(3):
             lr.train_round()
@@ -201,9 +201,9 @@ def test_learner_tables_for_each_uncertainty(kind, rows, one_thread):
 
 
 def test_laplace_refuses_a_last_layer_too_large_for_a_full_posterior():
-    with pytest.raises(TactexError, match="laplace"):
+    with pytest.raises(InputError, match="laplace"):
         OnlineLearner(4, preset("cnn", model="inception_v3_random", input_size=75,
                                 uncertainty="laplace"), seed=0)
-    with pytest.raises(TactexError, match="laplace"):
+    with pytest.raises(InputError, match="laplace"):
         OnlineLearner(16, preset("cnn", uncertainty="laplace"), seed=0)
     OnlineLearner(15, preset("cnn", uncertainty="laplace"), seed=0)

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from tactex_ros.cli.main import main
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import decision_at_budget
 from tactex_lab.experiments.humans import load_humans
 from tactex_lab.experiments.runner import TrialJob, run_job
@@ -135,7 +135,7 @@ def test_humans_file_checked(tmp_path):
                                                     "visits": [[0, 1.0]]}]}]
     p = tmp_path / "bad.yaml"
     p.write_text(yaml.safe_dump(bad))
-    with pytest.raises(TactexError, match="answer 5"):
+    with pytest.raises(InputError, match="answer 5"):
         load_humans(p)
     bad["participants"] = [{"id": "X", "trials": [{"trial": 99, "answer": 1,
                                                     "visits": [[0, 1.0]]}]}]

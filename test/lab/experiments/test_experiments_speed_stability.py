@@ -10,7 +10,7 @@ from tactex_lab.experiments.common import correct_at, parse_set
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import pareto_front, wilson
 from tactex_lab.experiments.stability import condition, failure_mode
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 
 TINY = ["--set", "input_size=32", "--set", "steps=2", "--set", "mc_passes=4",
         "--set", "augment=3", "--set", "bn_recalibrate=8"]
@@ -43,7 +43,7 @@ def test_correct_at_budget_reads_the_capped_decision():
 
 def test_parse_set_checks_keys():
     assert parse_set(["input_size=48", "guards=false"]) == {"input_size": 48, "guards": False}
-    with pytest.raises(TactexError, match="key one of"):
+    with pytest.raises(InputError, match="key one of"):
         parse_set(["nope=1"])
 
 

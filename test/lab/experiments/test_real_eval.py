@@ -9,7 +9,7 @@ import pytest
 
 from tactex_ros.cli.main import main
 from tactex_lab.experiments.real import at_budget, at_stop, choose, class_folds, parse_setting
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 
 
 def _curve(correct, conf):
@@ -45,9 +45,9 @@ def test_class_folds_are_disjoint_and_cover():
 def test_parse_setting_names_what_is_wrong():
     assert parse_setting("r=default:strategy=random,match_temperature=0.1") == (
         "r", "default", "random", {"match_temperature": 0.1})
-    with pytest.raises(TactexError, match="unknown preset"):
+    with pytest.raises(InputError, match="unknown preset"):
         parse_setting("x=nope")
-    with pytest.raises(TactexError, match="colour=1"):
+    with pytest.raises(InputError, match="colour=1"):
         parse_setting("x=default:colour=1")
 
 

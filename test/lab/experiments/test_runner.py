@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.runner import (Backend, TrialJob, add_runner_args, backend_of,
                                            run_jobs, run_parallel)
 
@@ -68,9 +68,9 @@ def test_runner_options_and_bad_backends():
     assert backend_of(p.parse_args([])) == Backend("joblib", 0, None)
     assert Backend("joblib", 0).resolved().workers >= 1
     assert Backend("ray", 0).resolved().workers == 0          # every CPU of the cluster
-    with pytest.raises(TactexError, match="--backend 'dask'"):
+    with pytest.raises(InputError, match="--backend 'dask'"):
         Backend("dask")
-    with pytest.raises(TactexError, match="--workers"):
+    with pytest.raises(InputError, match="--workers"):
         Backend("joblib", -1)
-    with pytest.raises(TactexError, match="--address"):
+    with pytest.raises(InputError, match="--address"):
         Backend("joblib", 2, "auto")

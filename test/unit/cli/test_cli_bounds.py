@@ -21,16 +21,16 @@ from tactex_ros.cli.main import MAX_COMPARISONS, build_parser, main
 ])
 def test_out_of_range_refused(argv: list[str], option: str, capsys) -> None:
     with pytest.raises(SystemExit) as e:
-        build_parser().parse_args(argv)
+        build_parser(argv[0]).parse_args(argv)
     assert e.value.code == 2
     assert option in capsys.readouterr().err
 
 
 def test_usual_trial_command_still_parses() -> None:
-    a = build_parser().parse_args(["trial", "--source", "replay:DIR", "--comparisons", "4",
+    a = build_parser("trial").parse_args(["trial", "--source", "replay:DIR", "--comparisons", "4",
                                    "--seed", "7", "--json", "F"])
     assert (a.comparisons, a.seed, a.json) == (4, 7, "F")
-    a = build_parser().parse_args(["trial", "--source", "sim",
+    a = build_parser("trial").parse_args(["trial", "--source", "sim",
                                    "--comparisons", str(MAX_COMPARISONS)])
     assert a.comparisons == MAX_COMPARISONS
 

@@ -8,10 +8,10 @@ import re
 
 import pytest
 
-from tactex_ros.core.config import (PRESETS, TRIAL_PRESETS, LearnerConfig, TrialConfig,
-                                    TrialSettings, field_spec, fields, merge, preset,
-                                    trial_preset, typed)
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.config import (PRESETS, SHIPPED_STOP, TRIAL_PRESETS, LearnerConfig,
+                                    TrialConfig, TrialSettings, field_spec, fields, merge,
+                                    preset, trial_preset, typed)
+from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
 
 
@@ -31,6 +31,9 @@ def test_presets_keep_their_values() -> None:
         assert (t.strategy, t.stop_confidence, t.rounds, t.touch_retries) == \
             ("variance", 0.0, 20, 2)
     assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "cnn", "seed_faithful"}
+    # the class defaults are the shipped method: the default preset adds nothing to them
+    assert LearnerConfig() == preset("default") and TrialConfig() == trial_preset("default")
+    assert (TrialConfig().strategy, TrialConfig().stop_confidence) == ("infogain", SHIPPED_STOP)
     # None = an option not given: the preset's value stays
     assert trial_preset("default", strategy=None, rounds=3) == \
         TrialConfig(strategy="infogain", stop_confidence=0.9, rounds=3)
@@ -47,7 +50,7 @@ def test_presets_keep_their_values() -> None:
     ({"colour": 1}, "LearnerConfig: colour: unknown name; known: model, input_size,"),
 ])
 def test_learner_errors_name_the_field(kw: dict, message: str) -> None:
-    with pytest.raises(TactexError, match="^" + re.escape(message)):
+    with pytest.raises(InputError, match="^" + re.escape(message)):
         LearnerConfig(**kw)
 
 
@@ -57,11 +60,11 @@ def test_types_and_assignment() -> None:
     with pytest.raises(ValueError, match="input_size"):
         c.input_size = 4                          # assignments are checked too
     assert c.replace(input_size=64).input_size == 64 and c.input_size == 299
-    with pytest.raises(TactexError, match="^LearnerConfig: input_size: "):
+    with pytest.raises(InputError, match="^LearnerConfig: input_size: "):
         c.replace(input_size=4)
-    with pytest.raises(TactexError, match="^configuration 'cnn': dropout: .*0.95"):
+    with pytest.raises(InputError, match="^configuration 'cnn': dropout: .*0.95"):
         preset("cnn", dropout=0.99)
-    with pytest.raises(TactexError, match="unknown configuration 'turbo'"):
+    with pytest.raises(InputError, match="unknown configuration 'turbo'"):
         preset("turbo")
 
 
@@ -72,7 +75,7 @@ def test_trial_settings_are_a_preset_plus_overrides() -> None:
     assert t.trial == trial_preset("cnn", rounds=3)
     assert TrialSettings().learner == preset("default")
     assert TrialSettings().trial == trial_preset("default")
-    with pytest.raises(TactexError) as e:
+    with pytest.raises(InputError) as e:
         TrialSettings.check({"config": "cnn", "trial": {"strategy": "greedy", "bogus": 1},
                              "learner": {"input_size": 4}}, "tactex trial")
     msg = str(e.value)
@@ -103,7 +106,7 @@ def test_typed_and_merge() -> None:
     assert typed(ExplorerSettings, {"press_timeout_s": 60, "trial": {"rounds": 2}}) == \
         {"press_timeout_s": 60.0, "trial": {"rounds": 2}}
     assert isinstance(typed(ExplorerSettings, {"press_timeout_s": 60})["press_timeout_s"], float)
-    with pytest.raises(TactexError, match=r"^x: press_timeout_s: .*less than or equal to 3600"):
+    with pytest.raises(InputError, match=r"^x: press_timeout_s: .*less than or equal to 3600"):
         typed(ExplorerSettings, {"press_timeout_s": 1e5}, "x")
     assert merge({"a": 1, "t": {"r": 1, "s": "v"}}, None, {"t": {"r": 2}}) == \
         {"a": 1, "t": {"r": 2, "s": "v"}}
@@ -111,7 +114,7 @@ def test_typed_and_merge() -> None:
 
 def test_ros_descriptors_from_the_schema() -> None:
     pytest.importorskip("rclpy")
-    from tactex_ros.ros.nodes.common import descriptor
+    from tactex_ros.ros.nodes.lifecycle import descriptor
     d = descriptor(field_spec(ExplorerSettings, "trial.stop_confidence"))
     assert d.name == "trial.stop_confidence" and not d.read_only
     assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == \
@@ -132,7 +135,7 @@ def test_graph_options_parse_text_with_the_schema() -> None:
     for name, text, what in (("rounds", "abc", "valid integer"), ("rounds", "5000", "1000"),
                              ("strategy", "greedy", "'infogain'"),
                              ("exit_when_done", "maybe", "valid boolean")):
-        with pytest.raises(TactexError, match=f"^{name}:={text!r}: .*{what}"):
+        with pytest.raises(InputError, match=f"^{name}:={text!r}: .*{what}"):
             parse_option(name, text)
     assert option_overrides({"strategy": "random", "rounds": 3, "model": None,
                              "device": "/dev/video2"}) == \
@@ -168,8 +171,23 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
     hw = launch.plan({"device": "/dev/video3"})
     assert next(n for n in hw["nodes"] if n.name == "gelsight").parameters == \
         {"device": "/dev/video3"}
+    # the robot state the bag records: pose + wrench (FR3 under CRISP), the franka state
+    # message (Panda), each in the profile's base frame and default scene
+    assert (hw["pose_topic"], hw["wrench_topic"], hw["state_topic"], hw["frame"]) == (
+        "/current_pose", "/franka_robot_state_broadcaster/external_wrench_in_base_frame", "",
+        "fr3_link0")
+    panda = launch.plan({"robot": "panda_crisp"})
+    assert (panda["pose_topic"], panda["wrench_topic"], panda["state_topic"],
+            panda["frame"]) == ("", "", "/franka_robot_state_broadcaster/robot_state",
+                                "panda_link0")
     for values, what in (({"rounds": "abc"}, "launch argument rounds:='abc': "),
                          ({"sim": "maybe"}, "launch argument sim:='maybe': expected true"),
                          ({"sim": "true", "model": "vgg"}, "launch argument model:='vgg': ")):
         with pytest.raises(launch.LaunchArgumentError, match="^" + re.escape(what)):
             launch.plan(values)
+
+
+def test_the_schema_names_every_strategy():
+    from tactex_ros.core.config import STRATEGY_NAMES
+    from tactex_ros.core.strategies import STRATEGIES
+    assert set(STRATEGY_NAMES) == set(STRATEGIES)

@@ -8,7 +8,7 @@ import pytest
 from tactex_ros.core import texture
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine, trial_preset
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.match import MatchModel, softmax
 from tactex_ros.core.strategies import Strategy
 from tactex_ros.core.touch import Touch
@@ -42,7 +42,7 @@ def test_descriptor_invariant_to_half_turn_and_sized():
     np.testing.assert_allclose(d, r, rtol=1e-3, atol=2e-3)
     other = _frames(3, np.random.default_rng(0))[0]
     assert np.abs(texture.describe(other.frame, other.no_contact) - d).max() > 0.5
-    with pytest.raises(TactexError, match="no-contact frame"):
+    with pytest.raises(InputError, match="no-contact frame"):
         texture.describe(t.frame, t.no_contact[:100])
 
 
@@ -96,11 +96,11 @@ def test_posterior_draws_shape_and_mean_near_belief():
 def test_belief_refuses_missing_platforms_and_bad_descriptors():
     m = MatchModel(2)
     m.add(0, np.ones(3))
-    with pytest.raises(TactexError, match="missing"):
+    with pytest.raises(InputError, match="missing"):
         m.belief()
-    with pytest.raises(TactexError, match="differs"):
+    with pytest.raises(InputError, match="differs"):
         m.add(1, np.ones(4))
-    with pytest.raises(TactexError, match="finite"):
+    with pytest.raises(InputError, match="finite"):
         m.add(1, np.array([np.nan, 1.0, 1.0]))
 
 
@@ -142,7 +142,7 @@ def test_reference_retouch_is_pressed_and_used():
         touched.append(p)
         return fn(p)
 
-    eng = TrialEngine(3, preset("default"), TrialConfig(rounds=2), seed=0)
+    eng = TrialEngine(3, preset("default"), TrialConfig(rounds=2, stop_confidence=0.0), seed=0)
     eng.strategy = _ReferenceFirst()
     res = eng.run(touch, truth=1)
     assert touched == [0, 1, 2, 3, 0, 0]
@@ -152,6 +152,6 @@ def test_reference_retouch_is_pressed_and_used():
 
 
 def test_infogain_needs_the_descriptor_model():
-    with pytest.raises(TactexError, match="descriptor"):
+    with pytest.raises(InputError, match="descriptor"):
         TrialEngine(2, preset("cnn", input_size=32, steps=1),
                     TrialConfig(strategy="infogain", rounds=1), seed=0)

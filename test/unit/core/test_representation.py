@@ -8,7 +8,7 @@ import pytest
 
 from tactex_ros.cli.main import main
 from tactex_ros.core import representation as rp
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.texture import DIM
 
 
@@ -37,21 +37,21 @@ def test_fit_downweights_dimensions_that_vary_within_a_class(tmp_path):
 
 
 def test_bad_representation_files_are_refused_by_name(tmp_path):
-    with pytest.raises(TactexError, match="not found"):
+    with pytest.raises(InputError, match="not found"):
         rp.load(tmp_path / "missing.pt")
     (tmp_path / "junk.pt").write_bytes(b"not an archive")
-    with pytest.raises(TactexError, match="not loadable"):
+    with pytest.raises(InputError, match="not loadable"):
         rp.load(tmp_path / "junk.pt")
     with (tmp_path / "other.npz").open("wb") as f:
         np.savez(f, format=np.array("other"))
-    with pytest.raises(TactexError, match="not a tactex-representation"):
+    with pytest.raises(InputError, match="not a tactex-representation"):
         rp.load(tmp_path / "other.npz")
     with (tmp_path / "small.npz").open("wb") as f:
         np.savez(f, format=np.array(rp.FORMAT), mean=np.zeros(3), std=np.ones(3),
                  whiten=np.eye(3))
-    with pytest.raises(TactexError, match="do not fit"):
+    with pytest.raises(InputError, match="do not fit"):
         rp.load(tmp_path / "small.npz")
-    with pytest.raises(TactexError, match="at least 2"):
+    with pytest.raises(InputError, match="at least 2"):
         rp.fit({"a": np.zeros((3, DIM)), "b": np.zeros((1, DIM))})
 
 

@@ -1,18 +1,21 @@
 """The press under Cartesian impedance control against the spring-damper mock arm (pure, no
-rclpy): threshold reached and held, no contact, sign and force aborts, deadlines, and the force
-limit held at every sample of the mock over controller and platform stiffnesses."""
+rclpy): threshold reached and held, no contact, sign and force aborts, deadlines, the force
+limit held at every sample of the mock over controller and platform stiffnesses and under the
+control law of every robot profile, and the mock's law against closed forms."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
-from tactex_ros.robot.press import (DONE, SETTLE, ArmModel, PressController, check_press,
-                                   equilibrium_floor, platform_under)
-from tactex_ros.paths import config_dir
+from tactex_ros.core.errors import InputError
+from tactex_ros.paths import config_dir, config_names
+from tactex_ros.robot.press import (DONE, SETTLE, ArmModel, ControlLaw, PressController,
+                                   check_press, equilibrium_floor, platform_under)
+from tactex_ros.robot.robots import load_profile
 from tactex_ros.robot.scene import load_scene
 
 
@@ -22,10 +25,12 @@ def _scene(name: str = "scene_sim.yaml", **press):
 
 
 def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
+              law: ControlLaw | None = None,
               platform_stiffness: float = 2e4, mass: float = 3.0, platform_damping: float = 50.0,
-              target_filter_s: float = 0.0, surface_offset: float = 0.0, rate_hz: float = 50.0,
+              target_filter: float = 0.0, surface_offset: float = 0.0, rate_hz: float = 50.0,
               capture_ok: bool = True, force_sign: float = 1.0, t_max: float = 90.0):
-    """Closed loop at ``rate_hz``: controller -> mock arm (1 ms substeps) -> controller.
+    """Closed loop at ``rate_hz``: controller -> mock arm (1 kHz control cycles) -> controller.
+    ``law`` (default: ``stiffness`` with ``target_filter``, nothing clipped).
 
     Returns (outcome, positions per tick, the mock's peak force per tick, targets, controller,
     normal force at each tick)."""
@@ -34,11 +39,11 @@ def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
         arm_scene = replace(scene, platforms=tuple(
             p.replace(position=(p.position[0], p.position[1], p.position[2] + surface_offset))
             for p in scene.platforms))
-    arm = ArmModel(arm_scene, np.array([0.5, 0.0, 0.3]), stiffness=stiffness, mass=mass,
-                   platform_stiffness=platform_stiffness, platform_damping=platform_damping,
-                   target_filter_s=target_filter_s, substep=1e-3)
+    law = law or ControlLaw(stiffness=stiffness, target_filter=target_filter)
+    arm = ArmModel(arm_scene, np.array([0.5, 0.0, 0.3]), law, mass=mass,
+                   platform_stiffness=platform_stiffness, platform_damping=platform_damping)
     ctrl = PressController(scene, scene.platform(platform_id), arm.position, 0.0,
-                           stiffness=stiffness)
+                           stiffness=law.stiffness)
     t, dt = 0.0, 1.0 / rate_hz
     pos, peaks, targets, forces = [], [], [], []
     while not ctrl.done and t < t_max:
@@ -80,7 +85,7 @@ def test_contact_is_held_during_settle_and_capture() -> None:
     """The old press set the target to the measured pose at the threshold: under impedance
     control that releases the contact. Now the force stays near the threshold while held."""
     scene = _scene()
-    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), stiffness=300.0, substep=1e-3)
+    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), ControlLaw(stiffness=300.0))
     ctrl = PressController(scene, scene.platform("c2"), arm.position, 0.0, stiffness=300.0)
     t, held = 0.0, []
     while not ctrl.done and t < 60:
@@ -103,9 +108,9 @@ def test_equilibrium_floor_and_reachability() -> None:
     assert equilibrium_floor(s, 150.0) == pytest.approx(0.5 * (s.force_threshold + s.max_force)
                                                         / 150.0)
     check_press(_scene(), 150.0)
-    with pytest.raises(TactexError, match="descend_deadline_s"):
+    with pytest.raises(InputError, match="descend_deadline_s"):
         check_press(_scene(descend_deadline_s=3.0), 150.0)
-    with pytest.raises(TactexError, match=r"platforms\[0\].*workspace.min"):
+    with pytest.raises(InputError, match=r"platforms\[0\].*workspace.min"):
         check_press(_scene(), 20.0)
 
 
@@ -147,9 +152,10 @@ def test_capture_failure_and_deadline() -> None:
 @pytest.mark.slow
 def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
     """Property: for controller stiffness 150-3000 N/m, platform stiffness 2e3-5e4 N/m, mass
-    1-5 kg, platform damping 0-100 N s/m, with and without the controller's 0.2 s target
-    filter, the mock's contact force stays below max_force at every 1 ms sample, and a press
-    either succeeds near the threshold or fails with a named reason."""
+    1-5 kg, platform damping 0-100 N s/m, with and without a strong target filter (0.995 per
+    1 kHz cycle: a 0.2 s time constant), the mock's contact force stays below max_force at
+    every 1 ms sample, and a press either succeeds near the threshold or fails with a named
+    reason."""
     rng = np.random.default_rng(13)
     scene = _scene(descend_speed=0.005, descend_deadline_s=25.0)
     s = scene.press
@@ -160,7 +166,7 @@ def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
         out, _, peaks, *_ = _simulate(
             scene, ["c1", "c2", "c3", "c4"][i % 4], stiffness=k, platform_stiffness=kp,
             mass=float(rng.uniform(1.0, 5.0)), platform_damping=float(rng.uniform(0.0, 100.0)),
-            target_filter_s=0.2 if i % 2 else 0.0)
+            target_filter=0.995 if i % 2 else 0.0)
         assert peaks.max() < s.max_force, (k, kp, peaks.max())
         assert out.success or out.reason, (k, kp)
         if out.success:
@@ -181,3 +187,138 @@ def test_platform_under_is_the_one_answer_of_mock_arm_and_camera() -> None:
     arm = ArmModel(sc, np.array([x, y, z - 0.002]))
     got, pen = arm.contact()
     assert got is p1 and pen == pytest.approx(0.002)
+
+
+# ---------------------------------------------------------------------- the mock's control law
+
+PROFILES = sorted(config_names("robots"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", PROFILES)
+def test_force_limit_holds_at_every_sample_under_each_profile(name: str) -> None:
+    """Property, per robot profile: the mock runs that profile's control law (stiffness,
+    damping, target filter, error clip, torque rate limit at its control rate); over platform
+    stiffness 2e3-5e4 N/m, apparent mass 1-5 kg, platform damping 0-100 N s/m and every
+    platform of the profile's scene, the contact force stays below the scene's max_force at
+    every control cycle, and a press succeeds near the threshold or fails with a reason."""
+    prof = load_profile(name)
+    scene = load_scene(config_dir() / prof.scene)
+    s = scene.press
+    check_press(scene, prof.law.stiffness, name, prof.law.error_clip)
+    rng = np.random.default_rng(29)
+    ok = []
+    for i, p in enumerate(scene.platforms):
+        kp = float(np.exp(rng.uniform(np.log(2e3), np.log(5e4))))
+        out, _, peaks, *_ = _simulate(
+            scene, p.id, law=prof.law, platform_stiffness=kp, mass=float(rng.uniform(1.0, 5.0)),
+            platform_damping=float(rng.uniform(0.0, 100.0)))
+        assert peaks.max() < s.max_force, (name, p.id, kp, peaks.max())
+        assert out.success or out.reason, (name, p.id)
+        if out.success:
+            assert 0.5 * s.force_threshold <= out.force_n <= s.max_force
+        ok.append(out.success)
+    assert all(ok), (name, ok)
+
+
+def test_profiles_name_their_controllers_law() -> None:
+    """The CRISP profiles carry CRISP's law (the values their bring-up sets); the sim profile
+    an unclipped, unfiltered spring-damper."""
+    for name in ("fr3_crisp", "panda_crisp"):
+        law = load_profile(name).law
+        assert (law.stiffness, law.d, law.rate_hz, law.target_filter, law.error_clip) == (
+            1000.0, 2.0 * math.sqrt(1000.0), 1000.0, 0.1, 0.01)
+        assert law.max_force_step == pytest.approx(0.5 / 0.8)
+        assert law.max_static_force == pytest.approx(10.0)
+    sim = load_profile("sim").law
+    assert (sim.target_filter, sim.error_clip, sim.max_force_step) == (0.0, math.inf, math.inf)
+
+
+def test_damping_is_computed_as_the_controller_does() -> None:
+    # CRISP: d_pos > 0 ? d_pos : 2 sqrt(k_pos) (src/cartesian_controller.cpp:421-423)
+    assert ControlLaw(stiffness=1000.0).d == pytest.approx(63.245553203)
+    assert ControlLaw(stiffness=1000.0, damping=-1.0).d == pytest.approx(63.245553203)
+    assert ControlLaw(stiffness=600.0, damping=60.0).d == 60.0
+    for bad in ({"stiffness": 0.0}, {"stiffness": 1.0, "target_filter": 1.0},
+                {"stiffness": 1.0, "error_clip": 0.0}, {"stiffness": 1.0, "rate_hz": -1.0}):
+        with pytest.raises(ValueError):
+            ControlLaw(**bad)
+
+
+def _free_arm(law: ControlLaw, mass: float = 3.0) -> ArmModel:
+    """The mock arm in free space (no platform under it) at the origin."""
+    scene = _scene()
+    arm = ArmModel(scene, np.array([0.0, 2.0, 0.3]), law, mass=mass)
+    assert arm.contact()[0] is None
+    return arm
+
+
+def test_target_filter_is_the_controllers_moving_average() -> None:
+    """x_f after n cycles of a step d: d (1 - a^n), a = filter.target_pose (CRISP's EMA,
+    include/crisp_controllers/utils/fiters.hpp:14-16, applied each cycle)."""
+    for a in (0.1, 0.5, 0.995):
+        arm = _free_arm(ControlLaw(stiffness=1000.0, target_filter=a))
+        start = arm.position.copy()
+        arm.target = start + [0.0, 0.0, -0.02]
+        for n in range(1, 8):
+            arm.control()
+            assert arm.equilibrium[2] - start[2] == pytest.approx(-0.02 * (1.0 - a ** n),
+                                                                  abs=1e-15)
+
+
+def test_step_response_matches_the_closed_form() -> None:
+    """A step of the target by d = -20 mm with K = 1000 N/m, D = 2 sqrt(K), m = 3 kg, no filter
+    or clip: x(t) = d (1 - e^{-z w t} (cos(w_d t) + z / sqrt(1 - z^2) sin(w_d t))) with
+    w = sqrt(K/m) = 18.257 rad/s, z = D / (2 sqrt(K m)) = 1/sqrt(3); the mock (the force held
+    over each 1 ms cycle) stays within 1 % of d of it, and settles at d."""
+    k, m, d = 1000.0, 3.0, -0.02
+    arm = _free_arm(ControlLaw(stiffness=k), mass=m)
+    z0 = arm.position[2]
+    arm.target = arm.position + [0.0, 0.0, d]
+    w = math.sqrt(k / m)
+    zeta = 2.0 * math.sqrt(k) / (2.0 * math.sqrt(k * m))
+    assert zeta == pytest.approx(1.0 / math.sqrt(3.0))
+    wd = w * math.sqrt(1.0 - zeta ** 2)
+    worst, deepest = 0.0, 0.0
+    for n in range(1, 1001):                       # 1 s at 1 kHz
+        arm.cycle()
+        t = n * 1e-3
+        x = d * (1.0 - math.exp(-zeta * w * t) * (math.cos(wd * t) + zeta / math.sqrt(
+            1.0 - zeta ** 2) * math.sin(wd * t)))
+        worst = max(worst, abs((arm.position[2] - z0) - x))
+        deepest = min(deepest, arm.position[2] - z0)
+    assert worst < 0.01 * abs(d), worst
+    # overshoot: closed form e^{-pi z / sqrt(1 - z^2)} = 10.845 %; the mock's within 0.5 points
+    overshoot = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2))
+    assert overshoot == pytest.approx(0.10845, abs=1e-5)
+    assert deepest / d - 1.0 == pytest.approx(overshoot, abs=0.005)
+    for _ in range(4000):
+        arm.cycle()
+    assert arm.position[2] - z0 == pytest.approx(d, abs=1e-6)
+
+
+def test_static_contact_force_is_the_law_at_rest() -> None:
+    """At rest on a platform of stiffness kp with the target e below the surface: unclipped,
+    the springs in series give K kp / (K + kp) e (1000 N/m, 2e4 N/m, 5 mm: 4.7619 N); clipped
+    at 10 mm with the target 100 mm deep, K x error_clip = 10 N whatever the depth."""
+    scene = _scene()
+    p = scene.platform("c1")
+    surface = np.array(p.position, dtype=float)
+    cases = ((ControlLaw(stiffness=1000.0), 0.005, 1000.0 * 2e4 / (1000.0 + 2e4) * 0.005),
+             (ControlLaw(stiffness=1000.0, error_clip=0.01), 0.1, 10.0),
+             (load_profile("fr3_crisp").law, 0.1, 10.0))
+    for law, depth, force in cases:
+        arm = ArmModel(scene, surface.copy(), law, platform_stiffness=2e4)
+        arm.target = surface - [0.0, 0.0, depth]
+        arm.step(6.0)
+        assert arm.normal_force() == pytest.approx(force, abs=1e-4), (law, depth)
+
+
+def test_torque_rate_limit_ramps_the_force() -> None:
+    """With max_force_step 0.625 N per cycle (CRISP max_delta_tau 0.5 N m over a 0.8 m lever),
+    a 50 mm step (50 N unlimited) ramps the held force by 0.625 N per cycle."""
+    arm = _free_arm(load_profile("fr3_crisp").law.replace(error_clip=math.inf, target_filter=0.0))
+    arm.target = arm.position + [0.0, 0.0, -0.05]
+    for n in range(1, 6):
+        arm.cycle()
+        assert arm.command[2] == pytest.approx(-0.625 * n, abs=1e-12)

@@ -16,7 +16,7 @@ from mcap.reader import make_reader  # noqa: E402
 
 from tactex_ros.ros import adapter  # noqa: E402
 from tactex_ros.ros.bag import BagWriter, TOUCH_TOPIC, message_definition, read_bag, recover_bag  # noqa: E402,E501
-from tactex_ros.cli.graph import summarise_bag  # noqa: E402
+from tactex_ros.cli.graph_commands import summarise_bag  # noqa: E402
 
 
 def _img(i: int) -> np.ndarray:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import cv2
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import GelsightSettings
 from tactex_ros.ros.nodes.gelsight_node import (V4L2_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL,
                                             _video_number, camera_setup)
@@ -64,10 +64,10 @@ def test_values_and_auto_modes() -> None:
 
 
 def test_refusals_name_the_parameter() -> None:
-    with pytest.raises(TactexError, match="auto_exposure"):
+    with pytest.raises(InputError, match="auto_exposure"):
         camera_setup(RecordingCapture(refuse={cv2.CAP_PROP_AUTO_EXPOSURE}),
                      cfg(device="x"))
-    with pytest.raises(TactexError, match="capture_width x capture_height = 320x240.*640x480"):
+    with pytest.raises(InputError, match="capture_width x capture_height = 320x240.*640x480"):
         camera_setup(RecordingCapture(mode=(640, 480)), cfg(device="x"))
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_dir
 from tactex_ros.robot.scene import load_scene, parse_scene
 
@@ -33,7 +33,7 @@ def test_scene_errors_name_the_field(path, value, field) -> None:
     for k in path[:-1]:
         target = target[k]
     target[path[-1]] = value
-    with pytest.raises(TactexError, match="^scene: " + re.escape(field)):
+    with pytest.raises(InputError, match="^scene: " + re.escape(field)):
         parse_scene(d)
 
 
@@ -42,10 +42,10 @@ def test_scene_files_load(tmp_path) -> None:
         s = load_scene(config_dir() / name)
         assert s.reference.role == "reference" and len(s.comparisons) == 4
         assert [p.id for p in s.ordered][0] == "reference"
-    with pytest.raises(TactexError, match="not found"):
+    with pytest.raises(InputError, match="not found"):
         load_scene(tmp_path / "missing.yaml")
     (tmp_path / "bad.yaml").write_text("platforms: [\n")
-    with pytest.raises(TactexError, match="scene file .*bad.yaml.*YAML"):
+    with pytest.raises(InputError, match="scene file .*bad.yaml.*YAML"):
         load_scene(tmp_path / "bad.yaml")
 
 
@@ -59,17 +59,17 @@ def test_adapter_images_roundtrip_and_rejects() -> None:
     msg.encoding = "bgr8"
     np.testing.assert_array_equal(adapter.image_to_array(msg), img[:, :, ::-1])
     bad = adapter.array_to_image(img[:200], 0.0, "cam")
-    with pytest.raises(TactexError, match="size"):
+    with pytest.raises(InputError, match="size"):
         adapter.image_to_array(bad)
     msg2 = adapter.array_to_image(img, 0.0, "cam")
     msg2.data = msg2.data[:-10]
-    with pytest.raises(TactexError, match="bytes"):
+    with pytest.raises(InputError, match="bytes"):
         adapter.image_to_array(msg2)
     msg3 = adapter.array_to_image(img, 0.0, "cam")
     msg3.encoding = "mono16"
-    with pytest.raises(TactexError, match="encoding"):
+    with pytest.raises(InputError, match="encoding"):
         adapter.image_to_array(msg3)
-    with pytest.raises(TactexError, match="constant"):
+    with pytest.raises(InputError, match="constant"):
         adapter.image_to_array(adapter.array_to_image(np.zeros_like(img), 0.0, "cam"))
 
 
@@ -112,7 +112,7 @@ def test_record_writes_every_touch(tmp_path) -> None:
     assert back["touches"][0]["accepted"] is False
     r.finish({"prediction": "c1"})
     assert json.loads((r.dir / "result.json").read_text())["prediction"] == "c1"
-    with pytest.raises(TactexError, match="already exists"):
+    with pytest.raises(InputError, match="already exists"):
         TrialRecord(tmp_path, "t1")
 
 
@@ -124,14 +124,14 @@ def test_graph_description() -> None:
     hw = describe(False, gelsight={"device": "/dev/video0"})
     assert [n.executable for n in hw] == ["gelsight_node", "motion_node", "explorer_node"]
     assert all(n.parameters["scene_file"].endswith("scene.yaml") for n in hw[1:])
-    with pytest.raises(TactexError, match="^explorer parameters: roundz: unknown name"):
+    with pytest.raises(InputError, match="^explorer parameters: roundz: unknown name"):
         describe(True, explorer={"roundz": 3})
-    with pytest.raises(TactexError, match=r"^explorer parameters: trial\.strategy: .*'greedy'"):
+    with pytest.raises(InputError, match=r"^explorer parameters: trial\.strategy: .*'greedy'"):
         describe(True, explorer={"trial": {"strategy": "greedy"}})
 
 
 def test_record_summary(tmp_path) -> None:
-    from tactex_ros.cli.graph import summarise
+    from tactex_ros.cli.graph_commands import summarise
     from tactex_ros.record import TrialRecord, read_record
     r = TrialRecord(tmp_path, "s")
     img = np.random.default_rng(2).integers(0, 255, (240, 320, 3), dtype=np.uint8)

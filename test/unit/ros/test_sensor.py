@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import GelsightSettings
 from tactex_ros.ros.nodes.gelsight_node import (FrameFolder, camera_setup, landscape,
                                             resolve_device)
@@ -62,7 +62,7 @@ def _digit_data() -> dict:
     ({"crop_fraction": 0.6}, "crop_fraction"),
 ])
 def test_profile_errors_name_the_field(change: dict, field: str) -> None:
-    with pytest.raises(TactexError, match=field.replace("[", r"\[").replace("]", r"\]")):
+    with pytest.raises(InputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         parse_sensor({**_digit_data(), **change})
 
 
@@ -74,13 +74,13 @@ def test_node_parameters_over_the_profile() -> None:
                                        capture_width=640, capture_height=480, fps=15.0,
                                        led_intensity=3))
     assert (c.device, c.capture_width, c.fps, c.led_intensity) == ("/dev/video4", 640, 15.0, 3)
-    with pytest.raises(TactexError, match="640x480 at 60 fps is not a mode of sensor 'digit'"):
+    with pytest.raises(InputError, match="640x480 at 60 fps is not a mode of sensor 'digit'"):
         sensor_config(GelsightSettings(sensor="digit", capture_width=640, capture_height=480))
     # a recording plays at any rate
     assert sensor_config(GelsightSettings(sensor="digit", fps=50.0), camera=False).fps == 50.0
-    with pytest.raises(TactexError, match="sensor profile 'nope'.*not found"):
+    with pytest.raises(InputError, match="sensor profile 'nope'.*not found"):
         sensor_config(GelsightSettings(sensor="nope"))
-    with pytest.raises(TactexError, match="give both or neither"):
+    with pytest.raises(InputError, match="give both or neither"):
         sensor_config(GelsightSettings(capture_width=0))
 
 
@@ -97,10 +97,10 @@ def test_digit_camera_setup() -> None:
     cap = RecordingCapture()
     camera_setup(cap, sensor_config(GelsightSettings()))
     assert cv2.CAP_PROP_FPS not in cap.props and cv2.CAP_PROP_ZOOM not in cap.props
-    with pytest.raises(TactexError, match="led_intensity"):
+    with pytest.raises(InputError, match="led_intensity"):
         camera_setup(RecordingCapture(refuse={cv2.CAP_PROP_ZOOM}),
                      sensor_config(GelsightSettings(sensor="digit")))
-    with pytest.raises(TactexError, match="firmware revision 101"):
+    with pytest.raises(InputError, match="firmware revision 101"):
         camera_setup(RecordingCapture(), sensor_config(GelsightSettings(sensor="digit")),
                      revision=101)
 
@@ -108,7 +108,7 @@ def test_digit_camera_setup() -> None:
 def test_led_encoding() -> None:
     assert digit_led_value(0, None) == 0
     assert digit_led_value(1, 200) == 0x111
-    with pytest.raises(TactexError, match="0..15"):
+    with pytest.raises(InputError, match="0..15"):
         digit_led_value(16, None)
 
 
@@ -131,17 +131,17 @@ def test_serial_lookup_through_digit_interface(monkeypatch) -> None:
     dev = resolve_device("D20001", "digit_interface")
     assert (dev.path, dev.kind, dev.revision, dev.recording) == ("/dev/video7", "camera", 200,
                                                                  False)
-    with pytest.raises(TactexError, match="lists no DIGIT with that serial"):
+    with pytest.raises(InputError, match="lists no DIGIT with that serial"):
         resolve_device("D99999", "digit_interface")
     # not asked for other sensors
-    with pytest.raises(TactexError) as exc:
+    with pytest.raises(InputError) as exc:
         resolve_device("D20001", "")
     assert "digit-interface" not in str(exc.value)
 
 
 def test_serial_lookup_without_digit_interface(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "digit_interface", None)     # import fails
-    with pytest.raises(TactexError, match="digit-interface is not installed"):
+    with pytest.raises(InputError, match="digit-interface is not installed"):
         resolve_device("D20001", "digit_interface")
 
 
@@ -173,8 +173,8 @@ def test_frame_folder_order_and_portrait_frames(tmp_path: Path) -> None:
 
 
 def test_frame_folder_refusals(tmp_path: Path) -> None:
-    with pytest.raises(TactexError, match="without frames"):
+    with pytest.raises(InputError, match="without frames"):
         FrameFolder(str(tmp_path))
     (tmp_path / "a.png").write_bytes(b"not an image")
-    with pytest.raises(TactexError, match="not readable as images"):
+    with pytest.raises(InputError, match="not readable as images"):
         FrameFolder(str(tmp_path))

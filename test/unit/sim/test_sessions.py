@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sim.render import GelSightRenderer, SensorModel
 from tactex_ros.sources import open_source
 
@@ -91,7 +91,7 @@ def test_recorded_trials_share_a_class_session_live_trials_one_background():
 @pytest.mark.parametrize("spec", ["sim:medium:live", "sim:easy:hard", "sim:recorded:easy",
                                   "sim:2"])
 def test_bad_sim_specs_are_named(spec):
-    with pytest.raises(TactexError, match="sim"):
+    with pytest.raises(InputError, match="sim"):
         open_source(spec)
 
 

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sim.fabrics import FabricParams, load_catalogue
-from tactex_ros.sources.sim import parse_difficulty
+from tactex_ros.sources.simulated import parse_difficulty
 from tactex_ros.sources import open_source
 
 
@@ -79,32 +79,32 @@ def test_fabrics_differ_more_than_presses_and_gap_shrinks_with_difficulty():
 
 
 def test_bad_names_and_parameters_are_named(tmp_path, src):
-    with pytest.raises(TactexError, match="velvet"):
+    with pytest.raises(InputError, match="velvet"):
         src.press("velvet", np.random.default_rng(0))
-    with pytest.raises(TactexError, match="pitch_mm"):
+    with pytest.raises(InputError, match="pitch_mm"):
         FabricParams("plain", pitch_mm=-1.0).validate()
-    with pytest.raises(TactexError, match="family"):
+    with pytest.raises(InputError, match="family"):
         FabricParams("lace", pitch_mm=1.0).validate()
     bad = tmp_path / "f.yaml"
     bad.write_text("fabrics:\n  - {name: x, family: twill, pitch_mm: 0.3, repeat: 2}\n")
-    with pytest.raises(TactexError, match="repeat"):
+    with pytest.raises(InputError, match="repeat"):
         load_catalogue(bad)
     bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3, colour: red}\n")
-    with pytest.raises(TactexError, match="colour"):
+    with pytest.raises(InputError, match="colour"):
         load_catalogue(bad)
     # errors located in the file: entry index and field
     bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3}\n"
                    "  - {name: y, family: plain, pitch_mm: 9.0}\n")
-    with pytest.raises(TactexError, match=r"fabrics\.1\.pitch_mm: .*4\.5 \(got 9\.0\)"):
+    with pytest.raises(InputError, match=r"fabrics\.1\.pitch_mm: .*4\.5 \(got 9\.0\)"):
         load_catalogue(bad)
     bad.write_text("fabrics:\n  - {name: x, family: plain, pitch_mm: 0.3}\n"
                    "  - {name: x, family: felt, pitch_mm: 0.3}\n")
-    with pytest.raises(TactexError, match=r"fabrics\.1\.name: duplicate fabric name 'x'"):
+    with pytest.raises(InputError, match=r"fabrics\.1\.name: duplicate fabric name 'x'"):
         load_catalogue(bad)
     bad.write_text("fabrics:\n  - {name: x, family: twill, pitch_mm: 0.3, repeat: 2}\n")
-    with pytest.raises(TactexError, match=r"fabrics\.0\.repeat: twill needs repeat >= 3"):
+    with pytest.raises(InputError, match=r"fabrics\.0\.repeat: twill needs repeat >= 3"):
         load_catalogue(bad)
-    with pytest.raises(TactexError, match="difficulty"):
+    with pytest.raises(InputError, match="difficulty"):
         parse_difficulty("brutal")
     assert main(["sim", "render", "--fabric", "velvet", "--out", str(tmp_path / "a.png")]) == 2
     assert main(["sim", "render", "--fabric", "denim", "--out", str(tmp_path / "a.png")]) == 0

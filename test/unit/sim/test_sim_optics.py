@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sim.calibration import calibration_dir, load_calibration
 from tactex_ros.sim.render import MM_PER_PX, GelSightRenderer, SensorModel
 from tactex_ros.sim.fabrics import height_tile
@@ -42,7 +42,7 @@ def test_calibration_loads_from_the_installed_package_without_network(monkeypatc
     # the Mini's no-contact frame: blue-green at the top, pink at the centre (RGB means)
     r, g, b = cal.background.reshape(-1, 3).mean(0)
     assert 60 < r < 110 and 80 < g < 120 and 95 < b < 130
-    with pytest.raises(TactexError, match="gelsight_nano"):
+    with pytest.raises(InputError, match="gelsight_nano"):
         calibration_dir("gelsight_nano")
 
 

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.sources import open_source, trial_scene
 from tactex_ros.sources.base import TouchSource
 
@@ -47,9 +47,9 @@ def test_both_sources_have_the_protocol_and_its_signatures(sim, replay):
 def test_replay_scene_numbers_no_contact_and_depth(replay):
     assert replay.classes == replay.known_classes == ["a", "b", "c"]
     assert replay.draw_scene(2, 0) is None and replay.no_contact(0) is None
-    with pytest.raises(TactexError, match="class number 2"):
+    with pytest.raises(InputError, match="class number 2"):
         replay.by_number(2)
-    with pytest.raises(TactexError, match="depth spread 0.3 mm"):
+    with pytest.raises(InputError, match="depth spread 0.3 mm"):
         replay.trial(["a", "a", "b"], 0, depth_spread_mm=0.3)
     classes, truth = trial_scene(replay, 2, seed=3)
     assert len(classes) == 3 and classes[0] == classes[truth] and set(classes) <= {"a", "b", "c"}

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import TactexError
+from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 from tactex_ros.sources import open_source
 from tactex_ros.sources.replay import rebase
@@ -73,5 +73,5 @@ def test_one_session_trial_shares_the_first_touch_background(folder):
 
 
 def test_bad_replay_spec_named():
-    with pytest.raises(TactexError, match="needs a folder"):
+    with pytest.raises(InputError, match="needs a folder"):
         open_source("replay::one-session")

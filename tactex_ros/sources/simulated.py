@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.errors import TactexError
+from ..core.errors import InputError
 from ..core.touch import Touch
 from ..sim.fabrics import FabricParams, height_tile, load_catalogue
 from ..sim.render import GelSightRenderer
@@ -39,10 +39,10 @@ def parse_difficulty(text: str) -> float:
     try:
         q = float(text)
     except ValueError:
-        raise TactexError(f"sim difficulty {text!r}: use easy, medium, hard or a number "
-                          "in [0, 1]") from None
+        raise InputError(f"sim difficulty {text!r}: use easy, medium, hard or a number "
+                         "in [0, 1]") from None
     if not 0.0 <= q <= 1.0:
-        raise TactexError(f"sim difficulty {q} outside [0, 1]")
+        raise InputError(f"sim difficulty {q} outside [0, 1]")
     return q
 
 
@@ -83,12 +83,12 @@ class SimSource:
         """Catalogue name of fabric ``number`` (1-based, the catalogue's order)."""
         names = list(self.catalogue)
         if not 1 <= number <= len(names):
-            raise TactexError(f"fabric number {number} outside 1..{len(names)}")
+            raise InputError(f"fabric number {number} outside 1..{len(names)}")
         return names[number - 1]
 
     def fabric(self, name: str) -> FabricParams:
         if name not in self.fabrics:
-            raise TactexError(f"unknown fabric {name!r}; `tactex sim fabrics` lists them")
+            raise InputError(f"unknown fabric {name!r}; `tactex sim fabrics` lists them")
         return self.fabrics[name]
 
     def draw_scene(self, comparisons: int, seed: int) -> list[str]:

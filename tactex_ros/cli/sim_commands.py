@@ -5,11 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import cv2
-import numpy as np
-
-from ..core.errors import TactexError
-from .main import command_group
+from ..core.errors import InputError
+from .main import builds, command_group
 
 
 def cmd_fabrics(args: argparse.Namespace) -> int:
@@ -28,7 +25,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     from ..sources import open_source
     src = open_source("sim")
     if args.depth is not None and not 0.0 < args.depth <= 3.0:
-        raise TactexError(f"--depth {args.depth} mm outside (0, 3]")
+        raise InputError(f"--depth {args.depth} mm outside (0, 3]")
+    import cv2
+    import numpy as np
     rng = np.random.default_rng(args.seed)
     img = (src.renderer.no_contact(rng) if args.no_contact
            else src.press(args.fabric, rng, depth_mm=args.depth))
@@ -36,14 +35,16 @@ def cmd_render(args: argparse.Namespace) -> int:
     out = Path(args.out)
     ok, buf = cv2.imencode(out.suffix.lower(), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
     if not ok:
-        raise TactexError(f"--out {out}: cannot encode an image as {out.suffix}")
+        raise InputError(f"--out {out}: cannot encode an image as {out.suffix}")
     write_bytes(out, buf.tobytes())
     print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} RGB)")
     return 0
 
 
-def add_commands(sub) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     ssub = command_group(sub, "sim", "fabric simulator")
+    if not builds(command, "sim"):
+        return
     f = ssub.add_parser("fabrics", help="list the fabric catalogue")
     f.set_defaults(func=cmd_fabrics)
     r = ssub.add_parser("render", help="write one simulated frame")

@@ -1,4 +1,6 @@
-"""Shared node plumbing: parameters declared from a settings schema, the lifecycle.
+"""The lifecycle base of every tactex node: parameters declared from a settings schema, the
+transitions, and the helpers a node's threads wait with (``wait_for``, ``in_thread``). The process
+around a node (signals, spin, exit status) is ``process.py``.
 
 Every tactex node is a ``rclpy.lifecycle.LifecycleNode``. Its ROS parameters are declared from
 its settings schema (``ros.settings``: type, default, range -> ``ParameterDescriptor``, choices
@@ -18,8 +20,6 @@ missing or invalid scene) ends the process with exit status 2 and the reason in 
 
 from __future__ import annotations
 
-import signal
-import sys
 import threading
 import time
 from typing import Any, Callable
@@ -27,18 +27,14 @@ from typing import Any, Callable
 import rclpy
 from pydantic import ValidationError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.lifecycle.publisher import LifecyclePublisher
 from rclpy.publisher import Publisher
-from rclpy.signals import (SignalHandlerOptions, get_current_signal_handlers_options,
-                           uninstall_signal_handlers)
 from rclpy.task import Future
 from rclpy.timer import Timer
 
 from ...core.config import FieldSpec, fields, flatten, nest
-from ...core.errors import TactexError
+from ...core.errors import InputError
 
 
 def descriptor(spec: FieldSpec) -> ParameterDescriptor:
@@ -71,7 +67,7 @@ def declare_settings(node: LifecycleNode, cls: type) -> None:
     try:
         base = flatten(cls.model_validate(
             nest({s.name: node.get_parameter(s.name).value for s in top})).model_dump())
-    except (ValidationError, TactexError):
+    except (ValidationError, InputError):
         base = {}       # on_configure names the bad value
     for s in nested:
         node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
@@ -87,18 +83,18 @@ def check_overrides(node: LifecycleNode) -> None:
     declare. rclpy keeps such values as *overrides* and applies one only when a parameter of
     that name is declared, so with ``allow_undeclared_parameters=False`` (the default) an
     unknown name or a typo is silently ignored rather than refused: it is refused here, at
-    configure, by name (TactexError)."""
+    configure, by name (InputError)."""
     given = set(getattr(node, "_parameter_overrides", {}) or {})
     unknown = sorted(n for n in given if not node.has_parameter(n)
                      and n not in ROS_OWN_PARAMETERS and not n.startswith(ROS_OWN_PREFIXES))
     if unknown:
-        raise TactexError(f"{node.get_name()} parameters: unknown parameter(s) "
+        raise InputError(f"{node.get_name()} parameters: unknown parameter(s) "
                           f"{', '.join(unknown)} (ros2 param list /{node.get_name()} shows "
                           "the declared ones)")
 
 
 def read_settings(node: LifecycleNode, cls: type) -> Any:
-    """Current parameter values as a validated settings model (TactexError names a field)."""
+    """Current parameter values as a validated settings model (InputError names a field)."""
     values = {s.name: node.get_parameter(s.name).value for s in fields(cls)}
     return cls.check(nest(values), f"{node.get_name()} parameters")
 
@@ -164,10 +160,10 @@ class TactexNode(LifecycleNode):
 
     def _transition(self, name: str, fn: Callable[[], None]) -> TransitionCallbackReturn:
         """Run a hook; an exception is logged (rclpy would swallow it) and fails the
-        transition: bad input (TactexError, OSError) -> FAILURE and exit status 2."""
+        transition: bad input (InputError, OSError) -> FAILURE and exit status 2."""
         try:
             fn()
-        except (TactexError, OSError) as exc:
+        except (InputError, OSError) as exc:
             self.get_logger().error(f"{name} refused: {exc}")
             self.exit_code = 2
             return TransitionCallbackReturn.FAILURE
@@ -301,161 +297,3 @@ async def in_thread(node: "rclpy.node.Node", fn: Callable[..., Any], *args: Any)
 
     threading.Thread(target=work, name=f"{node.get_name()}-work", daemon=True).start()
     return await fut
-
-
-class StopRequest:
-    """SIGINT's handler: it only records that a stop was asked for.
-
-    A Python signal handler runs in the main thread between any two bytecodes, also inside
-    itself when a second SIGINT follows at once (the terminal's and ``ros2 launch``'s). So it
-    takes no lock and raises nothing: a ``threading.Event.set`` here deadlocked, the nested call
-    waiting for the Event's lock that the interrupted outer call held, and an exception raised
-    at an arbitrary bytecode can leave rclpy's executor or a ``with`` block half done. The stop
-    itself comes from rclpy's own SIGINT handler (installed by ``rclpy.init`` after this one,
-    and chaining to it): it shuts the context down from its own thread, which ends the spin.
-    """
-
-    def __init__(self) -> None:
-        self.requested = False
-
-    def __call__(self, signum: int, frame: Any) -> None:
-        self.requested = True
-
-
-def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -> int:
-    """Create, auto-start and spin a node until shutdown or ``node.finished``; exit status.
-
-    One ``SingleThreadedExecutor`` per process; callbacks never block it (slow work runs in
-    threads: ``in_thread``, the explorer's trial thread, the GelSight reader). rclpy 9.1's
-    ``MultiThreadedExecutor`` re-queues tasks that wait in its thread pool (rclpy issue 1452,
-    fixed upstream in 10.0.4): with the mock arm's 100 Hz state it queued thousands of tasks,
-    took a full core and left the motion node's robot state stale for over a second.
-
-    SIGINT (any number of them, at any moment after this call starts) is a requested stop:
-    exit status 0, the node's hooks release files, devices and threads. A stop asked for
-    during start-up ends it at the next step (after ``rclpy.init``, node construction,
-    configuration, activation); a step that failed because the stop shut the context down
-    counts as stopped, not as an error.
-    """
-    stop = StopRequest()
-    signal.signal(signal.SIGINT, stop)   # before rclpy.init: rclpy's handler chains to it
-    try:
-        return _spin(node_factory, args, stop)
-    finally:
-        # From here on SIGINT is ignored, also during interpreter shutdown (which would put
-        # back the default handler for a Python one: a late Ctrl-C would end it with -2).
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,
-          stop: StopRequest) -> int:
-    if stop.requested:
-        return 0
-    rclpy.init(args=args if args is not None else sys.argv,
-               signal_handler_options=SignalHandlerOptions.ALL)
-
-    def stopped() -> bool:
-        return stop.requested or not rclpy.ok()
-
-    def starting(step: Callable[[], Any]) -> bool:
-        """Run a start-up step; False once a stop was requested (its failure included)."""
-        try:
-            step()
-        except Exception:
-            if not stopped():
-                raise
-        return not stopped()
-
-    node = None
-    try:
-        if stopped():
-            return 0
-        try:
-            node = node_factory()
-        except (ParameterException, TactexError) as exc:
-            # a parameter given with the wrong type or outside its range (declaration refuses it)
-            if stopped():
-                return 0
-            print(f"tactex: parameter refused: {exc}", file=sys.stderr)
-            return 2
-        except Exception:
-            if stopped():
-                return 0     # e.g. the stop shut the context down under the constructor
-            raise
-        if stopped():
-            return 0
-        if node.get_parameter("autostart").value:
-            if not starting(node.trigger_configure):
-                return 0
-            if node.exit_code:
-                return node.exit_code
-            if not starting(node.trigger_activate):
-                return 0
-        return _spin_node(node, stopped)
-    finally:
-        try:
-            if node is not None:
-                if stop.requested:   # let rclpy's handler finish: one release path on SIGINT
-                    _until(lambda: not rclpy.ok(), SIGINT_SHUTDOWN_S)
-                try:
-                    node.shutdown()
-                finally:
-                    node.destroy_node()
-        finally:
-            _leave_rclpy()
-
-
-SIGINT_SHUTDOWN_S = 2.0   # [s] rclpy's handler thread shuts the context down within this
-WATCH_PERIOD_S = 0.05     # [s] how often the spin's watcher checks for the end
-
-
-def _spin_node(node: TactexNode, stopped: Callable[[], bool]) -> int:
-    """Spin ``node`` until its work is over (``node.finished``) or a stop; exit status.
-
-    A watcher thread ends the spin: every ``WATCH_PERIOD_S`` it checks ``node.finished`` and
-    ``stopped()``. rclpy's SIGINT handler wakes the executor before it shuts the context down;
-    an executor woken between the two waits again, and a node with no timer would sleep on.
-    """
-    ex = SingleThreadedExecutor()
-    ex.add_node(node)
-    done = Future()
-    ended = threading.Event()
-
-    def watch() -> None:
-        while not ended.is_set():
-            if node.finished.wait(WATCH_PERIOD_S) or stopped():
-                done.set_result(True)
-                return
-
-    watcher = threading.Thread(target=watch, name="spin-watch", daemon=True)
-    watcher.start()
-    try:
-        ex.spin_until_future_complete(done)
-    except ExternalShutdownException:
-        pass
-    except Exception:
-        if not stopped():
-            raise
-        # the stop shut the context down under a callback (e.g. while a message was taken)
-    finally:
-        ended.set()
-        watcher.join(timeout=1.0)
-    return 0 if stopped() else node.exit_code
-
-
-def _until(condition: Callable[[], bool], timeout_s: float, period_s: float = 0.005) -> bool:
-    """Poll ``condition`` every ``period_s`` [s] until it holds or ``timeout_s`` [s] passes."""
-    end = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() >= end:
-            return False
-        time.sleep(period_s)
-    return True
-
-
-def _leave_rclpy() -> None:
-    """Shut the default context down unless a signal did, and take rclpy's signal handlers out
-    of the chain (Kilted's ``try_shutdown`` does so too, Humble's and Jazzy's do not)."""
-    rclpy.try_shutdown()
-    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
-        uninstall_signal_handlers()

@@ -8,10 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-
-from .main import add_setting_option, bounded
-from ..core.config import flatten
-from ..core.errors import TactexError
+from .main import add_setting_option, bounded, builds
+from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id")
@@ -30,16 +28,17 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
         ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
               "trial": rec["trial"]}
     except (OSError, ValueError, KeyError) as exc:
-        raise TactexError(f"--resume {str(folder)!r}: not a trial record with a config.json "
-                          f"({exc})") from None
+        raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
+                         f"({exc})") from None
+    from ..core.config import flatten
     was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]
         if v is not None and v != was.get(path):
-            raise TactexError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
-                              f"{was.get(path)!r}; a resumed trial keeps its settings")
+            raise InputError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
+                             f"{was.get(path)!r}; a resumed trial keeps its settings")
     if args.record_dir is not None or args.trial_id is not None:
-        raise TactexError("--resume names the record; --record-dir and --trial-id do not apply")
+        raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
     ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
     if args.scene is None:
         orig = Path(cfg.get("scene_file") or "")
@@ -70,7 +69,7 @@ def preflight(nodes: list, logs: Path) -> Path:
     """Before any node starts: the log folder can be written, and the explorer's record is a
     new one (trial id a plain name, no record there, record folder writable) or, for a resume,
     one that can be continued (``record.check_new_record`` / ``check_resumable``). Returns
-    the record folder; TactexError (exit status 2) naming the path otherwise."""
+    the record folder; InputError (exit status 2) naming the path otherwise."""
     from ..core.outputs import check_dir
     from ..record import check_new_record, check_resumable
     check_dir(logs, "--log-dir")
@@ -93,7 +92,7 @@ def resume_hint(run, sim: bool) -> str | None:
         return None
     try:
         check_resumable(run.record)
-    except TactexError:
+    except InputError:
         return None
     return f"tactex graph run{' --sim' if sim else ''} --resume {run.record}"
 
@@ -175,7 +174,7 @@ def cmd_summary(args: argparse.Namespace) -> int:
     else:
         from ..record import RECORD_FILES
         if not any((Path(args.record) / f).is_file() for f in RECORD_FILES):
-            raise TactexError(f"{args.record!r} is not a trial record (none of "
+            raise InputError(f"{args.record!r} is not a trial record (none of "
                               f"{', '.join(RECORD_FILES)}) nor an MCAP file")
         s = summarise(read_record(args.record, images=False))
     from ..core.outputs import dumps
@@ -192,8 +191,10 @@ def add_option(p: argparse.ArgumentParser, name: str) -> None:
                        f"{OPTIONS[name][0]} {spec.name}: {spec.description}")
 
 
-def add_commands(sub: argparse._SubParsersAction) -> None:
+def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     g = sub.add_parser("graph", help="the ROS 2 node graph (runs without `launch`)")
+    if not builds(command, "graph"):
+        return
     gsub = g.add_subparsers(dest="gcmd", required=True)
     for name, fn, hlp in (("describe", cmd_describe, "print the nodes and parameters"),
                           ("run", cmd_run, "start the graph, run one trial, stop")):

@@ -1,0 +1,356 @@
+"""docs/reference.md, generated: every node parameter, launch argument, command-line option and
+settings-file field, read from the code that declares them.
+
+    python -m tactex_ros.cli.reference            # (re)write docs/reference.md
+    python -m tactex_ros.cli.reference --check    # exit 1 when docs/reference.md is stale
+
+Sources (walked, never listed by hand): the node settings schemas of the graph description
+(``ros.graph.SETTINGS``, through ``core.config.fields``, which also declares the ROS
+parameters), the presets (``TrialSettings`` validated under each ``config``), the launch file's
+``arguments()``, the argparse parser of ``tactex`` (``cli.main.build_parser``, every
+sub-command) and the pydantic models of the settings files (``FILES``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import importlib
+import importlib.util
+import inspect
+import sys
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel
+
+REGENERATE = "python -m tactex_ros.cli.reference"
+DEFAULT_OUT = Path("docs/reference.md")
+
+# settings files: (title, where the file lives, module, model) -- the fields are walked
+FILES: tuple[tuple[str, str, str, str], ...] = (
+    ("Scene file", "config/scene.yaml, config/scene_sim.yaml; `scene:=`, `--scene`",
+     "tactex_ros.robot.scene", "SceneFile"),
+    ("Robot profile", "config/robots/<name>.yaml; `robot:=`, motion node `robot`",
+     "tactex_ros.robot.robots", "ProfileFile"),
+    ("Sensor profile", "config/sensors/<name>.yaml; `sensor:=`, gelsight node `sensor`",
+     "tactex_ros.robot.sensors", "SensorFile"),
+    ("Fabric catalogue", "config/fabrics.yaml (simulator)", "tactex_ros.sim.fabrics",
+     "Catalogue"),
+)
+
+
+def cell(value: Any) -> str:
+    """Text of one table cell: one line, pipes escaped."""
+    text = " ".join(str(value).split())
+    return text.replace("|", "\\|")
+
+
+def show(value: Any) -> str:
+    """A default as the reader types it (``''`` for the empty string)."""
+    if isinstance(value, str):
+        return "`''`" if value == "" else f"`{value}`"
+    if isinstance(value, (list, tuple)):
+        return "`[" + ", ".join(map(str, value)) + "]`"
+    return f"`{value}`"
+
+
+def type_name(kind: Any) -> str:
+    """A short name of a Python / typing type: constraints dropped (``Annotated``), ``Literal``
+    as the type of its values, ``Optional[int]`` as ``int | None``, ``tuple[float, float,
+    float]`` as ``tuple[float, float, float]``."""
+    origin, args = typing.get_origin(kind), typing.get_args(kind)
+    if origin is typing.Annotated:
+        return type_name(args[0])
+    if origin is Literal:
+        return " | ".join(sorted({type(a).__name__ for a in args}))
+    if origin in (typing.Union, types.UnionType):
+        names = []
+        for a in args:
+            n = "None" if a is type(None) else type_name(a)
+            if n not in names:
+                names.append(n)
+        return " | ".join(names)
+    if origin is not None:
+        name = getattr(origin, "__name__", str(origin).replace("typing.", ""))
+        return f"{name}[{', '.join('...' if a is Ellipsis else type_name(a) for a in args)}]"
+    if isinstance(kind, type):
+        return kind.__name__
+    return str(kind).replace("typing.", "")
+
+
+def doc_line(obj: Any) -> str:
+    """The first paragraph of a docstring, on one line."""
+    return " ".join((inspect.getdoc(obj) or "").split("\n\n")[0].split())
+
+
+def bounds(lo: Any, hi: Any, choices: tuple = ()) -> str:
+    if choices:
+        return ", ".join(show(c) for c in choices)
+    if lo is None and hi is None:
+        return ""
+    return f"{'' if lo is None else lo} .. {'' if hi is None else hi}"
+
+
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    out += ["| " + " | ".join(cell(c) for c in r) + " |" for r in rows]
+    return out
+
+
+# --- node parameters ---------------------------------------------------------------------
+
+def node_parameters() -> list[str]:
+    """One table per node of the graph description, in its order."""
+    from ..core.config import fields, flatten
+    from ..ros.graph import SETTINGS
+    out = ["## Node parameters", "",
+           "Declared as ROS 2 parameters from the nodes' settings schemas "
+           "(`tactex_ros/ros/settings.py`, `core/config.py`); set them in a parameters file, "
+           "with `--ros-args -p name:=value`, or through the options below. A value of the "
+           "wrong type or outside its range ends the node with exit status 2, the parameter "
+           "named.", ""]
+    for node, cls in SETTINGS.items():
+        try:
+            effective = flatten(cls.check({}).model_dump())
+        except Exception:   # noqa: BLE001 - a schema with required fields has no defaults
+            effective = {}
+        rows = [(f"`{s.name}`", type_name(s.kind), show(effective.get(s.name, s.default)),
+                 bounds(s.lo, s.hi, s.choices),
+                 s.description + (" (read-only)" if s.read_only else ""))
+                for s in fields(cls)]
+        out += [f"### `{node}` ({cls.__name__})", ""]
+        if any("." in s.name for s in fields(cls)):
+            out += ["Nested parameters take the value of the preset named by `config` unless "
+                    "given (defaults shown: the default preset's; other presets: "
+                    "[Presets](#presets)).", ""]
+        out += table(("parameter", "type", "default", "range / choices", "description"),
+                     rows) + [""]
+    return out
+
+
+def presets() -> list[str]:
+    """What each preset of ``TrialSettings.config`` changes against the default preset."""
+    from ..core import plugins
+    from ..core.config import TrialSettings, fields, flatten
+    config = next((s for s in fields(TrialSettings) if s.name == "config"), None)
+    if config is None or not config.choices:
+        return []
+    base = flatten(TrialSettings.check({}).model_dump())
+    out = ["## Presets", "",
+           f"`config` (`tactex trial --config`, `config:=`, explorer `config`) picks a named "
+           f"set of learner and trial settings; the default is `{config.default}`. Settings "
+           "another preset changes:", ""]
+    rows = []
+    for name in config.choices:
+        if name == config.default:
+            continue
+        values = flatten(TrialSettings.check({"config": name}).model_dump())
+        rows += [(f"`{name}`", f"`{k}`", show(v), show(base.get(k, "")))
+                 for k, v in values.items() if k != "config" and v != base.get(k)]
+    return (out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
+            + plugin_lines(plugins.LEARNERS, "Learners added by plug-ins (`learner.model`)"))
+
+
+# --- launch arguments --------------------------------------------------------------------
+
+def launch_file() -> Path:
+    """launch/explore.launch.py of the source tree or the install (beside ``config/``)."""
+    from ..paths import config_dir
+    return config_dir().parent / "launch" / "explore.launch.py"
+
+
+def launch_arguments() -> list[str]:
+    path = launch_file()
+    spec = importlib.util.spec_from_file_location("tactex_explore_launch_reference", path)
+    if spec is None or spec.loader is None:
+        raise FileNotFoundError(f"launch file {path} not found")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = [(f"`{n}`", show(d), h) for n, d, h in module.arguments()]
+    return ["## Launch arguments", "",
+            "`ros2 launch tactex explore.launch.py name:=value ...` "
+            "(`launch/explore.launch.py`, `arguments()`); every value is checked before any "
+            "process starts.", ""] + table(("argument", "default", "description"), rows) + [""]
+
+
+# --- command line ------------------------------------------------------------------------
+
+def _subparsers(p: argparse.ArgumentParser) -> list[tuple[str, str, argparse.ArgumentParser]]:
+    """(name, help, parser) of the sub-commands of ``p``, by name (plug-in commands are found in
+    an order that depends on the install)."""
+    out = []
+    for a in p._actions:   # noqa: SLF001 - argparse has no public walk
+        if isinstance(a, argparse._SubParsersAction):   # noqa: SLF001
+            helps = {c.dest: c.help or "" for c in a._choices_actions}   # noqa: SLF001
+            out += [(name, helps.get(name, ""), sp) for name, sp in a.choices.items()]
+    return sorted(out, key=lambda t: t[0])
+
+
+def value_type(t: Any) -> str:
+    """The value an option takes: a type's name, a range checker's ``int 0..232`` (the closure
+    of ``cli.main.bounded``), or the checker function's name."""
+    if t is None:
+        return "str"
+    if isinstance(t, type):
+        return t.__name__
+    free = inspect.getclosurevars(t).nonlocals if inspect.isfunction(t) else {}
+    if {"kind", "lo", "hi"} <= set(free):
+        kind = free["kind"]
+        return f"{kind.__name__} {kind(free['lo'])}..{kind(free['hi'])}"
+    return getattr(t, "__name__", type(t).__name__)
+
+
+def _option_row(a: argparse.Action) -> tuple[str, ...]:
+    name = ", ".join(f"`{o}`" for o in a.option_strings) or f"`{a.dest}` (positional)"
+    if isinstance(a, (argparse._StoreTrueAction, argparse._StoreFalseAction)):   # noqa: SLF001
+        kind = "flag"
+    elif a.choices is not None:
+        kind = ", ".join(f"`{c}`" for c in a.choices)
+    else:
+        kind = value_type(a.type)
+    if a.nargs in ("+", "*"):
+        kind += " ..."
+    if isinstance(a, argparse._AppendAction):   # noqa: SLF001
+        kind += " (repeatable)"
+    if a.required:
+        default = "required"
+    elif a.default is None or isinstance(a, (argparse._StoreTrueAction,   # noqa: SLF001
+                                            argparse._StoreFalseAction)):
+        default = ""
+    else:
+        default = show(a.default)
+    return name, kind, default, (a.help or "").replace("%(default)s", str(a.default))
+
+
+def plugin_lines(group: str, title: str) -> list[str]:
+    """One line naming the installed plug-ins of an entry point group (``core/plugins.py``)."""
+    from ..core import plugins
+    found = sorted((name, ep.value) for name, ep in plugins.available(group).items())
+    if not found:
+        return [f"{title}: none installed (entry point group `{group}`).", ""]
+    return [f"{title} (entry point group `{group}`, listed here as installed): "
+            + ", ".join(f"`{n}` (`{v}`)" for n, v in found) + ".", ""]
+
+
+def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
+    """Every sub-command of ``tactex`` with its options, depth first, by name."""
+    from .main import build_parser
+    parser = parser or build_parser()
+    out = ["## Command line", "",
+           "`tactex <command> ...` (`tactex_ros/cli/`). Exit status: 0 success, 1 a failed "
+           "check or a trial that ended without a result, 2 bad input (the option, file or "
+           "field named).", ""]
+    from ..core import plugins
+    out += plugin_lines(plugins.COMMANDS, "Commands added by plug-ins")
+
+    def walk(p: argparse.ArgumentParser, path: str, help_text: str) -> None:
+        subs = _subparsers(p)
+        rows = [_option_row(a) for a in p._actions   # noqa: SLF001
+                if not isinstance(a, (argparse._HelpAction,   # noqa: SLF001
+                                      argparse._SubParsersAction))]   # noqa: SLF001
+        if rows or not subs:
+            out.extend([f"### `{path}`", ""] + ([help_text, ""] if help_text else []))
+            out.extend(table(("option", "type", "default", "description"), rows) + [""])
+        for name, sub_help, sp in subs:
+            walk(sp, f"{path} {name}", sub_help)
+
+    walk(parser, parser.prog, "")
+    return out
+
+
+# --- settings files ----------------------------------------------------------------------
+
+def _model_of(ann: Any) -> tuple[type | None, str]:
+    """The model inside an annotation and how it is held: ('', '[]' list, '{}' mapping)."""
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann, ""
+    origin, args = typing.get_origin(ann), typing.get_args(ann)
+    if origin in (list, tuple) and args and isinstance(args[0], type) \
+            and issubclass(args[0], BaseModel):
+        return args[0], "[]"
+    if origin is dict and len(args) == 2 and isinstance(args[1], type) \
+            and issubclass(args[1], BaseModel):
+        return args[1], "{}"
+    return None, ""
+
+
+def model_rows(cls: type, prefix: str = "") -> list[tuple[str, ...]]:
+    """(field, type, default, range / choices, description) of every field of a pydantic model,
+    nested models walked (``platforms[].id``, ``fabrics{}.pitch``)."""
+    import annotated_types
+    rows: list[tuple[str, ...]] = []
+    for name, f in cls.model_fields.items():
+        sub, how = _model_of(f.annotation)
+        if sub is not None:
+            rows.append((f"`{prefix}{name}{how}`", sub.__name__,
+                         "required" if f.is_required() else "", "",
+                         f.description or doc_line(sub)))
+            rows += model_rows(sub, f"{prefix}{name}{how}.")
+            continue
+        ann = f.annotation
+        choices = typing.get_args(ann) if typing.get_origin(ann) is Literal else ()
+        lo = next((m.ge for m in f.metadata if isinstance(m, annotated_types.Ge)), None)
+        hi = next((m.le for m in f.metadata if isinstance(m, annotated_types.Le)), None)
+        default = "required" if f.is_required() else show(
+            f.get_default(call_default_factory=True))
+        rows.append((f"`{prefix}{name}`", type_name(ann), default,
+                     bounds(lo, hi, choices), f.description or ""))
+    return rows
+
+
+def settings_files() -> list[str]:
+    out = ["## Settings files", "",
+           "YAML files validated at start-up by these models; an unknown or bad field is "
+           "refused with its location (e.g. `platforms.2.position`). `[]`: a list of, `{}`: a "
+           "mapping of.", ""]
+    for title, where, module, model in FILES:
+        cls = getattr(importlib.import_module(module), model)
+        out += [f"### {title} ({cls.__name__})", "", where, ""]
+        out += table(("field", "type", "default", "range / choices", "description"),
+                     model_rows(cls)) + [""]
+    return out
+
+
+# --- the page ------------------------------------------------------------------------------
+
+def render() -> str:
+    """The whole of docs/reference.md."""
+    lines = ["# Reference: parameters, launch arguments, command line, settings files", "",
+             f"Generated from the code by `{REGENERATE}` (do not edit by hand); "
+             "`test/unit/cli/test_reference.py` fails when this page is stale.", "",
+             "- [Node parameters](#node-parameters)", "- [Presets](#presets)",
+             "- [Launch arguments](#launch-arguments)", "- [Command line](#command-line)",
+             "- [Settings files](#settings-files)", ""]
+    lines += node_parameters() + presets() + launch_arguments() + command_line() \
+        + settings_files()
+    while lines and lines[-1] == "":
+        lines.pop()
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog=REGENERATE, description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default=str(DEFAULT_OUT), help="page to write or check")
+    p.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 with a diff when the page differs")
+    args = p.parse_args(argv)
+    text, path = render(), Path(args.out)
+    if args.check:
+        old = path.read_text() if path.is_file() else ""
+        if old == text:
+            return 0
+        sys.stdout.writelines(difflib.unified_diff(old.splitlines(True), text.splitlines(True),
+                                                   str(path), "generated"))
+        print(f"{path} is stale: run `{REGENERATE}` from the repository root", file=sys.stderr)
+        return 1
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,62 @@
+"""The default FR3 profile (CRISP) end to end against the mock arm in real processes: the mock
+runs CRISP's law at CRISP's topics (/target_pose in, /current_pose + franka's wrench out), the
+motion node presses through it, and a second publisher on /target_pose makes the mock -- as
+CRISP does -- ignore every target, so the press ends at its approach deadline."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tactex_ros.paths import config_dir
+from tactex_ros.robot.robots import load_profile
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.launcher import Graph
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _nodes(tmp_path: Path, **press):
+    scene = None
+    if press:
+        data = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
+        data["press"].update(press)
+        scene = tmp_path / "scene.yaml"
+        scene.write_text(yaml.safe_dump(data))
+    nodes = describe(True, scene, robot="fr3_crisp")
+    return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
+
+
+def _wait_for_camera(listener, timeout_s: float = 90.0) -> None:
+    """The mock camera builds its fabric at start-up (seconds on a loaded machine): press only
+    once its capture service is up, so the test is about the arm."""
+    from tactex.srv import Capture
+
+    from tactex_ros.ros.settings import CAPTURE_SERVICE
+    client = listener.node.create_client(Capture, CAPTURE_SERVICE)
+    if not client.wait_for_service(timeout_sec=timeout_s):
+        pytest.fail(f"no {CAPTURE_SERVICE} within {timeout_s} s")
+
+
+def test_press_through_the_crisp_profile(tmp_path: Path, listener, press) -> None:
+    prof = load_profile("fr3_crisp")
+    nodes = _nodes(tmp_path)
+    arm = next(n for n in nodes if n.name == "mock_arm")
+    assert arm.parameters["robot"] == "fr3_crisp"
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        _wait_for_camera(listener)
+        res = press("c1")
+    assert res.success, res.reason
+    # at the threshold, never above what CRISP's clipped error lets it push with at rest
+    assert 0.9 * 4.0 <= res.touch.contact_force_n <= prof.law.max_static_force + 0.5
+
+
+def test_second_target_publisher_stops_the_arm(tmp_path: Path, listener, press) -> None:
+    from geometry_msgs.msg import PoseStamped
+    listener.node.create_publisher(PoseStamped, "/target_pose", 1)   # never publishes
+    with Graph(_nodes(tmp_path, approach_deadline_s=4.0), tmp_path / "logs",
+               listener.domain_id):
+        res = press("c1", timeout=60.0)
+    assert not res.success and "deadline: phase approach" in res.reason, res.reason

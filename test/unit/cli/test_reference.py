@@ -1,0 +1,69 @@
+"""docs/reference.md is generated from the code: it must equal a fresh generation, and the
+generator must find every parameter, argument and option where the code declares them."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from tactex_ros.cli import reference
+from tactex_ros.core.config import Schema, fields, param
+
+ROOT = Path(__file__).resolve().parents[3]
+PAGE = ROOT / "docs" / "reference.md"
+
+
+@pytest.fixture(scope="module")
+def fresh() -> str:
+    return reference.render()
+
+
+def test_the_committed_reference_is_current(fresh: str) -> None:
+    """Fails when a parameter, launch argument or option changed without regenerating."""
+    old = PAGE.read_text() if PAGE.is_file() else ""
+    assert old == fresh, (f"docs/reference.md is stale: run `make reference` (= "
+                          f"`{reference.REGENERATE}` from the repository root) and commit "
+                          "docs/reference.md")
+
+
+def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str) -> None:
+    from tactex_ros.cli.main import build_parser
+    from tactex_ros.ros.graph import SETTINGS
+    text = fresh
+    for cls in SETTINGS.values():
+        for spec in fields(cls):
+            assert f"| `{spec.name}` |" in text, spec.name
+    launch = reference.launch_arguments()
+    for name in ("sim", "rviz", "robot", "scene", "rounds"):
+        assert any(line.startswith(f"| `{name}` |") for line in launch), name
+
+    def options(p: argparse.ArgumentParser):
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for sp in a.choices.values():
+                    yield from options(sp)
+            else:
+                yield from a.option_strings
+    flags = set(options(build_parser())) - {"-h", "--help"}
+    assert flags and all(f"`{f}`" in text for f in flags), \
+        sorted(f for f in flags if f"`{f}`" not in text)
+
+
+def test_a_new_setting_appears_with_its_type_default_range_and_description() -> None:
+    class Probe(Schema):
+        speed: float = param(0.5, "how fast [m/s]", 0.1, 2.0)
+        mode: str = param("a", "which mode")
+    rows = reference.model_rows(Probe)
+    assert rows[0] == ("`speed`", "float", "`0.5`", "0.1 .. 2.0", "how fast [m/s]")
+    assert rows[1][:3] == ("`mode`", "str", "`a`")
+
+
+def test_check_mode_reports_a_stale_page(tmp_path, capsys) -> None:
+    page = tmp_path / "reference.md"
+    page.write_text("old\n")
+    assert reference.main(["--check", "--out", str(page)]) == 1
+    assert page.read_text() == "old\n"
+    assert reference.main(["--out", str(page)]) == 0
+    assert reference.main(["--check", "--out", str(page)]) == 0

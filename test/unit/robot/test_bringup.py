@@ -1,0 +1,124 @@
+"""The bring-up the lab runs (config/bringup/) against the robot profiles: the controller's
+parameters equal the profile's, the profile's law equals those parameters (CRISP's names and
+bounds), and the collision thresholds leave room for the press. Pure (YAML files only)."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from tactex_ros.core.config import flatten
+from tactex_ros.paths import config_dir
+from tactex_ros.robot.robots import load_profile
+from tactex_ros.robot.scene import load_scene
+
+BRINGUP = config_dir() / "bringup"
+CONTROLLER = "crisp_cartesian_impedance_controller"
+
+
+def _yaml(path) -> dict:
+    return yaml.safe_load(path.read_text())
+
+
+def _fr3_files() -> tuple[dict, dict]:
+    """(controller_manager parameters, {node: ros__parameters}) of the FR3 bring-up."""
+    doc = _yaml(BRINGUP / "fr3_crisp_controllers.yaml")["/**"]
+    nodes = {k: v["ros__parameters"] for k, v in doc.items()}
+    return nodes.pop("controller_manager"), nodes
+
+
+def _controller_params(profile: str) -> dict:
+    """The CRISP controller's parameters as the profile's bring-up file sets them (flat)."""
+    if profile == "fr3_crisp":
+        return flatten(_fr3_files()[1][CONTROLLER])
+    doc = _yaml(BRINGUP / "panda_crisp_controller.yaml")
+    return flatten(doc[CONTROLLER]["ros__parameters"])
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_bringup_sets_the_profiles_parameters(name: str) -> None:
+    prof = load_profile(name)
+    got = _controller_params(name)
+    assert prof.controller == CONTROLLER and prof.parameters
+    for key, value in prof.parameters.items():
+        assert key in got, (name, key)
+        assert got[key] == value, (name, key, got[key], value)
+    assert got["base_frame"] == prof.frame_id
+    arm = "fr3" if name == "fr3_crisp" else "panda"
+    assert got["joints"] == [f"{arm}_joint{i}" for i in range(1, 8)]
+    assert got["end_effector_frame"] == f"{arm}_link8"
+    assert got.get("type", prof.plugin) == prof.plugin
+
+
+def test_fr3_bringup_registers_the_controllers_and_rates() -> None:
+    prof = load_profile("fr3_crisp")
+    cm, nodes = _fr3_files()
+    assert cm["update_rate"] == prof.law.rate_hz
+    assert cm[CONTROLLER]["type"] == prof.plugin == "crisp_controllers/CartesianController"
+    assert cm["crisp_pose_broadcaster"]["type"] == "crisp_controllers/PoseBroadcaster"
+    assert cm["franka_robot_state_broadcaster"]["type"] == \
+        "franka_robot_state_broadcaster/FrankaRobotStateBroadcaster"
+    # the pose tactex reads is the controller's end-effector frame, in the profile's base frame
+    pose, ctrl = nodes["crisp_pose_broadcaster"], nodes[CONTROLLER]
+    assert (pose["end_effector_frame"], pose["joints"], pose["base_frame"]) == (
+        ctrl["end_effector_frame"], ctrl["joints"], prof.frame_id)
+    # every controller the recovery re-activates is registered
+    switch = prof.recovery.then[-1].request["activate_controllers"]
+    assert set(switch) <= set(k for k, v in cm.items() if isinstance(v, dict))
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_profile_law_is_crisps_law_of_those_parameters(name: str) -> None:
+    """stiffness = task.k_pos_x/y/z, damping 2 sqrt(K) for d_pos_* = -1, target_filter =
+    filter.target_pose, error_clip = task.error_clip.x/y/z (limit_error), force step from
+    max_delta_tau (limit_torques); each inside CRISP's declared bounds
+    (src/cartesian_impedance_controller.yaml:21-50, 225-230)."""
+    raw = _yaml(config_dir() / "robots" / f"{name}.yaml")["controller"]
+    law, p = load_profile(name).law, _controller_params(name)
+    for ax in "xyz":
+        assert p[f"task.k_pos_{ax}"] == law.stiffness and 0.0 <= law.stiffness <= 5000.0
+        assert p[f"task.d_pos_{ax}"] == -1.0 and raw["damping"] <= 0.0
+        assert p[f"task.error_clip.{ax}"] == law.error_clip
+    assert law.d == pytest.approx(2.0 * law.stiffness ** 0.5)
+    assert p["filter.target_pose"] == law.target_filter and 0.1 <= law.target_filter <= 1.0
+    assert p["limit_error"] is True and p["limit_torques"] is True
+    assert p["max_delta_tau"] == raw["max_delta_tau"]
+    assert law.max_force_step == pytest.approx(raw["max_delta_tau"] / raw["torque_lever_m"])
+    assert p["use_operational_space"] is False and p["stop_commands"] is False
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_collision_thresholds_leave_room_for_the_press(name: str) -> None:
+    """franka's reflex must not trip during a press: the upper Cartesian force thresholds are
+    at least twice the scene's max_force, and the controller cannot push with more than
+    max_force at rest (K x error_clip)."""
+    prof = load_profile(name)
+    scene = load_scene(config_dir() / prof.scene)
+    req = prof.collision.request
+    assert {k: len(v) for k, v in req.items()} == {
+        "lower_torque_thresholds_nominal": 7, "upper_torque_thresholds_nominal": 7,
+        "lower_force_thresholds_nominal": 6, "upper_force_thresholds_nominal": 6}
+    for lo, hi in (("lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal"),
+                   ("lower_force_thresholds_nominal", "upper_force_thresholds_nominal")):
+        assert all(0 < a <= b for a, b in zip(req[lo], req[hi])), (lo, hi)
+    assert min(req["upper_force_thresholds_nominal"][:3]) >= 2.0 * scene.press.max_force
+    assert min(req["lower_force_thresholds_nominal"][:3]) > scene.press.max_force
+    assert prof.law.max_static_force < scene.press.max_force
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_hand_guiding_controller_has_no_translational_stiffness(name: str) -> None:
+    """crisp_gravity_compensation (for measuring the scene by hand) holds the orientation only,
+    on the same joints and frames as the impedance controller."""
+    if name == "fr3_crisp":
+        cm, nodes = _fr3_files()
+        assert cm["crisp_gravity_compensation"]["type"] == "crisp_controllers/CartesianController"
+        g = flatten(nodes["crisp_gravity_compensation"])
+    else:
+        g = flatten(_yaml(BRINGUP / "panda_crisp_controller.yaml")
+                    ["crisp_gravity_compensation"]["ros__parameters"])
+    c = _controller_params(name)
+    assert [g[f"task.k_pos_{a}"] for a in "xyz"] == [0.0, 0.0, 0.0]
+    assert min(g[f"task.k_rot_{a}"] for a in "xyz") > 0.0
+    for key in ("joints", "end_effector_frame", "base_frame"):
+        assert g[key] == c[key]
