@@ -77,3 +77,15 @@ def test_nodes_ignore_modules_in_the_current_folder(tmp_path: Path, domain_id: i
               "--log-dir", str(tmp_path / "logs")], domain_id, tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "rec" / "t" / "result.json").is_file()
+
+
+def test_shipped_replay_scene_runs_on_recorded_presses(tmp_path: Path, domain_id: int,
+                                                       octopi_dir: Path) -> None:
+    """`--scene scene_replay --source replay:DIR`: the graph presses recorded presses of each
+    platform's replay_class and ends with a result."""
+    r = _run(["--scene", "scene_replay", "--source", f"replay:{octopi_dir}", "--rounds", "1",
+              "--record-dir", str(tmp_path / "rec"), "--trial-id", "t",
+              "--log-dir", str(tmp_path / "logs")], domain_id, tmp_path)
+    assert r.returncode == 0, r.stderr
+    res = json.loads((tmp_path / "rec" / "t" / "result.json").read_text())
+    assert res["prediction"] in ("c1", "c2", "c3", "c4") and res["touches"] >= 5
