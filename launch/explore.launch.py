@@ -2,7 +2,8 @@
 sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:=S] [model:=M]
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
-[source:=sim|replay:DIR]
+[source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
+[auto_confirm:=true]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -14,6 +15,13 @@ a bad value ends the launch with the argument or field named and no process star
 settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
 ranges, choices and descriptions come from the nodes' settings schema, as for
 ``tactex graph run``; '' (the default) leaves the node's own default.
+
+``session:=FILE`` runs a study session: the explorer runs the trial file's trials in order in
+this one launch, tells the operator before each trial what to place on which platform (log,
+``/tactex/operator/prompt``) and waits for ``ros2 service call /explorer/confirm
+std_srvs/srv/Trigger`` (``auto_confirm:=true``: scripted); in simulation it sets the mock
+camera's placement. A bad trial file ends the launch before anything starts, the row named.
+``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md).
 
 Any tactex node that exits ends the launch (a dead camera or robot interface stops the trial;
 with ``exit_when_done:=true`` the explorer's exit after the trial ends it). rviz2 is started only

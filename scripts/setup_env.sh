@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs what the project needs into .venv (repository root) and builds the package into it.
 #   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels (requirements.txt)
+#   scripts/setup_env.sh browser - headless chromium + chromedriver via apt (root only; for the
+#                                 report's browser test), also run by `deps`
 #   scripts/setup_env.sh build  - colcon build of the ROS package `tactex` (interfaces, Python
 #                                 package, launch/config, node executables) merged into .venv
 # The Makefile calls these only when their inputs changed, so a second run installs nothing.
@@ -26,6 +28,23 @@ deps() {
   done
 }
 
+browser() {
+  # headless Chromium + chromedriver for the report's browser test (test/ros/test_session.py);
+  # installed with apt where this runs as root, else the test is skipped with the reason
+  if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then
+    return 0
+  fi
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver \
+      || { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+           chromium chromium-driver; } \
+      || echo "setup_env: chromium not installed (apt failed); the browser test will skip" >&2
+  else
+    echo "setup_env: chromium/chromedriver missing and not root: install them (apt install" \
+         "chromium chromium-driver) or the report's browser test skips" >&2
+  fi
+}
+
 build() {
   export PATH="$VENV/bin:$PATH"
   export CMAKE_PREFIX_PATH="$VENV"
@@ -41,8 +60,9 @@ build() {
 }
 
 case "${1:-all}" in
-  deps) deps ;;
+  deps) deps; browser ;;
   build) build ;;
-  all) deps; build ;;
-  *) echo "usage: $0 [deps|build|all]" >&2; exit 2 ;;
+  browser) browser ;;
+  all) deps; browser; build ;;
+  *) echo "usage: $0 [deps|build|browser|all]" >&2; exit 2 ;;
 esac

@@ -1,58 +1,18 @@
-"""Trial files: fixed scenes of reference + comparison platforms (e.g. the thesis's human study).
+"""Trial files in the offline experiments: entries -> a source's class names.
 
-Format (YAML)::
-
-    name: human_study
-    trials:
-      - {id: 1, reference: 23, comparisons: [4, 8, 23, 7]}
-      - {id: 2, reference: wool_jersey, comparisons: [wool_jersey, polar_fleece, ...]}
-
-``id`` any scalar, unique (kept as a string); ``reference`` and every comparison are either an
-integer, the fabric number of the simulator's catalogue (``config/fabrics.yaml``, resolved with
-``SimSource.by_number``), or a class name of the source (a fabric name, or a class folder of a
-replay source). The reference must be one of the comparisons: that platform is the true match.
+The format and its loader live in the product (``tactex_ros/trialfile.py``: ``load_trials``,
+``find_trial_file``, re-exported here); ``class_name`` / ``platform_classes`` resolve an entry
+(a catalogue fabric number or a class name) against a touch source.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_file, read_yaml
 from tactex_ros.sources.base import TouchSource
-
-
-def find_trial_file(spec: str | None) -> Path:
-    """A path, or a name under ``config/trials`` (``human_study`` = the default)."""
-    return config_file(spec or "human_study", "trials", "trial file")
-
-
-def load_trials(path: str | Path) -> dict[str, Any]:
-    """{"name", "path", "trials": [{"id": str, "reference", "comparisons": [...]}, ...]}."""
-    path = Path(path)
-    doc = read_yaml(path, "trial file")
-    if not isinstance(doc, dict) or not isinstance(doc.get("trials"), list) or not doc["trials"]:
-        raise InputError(f"trial file {path}: needs a non-empty list 'trials'")
-    seen: set[str] = set()
-    trials = []
-    for i, t in enumerate(doc["trials"]):
-        where = f"trial file {path}, entry {i + 1}"
-        if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
-            raise InputError(f"{where}: needs id, reference and comparisons")
-        tid = str(t["id"])
-        if tid in seen:
-            raise InputError(f"{where}: duplicate id {tid!r}")
-        seen.add(tid)
-        comps = t["comparisons"]
-        if not isinstance(comps, list) or len(comps) < 2:
-            raise InputError(f"{where} (id {tid}): comparisons must list >= 2 classes")
-        if t["reference"] not in comps:
-            raise InputError(f"{where} (id {tid}): reference {t['reference']!r} is not among "
-                             f"the comparisons {comps}")
-        trials.append({"id": tid, "reference": t["reference"], "comparisons": list(comps)})
-    return {"name": str(doc.get("name", path.stem)), "path": str(path), "trials": trials}
+from tactex_ros.trialfile import find_trial_file, load_trials  # noqa: F401  (the format lives in the product)
 
 
 def class_name(source: TouchSource, item: Any) -> str:

@@ -12,7 +12,8 @@ from .main import add_setting_option, bounded, builds
 from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
-EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id")
+EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
+                    "session", "session_dir")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 
 
@@ -97,14 +98,51 @@ def resume_hint(run, sim: bool) -> str | None:
     return f"tactex graph run{' --sim' if sim else ''} --resume {run.record}"
 
 
+def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
+    """``tactex graph run --session FILE``: the session's trials in one graph start."""
+    from ..ros.session_runner import run_session
+    if getattr(args, "resume", None):
+        raise InputError("--resume continues one trial; a session continues with "
+                          "--session-dir <its folder>")
+    ex = next(n for n in nodes if n.name == "explorer")
+    d = args.session_dir or str(Path(ex.parameters.get("record_dir") or "runs/trials") /
+                                f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
+    run = run_session(nodes, logs, d, confirm=confirm,
+                      timeout_s=args.timeout if args.timeout is not None else 86400.0,
+                      domain_id=args.domain_id)
+    if run.result is None:
+        print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
+              file=sys.stderr)
+        print(f"tactex: continue with: tactex graph run{' --sim' if args.sim else ''} "
+              f"--session {args.session} --session-dir {run.session_dir}", file=sys.stderr)
+        return 128 + run.signal if run.signal else 1
+    r = run.result
+    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}")
+    print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
+    return 0
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from ..ros.launcher import exit_text, run_trial
     nodes = _nodes(args)
     logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
+    if args.session:
+        from ..core.outputs import check_dir
+        check_dir(logs, "--log-dir")
+        print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
+        return cmd_session(args, nodes, logs)
     preflight(nodes, logs)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
+    from ..progress import Progress
+    progress = Progress()
+
+    def follow(graph) -> None:
+        ex = next(n for n in nodes if n.name == "explorer")
+        progress.follow(Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"])
     run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
-                    idle_s=args.idle_timeout)
+                    on_start=follow, on_poll=progress.poll, idle_s=args.idle_timeout)
+    progress.poll()
     if run.left_running:
         print(f"tactex: nodes still running after the stop: {run.left_running}",
               file=sys.stderr)
@@ -128,7 +166,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"reference matches {r['prediction']} after {r['touches']} touches "
           f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
           f"failed touches {len(r['failed_touches'])}")
-    print(f"trial record: {run.record}")
+    print(f"trial record: {run.record}" + (f" (report: {run.record / 'report.html'})"
+                                            if (run.record / "report.html").is_file() else ""))
     return 0
 
 
@@ -219,6 +258,9 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
             p.add_argument("--resume", metavar="RECORD_DIR",
                            help="continue the interrupted trial recorded in RECORD_DIR (its "
                                 "settings, its record)")
+            p.add_argument("--yes", action="store_true",
+                           help="with --session: confirm every placement at once (scripted "
+                                "sessions, CI); without it a terminal asks for Enter")
         p.set_defaults(func=fn)
     sm = gsub.add_parser("summary", help="where a recorded trial's time went")
     sm.add_argument("record", help="trial record folder, or an MCAP file of a trial "

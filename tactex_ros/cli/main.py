@@ -200,9 +200,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _trial_parser(sub, command)
     _prepare_parser(sub, command)
 
-    from . import graph_commands, sim_commands
+    from . import graph_commands, report, sim_commands
     sim_commands.add_commands(sub, command)
     graph_commands.add_commands(sub, command)
+    report.add_commands(sub, command)
     for name, ep in plugins.available(plugins.COMMANDS).items():
         try:
             ep.load()(sub, command)

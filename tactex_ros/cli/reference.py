@@ -240,9 +240,9 @@ def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
     from .main import build_parser
     parser = parser or build_parser()
     out = ["## Command line", "",
-           "`tactex <command> ...` (`tactex_ros/cli/`). Exit status: 0 success, 1 a failed "
-           "check or a trial that ended without a result, 2 bad input (the option, file or "
-           "field named).", ""]
+           "`tactex <command> ...` (`tactex_ros/cli/`). Exit status: 0 success, 1 a run-time "
+           "failure (a trial that could not finish, a failed check), 2 bad input (the option, "
+           "file or field named).", ""]
     from ..core import plugins
     out += plugin_lines(plugins.COMMANDS, "Commands added by plug-ins")
 

@@ -239,3 +239,12 @@ def markers(scene: Scene, state, t: float) -> MarkerArray:
             ring.color = ColorRGBA(r=1.0, g=0.9, b=0.0, a=1.0)
             out.markers.append(ring)
     return out
+
+
+def latched_qos():
+    """Reliable, transient-local, depth 1: a subscriber that joins late (rviz, Foxglove,
+    ``ros2 topic echo``) receives the last message at once. Subscribers must ask for
+    transient-local durability too (config/tactex.rviz does)."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)

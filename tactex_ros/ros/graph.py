@@ -43,6 +43,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "model": ("explorer", "learner.model"), "rounds": ("explorer", "trial.rounds"),
     "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
     "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
+    "session": ("explorer", "session_file"), "session_dir": ("explorer", "session_dir"),
+    "auto_confirm": ("explorer", "auto_confirm"),
     "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
     "source": ("mock_image", "source")}
 
@@ -132,8 +134,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                           f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
     check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}",
                 prof.law.error_clip)
-    nodes = [NodeSpec("motion_node", "motion", mo),
-             NodeSpec("explorer_node", "explorer", _checked("explorer", ex))]
+    ex = _checked("explorer", ex)
+    if ex.get("session_file"):
+        check_session(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
+    nodes = [NodeSpec("motion_node", "motion", mo), NodeSpec("explorer_node", "explorer", ex)]
     if sim:
         start = scene.reference.position
         arm = merge({"scene_file": scene_file, "robot": mo["robot"], "start_x": start[0],
@@ -154,6 +158,22 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
         sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
         nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
     return nodes
+
+
+def check_session(explorer: dict[str, Any], scene, sim: bool, source: str) -> None:
+    """A study session's trial file checked against the scene before anything starts (the
+    row named); in simulation the explorer drives the mock camera's placement."""
+    from ..session import load_session
+    load_session(explorer["session_file"], [p.id for p in scene.ordered],
+                 seed=int(explorer.get("seed", 0)))
+    if sim:
+        if not source.startswith("sim"):
+            raise InputError(f"session {explorer['session_file']!r}: a simulated session "
+                              f"places catalogue fabrics; source {source!r} cannot show them "
+                              "(use source sim)")
+        explorer.setdefault("placement_service", "/mock_image/set_parameters")
+        if not explorer["placement_service"]:
+            explorer["placement_service"] = "/mock_image/set_parameters"
 
 
 def fixed_frame(nodes: list[NodeSpec]) -> str:

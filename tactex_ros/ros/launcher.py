@@ -278,11 +278,12 @@ class Deadlines:
 
 def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
               domain_id: int | None = None, poll_s: float = 0.1,
-              on_start=None, idle_s: float | None = None) -> GraphRun:
+              on_start=None, on_poll=None, idle_s: float | None = None) -> GraphRun:
     """Run the graph until the explorer finishes its trial, a node exits, a signal arrives,
     ``timeout_s`` passes (None: no total deadline) or ``idle_s`` passes without a new touch or
     decision (``Deadlines``); then stop every node. ``on_start(graph)`` is called once all
-    processes are started (tests use it to inject faults)."""
+    processes are started (tests use it to inject faults); ``on_poll()`` at every poll
+    (progress lines)."""
     if timeout_s is None and idle_s is None:
         raise InputError("run_trial needs a deadline: timeout_s or idle_s")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
@@ -305,6 +306,8 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
                 on_start(g)
             deadlines = Deadlines(record, timeout_s, idle_s)
             while True:
+                if on_poll is not None:
+                    on_poll()
                 gone = g.first_exit()
                 if gone is not None:
                     name, code = gone

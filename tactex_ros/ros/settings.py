@@ -22,12 +22,31 @@ PRESS_ACTION = "/tactex/press"
 STATE_TOPIC = "/tactex/state"
 MARKER_TOPIC = "/tactex/markers"
 TOUCH_IMAGE_TOPIC = "/tactex/touch_image"
+PROMPT_TOPIC = "/tactex/operator/prompt"
 POSE_TOPIC = "/franka_robot_state_broadcaster/current_pose"
 WRENCH_TOPIC = "/franka_robot_state_broadcaster/external_wrench_in_base_frame"
 TARGET_TOPIC = "/cartesian_impedance_controller/equilibrium_pose"
 
 
-class GelsightSettings(Schema):
+class CameraHealthSettings(Schema):
+    """Thresholds of a camera's health on /diagnostics (ros/diagnostics.py)."""
+
+    diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
+    diag_rate_warn: float = param(0.8, "WARN when the measured frame rate falls below this "
+                                       "fraction of the expected one", 0.0, 1.0)
+    diag_rate_error: float = param(0.5, "ERROR below this fraction of the expected frame rate",
+                                   0.0, 1.0)
+    diag_age_warn_s: float = param(0.3, "WARN when the newest frame is older than this [s]",
+                                   0.01, 60.0)
+    diag_age_error_s: float = param(1.0, "ERROR when the newest frame is older than this [s]",
+                                    0.01, 60.0)
+    diag_drift_warn: float = param(5.0, "WARN when the no-contact frame drifted more than this "
+                                        "since the start [grey levels]", 0.0, 255.0)
+    diag_drift_error: float = param(15.0, "ERROR above this no-contact drift [grey levels]",
+                                    0.0, 255.0)
+
+
+class GelsightSettings(CameraHealthSettings):
     sensor: str = param("gelsight_mini", "sensor profile: a name from config/sensors/ "
                                          "(gelsight_mini, digit) or a path; gives the camera "
                                          "name, capture mode, crop, exposure and LED set-up")
@@ -96,6 +115,21 @@ class MotionSettings(Schema):
                                           "retried (0 = no check)", 0.0, 50.0)
     state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
                                    0.05, 30.0)
+    diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
+    diag_state_warn_s: float = param(0.1, "arm: WARN when the newest robot state is older "
+                                          "than this [s]", 0.01, 30.0)
+    diag_state_error_s: float = param(0.5, "arm: ERROR when the newest robot state is older "
+                                           "than this [s] (at most state_timeout_s, where a "
+                                           "press aborts)", 0.01, 30.0)
+    diag_state_rate_warn: float = param(20.0, "arm: WARN below this robot state rate [Hz]",
+                                        0.0, 10000.0)
+    diag_camera_topic: str = param(IMAGE_TOPIC, "camera images the press needs, watched for "
+                                                "/diagnostics ('' = not watched)")
+    diag_camera_warn_s: float = param(0.2, "camera link: WARN when the newest image is older "
+                                           "than this [s]", 0.01, 60.0)
+    diag_camera_error_s: float = param(0.5, "camera link: ERROR when the newest image is older "
+                                            "than this [s] (a capture would find no fresh "
+                                            "frame)", 0.01, 60.0)
 
 
 class ExplorerSettings(TrialSettings):
@@ -129,6 +163,21 @@ class ExplorerSettings(TrialSettings):
                                       "its goal id if it runs [s] (< press_silence_s)",
                                  0.1, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
+    session_file: str = param("", "trial file of a study session (config/trials/NAME.yaml or a "
+                                  "path; '' = one trial): its trials run in order in this "
+                                  "node, the operator confirms each placement")
+    session_dir: str = param("", "session folder ('' = record_dir/<session name>_<time>); an "
+                                 "existing one of the same session is resumed where it stopped")
+    auto_confirm: bool = param(False, "confirm each placement at once (scripted sessions, CI) "
+                                      "instead of waiting for the confirm service")
+    confirm_timeout_s: float = param(1800.0, "a placement not confirmed within this ends the "
+                                             "session (recorded; resumable) [s]", 1.0, 86400.0)
+    prompt_topic: str = param(PROMPT_TOPIC, "where the operator's instruction (what to place "
+                                            "where) is published (std_msgs/String, latched)")
+    diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
+    placement_service: str = param("", "SetParameters service of a mock camera whose "
+                                       "'placement' follows the session ('' = hardware: the "
+                                       "operator places the fabrics)")
     nice: int = param(10, "CPU priority increment of this process, so training never starves "
                           "the control loop and the sensor (0 = unchanged)", 0, 19)
 
@@ -184,7 +233,7 @@ class MockArmSettings(Schema):
                                     "stand-in controller re-activation service (SetBool)")
 
 
-class MockImageSettings(Schema):
+class MockImageSettings(CameraHealthSettings):
     scene_file: str = param("", "scene YAML (what lies on each platform: sim_fabric or "
                                 "replay_class)")
     source: str = param("sim", "sim[:difficulty] or replay:DIR")
@@ -201,3 +250,6 @@ class MockImageSettings(Schema):
     seed: int = param(0, "seed of the rendered presses", 0, 2**31 - 1)
     fault_blank: float = param(0.0, "probability that a press shows no texture (fault "
                                     "injection)", 0.0, 1.0)
+    placement: str = param("", "what lies on each platform, 'platform=fabric,...' over the "
+                               "scene's sim_fabric ('' = the scene's); may be set while "
+                               "running (a study session sets it before each trial)")

@@ -61,29 +61,59 @@ class ExplorerNode(TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        self.spec = TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
-                              platform_ids=tuple(self.ids))
-        self.engine = self.spec.engine()       # settings refused here, at configure
-        inputs = {"explorer": s.model_dump(exclude={"learner", "trial"}),
-                  "learner": s.learner.model_dump(), "trial": s.trial.model_dump()}
-        self.replay = None
-        if s.resume:
-            self._open_resume(s.resume, inputs)
+        self.session = None
+        self.record = self.bag = self.last_state = None
+        if s.session_file:
+            from .session_mode import configure_session
+            configure_session(self)     # checks the trial file, opens the session folder
+            TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
+                      platform_ids=tuple(self.ids)).engine()   # settings refused here
         else:
-            self.trial_id = s.trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
-            self.record = TrialRecord(s.record_dir, self.trial_id)
-            self.record.save_inputs(s.scene_file, inputs)
-        self.bag = self._open_bag()
+            self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
         self.press = ActionClient(self, Press, s.press_action)
-        self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic, 10)
-        self.marker_pub = self.create_lifecycle_publisher(MarkerArray, s.marker_topic, 10)
-        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, 10)
-        self.last_state = None
+        latched = adapter.latched_qos()     # late joiners (rviz, foxglove) get the last one
+        self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
+                                                         latched)
+        self.marker_pub = self.create_lifecycle_publisher(MarkerArray, s.marker_topic, latched)
+        self.image_pub = self.create_lifecycle_publisher(Image, s.touch_image_topic, latched)
+        from ..diagnostics import Diagnostics
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("trial", "tactex explorer", self._health)
         self.result: dict | None = None
+        self.session_trial = None
+        self._t_trial = None
         self._silence = Silence()        # of the press server, since the last message
         self._stopping = False
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
+
+    def _open_trial(self, seed: int, resume: str | None, trial_id: str, record_dir: str,
+                    placed_scene: str | None = None, extra: dict | None = None) -> None:
+        """A fresh engine (belief and learner reset; nothing re-imported) and the trial's
+        record: new in ``record_dir/trial_id``, or the interrupted one in ``resume``.
+        ``placed_scene``: the scene text written into the record (a session's placement);
+        ``extra``: more inputs for config.json (a session trial's placement and truth)."""
+        s = self.settings
+        self.spec = TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=seed,
+                              platform_ids=tuple(self.ids))
+        self.engine = self.spec.engine()       # settings refused here, at configure
+        explorer = s.model_dump(exclude={"learner", "trial"})
+        explorer["seed"] = seed
+        inputs = {"explorer": explorer, "learner": s.learner.model_dump(),
+                  "trial": s.trial.model_dump()}
+        if extra:
+            inputs.update(extra)
+        self.replay = None
+        if resume:
+            self._open_resume(resume, inputs)
+        else:
+            self.trial_id = trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
+            self.record = TrialRecord(record_dir, self.trial_id)
+            self.record.save_inputs(s.scene_file, inputs)
+            if placed_scene is not None:
+                (self.record.dir / "scene.yaml").write_text(placed_scene)
+        self.bag = self._open_bag()
+        self.last_state = None
 
     def _open_bag(self):
         """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
@@ -93,6 +123,8 @@ class ExplorerNode(TactexNode):
 
     def _bag_write(self, topic: str, msg) -> None:
         """Copy a message into the MCAP file; a failure there never stops the trial."""
+        if self.bag is None:         # a session between trials: no trial record open
+            return
         try:
             self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
@@ -126,7 +158,11 @@ class ExplorerNode(TactexNode):
         self.create_timer(1.0, self._publish_markers)
         self._running.set()
         if self.worker is None:
-            self.worker = threading.Thread(target=self._trial, name="trial", daemon=True)
+            target = self._trial
+            if self.session is not None:
+                from .session_mode import run_session
+                target = lambda: run_session(self)    # noqa: E731
+            self.worker = threading.Thread(target=target, name="trial", daemon=True)
             self.worker.start()
 
     def deactivate(self) -> None:
@@ -149,6 +185,33 @@ class ExplorerNode(TactexNode):
         if worker is not None and worker is not threading.current_thread():
             worker.join(timeout=3.0)
         self.worker = None
+
+    def _health(self) -> tuple[int, str, dict]:
+        """/diagnostics: the trial (and session) progress, the belief, the stop reason."""
+        from ..diagnostics import ERROR, OK
+        st, res = self.last_state, self.result or {}
+        values: dict = {"trial": getattr(self, "trial_id", None),
+                        "touches": sum(st.touches) if st is not None else 0,
+                        "belief": (" ".join(f"{p} {b:.2f}" for p, b in
+                                            zip(self.ids[1:], st.belief))
+                                   if st is not None else ""),
+                        "next": st.next_platform if st is not None else "",
+                        "stop reason": res.get("stop_reason", ""),
+                        "prediction": res.get("prediction", "")}
+        msg = "trial running" if self.result is None else "trial done"
+        if self.session is not None:
+            from ... import session as sess
+            done = sum(sess.trial_state(self.session_dir, t) == "done"
+                       for t in self.session.trials)
+            values.update(session=self.session.name, **{"trials done": done,
+                                                         "trials": len(self.session.trials)})
+            waiting = getattr(self, "_awaiting", None)
+            msg = (f"session {done}/{len(self.session.trials)} trials done"
+                   + (f"; waiting for the operator to confirm trial {waiting}" if waiting
+                      else ""))
+        if "error" in res:
+            return ERROR, f"trial failed: {res['error']}", values
+        return OK, msg, values
 
     # ------------------------------------------------------------------ publishing
     def _now(self) -> float:
@@ -343,7 +406,9 @@ class ExplorerNode(TactexNode):
         self.get_logger().warning(f"touch of {self.ids[platform]} failed: {reason}")
         raise TouchFailed(reason, retry=False)
 
-    def _trial(self) -> None:
+    def _trial(self, finish_node: bool = True) -> None:
+        """Run the open trial to its result (or its error, recorded); ``finish_node``: the
+        node's work is over afterwards (one trial; a session runs several)."""
         try:
             self._run_trial()
         except Exception as exc:  # the trial must end in an explicit result
@@ -355,12 +420,22 @@ class ExplorerNode(TactexNode):
             self.exit_code = 1
         finally:
             self.bag.close()
-            if self.settings.exit_when_done:
+            if finish_node and self.settings.exit_when_done:
                 self.finished.set()
+
+    def _write_report(self) -> None:
+        """``report.html`` beside the result; a failure there never loses the trial."""
+        try:
+            from ...report import write_trial_report
+            write_trial_report(self.record.dir)
+        except Exception as exc:  # noqa: BLE001 - the record is the ground truth
+            self.get_logger().warning(f"report.html not written: {exc}")
 
     def _run_trial(self) -> None:
         s = self.settings
-        if not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
+        self._t_trial = time.monotonic()
+        if not self.press.server_is_ready() and \
+                not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
             raise InputError(f"press action {s.press_action!r} not available within "
                              f"server_timeout_s ({s.server_timeout_s} s)")
         eng = self.engine
@@ -374,13 +449,20 @@ class ExplorerNode(TactexNode):
                         engine=eng)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
-                   strategy=eng.trial_cfg.strategy, model=eng.learner.model_name, seed=s.seed)
+                   strategy=eng.trial_cfg.strategy, model=eng.learner.model_name,
+                   seed=self.spec.seed)
         if self.replay is not None:
             from ...record import read_record
             out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
                               if e.get("event") == "resumed"]
+        if self._t_trial is not None:
+            out["elapsed_s"] = time.monotonic() - self._t_trial
+        if self.session_trial is not None:
+            from .session_mode import trial_outcome
+            out.update(trial_outcome(self.session_trial, out))
         self.result = out
         path = self.record.finish(out)
+        self._write_report()
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
                                f"{out['prediction']} after {out['touches']} touches "
                                f"(stopped: {out['stop_reason']}); record {path.parent}")

@@ -247,6 +247,10 @@ class GelsightNode(TactexNode):
         self.lock = threading.Lock()
         self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
         serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
+        from ..diagnostics import CameraHealth, Diagnostics
+        self.health = CameraHealth(cfg.fps, s)
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("camera", f"{cfg.profile.name} {self.device.path}", self.health.check)
         self.frames_read = 0
         self.measured_fps = 0.0
         self._stop = threading.Event()
@@ -329,6 +333,7 @@ class GelsightNode(TactexNode):
             with self.lock:
                 self.ring.push(now, frame)
             self.pub.publish(adapter.array_to_image(frame, now, s.frame_id))
+            self.health.observe(frame)
             if self.is_file:  # a recording plays at its nominal rate
                 next_t += period
                 time.sleep(max(0.0, next_t - time.monotonic()))

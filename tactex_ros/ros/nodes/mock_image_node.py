@@ -5,6 +5,12 @@ Knows what lies on each platform from the scene (``sim_fabric`` for the simulato
 the sensor within the platform's radius) it publishes that fabric's texture at a gel depth
 proportional to the contact force (``depth_per_n``); otherwise a no-contact frame. Each press
 shows a new random patch of the fabric (new window; a new recorded press for replay sources).
+
+``placement`` (``platform=fabric,...``) puts other catalogue fabrics on platforms over the
+scene's ``sim_fabric``; it may be set while the node runs (``ros2 param set``, or the explorer's
+study session before each trial through the standard SetParameters service). A new placement
+restarts the press numbering, so a session's trial sees the same rendered presses as the same
+trial run alone with the same seed. An unknown fabric or platform is refused with the reason.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import threading
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
@@ -50,15 +57,17 @@ class MockImageNode(TactexNode):
             raise InputError(f"scene {s.scene_file!r}: platforms {missing} have no {field} "
                               f"for source {s.source!r}")
         if kind == "sim":
-            for p in self.scene.platforms:
+            self.fabrics = [p.sim_fabric for p in self.scene.ordered]
+            for p in self.scene.ordered:
                 try:
                     self.src.fabric(p.sim_fabric)
                 except InputError as exc:
                     raise InputError(f"scene {s.scene_file!r}: platform {p.id} sim_fabric: "
-                                      f"{exc}") from None
-                # build the fabric's height tile now: doing it at the first press stalls the
-                # frame timer for a moment and the capture window then holds no contact frame
-                self.src.press(p.sim_fabric, np.random.default_rng(0))
+                                     f"{exc}") from None
+            if s.placement:
+                self.fabrics = self._placed(s.placement)
+            self._prepare(self.fabrics)
+            self.add_on_set_parameters_callback(self._on_parameters)
             self._rng = np.random.default_rng([s.seed, 1])
             self.no_contact = self.src.renderer.no_contact(self._rng)
         else:
@@ -85,6 +94,45 @@ class MockImageNode(TactexNode):
         self.create_subscription(WrenchStamped, s.wrench_topic, self._on_wrench,
                                  qos_profile_sensor_data)
         serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
+        from ..diagnostics import CameraHealth, Diagnostics
+        self.health = CameraHealth(s.fps, s)
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("camera", f"mock camera ({s.source})", self.health.check)
+
+    def _placed(self, text: str) -> list[str]:
+        """Fabric per platform (scene order) for a ``placement`` text (InputError: why not)."""
+        from ...session import parse_placement
+        ids = [p.id for p in self.scene.ordered]
+        given = parse_placement(text, ids)
+        out = [given.get(pid, p.sim_fabric) for pid, p in zip(ids, self.scene.ordered)]
+        for f in out:
+            self.src.fabric(f)               # names an unknown fabric
+        return out
+
+    def _prepare(self, fabrics: list[str]) -> None:
+        """Build each fabric's height tile now: doing it at the first press stalls the frame
+        timer for a moment and the capture window then holds no contact frame."""
+        for f in dict.fromkeys(fabrics):
+            self.src.press(f, np.random.default_rng(0))
+
+    def _on_parameters(self, params) -> SetParametersResult:
+        """A new ``placement`` while running: checked, prepared, then used from the next frame
+        on (press numbering restarts); anything else refused here is refused with the reason."""
+        for p in params:
+            if p.name != "placement":
+                continue
+            try:
+                fabrics = self._placed(str(p.value))
+                self._prepare(fabrics)
+            except InputError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            with self.lock:
+                self.fabrics = fabrics
+                self.press_id = 0
+                self._in_contact = False
+            self.get_logger().info("placement: " + ", ".join(
+                f"{q.id}={f}" for q, f in zip(self.scene.ordered, fabrics)))
+        return SetParametersResult(successful=True)
 
     def activate(self) -> None:
         self.create_timer(1.0 / self.settings.fps, self._tick)
@@ -112,10 +160,10 @@ class MockImageNode(TactexNode):
             return self.no_contact
         if self.kind == "replay":
             return self._press_frame
-        p = self.scene.ordered[idx]
+        fabric = self.fabrics[idx]
         depth_mm = float(np.clip(self.settings.depth_per_n * self.force, 0.02, 1.0))
         rng = np.random.default_rng([self.settings.seed, self.press_id])
-        return self.src.press(p.sim_fabric, rng, depth_mm=depth_mm)
+        return self.src.press(fabric, rng, depth_mm=depth_mm)
 
     def _rng_fault(self) -> np.random.Generator:
         return np.random.default_rng([self.settings.seed, self.press_id, 99])
@@ -125,6 +173,7 @@ class MockImageNode(TactexNode):
         frame = self._frame()
         with self.lock:
             self.ring.push(now, frame)
+        self.health.observe(frame)
         self.pub.publish(adapter.array_to_image(frame, now, self.settings.frame_id))
 
 

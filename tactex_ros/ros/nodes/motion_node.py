@@ -68,6 +68,7 @@ class MotionNode(TactexNode):
         self.wrench_t = -1.0
         self.robot_mode = 0
         self.busy = threading.Lock()
+        self._setup_diagnostics()
         if prof.franka_state:
             self.create_subscription(import_interface(prof.state_type),
                                      s.state_topic or prof.state_topic, self._on_state,
@@ -96,6 +97,48 @@ class MotionNode(TactexNode):
         self.server = ActionServer(
             self, Press, s.press_action, execute_callback=self._execute_async,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+
+    def _setup_diagnostics(self) -> None:
+        """/diagnostics: the arm (robot mode, state rate and age, last press) and the camera
+        link this node's presses need (images arriving on ``diag_camera_topic``)."""
+        from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import Image
+
+        from ..diagnostics import Diagnostics, RateMeter, link_check
+        s = self.settings
+        self.state_meter, self.camera_meter = RateMeter(), RateMeter()
+        self.last_press: dict = {}
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("arm", f"{self.profile.name} ({self.profile.frame_id})", self._arm_health)
+        if s.diag_camera_topic:
+            # raw: only the arrival counts, the image is never deserialised here
+            self.create_subscription(Image, s.diag_camera_topic,
+                                     lambda _m: self.camera_meter.tick(),
+                                     qos_profile_sensor_data, raw=True)
+            self.diag.add("camera link", s.diag_camera_topic,
+                          lambda: link_check(self.camera_meter, "camera image",
+                                             s.diag_camera_warn_s, s.diag_camera_error_s))
+
+    def _arm_health(self) -> tuple[int, str, dict]:
+        from ..diagnostics import ERROR, OK, WARN, grade, summary
+        s, now = self.settings, time.monotonic()
+        age = None if self.pose_t < 0 else now - max(self.pose_t, 0.0)
+        rate = self.state_meter.rate(now)
+        reflex = self.robot_mode == adapter.FRANKA_MODE_REFLEX
+        parts = [(ERROR if reflex else OK, "robot in reflex mode"),
+                 (grade(age, s.diag_state_warn_s,
+                        min(s.diag_state_error_s, s.state_timeout_s)),
+                  "no robot state" if age is None else f"robot state {age:.2f} s old"),
+                 (WARN if rate < s.diag_state_rate_warn else OK,
+                  f"robot state at {rate:.0f} Hz")]
+        level, msg = summary(parts)
+        lp = self.last_press
+        return level, msg, {"robot mode": self.robot_mode, "state rate [Hz]": rate,
+                            "state age [s]": age, "force now [N]": self.force,
+                            "last press platform": lp.get("platform"),
+                            "last press force [N]": lp.get("force_n"),
+                            "last press time [s]": lp.get("duration_s"),
+                            "last press at": lp.get("at"), "busy": self.busy.locked()}
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
@@ -138,6 +181,7 @@ class MotionNode(TactexNode):
         try:
             self.position = adapter.pose_to_array(msg)[0]
             self.pose_t = time.monotonic()
+            self.state_meter.tick(self.pose_t)
         except InputError as exc:
             self.get_logger().warning(f"pose ignored: {exc}")
 
@@ -156,6 +200,7 @@ class MotionNode(TactexNode):
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
         self.pose_t = self.wrench_t = time.monotonic()
+        self.state_meter.tick(self.pose_t)
 
     def _on_mode(self, msg) -> None:
         self.robot_mode = int(msg.robot_mode)
@@ -199,6 +244,7 @@ class MotionNode(TactexNode):
             index = [p.id for p in self.scene.ordered].index(platform.id)
             result = Press.Result()
             reasons = []
+            t_press = time.monotonic()
             for attempt in range(1, self.scene.press.retries + 2):
                 result.attempts = attempt
                 try:
@@ -218,6 +264,10 @@ class MotionNode(TactexNode):
                     continue
                 if ok:
                     result.success, result.reason, result.touch = True, "", touch
+                    self.last_press = {"platform": platform.id,
+                                       "force_n": float(touch.contact_force_n),
+                                       "duration_s": time.monotonic() - t_press,
+                                       "at": time.strftime("%H:%M:%S")}
                     goal_handle.succeed()
                     return result
                 reasons.append(f"attempt {attempt}: {reason}")

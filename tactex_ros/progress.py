@@ -1,0 +1,112 @@
+"""Progress in the terminal while the graph runs: one line per press and per decision.
+
+``Progress`` follows a trial record folder (``touches.jsonl``, ``decisions.jsonl``: the files
+the explorer fsyncs as it goes) and prints each new line once: a press (platform, force [N],
+press time [s]) and a decision (belief per platform, the next platform). On a terminal it
+prints through ``rich`` (colour); in a log (not a terminal) plain lines.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+
+def press_line(t: dict[str, Any]) -> str:
+    """One press as text."""
+    dt = (t["stamp"] - t["requested"]) if t.get("stamp") and t.get("requested") else None
+    text = f"press {t.get('seq')}: {t.get('platform_id')}"
+    if t.get("force_n") is not None:
+        text += f" {t['force_n']:.1f} N"
+    if dt is not None:
+        text += f" {dt:.1f} s"
+    if not t.get("accepted"):
+        text += f" (not used: {t.get('reason')})"
+    return text
+
+
+def decision_line(dec: dict[str, Any], platform_ids: list[str]) -> str:
+    """One decision as text: belief per comparison platform and the next platform."""
+    b = dec.get("belief") or []
+    belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b))
+    nxt = dec.get("next") or ("done: " + str(dec.get("prediction")) if dec.get("done") else "-")
+    return f"decision {dec.get('round')}: belief {belief} -> next {nxt}"
+
+
+def tail_jsonl(path: Path, offset: int) -> tuple[list[dict], int]:
+    """The whole JSON lines of ``path`` after byte ``offset`` and the offset after them (a line
+    still being written waits for its end; a torn line is skipped)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(offset)
+            data = f.read()
+    except OSError:
+        return [], offset
+    end = data.rfind(b"\n") + 1
+    out = []
+    for line in data[:end].splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out, offset + end
+
+
+class Progress:
+    """Prints what is new in the followed record folder each time ``poll()`` is called."""
+
+    def __init__(self, out: Callable[[str, str], None] | None = None) -> None:
+        self.out = out or console_printer()
+        self.folder: Path | None = None
+        self._offsets: dict[str, int] = {}
+        self._ids: list[str] = []
+
+    def follow(self, folder: str | Path | None) -> None:
+        """Follow another record folder (the next trial of a session)."""
+        folder = Path(folder) if folder else None
+        if folder != self.folder:
+            self.folder, self._offsets, self._ids = folder, {}, []
+
+    def _new_lines(self, name: str) -> list[dict]:
+        lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
+        return lines
+
+    def poll(self) -> None:
+        if self.folder is None or not self.folder.is_dir():
+            return
+        if not self._ids:
+            self._ids = _comparison_ids(self.folder)
+        for t in self._new_lines("touches.jsonl"):
+            self.out(press_line(t), "press")
+        for d in self._new_lines("decisions.jsonl"):
+            self.out(decision_line(d, self._ids), "decision")
+
+
+def _comparison_ids(folder: Path) -> list[str]:
+    """Comparison platform ids of a record (scene.yaml order, reference left out)."""
+    import yaml
+    try:
+        doc = yaml.safe_load((folder / "scene.yaml").read_text()) or {}
+    except (OSError, yaml.YAMLError):
+        return []
+    return [str(p.get("id")) for p in doc.get("platforms") or [] if p.get("role") != "reference"]
+
+
+def console_printer(stream=None) -> Callable[[str, str], None]:
+    """``out(text, kind)``: rich on a terminal, plain lines otherwise (logs, pipes)."""
+    stream = stream or sys.stdout
+    if stream.isatty():
+        from rich.console import Console
+        console = Console(file=stream, highlight=False)
+        style = {"press": "cyan", "decision": "green", "prompt": "bold yellow",
+                 "info": "bold"}
+
+        def out(text: str, kind: str = "info") -> None:
+            console.print(text, style=style.get(kind), markup=False)
+        return out
+
+    def plain(text: str, kind: str = "info") -> None:
+        print(text, file=stream, flush=True)
+    return plain

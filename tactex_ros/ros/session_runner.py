@@ -1,0 +1,199 @@
+"""Run a study session on the graph without ``launch`` (``tactex graph run --session``).
+
+The graph starts once; the explorer runs the session's trials (``nodes/session_mode.py``).
+This runner supervises the processes as ``launcher.run_trial`` does (a node that exits ends
+the run, named; SIGINT/SIGTERM/SIGHUP stop every node; the deadline), follows the session
+folder (``session_events.jsonl``) and, for every placement the explorer awaits, shows the
+operator what to place where and confirms through the explorer's ``~/confirm`` service
+(``std_srvs/srv/Trigger``): at once with ``confirm='yes'`` (scripted), after Enter on a terminal
+with ``confirm='key'``, or never (``'none'``: someone else calls the service).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..core.errors import InputError
+from .graph import NodeSpec
+from .launcher import Graph, _Signals, exit_text
+
+
+@dataclass
+class SessionRun:
+    exit_code: int                   # the explorer's exit status (-1: still running)
+    result: dict | None              # session_result.json, once every trial is done
+    session_dir: Path
+    logs: Path
+    failure: str | None = None       # why the session ended without its result
+    signal: int | None = None
+    elapsed_s: float = 0.0
+    node_exit: dict[str, int | None] = field(default_factory=dict)
+    confirmations: int = 0           # placements this runner confirmed
+
+
+class Confirmer:
+    """Calls the explorer's ``~/confirm`` (Trigger) from the runner's own rclpy context."""
+
+    def __init__(self, service: str, domain_id: int | None, timeout_s: float = 30.0) -> None:
+        self.service, self.domain_id, self.timeout_s = service, domain_id, timeout_s
+        self._node = None
+        self._lock = threading.Lock()
+
+    def _ensure(self):
+        if self._node is None:
+            import os
+
+            import rclpy
+            from rclpy.signals import SignalHandlerOptions
+            from std_srvs.srv import Trigger
+            os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+            self._ctx = rclpy.Context()
+            kw = {} if self.domain_id is None else {"domain_id": self.domain_id}
+            rclpy.init(context=self._ctx, signal_handler_options=SignalHandlerOptions.NO, **kw)
+            self._node = rclpy.create_node("tactex_operator", context=self._ctx)
+            self._client = self._node.create_client(Trigger, self.service)
+        return self._node
+
+    def confirm(self) -> tuple[bool, str]:
+        """(success, message) of one Trigger call; (False, why) on a deadline."""
+        from rclpy.executors import SingleThreadedExecutor
+        from std_srvs.srv import Trigger
+        with self._lock:
+            node = self._ensure()
+            if not self._client.wait_for_service(timeout_sec=self.timeout_s):
+                return False, f"service {self.service} not available within {self.timeout_s} s"
+            fut = self._client.call_async(Trigger.Request())
+            ex = SingleThreadedExecutor(context=self._ctx)
+            ex.add_node(node)
+            try:
+                ex.spin_until_future_complete(fut, timeout_sec=self.timeout_s)
+            finally:
+                ex.remove_node(node)
+                ex.shutdown()
+            if not fut.done():
+                return False, f"no answer from {self.service} within {self.timeout_s} s"
+            r = fut.result()
+            return bool(r.success), str(r.message)
+
+    def close(self) -> None:
+        if self._node is not None:
+            self._node.destroy_node()
+            self._ctx.try_shutdown()
+            self._node = None
+
+
+def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | Path, *,
+                confirm: str = "yes", timeout_s: float = 86400.0,
+                domain_id: int | None = None, poll_s: float = 0.1,
+                out: Callable[[str, str], None] | None = None,
+                on_start: Callable[[Graph], None] | None = None) -> SessionRun:
+    """Start the graph once, run the explorer's session to its end (or a node's exit, a
+    signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
+    from .. import session as sess
+    from ..progress import Progress, console_printer, tail_jsonl
+    if confirm not in ("yes", "key", "none"):
+        raise InputError(f"confirm {confirm!r}: use yes, key or none")
+    ex = next((n for n in nodes if n.executable == "explorer_node"), None)
+    if ex is None or not ex.parameters.get("session_file"):
+        raise InputError("the graph has no explorer with a session_file")
+    d = Path(session_dir).resolve()
+    ex.parameters.update(exit_when_done=True, session_dir=str(d))
+    out = out or console_printer()
+    progress = Progress(out)
+    confirmer = Confirmer(f"/{ex.name}/confirm", domain_id)
+    events_path, offset = d / sess.EVENTS_FILE, 0
+    if events_path.is_file():                    # a resumed session: only what is new
+        offset = events_path.stat().st_size
+    failure, n_confirmed = None, 0
+    waiting_key: threading.Thread | None = None
+
+    def on_key() -> None:
+        nonlocal n_confirmed
+        try:
+            sys.stdin.readline()
+        except (OSError, ValueError):
+            return
+        ok, msg = confirmer.confirm()
+        n_confirmed += ok
+        out(msg if ok else f"not confirmed: {msg}", "info")
+
+    with _Signals() as sig:
+        g = Graph(nodes, log_dir, domain_id)
+        t0 = time.monotonic()
+        try:
+            g.start()
+            if on_start is not None:
+                on_start(g)
+            while True:
+                evs, offset = tail_jsonl(events_path, offset)
+                for e in evs:
+                    kind = e.get("event")
+                    if kind == "awaiting_confirmation":
+                        out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
+                        for pid, fab in e["placement"].items():
+                            out(f"  platform {pid}: {fab}", "prompt")
+                        if confirm == "yes":
+                            for _ in range(10):     # refused: not awaited (yet); try again
+                                ok, msg = confirmer.confirm()
+                                if ok:
+                                    break
+                                time.sleep(0.5)
+                            n_confirmed += ok
+                            if not ok:
+                                out(f"not confirmed: {msg}", "info")
+                        elif confirm == "key" and (waiting_key is None
+                                                   or not waiting_key.is_alive()):
+                            out("press Enter once the fabrics are in place", "prompt")
+                            waiting_key = threading.Thread(target=on_key, daemon=True)
+                            waiting_key.start()
+                        else:
+                            out(f"confirm with: ros2 service call /{ex.name}/confirm "
+                                "std_srvs/srv/Trigger", "prompt")
+                    elif kind == "trial_started":
+                        progress.follow(d / sess.record_name(e["trial"]))
+                    elif kind == "trial_done":
+                        progress.poll()
+                        out(f"trial {e['trial']}: {e.get('prediction')} after "
+                            f"{e.get('touches')} touches ({e.get('stop_reason')}); "
+                            f"{'correct' if e.get('correct') else 'wrong'}", "info")
+                    elif kind in ("session_ended", "session_done"):
+                        out(f"session: {e.get('reason') or 'done, accuracy %.3f' % e['accuracy']}",
+                            "info")
+                progress.poll()
+                gone = g.first_exit()
+                if gone is not None:
+                    name, code = gone
+                    if name != ex.name or not (d / sess.RESULT_FILE).exists():
+                        last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
+                        failure = (last[-1]["reason"] if last and name == ex.name else
+                                   f"node {name} ended ({exit_text(code)}) "
+                                   f"{time.monotonic() - t0:.1f} s into the session")
+                    break
+                if sig.received is not None:
+                    failure = (f"interrupted by {signal.Signals(sig.received).name} "
+                               f"{time.monotonic() - t0:.1f} s into the session")
+                    break
+                if time.monotonic() - t0 > timeout_s:
+                    failure = f"session not finished within {timeout_s:g} s"
+                    break
+                time.sleep(poll_s)
+            elapsed = time.monotonic() - t0
+        finally:
+            exits = g.stop()
+            confirmer.close()
+    if failure is not None and d.is_dir():
+        sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": sig.received,
+                           "node_exit": exits, "time": time.time()})
+    res_path = d / sess.RESULT_FILE
+    result = json.loads(res_path.read_text()) if res_path.exists() else None
+    code = exits.get(ex.name)
+    return SessionRun(exit_code=-1 if code is None else code, result=result, session_dir=d,
+                      logs=g.log_dir, failure=failure, signal=sig.received, elapsed_s=elapsed,
+                      node_exit=exits, confirmations=n_confirmed)

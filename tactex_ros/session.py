@@ -1,0 +1,243 @@
+"""A study session: the trials of a trial file run one after another in one graph start.
+
+Pure Python (no ROS). ``load_session`` checks a trial file against the scene and the fabric
+catalogue before anything moves: every fabric must be a catalogue fabric (number or name),
+every trial must place as many fabrics as the scene has platforms, ids must be unique; the
+error names the file and the row. Each trial gets what the operator must place where
+(``placement``: platform id -> fabric name), the platforms that hold the true match
+(``truth``) and its seed (session seed + position in the file).
+
+Session folder ``<session_dir>/``::
+
+    session.json           the session as it was started (file, trials, placements, seeds)
+    session_events.jsonl   prompts, confirmations, trials started / finished, timeouts, resumes
+    trial_<id>/            one trial record per trial (``record.TrialRecord``)
+    session_result.json    written once every trial has its result (atomic)
+    report.html            the session report (``tactex_ros.report``)
+
+``progress`` tells from the folder which trials are done, which one was interrupted (its record
+exists without a result: it is resumed at the touch where it stopped) and which are pending.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .core.errors import InputError
+from .record import read_result
+from .trialfile import find_trial_file, load_trials
+
+SESSION_FILE = "session.json"
+EVENTS_FILE = "session_events.jsonl"
+RESULT_FILE = "session_result.json"
+REPORT_FILE = "report.html"
+
+
+def record_name(trial_id: str) -> str:
+    """The folder name of a session trial's record: ``trial_<id>`` (unsafe characters -> _)."""
+    return "trial_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(trial_id))
+
+
+@dataclass
+class SessionTrial:
+    """One trial of a session: where each fabric goes and which platforms match."""
+
+    id: str
+    position: int                   # 0-based order in the trial file
+    seed: int                       # the explorer's seed for this trial
+    placement: dict[str, str]       # platform id -> fabric name (scene order, reference first)
+    truth: list[str]                # comparison platform ids that hold the reference's fabric
+
+    @property
+    def record_name(self) -> str:
+        """The trial record's folder name inside the session folder."""
+        return record_name(self.id)
+
+    def instructions(self) -> list[str]:
+        """What the operator places where, one line per platform."""
+        return [f"platform {pid}: {fab}" for pid, fab in self.placement.items()]
+
+
+@dataclass
+class Session:
+    name: str
+    path: str
+    trials: list[SessionTrial] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "path": self.path,
+                "trials": [asdict(t) for t in self.trials]}
+
+
+def catalogue_names(path: str | Path | None = None) -> list[str]:
+    """Fabric names of the catalogue (``config/fabrics.yaml``) in number order (1-based)."""
+    from .paths import config_dir, read_yaml
+    p = Path(path) if path else config_dir() / "fabrics.yaml"
+    doc = read_yaml(p, "fabric catalogue")
+    try:
+        return [str(e["name"]) for e in doc["fabrics"]]
+    except (TypeError, KeyError) as exc:
+        raise InputError(f"fabric catalogue {p}: expected 'fabrics' with names ({exc})") \
+            from None
+
+
+def _fabric(item: Any, names: list[str], where: str) -> str:
+    if isinstance(item, bool) or not isinstance(item, (int, str)):
+        raise InputError(f"{where}: {item!r} is not a fabric number or name")
+    if isinstance(item, int):
+        if not 1 <= item <= len(names):
+            raise InputError(f"{where}: unknown fabric {item} (the catalogue numbers "
+                              f"1..{len(names)})")
+        return names[item - 1]
+    if item not in names:
+        raise InputError(f"{where}: unknown fabric {item!r} (not in the catalogue "
+                          "config/fabrics.yaml)")
+    return item
+
+
+def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
+                 catalogue: str | Path | None = None) -> Session:
+    """Read and check a trial file for a scene whose platforms are ``platform_ids`` (reference
+    first). InputError names the file and the row of the first problem."""
+    path = find_trial_file(str(spec))
+    doc = load_trials(path)           # unique ids, reference among the comparisons
+    names = catalogue_names(catalogue)
+    out = Session(name=doc["name"], path=str(Path(path).resolve()))
+    for i, t in enumerate(doc["trials"]):
+        where = f"trial file {path}, entry {i + 1} (id {t['id']})"
+        fabrics = [t["reference"]] + list(t["comparisons"])
+        if len(fabrics) != len(platform_ids):
+            raise InputError(f"{where}: places {len(fabrics)} fabrics (reference + "
+                              f"{len(fabrics) - 1} comparisons) but the scene has "
+                              f"{len(platform_ids)} platforms {platform_ids}")
+        fabs = [_fabric(f, names, f"{where}, {'reference' if k == 0 else f'comparison {k}'}")
+                for k, f in enumerate(fabrics)]
+        placement = dict(zip(platform_ids, fabs))
+        truth = [pid for pid, f in zip(platform_ids[1:], fabs[1:]) if f == fabs[0]]
+        out.trials.append(SessionTrial(id=t["id"], position=i, seed=seed + i,
+                                       placement=placement, truth=truth))
+    return out
+
+
+def placement_text(placement: dict[str, str]) -> str:
+    """``platform=fabric,...``: the mock camera's ``placement`` parameter."""
+    return ",".join(f"{k}={v}" for k, v in placement.items())
+
+
+def parse_placement(text: str, platform_ids: list[str]) -> dict[str, str]:
+    """The inverse of ``placement_text``; every platform id must be one of ``platform_ids``."""
+    out: dict[str, str] = {}
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        pid, sep, fab = part.partition("=")
+        if not sep or not pid or not fab:
+            raise InputError(f"placement {text!r}: expected platform=fabric,... ({part!r})")
+        if pid not in platform_ids:
+            raise InputError(f"placement {text!r}: unknown platform {pid!r} (the scene has "
+                              f"{platform_ids})")
+        out[pid] = fab
+    return out
+
+
+def placed_scene(scene_file: str | Path, placement: dict[str, str]) -> str:
+    """The scene YAML text with each platform's ``sim_fabric`` set to the placed fabric."""
+    import yaml
+    doc = yaml.safe_load(Path(scene_file).read_text())
+    for p in doc.get("platforms", []):
+        if str(p.get("id")) in placement:
+            p["sim_fabric"] = placement[str(p["id"])]
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+# ------------------------------------------------------------------------------ the folder
+
+def events(session_dir: str | Path) -> list[dict]:
+    """The session's events (a torn last line is skipped)."""
+    from .record import _read_jsonl
+    return _read_jsonl(Path(session_dir) / EVENTS_FILE)
+
+
+def add_event(session_dir: str | Path, event: dict[str, Any]) -> None:
+    """Append one line to ``session_events.jsonl`` (fsync'ed)."""
+    from .record import _fsync_write
+    d = Path(session_dir)
+    d.mkdir(parents=True, exist_ok=True)
+    _fsync_write(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), True)
+
+
+def open_session(session_dir: str | Path, session: Session, settings: dict[str, Any]) -> bool:
+    """Create the session folder, or check that an existing one is the same session (same
+    trials, placements and seeds); True when an existing session is continued."""
+    from .record import _fsync_write
+    d = Path(session_dir)
+    p = d / SESSION_FILE
+    now = session.to_dict()
+    if p.is_file():
+        try:
+            was = json.loads(p.read_text())
+        except json.JSONDecodeError as exc:
+            raise InputError(f"session {str(p)!r} is not valid JSON ({exc})") from None
+        if was.get("trials") != now["trials"]:
+            raise InputError(f"session folder {str(d)!r} holds another session (its trials, "
+                              "placements or seeds differ from this trial file's): choose "
+                              "another session folder")
+        return True
+    d.mkdir(parents=True, exist_ok=True)
+    _fsync_write(p, json.dumps(dict(now, settings=settings), indent=2).encode(), False)
+    return False
+
+
+def load_started(session_dir: str | Path) -> dict[str, Any]:
+    """``session.json`` of a session folder."""
+    p = Path(session_dir) / SESSION_FILE
+    if not p.is_file():
+        raise InputError(f"{str(session_dir)!r} is not a session folder (no {SESSION_FILE})")
+    return json.loads(p.read_text())
+
+
+def trial_state(session_dir: str | Path, trial: SessionTrial | dict) -> str:
+    """'done' (result without error), 'started' (record without a result, or a failed one:
+    resumable) or 'pending'."""
+    d = Path(session_dir) / record_name(trial.id if isinstance(trial, SessionTrial)
+                                        else trial["id"])
+    if not (d / "config.json").is_file():
+        return "pending"
+    res = read_result(d)
+    return "done" if res is not None and "error" not in res else "started"
+
+
+def finish_session(session_dir: str | Path, result: dict[str, Any]) -> Path:
+    """Write ``session_result.json`` atomically."""
+    from .record import _fsync_write
+    d = Path(session_dir)
+    tmp = d / (RESULT_FILE + ".tmp")
+    _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
+    os.replace(tmp, d / RESULT_FILE)
+    return d / RESULT_FILE
+
+
+def summary(session_dir: str | Path) -> dict[str, Any]:
+    """Per-trial outcome of a session folder (done trials only) and its accuracy."""
+    d = Path(session_dir)
+    started = load_started(d)
+    rows = []
+    for t in started["trials"]:
+        name = record_name(t["id"])
+        res = read_result(d / name) if (d / name).is_dir() else None
+        if res is None or "error" in res:
+            rows.append({"id": t["id"], "record": name, "done": False})
+            continue
+        pred = res.get("prediction")
+        rows.append({"id": t["id"], "record": name, "done": True, "prediction": pred,
+                     "truth": t["truth"], "correct": pred in t["truth"],
+                     "touches": res.get("touches"), "stop_reason": res.get("stop_reason"),
+                     "seed": t["seed"], "elapsed_s": res.get("elapsed_s"),
+                     "placement": t["placement"]})
+    done = [r for r in rows if r["done"]]
+    acc = sum(r["correct"] for r in done) / len(done) if done else None
+    return {"name": started["name"], "trials": rows, "done": len(done), "total": len(rows),
+            "accuracy": acc}

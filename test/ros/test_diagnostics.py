@@ -1,0 +1,106 @@
+"""/diagnostics from every node of the simulated graph, the camera going stale (SIGSTOP) seen
+as ERROR within 2 s; late joiners receive the latched exploration state at once."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.launcher import Graph
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _wait(cond, timeout: float, step: float = 0.02) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(step)
+    return False
+
+
+def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
+        tmp_path: Path, listener) -> None:
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from tactex.msg import ExplorationState
+    nodes = describe(True, explorer={"trial": {"rounds": 20, "stop_confidence": 0.0},
+                                     "seed": 0, "record_dir": str(tmp_path),
+                                     "trial_id": "t", "learner": {"threads": 1}})
+    got: list[tuple[float, object]] = []
+    listener.node.create_subscription(DiagnosticArray, "/diagnostics",
+                                      lambda m: got.append((time.monotonic(), m)), 50)
+
+    def latest(name: str):
+        for _, m in reversed(got):
+            for s in m.status:
+                if s.name == name:
+                    return s
+        return None
+
+    with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
+        # every node reports, named "<node>: <task>", with a hardware id
+        names = ("mock_image: camera", "motion: arm", "motion: camera link", "explorer: trial")
+        assert _wait(lambda: all(latest(n) is not None for n in names), 90), \
+            sorted({s.name for _, m in got for s in m.status})
+        assert all(latest(n).hardware_id for n in names)
+        # the first decision is on disk: a subscriber that joins now still gets the state
+        dec = tmp_path / "t" / "decisions.jsonl"
+        assert _wait(lambda: dec.is_file() and dec.read_text().strip(), 240)
+        late: list = []
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        listener.node.create_subscription(ExplorationState, "/tactex/state", late.append, qos)
+        assert _wait(lambda: late, 3.0), "no latched exploration state for a late joiner"
+        assert late[0].round >= 1
+        # the camera runs: its link is OK in the motion node
+        assert _wait(lambda: latest("motion: camera link").level == b"\x00", 10)
+        assert latest("motion: arm").level != b"\x02"     # WARN allowed: a loaded machine
+        pid = g.procs["mock_image"].pid
+        n_touch = len((tmp_path / "t" / "touches.jsonl").read_text().splitlines())
+        os.kill(pid, signal.SIGSTOP)
+        t0 = time.monotonic()
+        try:
+            ok = _wait(lambda: any(t > t0 and s.name == "motion: camera link"
+                                   and s.level == b"\x02" for t, m in got for s in m.status),
+                       5.0)
+            t_err = next(t for t, m in got for s in m.status
+                         if t > t0 and s.name == "motion: camera link" and s.level == b"\x02") \
+                if ok else None
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        assert ok, "no ERROR from the camera link within 5 s of SIGSTOP"
+        assert t_err - t0 < 2.0, f"ERROR after {t_err - t0:.2f} s"
+        # reported before the press that would need the camera finished
+        now = len((tmp_path / "t" / "touches.jsonl").read_text().splitlines())
+        assert now <= n_touch + 1
+        # the arm and the explorer stayed up meanwhile
+        assert latest("motion: arm").level != b"\x02"
+        assert latest("explorer: trial").level == b"\x00"
+        # and the camera recovers: OK again once it runs
+        assert _wait(lambda: latest("motion: camera link").level == b"\x00", 10)
+        # a stopped arm (no robot state) is an ERROR of "motion: arm" within 2 s as well
+        assert _wait(lambda: latest("motion: arm").level != b"\x02", 10)
+        arm = g.procs["mock_arm"].pid
+        os.kill(arm, signal.SIGSTOP)
+        t1 = time.monotonic()
+        try:
+            ok = _wait(lambda: any(t > t1 and s.name == "motion: arm" and s.level == b"\x02"
+                                   for t, m in got for s in m.status), 5.0)
+            t_arm = next((t for t, m in got for s in m.status
+                          if t > t1 and s.name == "motion: arm" and s.level == b"\x02"), None)
+        finally:
+            os.kill(arm, signal.SIGCONT)
+        assert ok and t_arm - t1 < 2.0, t_arm and t_arm - t1
+    art = Path(__file__).parents[2] / "test-artifacts"
+    art.mkdir(exist_ok=True)
+    (art / "diagnostics_stale.json").write_text(json.dumps(
+        {"camera_sigstop_to_error_s": round(t_err - t0, 3),
+         "arm_sigstop_to_error_s": round(t_arm - t1, 3)}) + "\n")
