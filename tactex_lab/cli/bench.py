@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.cli.main import builds, write_json
+from tactex_ros.cli.main import bounded, builds, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
@@ -34,9 +34,10 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
         return
     bsub = b.add_subparsers(dest="bcmd", required=True)
     bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
-    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
-    bl.add_argument("--repeats", type=int, default=5)
-    bl.add_argument("--seed-epochs", type=int, default=1,
+    bl.add_argument("--touches", type=bounded(int, 1, 1000), nargs="+", default=[5, 15, 25],
+                    help="stored touches at which a decision is timed, 1..1000 each")
+    bl.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
+    bl.add_argument("--seed-epochs", type=bounded(int, 1, 10), default=1,
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
                     help="configurations to time (ratios are to the last one): a preset, or "
@@ -45,7 +46,7 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
     bl.set_defaults(func=cmd_bench_latency)
 
     bs = bsub.add_parser("sim", help="simulator frames per second")
-    bs.add_argument("--frames", type=int, default=400)
-    bs.add_argument("--repeats", type=int, default=5)
+    bs.add_argument("--frames", type=bounded(int, 1, 1000000), default=400)
+    bs.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
     bs.add_argument("--json")
     bs.set_defaults(func=cmd_bench_sim)

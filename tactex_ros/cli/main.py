@@ -88,10 +88,11 @@ def command_group(sub: argparse._SubParsersAction, name: str,
 
 
 def write_json(path: str | None, obj: dict) -> None:
-    """Write ``obj`` as indented JSON to ``path`` (folders made); nothing when None."""
+    """Write ``obj`` as strict indented JSON to ``path`` atomically (folders made; NaN ->
+    null, ``core.outputs``); nothing when None."""
     if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(json.dumps(obj, indent=2))
+        from ..core.outputs import write_json as _write
+        _write(path, obj)
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
@@ -103,6 +104,12 @@ def cmd_trial(args: argparse.Namespace) -> int:
     src = open_source(args.source)
     cfg, tcfg = settings.learner, settings.trial
     chosen = args.classes.split(",") if args.classes else None
+    if chosen is not None:
+        dup = sorted({c for c in chosen if chosen.count(c) > 1})
+        if dup or "" in chosen:
+            raise InputError(f"--classes {args.classes!r}: "
+                              + (f"{', '.join(dup)} given more than once (each comparison "
+                                 "platform holds another class)" if dup else "an empty name"))
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
         raise InputError(f"--classes: {len(chosen)} comparison classes; at most "
                          f"{MAX_COMPARISONS}")
@@ -257,8 +264,10 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
         return
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
-    pr.add_argument("--frames", type=int, default=1, help="contact frames per press")
-    pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
+    pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
+                    help="contact frames per press, 1..16")
+    pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
+                    help="presses per simulated fabric, 1..10000")
     pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
                     help="ridge added to the within-class covariance (standardised units)")
     pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
@@ -290,17 +299,50 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
     pr.set_defaults(func=cmd_prepare)
 
 
+# output options checked before any work: (command, option attribute) -> (kind, suffixes);
+# "file" outputs must end in one of the suffixes, "dir" outputs are folders
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+OUTPUTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
+    ("*", "json"): ("file", (".json",)),
+    ("experiment", "out"): ("dir", ()),
+    ("prepare", "out"): ("file", ()),
+    ("sim", "out"): ("file", IMAGE_SUFFIXES),
+    ("graph", "log_dir"): ("dir", ()),
+}
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an output path of the command that cannot be written (named
+    with its option: a folder that is a file or not writable, a wrong suffix)."""
+    from ..core.outputs import check_dir, check_file
+    for (cmd, attr), (kind, suffixes) in OUTPUTS.items():
+        if cmd not in ("*", args.cmd):
+            continue
+        value = getattr(args, attr, None)
+        if not value:
+            continue
+        option = "--" + attr.replace("_", "-")
+        if kind == "dir":
+            check_dir(value, option)
+        else:
+            check_file(value, option, suffixes)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = argv[0] if argv and not argv[0].startswith("-") else ""
     args = build_parser(command).parse_args(argv)
     try:
+        check_outputs(args)
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"tactex: error: {exc}", file=sys.stderr)
         return 2
     except TrialError as exc:
         print(f"tactex: failed: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:   # a run-time failure of a file or device (disk full, removed...)
+        print(f"tactex: error: {exc}", file=sys.stderr)
         return 1
 
 

@@ -329,6 +329,13 @@ class LearnerConfig(Schema):
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
     # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
 
+    @model_validator(mode="after")
+    def _representation_needs_descriptor(self) -> "LearnerConfig":
+        if self.representation and self.model != "descriptor":
+            raise ValueError(f"representation {self.representation!r} is used only by model "
+                             f"'descriptor', not {self.model!r} (it would be ignored)")
+        return self
+
 
 #: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3
 #: class folds of octopi-dev (docs/real_presses.md); ``stop_reason`` (core/engine.py) applies it.

@@ -211,6 +211,9 @@ def parse_scene(data: Any, origin: str = "scene") -> Scene:
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene YAML file."""
+    if not str(path).strip():
+        raise InputError("scene_file is empty: give the scene YAML (parameter scene_file, "
+                          "e.g. config/scene_sim.yaml)")
     p = Path(path)
     if not p.is_file():
         raise InputError(f"scene file {str(p)!r} not found")

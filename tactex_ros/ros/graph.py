@@ -123,6 +123,11 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     with the field named."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
+    if scene_file and not Path(scene_file).is_file() and "/" not in str(scene_file):
+        for cand in (config_dir() / str(scene_file), config_dir() / f"{scene_file}.yaml"):
+            if cand.is_file():          # a shipped scene by name: scene_replay, scene_sim
+                scene_file = cand
+                break
     given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
                          motion)
     prof = load_profile(given_motion.get("robot") or robot or ("sim" if sim else "fr3_crisp"))

@@ -39,7 +39,7 @@ from ...record import TrialRecord
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
-from ..goal import GoalRequest
+from ..goal import GoalRequest, Silence
 
 
 class PressServerLost(InputError):
@@ -82,7 +82,7 @@ class ExplorerNode(TactexNode):
         self.result: dict | None = None
         self.session_trial = None
         self._t_trial = None
-        self._feedback_t = time.monotonic()
+        self._silence = Silence()        # of the press server, since the last message
         self._stopping = False
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
@@ -261,19 +261,31 @@ class ExplorerNode(TactexNode):
         return True
 
     # ------------------------------------------------------------------ the trial
-    def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
+    def _wait(self, ready, deadline: float, watch: bool = False,
+              on_stall=None) -> bool:
         """Poll ``ready()`` (a ``GoalRequest`` is polled by design, ros/goal.py) until it is
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
-        gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+        gone (left the graph for 1 s, or silent for ``press_silence_s``). Time this process
+        was stopped counts for neither (``goal.Silence``); after such a stall ``on_stall()`` is
+        called once the server is visible again (the answer may have been dropped meanwhile)."""
         absent_since = None
+        reask = False
         while not ready():
+            stall = self._silence.tick()     # this process was stopped: not the server's fault
+            deadline += stall
+            reask = reask or (stall > 0 and on_stall is not None)
+            if reask and self.press.server_is_ready():
+                on_stall()                   # an answer dropped while we were away: ask again
+                reask = False
             now = time.monotonic()
+            if absent_since is not None:
+                absent_since += stall
             if now > deadline:
                 return False
             if self._stopping or not self.context.ok():
                 raise TrialError("the explorer is stopping")
             if watch:
-                silent = now - self._feedback_t
+                silent = self._silence.silent_s()
                 if silent > self.settings.press_silence_s:
                     raise PressServerLost(f"no answer or feedback from the press server for "
                                           f"{silent:.1f} s (press_silence_s)")
@@ -296,7 +308,7 @@ class ExplorerNode(TactexNode):
             raise TrialError("the explorer is stopping")
 
     def _on_feedback(self, _msg) -> None:
-        self._feedback_t = time.monotonic()
+        self._silence.heard()
 
     def _touch(self, platform: int) -> Touch:
         """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
@@ -314,7 +326,7 @@ class ExplorerNode(TactexNode):
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
-        self._feedback_t = time.monotonic()
+        self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
         req = GoalRequest(self.press, Press.Goal(platform_id=pid),
@@ -325,7 +337,7 @@ class ExplorerNode(TactexNode):
                 self._failed(platform, meta, "press goal not answered before the deadline")
             if req.refused:
                 self._failed(platform, meta, "press goal rejected by the motion node")
-            if not self._wait(req.finished, deadline, watch=True):
+            if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
                 req.cancel()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
                                              f"({self.settings.press_timeout_s} s)")
