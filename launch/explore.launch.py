@@ -24,8 +24,14 @@ camera's placement. A bad trial file ends the launch before anything starts, the
 ``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md).
 
 Any tactex node that exits ends the launch (a dead camera or robot interface stops the trial;
-with ``exit_when_done:=true`` the explorer's exit after the trial ends it). rviz2 is started only
-when it is installed (checked before any node starts) and its exit does not end the launch.
+with ``exit_when_done:=true`` the explorer's exit after the trial ends it). A node that exits
+with a non-zero status (a refused start-up or pre-flight, a crash) also makes ``ros2 launch``
+end with status 1: launch has no exit-status action (``LaunchService.run`` returns 1 only when
+an exception reaches its event loop, launch 1.0.7 / 3.4.3 / 3.7.1 ``launch_service.py``), so
+the node's exit handler raises ``NodeFailed`` naming the node and its status
+(docs/hardware_checks.md). rviz2 is started only when it is installed (checked before any node
+starts) and its exit does not end the launch; its generated config folder is removed when the
+launch shuts down.
 """
 
 from __future__ import annotations
@@ -42,10 +48,31 @@ class LaunchArgumentError(ValueError):
     """A launch argument with a value that does not fit; the message names the argument."""
 
 
+class NodeFailed(RuntimeError):
+    """A tactex node exited with a non-zero status: raised in its exit handler, so the launch
+    shuts down and ``LaunchService.run`` (``ros2 launch``) returns 1."""
+
+
+def node_exited(name: str, returncode: int | None) -> str:
+    """Why the launch ends after tactex node ``name`` exited with ``returncode`` (0: a
+    normal end); NodeFailed for a non-zero or unknown status."""
+    if returncode != 0:
+        raise NodeFailed(f"tactex node {name} exited with status {returncode}")
+    return f"tactex node {name} exited"
+
+
+def bag_command(out: str, topics: list[str], distro: str) -> list[str]:
+    """``ros2 bag record`` of ``topics`` into ``out`` (MCAP): rosbag2 on Humble (0.15.x,
+    ros2bag/verb/record.py: positional ``topics``) takes the topics positionally; Jazzy (0.26.x)
+    and later take ``--topics`` and deprecate the positional form."""
+    cmd = ["ros2", "bag", "record", "-s", "mcap", "-o", out]
+    return cmd + topics if distro == "humble" else cmd + ["--topics"] + topics
+
+
 def arguments() -> list[tuple[str, str, str]]:
     """(name, default, description) of every launch argument: the graph's own, then one per
     node setting of ``tactex_ros.ros.graph.OPTIONS`` (description and choices from the schema)."""
-    from tactex_ros.ros.graph import OPTIONS, option_spec
+    from tactex_ros.ros.graph import OPTIONS, option_default, option_spec
     args = [("sim", "false", "mock arm + mock image instead of the hardware"),
             ("rviz", "false", "start rviz2 with config/tactex.rviz (fixed frame: the robot's "
                               "base frame)"),
@@ -63,7 +90,7 @@ def arguments() -> list[tuple[str, str, str]]:
         args.append((name, "", f"{node} {path}: {spec.description}"
                                + (f" (one of {', '.join(map(str, spec.choices))})"
                                   if spec.choices else "")
-                               + f" ('' = the node's default, {spec.default!r})"))
+                               + f" ('' = the node's default, {option_default(name)!r})"))
     return args
 
 
@@ -109,7 +136,8 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
 
 
 def _nodes(context, *args, **kwargs):
-    from launch.actions import LogInfo, Shutdown
+    from launch.actions import LogInfo, RegisterEventHandler, Shutdown
+    from launch.event_handlers import OnShutdown
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
 
@@ -127,7 +155,7 @@ def _nodes(context, *args, **kwargs):
     actions = [Node(package=n.package, executable=n.executable, name=n.name,
                     parameters=[n.parameters], remappings=n.remappings, output="screen",
                     sigterm_timeout="10", sigkill_timeout="5",
-                    on_exit=Shutdown(reason=f"tactex node {n.name} exited"))
+                    on_exit=_on_exit(n.name, Shutdown))
                for n in nodes]
     if sim and _installed("tf2_ros"):   # rviz's fixed frame exists in TF (viewer only)
         actions.append(Node(package="tf2_ros", executable="static_transform_publisher",
@@ -148,14 +176,26 @@ def _nodes(context, *args, **kwargs):
         out = Path(p["record_dir"]) / time.strftime("bag_%Y%m%d_%H%M%S")
         topics = [t for t in (STATE_TOPIC, MARKER_TOPIC, TOUCH_IMAGE_TOPIC, p["pose_topic"],
                               p["wrench_topic"], p["state_topic"]) if t]
-        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o",
-                                           str(out)] + topics, output="screen",
-                                      sigterm_timeout="10"))
+        import os
+        actions.append(ExecuteProcess(cmd=bag_command(str(out), topics,
+                                                      os.environ.get("ROS_DISTRO", "")),
+                                      output="screen", sigterm_timeout="10"))
     if rviz:
+        import shutil
+        cfg = _rviz_config(config_dir() / "tactex.rviz", frame, p["pose_topic"])
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
-                            arguments=["-d", str(_rviz_config(config_dir() / "tactex.rviz",
-                                                              frame, p["pose_topic"]))]))
+                            arguments=["-d", str(cfg)]))
+        actions.append(RegisterEventHandler(OnShutdown(
+            on_shutdown=lambda *_: shutil.rmtree(cfg.parent, ignore_errors=True))))
     return actions
+
+
+def _on_exit(name: str, shutdown_cls):
+    """The exit handler of tactex node ``name``: end the launch; a non-zero status raises
+    NodeFailed (launch then shuts down and returns 1)."""
+    def handler(event, context):
+        return [shutdown_cls(reason=node_exited(name, event.returncode))]
+    return handler
 
 
 def _installed(package: str) -> bool:

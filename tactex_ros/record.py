@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from .core.errors import InputError, TrialError
+from .core.outputs import check_dir, dumps
 
 
 def _fsync_write(path: Path, data: bytes, append: bool) -> None:
@@ -46,19 +47,87 @@ def _fsync_write(path: Path, data: bytes, append: bool) -> None:
 
 def append_event(folder: str | Path, event: dict[str, Any]) -> None:
     """Append one line to ``<folder>/events.jsonl`` (fsync'ed)."""
-    _fsync_write(Path(folder) / "events.jsonl", (json.dumps(event) + "\n").encode(), True)
+    _fsync_write(Path(folder) / "events.jsonl", _line(event), True)
+
+
+def _line(obj: dict[str, Any]) -> bytes:
+    """One strict JSON line (NaN -> null)."""
+    return (dumps(obj, indent=None) + "\n").encode()
 
 
 def _last_seq(d: Path) -> int:
     """Highest touch number on disk: metadata lines and image files (an image written just
     before a crash, without its line, is never overwritten)."""
     seqs = [int(t.get("seq", 0)) for t in _read_jsonl(d / "touches.jsonl")]
-    for f in d.glob("touch_*.png"):
-        try:
-            seqs.append(int(f.name.split("_")[1]))
-        except (IndexError, ValueError):
-            pass
+    seqs += [_seq_of(f) for f in d.glob("touch_*.png")]
     return max(seqs, default=0)
+
+
+RECORD_FILES = ("touches.jsonl", "config.json", "result.json", "decisions.jsonl")
+
+
+def check_trial_id(trial_id: str) -> None:
+    """A trial id is a plain folder name: non-empty, no '/', not '.' or '..'."""
+    if not trial_id or "/" in trial_id or "\\" in trial_id or trial_id in (".", ".."):
+        raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+
+
+def check_new_record(root: str | Path, trial_id: str) -> Path:
+    """The folder of a new trial record ``<root>/<trial_id>``: refused (named) when the id is
+    not a plain name, a record is already there (records are never overwritten) or ``root``
+    cannot be written. Nothing is created."""
+    check_trial_id(trial_id)
+    d = Path(root) / trial_id
+    if any((d / f).exists() for f in RECORD_FILES):
+        raise InputError(f"trial record {str(d)!r} already exists: choose another trial_id "
+                          "(records are never overwritten) or continue it with resume")
+    check_dir(d, "record_dir")
+    return d
+
+
+def check_resumable(folder: str | Path) -> dict | None:
+    """Refuse (named) a record that cannot be continued: no ``config.json``, a finished result,
+    a ``result.json`` that does not parse, files that do not belong together (more decisions
+    than touch lines, touch images no line names beyond the one a crash can leave), a folder
+    that cannot be written. Returns the failed result to set aside, or None."""
+    d = Path(folder)
+    if not (d / "config.json").is_file():
+        raise InputError(f"resume: {str(d)!r} is not a trial record (no config.json)")
+    res = read_result(d)
+    if res is not None and "error" not in res:
+        raise InputError(f"resume: trial record {str(d)!r} already has its result; nothing "
+                          "to resume")
+    lines = _read_jsonl(d / "touches.jsonl")
+    decisions = _read_jsonl(d / "decisions.jsonl")
+    if len(decisions) > len(lines):
+        raise InputError(f"resume: {str(d / 'decisions.jsonl')!r} holds {len(decisions)} "
+                          f"decisions but {str(d / 'touches.jsonl')!r} only {len(lines)} "
+                          "touches: the files do not belong together")
+    named = {t.get("image") for t in lines}
+    last = max((int(t.get("seq", 0)) for t in lines), default=0)
+    orphans = sorted(f.name for f in d.glob("touch_*.png") if f.name not in named
+                     and _seq_of(f) != last + 1)
+    if orphans:
+        raise InputError(f"resume: touch images in {str(d)!r} that no line of touches.jsonl "
+                          f"names: {', '.join(orphans[:5])}"
+                          f"{' ...' if len(orphans) > 5 else ''}")
+    missing = [t["image"] for t in lines if t.get("image") and not t.get("interrupted")
+               and not (d / t["image"]).is_file()]
+    if missing:
+        raise InputError(f"resume: touch images named in touches.jsonl are missing from "
+                          f"{str(d)!r}: {', '.join(missing[:5])}"
+                          f"{' ...' if len(missing) > 5 else ''}")
+    check_dir(d, "resume")
+    if not os.access(d, os.W_OK):
+        raise InputError(f"resume: {str(d)!r} is not writable")
+    return res
+
+
+def _seq_of(f: Path) -> int:
+    try:
+        return int(f.name.split("_")[1])
+    except (IndexError, ValueError):
+        return -1
 
 
 class TrialRecord:
@@ -69,21 +138,14 @@ class TrialRecord:
     touch on disk."""
 
     def __init__(self, root: str | Path, trial_id: str, resume: bool = False) -> None:
-        if not trial_id or "/" in trial_id or trial_id in (".", ".."):
-            raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+        check_trial_id(trial_id)
         self.dir = Path(root) / trial_id
         self.n_touches = 0
         self._no_contact: tuple[np.ndarray, str] | None = None
         self._lock = threading.Lock()      # a touch's image and line are written together
         self.closed = False
         if resume:
-            if not (self.dir / "config.json").is_file():
-                raise InputError(f"resume: {str(self.dir)!r} is not a trial record "
-                                 "(no config.json)")
-            res = read_result(self.dir)
-            if res is not None and "error" not in res:
-                raise InputError(f"resume: trial record {str(self.dir)!r} already has its "
-                                 "result; nothing to resume")
+            res = check_resumable(self.dir)
             if res is not None:                 # a failed trial: its error goes to the events
                 append_event(self.dir, {"event": "failed", "result": res})
                 os.remove(self.dir / "result.json")
@@ -93,9 +155,7 @@ class TrialRecord:
                     _fsync_write(f, b"\n", True)
             self.n_touches = _last_seq(self.dir)
             return
-        if (self.dir / "touches.jsonl").exists():
-            raise InputError(f"trial record {str(self.dir)!r} already exists: choose another "
-                             "trial_id (records are never overwritten)")
+        check_new_record(root, trial_id)
         self.dir.mkdir(parents=True, exist_ok=True)
 
     def close(self, timeout_s: float = 5.0) -> None:
@@ -113,7 +173,7 @@ class TrialRecord:
     def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
         if scene_file:
             shutil.copyfile(scene_file, self.dir / "scene.yaml")
-        _fsync_write(self.dir / "config.json", json.dumps(config, indent=2).encode(), False)
+        _fsync_write(self.dir / "config.json", dumps(config).encode(), False)
 
     def _png(self, path: Path, image: np.ndarray) -> None:
         ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
@@ -150,7 +210,7 @@ class TrialRecord:
         line = dict(meta, seq=self.n_touches, image=img_path.name if img_path else None)
         if nc_name is not None:
             line["no_contact"] = nc_name
-        _fsync_write(self.dir / "touches.jsonl", (json.dumps(line) + "\n").encode(), True)
+        _fsync_write(self.dir / "touches.jsonl", _line(line), True)
         return img_path
 
     def reject_touch(self, seq: int, reason: str) -> None:
@@ -158,20 +218,19 @@ class TrialRecord:
         with self._lock:
             self._open()
             _fsync_write(self.dir / "rejections.jsonl",
-                         (json.dumps({"seq": seq, "reason": reason}) + "\n").encode(), True)
+                         _line({"seq": seq, "reason": reason}), True)
 
     def add_decision(self, state: dict[str, Any]) -> None:
         with self._lock:
             self._open()
-            _fsync_write(self.dir / "decisions.jsonl", (json.dumps(state) + "\n").encode(),
-                         True)
+            _fsync_write(self.dir / "decisions.jsonl", _line(state), True)
 
     def finish(self, result: dict[str, Any]) -> Path:
         """Write ``result.json`` atomically (temporary file, fsync, rename)."""
         with self._lock:
             self._open()
             tmp = self.dir / "result.json.tmp"
-            _fsync_write(tmp, json.dumps(result, indent=2).encode(), False)
+            _fsync_write(tmp, dumps(result).encode(), False)
             os.replace(tmp, self.dir / "result.json")
             fd = os.open(self.dir, os.O_RDONLY)     # the rename itself survives a power loss
             try:

@@ -158,7 +158,10 @@ def _config(d: Path) -> dict:
 
 def not_sure(result: dict, stop_confidence: float | None, belief: float | None) -> bool:
     """A trial that ran out of rounds or touches with its answer's belief below the stop
-    confidence it was given (no stop confidence: 0 or unknown -> never 'not sure')."""
+    confidence it was given (no stop confidence: 0 or unknown -> never 'not sure'). A result
+    that carries the engine's own ``sure`` (``TrialOutcome.sure``) is read from it."""
+    if result.get("sure") is not None:
+        return not result["sure"]
     if result.get("stop_reason") in (None, "", "confident") or not stop_confidence:
         return False
     return belief is None or belief < stop_confidence

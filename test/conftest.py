@@ -49,3 +49,18 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         marker = _LANES.get(rel.parts[0]) if len(rel.parts) > 1 else None
         if marker is not None:
             item.add_marker(marker)
+
+
+@pytest.fixture(scope="session")
+def octopi_press(octopi_dir):
+    """``octopi_press(material, index=0)``: the frames of one recorded octopi-dev press
+    (``material/index.mov``), sensor-sized RGB uint8 (F, 240, 320, 3), read in place (never
+    copied into the repository)."""
+    from tactex_ros.sources.replay import read_video
+
+    def load(material: str, index: int = 0):
+        path = octopi_dir / material / f"{index}.mov"
+        if not path.is_file():
+            pytest.skip(f"octopi-dev press {material}/{index}.mov not found")
+        return read_video(path)[..., ::-1].copy()
+    return load

@@ -298,6 +298,24 @@ def auto_compute(path: Path, values: list[float], rows: dict[str, list[dict]], t
     return _save(fig, path)
 
 
+def accuracy_bands(path: Path, series: dict[str, dict], xlabel: str, title: str) -> Path:
+    """Accuracy against touches or time, one line per setting with its 95 % band and its number
+    of scenes in the legend. ``series``: {label: {"x", "accuracy", "lo", "hi", "n"}} (lists of
+    equal length, n an int)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for lab, v in series.items():
+        line, = ax.plot(v["x"], v["accuracy"], marker="o", ms=3, label=f"{lab} (n = {v['n']})")
+        ax.fill_between(v["x"], v["lo"], v["hi"], color=line.get_color(), alpha=0.12)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("accuracy (95 % Wilson band)")
+    ax.set_title(title, fontsize=9)
+    ax.set_ylim(0.0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
 def stop_sweep(path: Path, rows: list[dict], labels: Sequence[str]) -> Path:
     """Accuracy at the stop against mean touches until the stop, one line per setting over its
     stop thresholds (``rows``: {"setting", "touches", "accuracy"})."""

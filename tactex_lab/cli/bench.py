@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.cli.main import builds, write_json
+from tactex_ros.cli.main import bounded, builds, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:
     from tactex_ros.core.config import PRESETS
     from tactex_lab.experiments.bench import latency
-    unknown = [c for c in args.configs if c not in PRESETS]
+    unknown = [c for c in args.configs if latency.parse_config(c)[1] not in PRESETS]
     if unknown:
         raise InputError(f"--configs: unknown configuration(s) {unknown}; choose from "
                          f"{', '.join(PRESETS)}")
@@ -34,17 +34,19 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
         return
     bsub = b.add_subparsers(dest="bcmd", required=True)
     bl = bsub.add_parser("latency", help="per-round decision time, seed-faithful vs default")
-    bl.add_argument("--touches", type=int, nargs="+", default=[5, 15, 25])
-    bl.add_argument("--repeats", type=int, default=5)
-    bl.add_argument("--seed-epochs", type=int, default=1,
+    bl.add_argument("--touches", type=bounded(int, 1, 1000), nargs="+", default=[5, 15, 25],
+                    help="stored touches at which a decision is timed, 1..1000 each")
+    bl.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
+    bl.add_argument("--seed-epochs", type=bounded(int, 1, 10), default=1,
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
-                    help="configurations to time (ratios are to the last one)")
+                    help="configurations to time (ratios are to the last one): a preset, or "
+                         "label=preset:key=value,... e.g. prepared=default:representation=r.npz")
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 
     bs = bsub.add_parser("sim", help="simulator frames per second")
-    bs.add_argument("--frames", type=int, default=400)
-    bs.add_argument("--repeats", type=int, default=5)
+    bs.add_argument("--frames", type=bounded(int, 1, 1000000), default=400)
+    bs.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
     bs.add_argument("--json")
     bs.set_defaults(func=cmd_bench_sim)

@@ -4,8 +4,6 @@ ranking of learner settings on both sides), added to the product's ``sim`` group
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 
 from tactex_ros.cli.main import builds, command_group
 from tactex_ros.core.errors import InputError
@@ -94,8 +92,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
                             ranking, fabrics)
     _print_report(res)
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(res, indent=2))
+        from tactex_ros.cli.main import write_json
+        write_json(args.json, res)
     print(f"wrote {args.out}")
     return 0
 

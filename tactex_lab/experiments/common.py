@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import platform
 import sys
 import time
@@ -25,23 +24,11 @@ def versions() -> dict[str, str]:
             "machine": platform.machine()}
 
 
-def _jsonable(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, (np.floating,)):
-        return float(o)
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
 def write_json(path: Path, obj: Any) -> Path:
-    """Write ``obj`` as indented JSON (numpy values converted); returns ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(obj, indent=2, default=_jsonable))
-    return path
+    """Write ``obj`` as strict indented JSON, atomically (numpy values converted, NaN ->
+    null: ``core.outputs``); returns ``path``."""
+    from tactex_ros.core.outputs import write_json as _write
+    return _write(path, obj)
 
 
 def git_commit() -> str | None:
@@ -81,7 +68,8 @@ def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
 
 def results_dir(out: str | None, name: str, config: dict) -> Path:
     """Create the results folder and record the run's configuration and library versions."""
-    d = Path(out) if out else Path("results") / name
+    from tactex_ros.core.outputs import check_dir
+    d = check_dir(Path(out) if out else Path("results") / name, "--out")
     d.mkdir(parents=True, exist_ok=True)
     write_json(d / "config.json", {"experiment": name, "argv": sys.argv, "config": config,
                                    "versions": versions(), "git_commit": git_commit(),

@@ -60,10 +60,42 @@ def _nodes(args: argparse.Namespace):
 
 def cmd_describe(args: argparse.Namespace) -> int:
     nodes = _nodes(args)
-    print(json.dumps([{"executable": n.executable, "name": n.name,
-                       "parameters": n.parameters, "remappings": n.remappings}
-                      for n in nodes], indent=2))
+    from ..core.outputs import dumps
+    print(dumps([{"executable": n.executable, "name": n.name,
+                  "parameters": n.parameters, "remappings": n.remappings} for n in nodes]))
     return 0
+
+
+def preflight(nodes: list, logs: Path) -> Path:
+    """Before any node starts: the log folder can be written, and the explorer's record is a
+    new one (trial id a plain name, no record there, record folder writable) or, for a resume,
+    one that can be continued (``record.check_new_record`` / ``check_resumable``). Returns
+    the record folder; InputError (exit status 2) naming the path otherwise."""
+    from ..core.outputs import check_dir
+    from ..record import check_new_record, check_resumable
+    check_dir(logs, "--log-dir")
+    ex = next(n for n in nodes if n.executable == "explorer_node")
+    p = ex.parameters
+    if p.get("resume"):
+        check_resumable(p["resume"])
+        return Path(p["resume"])
+    if not p.get("trial_id"):
+        p["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
+    return check_new_record(p.get("record_dir") or "runs/trials", p["trial_id"])
+
+
+def resume_hint(run, sim: bool) -> str | None:
+    """``tactex graph run --resume <record>`` when a resume of this run can work: the record
+    exists and can be continued, and no node refused its input (exit status 2: the same
+    input would be refused again)."""
+    from ..record import check_resumable
+    if run.record is None or 2 in run.node_exit.values():
+        return None
+    try:
+        check_resumable(run.record)
+    except InputError:
+        return None
+    return f"tactex graph run{' --sim' if sim else ''} --resume {run.record}"
 
 
 def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
@@ -76,7 +108,8 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     d = args.session_dir or str(Path(ex.parameters.get("record_dir") or "runs/trials") /
                                 f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
-    run = run_session(nodes, logs, d, confirm=confirm, timeout_s=args.timeout,
+    run = run_session(nodes, logs, d, confirm=confirm,
+                      timeout_s=args.timeout if args.timeout is not None else 86400.0,
                       domain_id=args.domain_id)
     if run.result is None:
         print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
@@ -94,9 +127,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ..ros.launcher import exit_text, run_trial
     nodes = _nodes(args)
     logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
-    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     if args.session:
+        from ..core.outputs import check_dir
+        check_dir(logs, "--log-dir")
+        print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
         return cmd_session(args, nodes, logs)
+    preflight(nodes, logs)
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     from ..progress import Progress
     progress = Progress()
 
@@ -104,7 +141,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         ex = next(n for n in nodes if n.name == "explorer")
         progress.follow(Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"])
     run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
-                    on_start=follow, on_poll=progress.poll)
+                    on_start=follow, on_poll=progress.poll, idle_s=args.idle_timeout)
     progress.poll()
     if run.left_running:
         print(f"tactex: nodes still running after the stop: {run.left_running}",
@@ -113,12 +150,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         why = (run.failure or (run.result or {}).get("error")
                or f"explorer ended without a result ({exit_text(run.exit_code)})")
         print(f"tactex: trial ended without a result: {why}; logs in {logs}", file=sys.stderr)
-        if run.record is not None:
+        if run.reason:
+            print(f"tactex: {run.failed_node}: {run.reason} (from "
+                  f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
+        hint = resume_hint(run, args.sim)
+        if hint is not None:
             from ..record import read_record
             n = len(read_record(run.record, images=False)["touches"])
-            print(f"tactex: {n} touches on disk in {run.record}; continue with: tactex graph "
-                  f"run{' --sim' if args.sim else ''} --resume {run.record}", file=sys.stderr)
-        return 128 + run.signal if run.signal else 1
+            print(f"tactex: {n} touches on disk in {run.record}; continue with: {hint}",
+                  file=sys.stderr)
+        if run.signal:
+            return 128 + run.signal
+        return 2 if 2 in run.node_exit.values() else 1
     r = run.result
     print(f"reference matches {r['prediction']} after {r['touches']} touches "
           f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
@@ -168,8 +211,13 @@ def cmd_summary(args: argparse.Namespace) -> int:
         from ..ros.bag import read_bag
         s = summarise_bag(read_bag(args.record))
     else:
+        from ..record import RECORD_FILES
+        if not any((Path(args.record) / f).is_file() for f in RECORD_FILES):
+            raise InputError(f"{args.record!r} is not a trial record (none of "
+                              f"{', '.join(RECORD_FILES)}) nor an MCAP file")
         s = summarise(read_record(args.record, images=False))
-    print(json.dumps(s, indent=2))
+    from ..core.outputs import dumps
+    print(dumps(s))
     return 0
 
 
@@ -197,8 +245,13 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
         for option in EXPLORER_OPTIONS + DEVICE_OPTIONS:
             add_option(p, option)
         if name == "run":
-            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
-                           help="deadline [s], 1..86400")
+            p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=None,
+                           help="deadline of the whole trial [s], 1..86400 (default: none, "
+                                "only --idle-timeout)")
+            p.add_argument("--idle-timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
+                           help="end the trial when no new touch or decision reaches the "
+                                "record for this long [s], 1..86400 (default 600: a slow "
+                                "method finishes as long as it makes progress)")
             p.add_argument("--log-dir")
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -87,10 +88,11 @@ def command_group(sub: argparse._SubParsersAction, name: str,
 
 
 def write_json(path: str | None, obj: dict) -> None:
-    """Write ``obj`` as indented JSON to ``path`` (folders made); nothing when None."""
+    """Write ``obj`` as strict indented JSON to ``path`` atomically (folders made; NaN ->
+    null, ``core.outputs``); nothing when None."""
     if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(json.dumps(obj, indent=2))
+        from ..core.outputs import write_json as _write
+        _write(path, obj)
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
@@ -102,6 +104,12 @@ def cmd_trial(args: argparse.Namespace) -> int:
     src = open_source(args.source)
     cfg, tcfg = settings.learner, settings.trial
     chosen = args.classes.split(",") if args.classes else None
+    if chosen is not None:
+        dup = sorted({c for c in chosen if chosen.count(c) > 1})
+        if dup or "" in chosen:
+            raise InputError(f"--classes {args.classes!r}: "
+                              + (f"{', '.join(dup)} given more than once (each comparison "
+                                 "platform holds another class)" if dup else "an empty name"))
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
         raise InputError(f"--classes: {len(chosen)} comparison classes; at most "
                          f"{MAX_COMPARISONS}")
@@ -130,6 +138,9 @@ def cmd_trial(args: argparse.Namespace) -> int:
                model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
     write_json(args.json, out)
     verdict = "correct" if res.correct else "wrong"
+    if res.sure is False:
+        print(f"not sure: the belief ended at {res.confidence:.2f} < {tcfg.stop_confidence:g}; "
+              f"best guess {ids[res.prediction]} ({platform_classes[res.prediction]})")
     print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
           f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
           f"{res.touches} touches; stopped: {res.stop_reason}")
@@ -166,15 +177,38 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
 
 
 def cmd_prepare(args: argparse.Namespace) -> int:
-    from ..core import representation
+    """Describe every press of the library, fit the representation, calibrate the belief's
+    temperature on the library with classes left out (``core/calibration.py``), write .npz."""
+    from functools import partial
+
+    from ..core import calibration, representation
+    from ..core.config import preset
+    t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
     for spec in args.library:
         desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed))
-    rep = representation.fit(desc, shrink=args.shrink)
+    fit = partial(representation.fit, shrink=args.shrink, kind=args.kind, dims=args.dims)
+    rep = fit(desc)
+    if args.calibration != "off":
+        cfg = preset("default", descriptor_frames=args.frames)
+        trajs = calibration.trajectories(desc, fit, cfg, folds=args.calibration_folds,
+                                         scenes=args.calibration_scenes,
+                                         budget=args.calibration_budget, seed=args.seed,
+                                         temperature0=args.calibration_start)
+        rep.temperature = calibration.fit_temperature(
+            trajs, args.calibration, *(((args.stop_at,), args.max_wrong)
+                                       if args.calibration == "target" else ()))
+        rep.calibration = dict(calibration.report(trajs, rep.temperature),
+                               method=args.calibration, folds=args.calibration_folds,
+                               budget=args.calibration_budget)
     path = representation.save(rep, args.out)
-    print(f"representation from {rep.classes} classes, {rep.presses} presses "
-          f"({', '.join(args.library)}) -> {path}; use it with "
-          f"`tactex trial ... --representation {path}`")
+    cal = (f"; belief temperature {rep.temperature:.4g} calibrated on {rep.calibration['trials']} "
+           f"left-out trials (wrong stops at 0.9: {rep.calibration['wrong_stop']['0.9']:.3f}, "
+           f"ECE {rep.calibration['ece']:.3f})" if args.calibration != "off" else "")
+    print(f"representation {rep.kind} ({rep.dims} dims) from {rep.classes} classes, "
+          f"{rep.presses} presses ({', '.join(args.library)}){cal} -> {path} in "
+          f"{time.perf_counter() - t0:.0f} s; use it with `tactex trial ... --representation "
+          f"{path}`")
     return 0
 
 
@@ -193,10 +227,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     _trial_parser(sub, command)
     _prepare_parser(sub, command)
 
-    from . import graph_commands, report, sim_commands
+    from . import graph_commands, report, robot, sim_commands
     sim_commands.add_commands(sub, command)
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
+    robot.add_commands(sub, command)
     for name, ep in plugins.available(plugins.COMMANDS).items():
         try:
             ep.load()(sub, command)
@@ -229,13 +264,68 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
         return
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
-    pr.add_argument("--frames", type=int, default=1, help="contact frames per press")
-    pr.add_argument("--sim-presses", type=int, default=6, help="presses per simulated fabric")
-    pr.add_argument("--shrink", type=float, default=1.0,
+    pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
+                    help="contact frames per press, 1..16")
+    pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
+                    help="presses per simulated fabric, 1..10000")
+    pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
                     help="ridge added to the within-class covariance (standardised units)")
-    pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
+                    help="the metric: whiten (within-class whitening; measured best, "
+                         "docs/unseen_materials.md), lda (Fisher directions of the library, "
+                         "--dims of them), none (descriptor as is; the file then only carries "
+                         "the calibrated temperature)")
+    pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
+                    help="output dimensions of --kind lda")
+    pr.add_argument("--calibration", choices=("stop", "target", "nll", "off"), default="off",
+                    help="belief temperature from left-out library trials: stop (largest whose "
+                         "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "
+                         "--max-wrong at --stop-at), nll, off (default: the config's "
+                         "temperature; the calibrated ones stopped wrong more often on unseen "
+                         "classes, docs/unseen_materials.md)")
+    pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=0.9,
+                    help="the trials' stop threshold, for --calibration target")
+    pr.add_argument("--max-wrong", type=bounded(float, 0.0, 0.5), default=0.03,
+                    help="wrong-stop rate allowed at --stop-at, for --calibration target")
+    pr.add_argument("--calibration-folds", type=bounded(int, 2, 20), default=3)
+    pr.add_argument("--calibration-scenes", type=bounded(int, 1, 10000), default=40,
+                    help="left-out trials per fold")
+    pr.add_argument("--calibration-budget", type=bounded(int, 1, 100), default=10,
+                    help="touches after the baseline per left-out trial")
+    pr.add_argument("--calibration-start", type=bounded(float, 1e-4, 10.0), default=None,
+                    help="temperature the left-out trials run with (default: the config's)")
+    pr.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     pr.add_argument("--out", required=True, help="representation file to write (.npz)")
     pr.set_defaults(func=cmd_prepare)
+
+
+# output options checked before any work: (command, option attribute) -> (kind, suffixes);
+# "file" outputs must end in one of the suffixes, "dir" outputs are folders
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+OUTPUTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
+    ("*", "json"): ("file", (".json",)),
+    ("experiment", "out"): ("dir", ()),
+    ("prepare", "out"): ("file", ()),
+    ("sim", "out"): ("file", IMAGE_SUFFIXES),
+    ("graph", "log_dir"): ("dir", ()),
+}
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an output path of the command that cannot be written (named
+    with its option: a folder that is a file or not writable, a wrong suffix)."""
+    from ..core.outputs import check_dir, check_file
+    for (cmd, attr), (kind, suffixes) in OUTPUTS.items():
+        if cmd not in ("*", args.cmd):
+            continue
+        value = getattr(args, attr, None)
+        if not value:
+            continue
+        option = "--" + attr.replace("_", "-")
+        if kind == "dir":
+            check_dir(value, option)
+        else:
+            check_file(value, option, suffixes)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -243,12 +333,16 @@ def main(argv: list[str] | None = None) -> int:
     command = argv[0] if argv and not argv[0].startswith("-") else ""
     args = build_parser(command).parse_args(argv)
     try:
+        check_outputs(args)
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"tactex: error: {exc}", file=sys.stderr)
         return 2
     except TrialError as exc:
         print(f"tactex: failed: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:   # a run-time failure of a file or device (disk full, removed...)
+        print(f"tactex: error: {exc}", file=sys.stderr)
         return 1
 
 

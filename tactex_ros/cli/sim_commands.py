@@ -31,10 +31,12 @@ def cmd_render(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     img = (src.renderer.no_contact(rng) if args.no_contact
            else src.press(args.fabric, rng, depth_mm=args.depth))
+    from ..core.outputs import write_bytes
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
-        raise InputError(f"--out {out}: cannot write an image there")
+    ok, buf = cv2.imencode(out.suffix.lower(), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise InputError(f"--out {out}: cannot encode an image as {out.suffix}")
+    write_bytes(out, buf.tobytes())
     print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} RGB)")
     return 0
 

@@ -316,6 +316,10 @@ class LearnerConfig(Schema):
     representation: str = param("", "model 'descriptor': a representation file made by "
                                     "`tactex prepare` (a metric learnt from presses of other "
                                     "materials; '' = none)")
+    representation_temperature: bool = param(
+        True, "model 'descriptor': use the belief temperature `tactex prepare` calibrated on the "
+              "library with classes left out, when the representation file has one (else "
+              "match_temperature)")
     match_units: Literal["scene", "fixed"] = param(
         "scene", "model 'descriptor': units of the belief: 'scene' (each dimension divided by "
                  "its spread over this scene's platforms) or 'fixed' (as given, e.g. by a "
@@ -324,6 +328,13 @@ class LearnerConfig(Schema):
                                            "(calibrates the belief)", 1e-4, 10.0)
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
     # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
+
+    @model_validator(mode="after")
+    def _representation_needs_descriptor(self) -> "LearnerConfig":
+        if self.representation and self.model != "descriptor":
+            raise ValueError(f"representation {self.representation!r} is used only by model "
+                             f"'descriptor', not {self.model!r} (it would be ignored)")
+        return self
 
 
 #: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3

@@ -12,6 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .errors import InputError
 from .touch import FRAME_H, FRAME_W
 
 _BLUR = (5, 5)
@@ -59,10 +60,15 @@ def strongest_contact(frames: np.ndarray, reference: np.ndarray | None = None,
 
 
 def to_sensor_frame(img: np.ndarray) -> np.ndarray:
-    """Any (H, W, 3) uint8 frame -> (240, 320, 3): centre-crop to 4:3, then resize."""
+    """An (H, W, 3) uint8 frame at least as large as the sensor's -> (240, 320, 3): centre-crop
+    to 4:3, then shrink. A smaller frame is refused (InputError): up-scaling would invent
+    the texture the classifier judges."""
     h, w = img.shape[:2]
     if (h, w) == (FRAME_H, FRAME_W):
         return img
+    if h < FRAME_H or w < FRAME_W:
+        raise InputError(f"frame of {w}x{h} px is smaller than the sensor frame "
+                          f"{FRAME_W}x{FRAME_H} px (not up-scaled)")
     target = FRAME_W / FRAME_H
     if w / h > target:
         nw = int(round(h * target))

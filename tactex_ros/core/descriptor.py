@@ -41,17 +41,23 @@ class DescriptorLearner:
     def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
         self.cfg = validate(cfg)
         self.num_classes = num_classes
-        self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
-                                cfg.match_temperature, scene_units=cfg.match_units == "scene")
         self.representation: Representation | None = (
             _load_representation(cfg.representation) if cfg.representation else None)
+        rep = self.representation
+        temperature = (rep.temperature if rep is not None and cfg.representation_temperature
+                       and np.isfinite(rep.temperature) else cfg.match_temperature)
+        self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
+                                temperature, scene_units=cfg.match_units == "scene")
         self._rng = np.random.default_rng([int(seed), 31])
         self._heldout: np.ndarray | None = None
 
     def _describe(self, touch: Touch) -> np.ndarray:
-        if not self.cfg.descriptor_no_contact:
-            touch = Touch(touch.frame, None, touch.extra)
-        x = describe_touch(touch, self.cfg.descriptor_frames)
+        if touch.descriptor is not None:
+            x = np.asarray(touch.descriptor, dtype=np.float64)
+        else:
+            if not self.cfg.descriptor_no_contact:
+                touch = Touch(touch.frame, None, touch.extra)
+            x = describe_touch(touch, self.cfg.descriptor_frames)
         return x if self.representation is None else self.representation.apply(x)
 
     def add_touch(self, touch: Touch, label: int) -> np.ndarray:

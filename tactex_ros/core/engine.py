@@ -125,6 +125,14 @@ class TrialOutcome:
     stop_reason: str = ""         # 'confident' (belief reached stop_confidence), 'rounds'
     #                               (all rounds used) or 'max_touches' (touch cap reached)
     reference_touches: int = 1
+    sure: bool | None = None      # the belief reached stop_confidence (False: the trial ended
+    #                               unsure, ``prediction`` is only the best guess; None: no stop
+    #                               rule, nothing to be sure against)
+
+    @property
+    def confidence(self) -> float:
+        """The final belief in the predicted comparison."""
+        return float(max(self.final.probs))
 
     @property
     def correct(self) -> bool | None:
@@ -147,6 +155,7 @@ class TrialOutcome:
             "truth": name(self.truth), "touches": self.touches,
             "rounds": rounds[:-1], "final": rounds[-1],
             "failed_touches": self.failed_touches, "stop_reason": self.stop_reason,
+            "sure": self.sure, "confidence": self.confidence,
             "reference_touches": self.reference_touches,
             "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
             "escalations": [{"round": r.round, "reason": r.escalation,
@@ -293,6 +302,16 @@ class TrialEngine:
         return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
                            len(self.records), self.trial_cfg.rounds, self._budget_left())
 
+    @property
+    def sure(self) -> bool | None:
+        """Once done: did the final belief reach ``stop_confidence``? (None before the end or
+        without a stop rule.) An unsure end gives the best guess and its belief, not an
+        answer."""
+        th = self.trial_cfg.stop_confidence
+        if self.final is None or th <= 0:
+            return None
+        return confident(float(max(self.final.probs)), th)
+
     def result(self, truth: int | None = None) -> TrialOutcome:
         if self.final is None:
             raise TrialError("trial not finished")
@@ -301,7 +320,7 @@ class TrialEngine:
                            rounds=list(self.records), final=self.final,
                            failed_touches=list(self.failed), platform_ids=self.platform_ids,
                            stop_reason=self.stop_reason,
-                           reference_touches=self.reference_touches)
+                           reference_touches=self.reference_touches, sure=self.sure)
 
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,

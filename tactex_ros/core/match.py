@@ -132,6 +132,11 @@ class MatchModel:
         D = means.shape[-1]
         return self.beta * (-0.5 * D * np.log(v) - 0.5 * d2 / v)
 
+    def log_evidence(self) -> np.ndarray:
+        """(C,) untempered log evidence l of every hypothesis (belief = softmax(beta l))."""
+        means, counts, sigma2 = self.stats()
+        return self._logits(means, counts, sigma2) / self.beta
+
     def belief(self) -> np.ndarray:
         """(C,) probability that comparison c (index c-1) matches the reference."""
         means, counts, sigma2 = self.stats()

@@ -1,24 +1,36 @@
 """A tactile representation prepared before a trial: a metric on texture descriptors learnt from
-a library of recorded (or simulated) presses of *other* materials.
+a library of recorded (or simulated) presses of *other* materials, and the temperature of the
+belief calibrated on that library with classes left out.
 
 The descriptor model (``core/descriptor.py``) needs no training, but not every descriptor
-dimension is equally reliable: some vary as much between two presses of one material as between
-materials. A library of presses of other materials shows which: ``fit`` computes, on the
-standardised descriptors (library mean and std), the pooled within-class covariance S_w, shrinks
-it toward its diagonal, and keeps the whitening W = (S_w + ``shrink`` I)^(-1/2). Applied to a
-trial's descriptors, distances are then counted in units of "how much presses of one material
-differ", learnt on materials the trial does not contain (class-disjoint by construction).
+direction is equally reliable: some vary as much between two presses of one material as between
+materials. A library of presses of other materials shows which. ``fit`` standardises the
+descriptors (library mean and std) and learns a linear map W (k x D) of one of these kinds:
 
-The file is a numpy ``.npz`` archive of arrays (``save`` / ``load``, read with
-``allow_pickle=False``, so no torch on the shipped path); it holds no frames or descriptors of
-the library, only the (D,) mean, (D,) std and (D, D) whitening, and the library's size. (Files
-of the earlier torch format are refused with the command that remakes them.) Without a file the product
-works as before (scene units, ``core/match.py``).
+- ``none`` (k = D): the identity (mean 0, std 1): the descriptor as it is, a file that only
+  carries a calibrated temperature.
+- ``whiten`` (k = D): W = (S_w + ``shrink`` I)^(-1/2), S_w the pooled within-class covariance;
+  distances counted in units of "how much presses of one material differ".
+- ``lda`` (k = ``dims`` < D): the whitening followed by the projection on the k directions along
+  which the library's class means spread most (Fisher's discriminant directions); the other
+  D - k directions, where materials of the library did not differ more than presses of one
+  material, are dropped.
+
+Applied to a trial's descriptors (``apply``), the belief still divides every output dimension by
+the scene's own spread (``core/match.py``), so only the subspace and its orientation matter.
+
+The belief's temperature depends on the number of dimensions and on the materials: ``prepare``
+calibrates it on the library itself with classes left out (``core/calibration.py``), and the
+file keeps it (``temperature``; NaN when not calibrated). The file (``save`` / ``load``) is a
+numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped path): mean
+(D,), std (D,), the map (k, D) (key ``whiten``), the kind, the temperature, what the calibration
+measured (JSON) and the library's size; no frames or descriptors of the library. A file without
+kind or temperature is a whitening without calibration.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,19 +39,28 @@ from .errors import InputError
 from .texture import DIM
 
 FORMAT = "tactex-representation-2"
+KINDS = ("none", "whiten", "lda")
 
 
 @dataclass
 class Representation:
-    mean: np.ndarray       # (D,)
-    std: np.ndarray        # (D,)
-    whiten: np.ndarray     # (D, D)
+    mean: np.ndarray       # (D,) library mean of the descriptors
+    std: np.ndarray        # (D,) library std
+    whiten: np.ndarray     # (k, D) the linear map of the standardised descriptors
     classes: int           # library classes it was fitted on
     presses: int           # library presses it was fitted on
     shrink: float
+    kind: str = "whiten"
+    temperature: float = float("nan")   # calibrated belief temperature, NaN = not calibrated
+    calibration: dict = field(default_factory=dict)   # what the calibration measured
+
+    @property
+    def dims(self) -> int:
+        """k, the number of output dimensions."""
+        return int(self.whiten.shape[0])
 
     def apply(self, x: np.ndarray) -> np.ndarray:
-        """(..., D) descriptors -> (..., D) whitened coordinates."""
+        """(..., D) descriptors -> (..., k) coordinates."""
         x = np.asarray(x, dtype=np.float64)
         if x.shape[-1] != self.mean.shape[0]:
             raise InputError(f"representation expects descriptors of size {self.mean.shape[0]}, "
@@ -47,40 +68,68 @@ class Representation:
         return ((x - self.mean) / self.std) @ self.whiten.T
 
 
-def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0) -> Representation:
+def _within(groups: list[np.ndarray], std: np.ndarray) -> np.ndarray:
+    """Pooled within-class covariance (D, D) of the standardised descriptors."""
+    resid = np.concatenate([(g - g.mean(axis=0)) / std for g in groups])
+    dof = sum(len(g) - 1 for g in groups)
+    return resid.T @ resid / dof
+
+
+def fit(descriptors: dict[str, np.ndarray], shrink: float = 1.0, kind: str = "whiten",
+        dims: int = 0) -> Representation:
     """Fit the metric on ``{class: (n_c, D) descriptors}`` (classes with >= 2 presses count for
-    the within-class covariance; at least 2 such classes)."""
+    the within-class covariance; at least 2 such classes). ``kind``: ``whiten`` or ``lda``
+    (``dims`` output dimensions, 1 <= dims < D; at most classes - 1 are kept)."""
     if not shrink > 0:
         raise InputError(f"shrink must be > 0, got {shrink}")
+    if kind not in KINDS:
+        raise InputError(f"representation kind {kind!r}: one of {', '.join(KINDS)}")
     groups = [np.asarray(v, dtype=np.float64) for v in descriptors.values()]
     usable = [g for g in groups if g.ndim == 2 and len(g) >= 2]
     if len(usable) < 2:
         raise InputError("a representation needs at least 2 library classes with 2 or more "
                          f"presses each; got {len(usable)}")
     allx = np.concatenate(groups)
+    if kind == "none":
+        d = allx.shape[1]
+        return Representation(np.zeros(d), np.ones(d), np.eye(d), classes=len(groups),
+                              presses=len(allx), shrink=float(shrink), kind=kind)
     mean, std = allx.mean(axis=0), allx.std(axis=0) + 1e-9
-    resid = np.concatenate([(g - g.mean(axis=0)) / std for g in usable])
-    dof = sum(len(g) - 1 for g in usable)
-    sw = resid.T @ resid / dof
+    sw = _within(usable, std)
     vals, vecs = np.linalg.eigh(sw + shrink * np.eye(sw.shape[0]))
     whiten = (vecs / np.sqrt(vals)) @ vecs.T
+    if kind == "lda":
+        if not 1 <= dims < allx.shape[1]:
+            raise InputError(f"lda dims must be in 1..{allx.shape[1] - 1}, got {dims}")
+        dims = min(dims, len(groups) - 1)         # the class means span at most classes - 1
+        cm = np.stack([((g.mean(axis=0) - mean) / std) @ whiten.T for g in groups])
+        w = np.array([len(g) for g in groups], dtype=np.float64)
+        cm = cm - (w[:, None] * cm).sum(axis=0) / w.sum()
+        sb = (cm * w[:, None]).T @ cm / w.sum()
+        bvals, bvecs = np.linalg.eigh(sb)
+        top = bvecs[:, np.argsort(bvals)[::-1][:dims]]          # (D, k)
+        whiten = top.T @ whiten
     return Representation(mean, std, whiten, classes=len(groups), presses=len(allx),
-                          shrink=float(shrink))
+                          shrink=float(shrink), kind=kind)
 
 
 def save(rep: Representation, path: str | Path) -> Path:
-    """Write ``rep`` as an ``.npz`` archive of arrays at ``path`` (exactly that name)."""
+    """Write ``rep`` as a numpy ``.npz`` archive of arrays at ``path`` (no pickled objects)."""
+    import json
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("wb") as f:
+    with path.open("wb") as f:                    # exactly that name (savez adds no suffix)
         np.savez(f, format=np.array(FORMAT), mean=rep.mean, std=rep.std, whiten=rep.whiten,
-                 classes=np.array(rep.classes), presses=np.array(rep.presses),
-                 shrink=np.array(rep.shrink))
+                 kind=np.array(rep.kind), classes=np.array(rep.classes),
+                 presses=np.array(rep.presses), shrink=np.array(rep.shrink),
+                 temperature=np.array(rep.temperature),
+                 calibration=np.array(json.dumps(rep.calibration)))
     return path
 
 
 def load(path: str | Path) -> Representation:
     """Read a representation file; InputError naming the file and what is wrong."""
+    import json
     p = Path(path)
     if not p.is_file():
         raise InputError(f"representation file not found: {p}")
@@ -97,10 +146,21 @@ def load(path: str | Path) -> Representation:
         mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
     except KeyError as exc:
         raise InputError(f"representation file {p}: missing {exc}") from None
-    if mean.shape != (DIM,) or std.shape != (DIM,) or w.shape != (DIM, DIM):
+    if (mean.shape != (DIM,) or std.shape != (DIM,) or w.ndim != 2 or w.shape[1] != DIM
+            or not 1 <= w.shape[0] <= DIM):
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
-                         f"{w.shape} do not fit the descriptor of size {DIM}")
-    if not (np.all(np.isfinite(w)) and np.all(std > 0)):
-        raise InputError(f"representation file {p}: non-finite whitening or std <= 0")
+                          f"{w.shape} do not fit the descriptor of size {DIM}")
+    if not (np.all(np.isfinite(w)) and np.all(std > 0) and np.all(np.isfinite(mean))):
+        raise InputError(f"representation file {p}: non-finite map or mean, or std <= 0")
+    temp = float(d.get("temperature", np.nan))
+    if np.isfinite(temp) and not temp > 0:
+        raise InputError(f"representation file {p}: temperature {temp} must be > 0")
+    kind = str(d.get("kind", "whiten"))
+    if kind not in KINDS:
+        raise InputError(f"representation file {p}: unknown kind {kind!r}")
+    try:
+        calib = json.loads(str(d.get("calibration", "{}")))
+    except ValueError:
+        raise InputError(f"representation file {p}: calibration is not JSON") from None
     return Representation(mean, std, w, int(d.get("classes", 0)), int(d.get("presses", 0)),
-                          float(d.get("shrink", 0.0)))
+                          float(d.get("shrink", 0.0)), kind, temp, calib)

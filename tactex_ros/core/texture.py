@@ -110,7 +110,12 @@ def describe(frame: np.ndarray, no_contact: np.ndarray | None = None) -> np.ndar
     frame = validate_frame(frame, "touch frame")
     if no_contact is not None:
         no_contact = validate_frame(no_contact, "no-contact frame")
-    d = contact_difference(frame, no_contact)
+    return describe_difference(contact_difference(frame, no_contact))
+
+
+def describe_difference(d: np.ndarray) -> np.ndarray:
+    """(DIM,) descriptor of a contact difference (H, W, 3) float32 (``contact_difference``, or
+    a region of one at least 80 px on a side)."""
     mag = np.sqrt((d ** 2).sum(axis=-1))
     grey = d.mean(axis=-1)
     q = np.percentile(mag, [50, 75, 90, 99])

@@ -25,11 +25,15 @@ class Touch:
     ``frame``: the strongest-contact frame (240, 320, 3) uint8 RGB.
     ``no_contact``: the same sensor without contact (240, 320, 3) uint8 RGB, or None.
     ``extra``: further in-contact frames of the same press (K, 240, 320, 3), or None.
+    ``descriptor``: the press's texture descriptor (``core/texture.py``, (DIM,)) when it is
+    already known (a library press described once, e.g. ``tactex prepare``'s calibration); the
+    descriptor learner then uses it instead of describing ``frame``.
     """
 
     frame: np.ndarray
     no_contact: np.ndarray | None = None
     extra: np.ndarray | None = None
+    descriptor: np.ndarray | None = None
 
 
 def as_touch(touch: "Touch | np.ndarray") -> Touch:

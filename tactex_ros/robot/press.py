@@ -6,7 +6,10 @@ The robot is under Cartesian impedance control: the motion node commands the con
 translational stiffness [N/m]). A press therefore commands the equilibrium *below* the surface:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
-``approach_height`` above its surface) -> ``descend`` (the equilibrium goes straight down at
+``approach_height`` above its surface) -> ``tare`` (at the approach point and at rest, the
+normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
+window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
+above ``tare_max_offset_n``, refuses the press with that reason) -> ``descend`` (the equilibrium goes straight down at
 ``descend_speed`` until the normal force reaches ``force_threshold``) -> ``settle`` (the
 equilibrium is held at ``position - force / K``, never deeper than it already was: the static
 force at the measured pose is then the force measured at the threshold, so the contact stays
@@ -26,7 +29,9 @@ box and moves at most ``max_speed`` (and the phase's own speed) per second; the 
 never above ``max_force`` (abort: retract at once); a normal force that reads clearly negative
 while pressing aborts (the wrench sign is wrong: a wrong sign would hide every contact); each
 phase ends before its deadline (abort). A failed press still retracts; ``result`` then carries
-the reason. Units: m, s, N.
+the reason. From the tare on, every force the press acts on (threshold, limit, sign, the
+force at capture) is the tared force: the offset is removed from the normal component, the
+lateral part of the magnitude is left as measured. Units: m, s, N.
 """
 
 from __future__ import annotations
@@ -38,8 +43,8 @@ import numpy as np
 
 from ..core.errors import InputError
 
-APPROACH, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = ("approach", "descend", "settle", "capture",
-                                                    "retract", "done")
+APPROACH, TARE, DESCEND, SETTLE, CAPTURE, RETRACT, DONE = (
+    "approach", "tare", "descend", "settle", "capture", "retract", "done")
 
 
 class PressSettings(Protocol):
@@ -58,6 +63,11 @@ class PressSettings(Protocol):
     capture_deadline_s: float
     retract_deadline_s: float
     position_tolerance: float
+    tare_window_s: float
+    tare_max_spread_n: float
+    tare_max_motion_m: float
+    tare_max_offset_n: float
+    tare_deadline_s: float
 
 
 class Platform(Protocol):
@@ -104,6 +114,61 @@ class PressOutcome:
     force_n: float               # normal force at capture [N] (0 when not captured)
     depth_m: float               # penetration below the surface at capture [m]
     max_force_n: float           # largest force magnitude seen during the press [N]
+    tare: "TareResult | None" = None   # the tare before the descent (None: not reached)
+
+
+@dataclass(frozen=True)
+class TareResult:
+    """A settled tare: ``offset_n`` (median normal force [N]), ``spread_n`` (90th minus 10th
+    percentile over the window [N]), ``samples`` (how many), ``motion_m`` (largest distance of
+    the measured position from the window's first one [m])."""
+
+    offset_n: float
+    spread_n: float
+    samples: int
+    motion_m: float
+
+
+class Tare:
+    """The wrench offset at rest: feed samples (time [s], normal force [N], position [m]);
+    ``settled`` returns the result once the last ``window_s`` holds at least 3 samples spanning
+    90 % of the window, with a force spread at most ``max_spread_n`` and the position within
+    ``max_motion_m`` of the window's first sample."""
+
+    def __init__(self, window_s: float, max_spread_n: float, max_motion_m: float) -> None:
+        self.window_s, self.max_spread, self.max_motion = window_s, max_spread_n, max_motion_m
+        self.t: list[float] = []
+        self.f: list[float] = []
+        self.x: list[np.ndarray] = []
+        self.last: TareResult | None = None   # the latest full window, settled or not
+
+    def add(self, t: float, force_n: float, position: np.ndarray) -> None:
+        self.t.append(t)
+        self.f.append(float(force_n))
+        self.x.append(np.asarray(position, dtype=float))
+        while self.t and t - self.t[0] > self.window_s:
+            del self.t[0], self.f[0], self.x[0]
+
+    def settled(self) -> TareResult | None:
+        """The tare if the current window is full and quiet, else None (``last`` then holds
+        the full window's figures, for the refusal)."""
+        if len(self.t) < 3 or self.t[-1] - self.t[0] < 0.9 * self.window_s:
+            return None
+        f = np.asarray(self.f)
+        lo, hi = np.percentile(f, [10, 90])
+        motion = float(max(np.linalg.norm(x - self.x[0]) for x in self.x))
+        self.last = TareResult(float(np.median(f)), float(hi - lo), len(f), motion)
+        if self.last.spread_n <= self.max_spread and motion <= self.max_motion:
+            return self.last
+        return None
+
+
+def tared(force_n: float, magnitude: float, offset_n: float) -> tuple[float, float]:
+    """(normal force, magnitude) [N] with the normal offset removed; the lateral part of the
+    magnitude (``sqrt(magnitude^2 - force_n^2)``) is kept as measured."""
+    lateral2 = max(0.0, magnitude * magnitude - force_n * force_n)
+    fn = force_n - offset_n
+    return fn, float(np.sqrt(lateral2 + fn * fn))
 
 
 def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
@@ -172,6 +237,10 @@ class PressController:
         self.capture_depth = 0.0
         self.max_force = 0.0
         self._need_capture = False
+        self._tare = Tare(self.s.tare_window_s, self.s.tare_max_spread_n,
+                          self.s.tare_max_motion_m)
+        self.tare: TareResult | None = None
+        self.force_n = 0.0
 
     # ------------------------------------------------------------------ helpers
     def _enter(self, phase: str, now: float) -> None:
@@ -228,12 +297,17 @@ class PressController:
         self._last = now
         position = np.asarray(position, dtype=float)
         mag = abs(force_n) if force_magnitude is None else float(force_magnitude)
+        if self.tare is not None:
+            force_n, mag = tared(force_n, mag, self.tare.offset_n)
+        self.force_n = force_n     # the normal force the press acts on (tared once settled)
         self.max_force = max(self.max_force, mag)
         if self.phase == DONE:
             return self.target
         self._check_limits(now, force_n, mag)
         if self.phase == APPROACH:
             self._approach(now, position, dt)
+        elif self.phase == TARE:
+            self._tare_step(now, position, force_n)
         elif self.phase == DESCEND:
             self._descend(now, position, force_n, dt)
         elif self.phase == SETTLE:
@@ -263,11 +337,35 @@ class PressController:
                 and np.linalg.norm(position - goal) <= self.s.position_tolerance)
 
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
-        """Through the waypoints (lift, travel, approach point); then descend."""
+        """Through the waypoints (lift, travel, approach point); then tare."""
         if self._arrive(self._waypoints[0], self.s.travel_speed, position, dt):
             self._waypoints.pop(0)
             if not self._waypoints:
-                self._enter(DESCEND, now)
+                self._enter(TARE, now)
+
+    def _tare_step(self, now: float, position: np.ndarray, force_n: float) -> None:
+        """Hold the approach point and measure the offset; descend once it settled, refuse
+        the press when it does not settle in time or is too large."""
+        s = self.s
+        self._tare.add(now, force_n, position)
+        got = self._tare.settled()
+        if got is not None:
+            if abs(got.offset_n) > s.tare_max_offset_n:
+                self.abort(f"tare: offset {got.offset_n:.2f} N is larger than "
+                           f"tare_max_offset_n {s.tare_max_offset_n} N (payload or wrench "
+                           "model error; the press would act on a force that far off)", now)
+                return
+            self.tare = got
+            self._enter(DESCEND, now)
+        elif now - self.phase_start > s.tare_deadline_s:
+            last = self._tare.last
+            why = ("no full window of samples" if last is None else
+                   f"force spread {last.spread_n:.2f} N (limit tare_max_spread_n "
+                   f"{s.tare_max_spread_n} N), arm moved {last.motion_m * 1000:.2f} mm (limit "
+                   f"tare_max_motion_m {s.tare_max_motion_m * 1000:g} mm) over "
+                   f"{last.samples} samples")
+            self.abort(f"tare did not settle within tare_deadline_s {s.tare_deadline_s} s: "
+                       f"{why}", now)
 
     def _descend(self, now: float, position: np.ndarray, force_n: float, dt: float) -> None:
         """Equilibrium down until the threshold force (then settle), or no contact."""
@@ -309,7 +407,7 @@ class PressController:
     def outcome(self) -> PressOutcome:
         return PressOutcome(success=self.done and not self.failure, reason=self.failure,
                             force_n=self.capture_force, depth_m=self.capture_depth,
-                            max_force_n=self.max_force)
+                            max_force_n=self.max_force, tare=self.tare)
 
 
 # ---------------------------------------------------------------------- mock arm physics

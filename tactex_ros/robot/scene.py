@@ -62,6 +62,20 @@ class PressSettings(Schema):
     capture_deadline_s: float = param(3.0, "deadline of the capture [s]", 0.1, 60.0)
     retract_deadline_s: float = param(10.0, "deadline of the retract [s]", 0.1, 600.0)
     position_tolerance: float = param(0.002, "'arrived' within this distance [m]", 0.0001, 0.05)
+    tare_window_s: float = param(0.3, "before each descent, at the approach point and at rest, "
+                                      "the wrench offset is the median normal force over this "
+                                      "window [s]", 0.02, 5.0)
+    tare_max_spread_n: float = param(0.5, "the tare settles when the normal force's spread "
+                                          "(90th minus 10th percentile) over the window is at "
+                                          "most this [N]", 0.01, 20.0)
+    tare_max_motion_m: float = param(0.001, "at rest: the measured position moves at most this "
+                                            "over the tare window [m]", 0.00005, 0.02)
+    tare_max_offset_n: float = param(5.0, "an offset larger than this refuses the press (a "
+                                          "payload or model error that large must be fixed "
+                                          "first: the force limit acts on the tared force) [N]",
+                                     0.1, 50.0)
+    tare_deadline_s: float = param(3.0, "a tare that has not settled within this refuses the "
+                                        "press [s]", 0.1, 60.0)
 
     @model_validator(mode="after")
     def _limits(self) -> "PressSettings":
@@ -197,6 +211,9 @@ def parse_scene(data: Any, origin: str = "scene") -> Scene:
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene YAML file."""
+    if not str(path).strip():
+        raise InputError("scene_file is empty: give the scene YAML (parameter scene_file, "
+                          "e.g. config/scene_sim.yaml)")
     p = Path(path)
     if not p.is_file():
         raise InputError(f"scene file {str(p)!r} not found")

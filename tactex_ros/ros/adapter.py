@@ -173,11 +173,12 @@ def franka_state_to_array(msg, sign: float) -> tuple[np.ndarray, float, float, i
 # ---------------------------------------------------------------------- exploration state
 def state_msg(rec, *, trial_id: str, strategy: str, platform_ids: list[str],
               reference_touches: int, done: bool, prediction: str, t: float, frame_id: str,
-              reference_id: str = "reference"):
+              reference_id: str = "reference", sure: bool = False):
     """A core ``RoundRecord`` -> ``tactex/ExplorationState`` (platform_ids: comparisons).
 
     ``rec.platform`` 0 (the reference touched again) becomes ``reference_id``; a strategy that
     also scored the reference ((C + 1,) scores) reports the comparisons' scores as uncertainty.
+    ``sure``: the trial ended with the belief at the stop threshold (``TrialEngine.sure``).
     """
     from tactex.msg import ExplorationState
     nxt = ("" if rec.platform is None else reference_id if rec.platform == 0
@@ -190,7 +191,8 @@ def state_msg(rec, *, trial_id: str, strategy: str, platform_ids: list[str],
         uncertainty=[float(v) for v in scores],
         touches=[int(v) for v in rec.touches], reference_touches=int(reference_touches),
         next_platform=nxt, train_s=float(rec.train_s), score_s=float(rec.score_s),
-        decision_s=float(rec.decision_s), done=bool(done), prediction=prediction)
+        decision_s=float(rec.decision_s), done=bool(done), prediction=prediction,
+        sure=bool(done and sure))
 
 
 def _belief_colour(b: float, highlight: bool) -> ColorRGBA:

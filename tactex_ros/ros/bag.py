@@ -139,6 +139,9 @@ class BagWriter:
             self._f.close()
 
 
+MCAP_MAGIC = b"\x89MCAP0\r\n"     # the first 8 bytes of every MCAP file (MCAP spec, "Magic")
+
+
 def _records(path: Path) -> Iterator[Any]:
     """The records of an MCAP file up to the last whole one (a crashed writer's torn tail and
     missing footer end the iteration)."""
@@ -155,6 +158,10 @@ def read_bag(path: str | Path, decode: bool = True) -> list[tuple[str, int, Any]
     p = Path(path)
     if not p.is_file():
         raise InputError(f"bag {str(p)!r} not found")
+    with open(p, "rb") as f:
+        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise InputError(f"{str(p)!r} is not an MCAP file (it does not start with the "
+                              "MCAP magic bytes)")
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     out = []

@@ -92,6 +92,15 @@ class GoalRequest:
         """How many times the goal was sent again."""
         return len(self.sent) - 1
 
+    def ask_again(self) -> None:
+        """Request the followed goal's result once more (e.g. after this process was stopped
+        long enough for the server to forget it and drop the answer): the server answers a
+        goal that has ended with its stored result. Nothing when no goal is followed or the
+        result is in."""
+        if self.handle is None or (self._result_fut is not None and self._result_fut.done()):
+            return
+        self._result_fut = self.handle.get_result_async()
+
     def cancel(self) -> None:
         """Ask the server to cancel the followed goal and every unanswered one."""
         if self.handle is not None:
@@ -187,3 +196,43 @@ class GoalRequest:
         """The followed goal has ended with a real status (it was taken and ran)."""
         r = self.result
         return r is not None and r.status != GoalStatus.STATUS_UNKNOWN
+
+
+class Silence:
+    """How long a server has been silent, counting only time the caller could hear it.
+
+    ``heard()`` (any message: goal response, feedback, result) restarts the count. The caller
+    ``tick()``s from its wait loop every few milliseconds; a gap between ticks longer than
+    ``stall_s`` means this process was not running (SIGSTOP, a starved machine): messages that
+    arrived meanwhile are still queued unread, so the gap is not counted as the server's
+    silence (and ``tick`` returns it, for the caller to move its own deadlines). A stalled
+    caller therefore never blames a healthy server; a server that really stops talking is
+    still found out within the silence limit of time the caller was awake.
+    """
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic,
+                 stall_s: float = 0.5) -> None:
+        self.clock, self.stall_s = clock, float(stall_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Start counting now (a new goal was sent)."""
+        self.last_heard = self.last_awake = self.clock()
+
+    def heard(self) -> None:
+        """A message from the server arrived."""
+        self.last_heard = self.clock()
+
+    def tick(self) -> float:
+        """The caller is awake; returns the stall [s] since the last tick (0.0 if none)."""
+        now = self.clock()
+        gap = now - self.last_awake
+        self.last_awake = now
+        if gap > self.stall_s:
+            self.last_heard += gap
+            return gap
+        return 0.0
+
+    def silent_s(self) -> float:
+        """Seconds of silence the caller was awake for."""
+        return self.clock() - self.last_heard

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from ..core.config import FieldSpec, field_spec, merge, nest, parse_text, typed
+from ..core.config import FieldSpec, field_spec, flatten, merge, nest, parse_text, typed
 from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
@@ -31,6 +31,8 @@ class NodeSpec:
     remappings: list[tuple[str, str]] = field(default_factory=list)
     package: str = PACKAGE
 
+
+SIM_MIN_STATE_RATE_HZ = 5.0    # [Hz] the sim graph's motion pre-flight (mock arm state)
 
 # every node's settings schema, by node name
 SETTINGS: dict[str, type] = {"gelsight": GelsightSettings, "motion": MotionSettings,
@@ -53,6 +55,14 @@ def option_spec(name: str) -> FieldSpec:
     """The schema field behind option ``name`` of ``OPTIONS``."""
     node, path = OPTIONS[name]
     return field_spec(SETTINGS[node], path)
+
+
+def option_default(name: str) -> Any:
+    """The value option ``name`` of ``OPTIONS`` has when not given: the node's settings with
+    nothing set (the explorer's ``learner.*`` / ``trial.*`` come from the default preset, not
+    from the field's own default)."""
+    node, path = OPTIONS[name]
+    return flatten(SETTINGS[node].check({}, f"{node} defaults").model_dump())[path]
 
 
 def parse_option(name: str, text: str) -> Any:
@@ -113,6 +123,11 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     with the field named."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
+    if scene_file and not Path(scene_file).is_file() and "/" not in str(scene_file):
+        for cand in (config_dir() / str(scene_file), config_dir() / f"{scene_file}.yaml"):
+            if cand.is_file():          # a shipped scene by name: scene_replay, scene_sim
+                scene_file = cand
+                break
     given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
                          motion)
     prof = load_profile(given_motion.get("robot") or robot or ("sim" if sim else "fr3_crisp"))
@@ -120,8 +135,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                      config_dir() / ("scene_sim.yaml" if sim else prof.scene))
     scene = load_scene(scene_file)
     ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
+    # the mock arm is no robot: its state rate (100 Hz nominal) fell to 12 Hz during start-up
+    # on a loaded machine, so the sim graph's pre-flight asks only for SIM_MIN_STATE_RATE_HZ
     mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_crisp")},
-               given_motion)
+               {"min_state_rate_hz": SIM_MIN_STATE_RATE_HZ} if sim else None, given_motion)
     mo = _checked("motion", mo)
     prof = load_profile(mo["robot"])
     if prof.frame_id != scene.frame_id:

@@ -19,7 +19,6 @@ SIGKILL leaves no node behind. What ended the trial is appended to the record's
 from __future__ import annotations
 
 import ctypes
-import json
 import os
 import signal
 import subprocess
@@ -66,10 +65,12 @@ class GraphRun:
     stop_s: float = 0.0                # end of the trial -> every node stopped [s]
     left_running: list[str] = field(default_factory=list)  # nodes alive after stop (goal: none)
     pids: dict[str, int] = field(default_factory=dict)     # process id of every node
+    reason: str | None = None          # the failed node's first error line (its log)
 
 
 def node_command(n: NodeSpec, params: Path) -> list[str]:
-    cmd = [sys.executable, "-m", f"tactex_ros.ros.nodes.{n.executable}", "--ros-args",
+    # -P: no current directory on sys.path (a local inspect.py would shadow the library's)
+    cmd = [sys.executable, "-P", "-m", f"tactex_ros.ros.nodes.{n.executable}", "--ros-args",
            "-r", f"__node:={n.name}", "--params-file", str(params)]
     for src, dst in n.remappings:
         cmd += ["-r", f"{src}:={dst}"]
@@ -83,6 +84,7 @@ def ros_env(domain_id: int | None = None) -> dict[str, str]:
     if domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(domain_id)
     env["PYTHONUNBUFFERED"] = "1"
+    env["PYTHONSAFEPATH"] = "1"     # also for whatever the nodes start: no cwd on sys.path
     return env
 
 
@@ -195,13 +197,95 @@ def append_event(record: Path, event: dict) -> None:
         _append(record, event)
 
 
-def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600.0,
+def _result_stamp(path: Path) -> tuple | None:
+    """What identifies one version of a file: (inode, size, mtime); None when absent."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def new_result(path: Path, before: tuple | None) -> tuple[dict | None, str | None]:
+    """The ``result.json`` this run wrote, or None when the file is absent or is the one that
+    was there before the run (a run's status never comes from an older file); with a
+    reason when the file is there but cannot be read."""
+    from ..record import read_result
+    now = _result_stamp(path)
+    if now is None or now == before:
+        return None, None
+    try:
+        return read_result(path.parent), None
+    except InputError as exc:
+        return None, str(exc)
+
+
+def node_reason(log: Path, max_chars: int = 400) -> str | None:
+    """Why a node ended, from its log: the first error line (rclpy's ``[ERROR]``, or the
+    node's own ``tactex:`` line), else the last line of a Python traceback; None if the log
+    holds neither."""
+    try:
+        lines = log.read_text(errors="replace").splitlines()
+    except OSError:
+        return None
+    for ln in lines:
+        if "[ERROR]" in ln or "[FATAL]" in ln:
+            text = ln.split("]: ", 1)[1] if "]: " in ln else ln
+            return text.strip()[:max_chars]
+        if ln.startswith("tactex: "):
+            return ln[len("tactex: "):].strip()[:max_chars]
+    if any(ln.startswith("Traceback") for ln in lines):
+        last = next((ln for ln in reversed(lines) if ln.strip()), "")
+        return last.strip()[:max_chars]
+    return None
+
+
+def progress_stamp(record: Path) -> tuple:
+    """What changes when a trial makes progress: the sizes of its touch and decision files."""
+    out = []
+    for f in ("touches.jsonl", "decisions.jsonl"):
+        try:
+            out.append((record / f).stat().st_size)
+        except OSError:
+            out.append(-1)
+    return tuple(out)
+
+
+class Deadlines:
+    """The runner's two deadlines: ``total_s`` from the start (None: none) and ``idle_s``
+    without progress (a new touch or decision in the record; None: none). A slow method
+    (the thesis CNN: decisions of 30-100 s) finishes as long as it makes progress."""
+
+    def __init__(self, record: Path, total_s: float | None, idle_s: float | None,
+                 clock=time.monotonic) -> None:
+        self.record, self.total_s, self.idle_s, self.clock = record, total_s, idle_s, clock
+        self.t0 = self.last = clock()
+        self.stamp = progress_stamp(record)
+
+    def expired(self) -> str | None:
+        """Why the trial is out of time, or None."""
+        now = self.clock()
+        stamp = progress_stamp(self.record)
+        if stamp != self.stamp:
+            self.stamp, self.last = stamp, now
+        if self.total_s is not None and now - self.t0 > self.total_s:
+            return f"trial not finished within {self.total_s:g} s"
+        if self.idle_s is not None and now - self.last > self.idle_s:
+            return (f"trial not finished: no new touch or decision for {self.idle_s:g} s "
+                    f"(idle deadline)")
+        return None
+
+
+def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
               domain_id: int | None = None, poll_s: float = 0.1,
-              on_start=None, on_poll=None) -> GraphRun:
-    """Run the graph until the explorer finishes its trial, a node exits, a signal arrives or
-    ``timeout_s`` passes; then stop every node. ``on_start(graph)`` is called once all
+              on_start=None, on_poll=None, idle_s: float | None = None) -> GraphRun:
+    """Run the graph until the explorer finishes its trial, a node exits, a signal arrives,
+    ``timeout_s`` passes (None: no total deadline) or ``idle_s`` passes without a new touch or
+    decision (``Deadlines``); then stop every node. ``on_start(graph)`` is called once all
     processes are started (tests use it to inject faults); ``on_poll()`` at every poll
     (progress lines)."""
+    if timeout_s is None and idle_s is None:
+        raise InputError("run_trial needs a deadline: timeout_s or idle_s")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
         raise InputError("the graph has no explorer_node")
@@ -210,6 +294,8 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
         ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
     ex.parameters["record_dir"] = str(Path(ex.parameters["record_dir"]).resolve())
     record = Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"]
+    res_path = record / "result.json"
+    before = _result_stamp(res_path)     # a result already there is not this run's
     failure = failed_node = None
     with _Signals() as sig:
         g = Graph(nodes, log_dir, domain_id)
@@ -218,14 +304,15 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
             g.start()
             if on_start is not None:
                 on_start(g)
-            deadline = t0 + timeout_s
+            deadlines = Deadlines(record, timeout_s, idle_s)
             while True:
                 if on_poll is not None:
                     on_poll()
                 gone = g.first_exit()
                 if gone is not None:
                     name, code = gone
-                    if name != ex.name or not (record / "result.json").exists():
+                    if name != ex.name or code != 0 or _result_stamp(res_path) in (None,
+                                                                                  before):
                         failed_node = name
                         failure = (f"node {name} ended ({exit_text(code)}) "
                                    f"{time.monotonic() - t0:.1f} s into the trial")
@@ -234,8 +321,9 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
                     failure = (f"interrupted by {signal.Signals(sig.received).name} "
                                f"{time.monotonic() - t0:.1f} s into the trial")
                     break
-                if time.monotonic() > deadline:
-                    failure = f"trial not finished within {timeout_s:g} s"
+                expired = deadlines.expired()
+                if expired is not None:
+                    failure = expired
                     break
                 time.sleep(poll_s)
             elapsed = time.monotonic() - t0
@@ -244,9 +332,11 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
             exits = g.stop()
             stop_s = time.monotonic() - t1
     left = [k for k, p in g.procs.items() if p.poll() is None]
-    res_path = record / "result.json"
-    result = json.loads(res_path.read_text()) if res_path.exists() else None
+    result, unreadable = new_result(res_path, before)
+    if unreadable is not None and failure is None:
+        failure, failed_node = unreadable, ex.name
     code = exits.get(ex.name)
+    reason = node_reason(g.log_dir / f"{failed_node}.log") if failed_node else None
     if failure is not None:
         append_event(record, {"event": "trial_ended", "reason": failure, "node": failed_node,
                               "signal": sig.received, "node_exit": exits,
@@ -256,4 +346,4 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float = 600
                     timed_out=failure is not None and failure.startswith("trial not finished"),
                     node_exit=exits, failure=failure, failed_node=failed_node,
                     signal=sig.received, elapsed_s=elapsed, stop_s=stop_s, left_running=left,
-                    pids=g.pids)
+                    pids=g.pids, reason=reason)

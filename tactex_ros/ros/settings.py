@@ -84,6 +84,25 @@ class GelsightSettings(CameraHealthSettings):
                                        "camera's)", -1.0, 15000.0)
     led_intensity: int = param(-1, "DIGIT LED level on all channels, 0..15 (-1 = the "
                                    "profile's)", -1, 15)
+    preflight: bool = param(True, "check the camera at configuration (measured frame rate, "
+                                  "a sane no-contact frame) and refuse the start on a problem "
+                                  "(docs/hardware_checks.md); off only for tests of the node "
+                                  "itself")
+    preflight_frames: int = param(25, "frames timed for the measured frame rate (cameras)",
+                                  3, 1000)
+    min_fps_fraction: float = param(0.8, "the measured frame rate must reach this fraction of "
+                                         "the requested one", 0.0, 1.0)
+    frame_min_std: float = param(5.0, "a no-contact frame whose grey-level spread is below "
+                                      "this is blank (LED off, lens covered)", 0.0, 128.0)
+    frame_max_saturated: float = param(0.02, "largest fraction of the no-contact frame's "
+                                             "pixels at 250 or above", 0.0, 1.0)
+    frame_max_texture: float = param(0.8, "a no-contact frame with more high-pass texture than "
+                                          "this [grey levels] shows contact (octopi-dev: "
+                                          "0.52-0.62 without contact, 0.9-2.5 for textured "
+                                          "contact)", 0.0, 50.0)
+    frame_max_change: float = param(0.8, "largest contact score of one reference frame "
+                                         "against their mean [grey levels] (octopi-dev: "
+                                         "0.31-0.38 without contact)", 0.0, 50.0)
 
 
 class MotionSettings(Schema):
@@ -100,6 +119,8 @@ class MotionSettings(Schema):
                                   "('' = the profile's)")
     mode_topic: str = param("", "robot mode (reflex) topic, for profiles that read one "
                                 "('' = the profile's)")
+    mode_rate_hz: float = param(20.0, "robot_mode is decoded from the mode topic's full "
+                                      "state (1 kHz) at most this often [Hz]", 1.0, 1000.0)
     stiffness: float = param(0.0, "the impedance controller's translational stiffness [N/m] "
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
@@ -115,6 +136,23 @@ class MotionSettings(Schema):
                                           "retried (0 = no check)", 0.0, 50.0)
     state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
                                    0.05, 30.0)
+    preflight: bool = param(True, "check the robot at configuration, before the arm moves "
+                                  "(state rate, robot mode, franka's collision thresholds) "
+                                  "and refuse the start on a problem "
+                                  "(docs/hardware_checks.md); off only for tests of the node "
+                                  "itself")
+    preflight_window_s: float = param(1.0, "robot state is counted over this window, after "
+                                           "its first message [s]", 0.1, 30.0)
+    preflight_deadline_s: float = param(20.0, "deadline for the first robot state message and "
+                                              "for franka's collision service [s]", 0.1, 120.0)
+    min_state_rate_hz: float = param(50.0, "robot state slower than this refuses the start "
+                                           "[Hz] (franka_robot_state_broadcaster: 1000)",
+                                     0.0, 10000.0)
+    collision_set_by_hand: bool = param(False, "franka's collision thresholds (the robot "
+                                               "profile's collision request) were set with "
+                                               "the `ros2 service call` a refused start "
+                                               "printed, e.g. in the bring-up before the "
+                                               "controller was spawned")
     diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
     diag_state_warn_s: float = param(0.1, "arm: WARN when the newest robot state is older "
                                           "than this [s]", 0.01, 30.0)

@@ -44,10 +44,13 @@ def open_source(spec: str) -> TouchSource:
             parts = parts[:-1]
         if len(parts) > 1:
             raise InputError(f"source {spec!r}: use sim[:difficulty][:recorded]")
-        return SimSource(parts[0] if parts and parts[0] else "medium",
-                         catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
+        try:
+            return SimSource(parts[0] if parts and parts[0] else "medium",
+                             catalogue=config_dir() / "fabrics.yaml", recorded=recorded)
+        except InputError as exc:
+            raise InputError(f"source {spec!r}: {exc}") from None
     raise InputError(f"unknown source {spec!r}; use replay:DIR[:one-session] or "
-                     "sim[:easy|medium|hard|<number>][:recorded]")
+                      "sim[:easy|medium|hard|<number>][:recorded]")
 
 
 def assign_platforms(classes: list[str], comparisons: int, chosen: list[str] | None,

@@ -50,7 +50,10 @@ def read_video(path: str | Path) -> np.ndarray:
             ok, frame = cap.read()
             if not ok:
                 break
-            frames.append(to_sensor_frame(frame))
+            try:
+                frames.append(to_sensor_frame(frame))
+            except InputError as exc:
+                raise InputError(f"press file {path}: {exc}") from None
     finally:
         cap.release()
     if len(frames) < 2:
@@ -73,7 +76,11 @@ def load_touch(path: str) -> tuple[Touch, float]:
         img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if img is None:
             raise InputError(f"unreadable image file: {p}")
-        return Touch(cv2.cvtColor(to_sensor_frame(img), cv2.COLOR_BGR2RGB)), float("nan")
+        try:
+            frame = to_sensor_frame(img)
+        except InputError as exc:
+            raise InputError(f"press file {p}: {exc}") from None
+        return Touch(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)), float("nan")
     arr = read_video(p)
     idx, scores = strongest_contact(arr)
     strong = np.flatnonzero(scores >= EXTRA_MIN * scores[idx])
@@ -201,7 +208,11 @@ class ReplayTrial:
         i = self._draw(cls, platform == 0)
         path = self.source.presses(cls)[i]
         self.log.append((platform, str(path)))
-        touch = self.source.touch(path)
+        try:
+            touch = self.source.touch(path)
+        except InputError as exc:     # one bad file among good ones: a failed touch, and the
+            from ..core.engine import TouchFailed     # engine draws another press (retry)
+            raise TouchFailed(str(exc)) from exc
         if not self.source.one_session or touch.no_contact is None:
             return touch
         if self._background is None:

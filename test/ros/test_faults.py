@@ -263,3 +263,17 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     last = read_record(record, images=False)["touches"][-1]
     assert last["interrupted"] is True and last["accepted"] is False
     _check_record(record, [])
+
+
+def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener) -> None:
+    """SIGSTOP of the explorer during its 4th press for more than press_silence_s, then
+    SIGCONT: the press server was healthy, so the trial goes on and ends with its result; the
+    press whose result arrived during the stall is used, none is marked interrupted."""
+    # 22 s: longer than press_silence_s (10 s) and than Fast DDS's default participant lease
+    # (20 s), after which the other nodes forget the stalled one until it announces itself again
+    f = Fault(tmp_path / "trial", 3, freeze("explorer", 22.0))
+    run, rec, _ = _run(tmp_path, listener, "stall_explorer", f)
+    assert f.t is not None                                 # the stall happened
+    assert run.result is not None and "error" not in run.result, run.failure
+    assert not [t for t in rec["touches"] if t.get("interrupted")]
+    assert run.result["touches"] == 5 + ROUNDS

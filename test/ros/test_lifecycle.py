@@ -147,7 +147,7 @@ def test_gelsight_lifecycle(bench, tmp_path: Path) -> None:
         w.write(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8))
     w.release()
     b = bench(GelsightNode, {"device": str(video), "fps": 20.0, "warmup_frames": 0,
-                             "reference_frames": 2})
+                             "reference_frames": 2, "preflight": False})   # noise frames
     got: list = []
     b.manager.create_subscription(Image, "/tactex/gelsight/image_raw", got.append,
                                   qos_profile_sensor_data)
@@ -173,7 +173,8 @@ def test_motion_lifecycle(bench) -> None:
     from tactex.action import Press
 
     from tactex_ros.ros.nodes.motion_node import MotionNode
-    b = bench(MotionNode, {"scene_file": SCENE, "robot": "sim", "state_timeout_s": 0.05})
+    b = bench(MotionNode, {"scene_file": SCENE, "robot": "sim", "state_timeout_s": 0.05,
+                           "preflight": False})                    # no robot state here
     got: list = []
     b.manager.create_subscription(PoseStamped,
                                   "/cartesian_impedance_controller/equilibrium_pose",

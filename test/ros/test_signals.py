@@ -89,8 +89,9 @@ def test_sigint_during_start_up(tmp_path: Path, domain_id: int, where: str) -> N
     nodes = [n for n in describe(True) if n.name == "mock_arm"]
     params = params_file(nodes, tmp_path / "params.yaml")
     marker = tmp_path / "cleanup"
-    cmd = [sys.executable, "-c", INTERRUPTED, where, str(marker)] + node_command(nodes[0],
-                                                                                 params)[3:]
+    node_cmd = node_command(nodes[0], params)
+    cmd = [sys.executable, "-c", INTERRUPTED, where, str(marker)] + \
+        node_cmd[node_cmd.index("--ros-args"):]
     proc = subprocess.run(cmd, env=ros_env(domain_id), stdout=subprocess.PIPE,
                           stderr=subprocess.STDOUT, timeout=60, start_new_session=True)
     out = proc.stdout.decode()[-2000:]

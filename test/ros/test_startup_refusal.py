@@ -60,3 +60,24 @@ def test_mock_camera_refuses_recorded_sessions(domain_id) -> None:
                                    "source:=sim:medium:recorded"], domain_id)
     assert r.returncode == 2
     assert b"recorded" in r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("node, param", [
+    ("motion_node", "descend_speed:=fast"),
+    ("motion_node", "retries:=-5"),
+    ("explorer_node", "trial.warp:=1"),
+])
+def test_unknown_parameter_refused(tmp_path: Path, node: str, param: str, domain_id) -> None:
+    # rclpy keeps an undeclared -p value as an override and never applies it: refused here
+    r = _start(node, [f"scene_file:={config_dir() / 'scene_sim.yaml'}", param]
+               + ([f"record_dir:={tmp_path}"] if node == "explorer_node" else ["robot:=sim"]),
+               domain_id)
+    assert r.returncode == 2
+    assert param.split(":=")[0].encode() in r.stdout + r.stderr
+    assert not list(tmp_path.iterdir())          # the explorer recorded nothing
+
+
+def test_motion_node_without_scene_file_names_the_parameter(domain_id) -> None:
+    r = _start("motion_node", [], domain_id)
+    assert r.returncode == 2
+    assert b"scene_file" in r.stdout + r.stderr

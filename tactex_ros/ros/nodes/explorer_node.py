@@ -39,7 +39,7 @@ from ...record import TrialRecord
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
-from ..goal import GoalRequest
+from ..goal import GoalRequest, Silence
 
 
 class PressServerLost(InputError):
@@ -82,7 +82,7 @@ class ExplorerNode(TactexNode):
         self.result: dict | None = None
         self.session_trial = None
         self._t_trial = None
-        self._feedback_t = time.monotonic()
+        self._silence = Silence()        # of the press server, since the last message
         self._stopping = False
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
@@ -223,7 +223,7 @@ class ExplorerNode(TactexNode):
         self._bag_write(MARKER_TOPIC, msg)
 
     def _publish_state(self, rec, done: bool, prediction: str) -> None:
-        msg = adapter.state_msg(rec, trial_id=self.trial_id,
+        msg = adapter.state_msg(rec, trial_id=self.trial_id, sure=bool(self.engine.sure),
                                 strategy=self.engine.trial_cfg.strategy,
                                 platform_ids=self.ids[1:], reference_id=self.ids[0],
                                 reference_touches=self.engine.reference_touches, done=done,
@@ -240,7 +240,8 @@ class ExplorerNode(TactexNode):
                                   "uncertainty": list(msg.uncertainty),
                                   "touches": list(msg.touches), "model": rec.model,
                                   "decision_s": rec.decision_s, "done": done,
-                                  "prediction": prediction})
+                                  "prediction": prediction,
+                                  "sure": self.engine.sure if done else None})
 
     def _replayed_decision(self, msg) -> bool:
         """True for a decision a resumed trial re-made that the record already holds (a
@@ -260,19 +261,31 @@ class ExplorerNode(TactexNode):
         return True
 
     # ------------------------------------------------------------------ the trial
-    def _wait(self, ready, deadline: float, watch: bool = False) -> bool:
+    def _wait(self, ready, deadline: float, watch: bool = False,
+              on_stall=None) -> bool:
         """Poll ``ready()`` (a ``GoalRequest`` is polled by design, ros/goal.py) until it is
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
-        gone (left the graph for 1 s, or silent for ``press_silence_s``)."""
+        gone (left the graph for 1 s, or silent for ``press_silence_s``). Time this process
+        was stopped counts for neither (``goal.Silence``); after such a stall ``on_stall()`` is
+        called once the server is visible again (the answer may have been dropped meanwhile)."""
         absent_since = None
+        reask = False
         while not ready():
+            stall = self._silence.tick()     # this process was stopped: not the server's fault
+            deadline += stall
+            reask = reask or (stall > 0 and on_stall is not None)
+            if reask and self.press.server_is_ready():
+                on_stall()                   # an answer dropped while we were away: ask again
+                reask = False
             now = time.monotonic()
+            if absent_since is not None:
+                absent_since += stall
             if now > deadline:
                 return False
             if self._stopping or not self.context.ok():
                 raise TrialError("the explorer is stopping")
             if watch:
-                silent = now - self._feedback_t
+                silent = self._silence.silent_s()
                 if silent > self.settings.press_silence_s:
                     raise PressServerLost(f"no answer or feedback from the press server for "
                                           f"{silent:.1f} s (press_silence_s)")
@@ -295,7 +308,7 @@ class ExplorerNode(TactexNode):
             raise TrialError("the explorer is stopping")
 
     def _on_feedback(self, _msg) -> None:
-        self._feedback_t = time.monotonic()
+        self._silence.heard()
 
     def _touch(self, platform: int) -> Touch:
         """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
@@ -313,7 +326,7 @@ class ExplorerNode(TactexNode):
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
-        self._feedback_t = time.monotonic()
+        self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
         req = GoalRequest(self.press, Press.Goal(platform_id=pid),
@@ -324,7 +337,7 @@ class ExplorerNode(TactexNode):
                 self._failed(platform, meta, "press goal not answered before the deadline")
             if req.refused:
                 self._failed(platform, meta, "press goal rejected by the motion node")
-            if not self._wait(req.finished, deadline, watch=True):
+            if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
                 req.cancel()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
                                              f"({self.settings.press_timeout_s} s)")
@@ -344,6 +357,8 @@ class ExplorerNode(TactexNode):
         touch = res.touch
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
+                    tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
+                          "samples": int(touch.tare_samples)},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
@@ -453,7 +468,9 @@ class ExplorerNode(TactexNode):
         self._write_report()
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
                                f"{out['prediction']} after {out['touches']} touches "
-                               f"(stopped: {out['stop_reason']}); record {path.parent}")
+                               f"(stopped: {out['stop_reason']}"
+                               f"{'' if out['sure'] is not False else ', NOT SURE: best guess'}"
+                               f", belief {out['confidence']:.2f}); record {path.parent}")
 
 
 def main(args: list[str] | None = None) -> int:

@@ -19,6 +19,12 @@ exposure and auto white balance off for sensors that have them (``exposure`` /
 ``white_balance`` fix their values where given), a DIGIT's LED level. A property the driver
 refuses ends the configuration with the parameter named; the values read back are logged. The
 measured frame rate is logged every 10 s (``measured_fps``).
+
+The configuration reads the warm-up frames and the no-contact (reference) frames itself, and
+with ``preflight`` (default) checks them before the graph goes on (``robot/preflight.py``): a
+camera's frame rate measured over ``preflight_frames`` frames reaches ``min_fps_fraction`` of
+the requested one, and the no-contact frame is not blank, not saturated, shows no contact and
+is steady. A problem refuses the configuration with the reason (exit status 2).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from .. import adapter
 from ...core.contact import crop_border
 from ...core.errors import InputError
 from ..settings import GelsightSettings
+from ...robot import preflight as checks
 from ...robot.frames import FrameRing
 from ...robot.sensors import (SensorConfig, SensorProfile, digit_led_value, load_sensor,
                               sensor_config)
@@ -254,8 +261,46 @@ class GelsightNode(TactexNode):
         self.frames_read = 0
         self.measured_fps = 0.0
         self._stop = threading.Event()
-        self._warm = False            # warm-up frames dropped (once per configuration)
-        self._refs: list[np.ndarray] = []
+        self._no_contact_frame()
+
+    def _no_contact_frame(self) -> None:
+        """Drop the warm-up frames, read the reference frames (a camera: at least
+        ``preflight_frames``, timed), average the last ``reference_frames`` into the no-contact
+        frame; with ``preflight``, refuse (InputError) a slow camera or an insane frame."""
+        s = self.settings
+        for _ in range(s.warmup_frames):
+            self.cap.read()
+        n = s.reference_frames if self.is_file else max(s.reference_frames, s.preflight_frames)
+        frames, stamps = [], []
+        end = time.monotonic() + s.open_timeout_s + n / self.cfg.fps
+        while len(frames) < n:
+            if time.monotonic() > end:
+                raise InputError(str(checks.Problem(
+                    "no_frame", f"only {len(frames)} of {n} frames read within "
+                                f"{s.open_timeout_s + n / self.cfg.fps:.1f} s")))
+            frame = self._read_frame()
+            if frame is not None:
+                frames.append(frame)
+                stamps.append(time.monotonic())
+        refs = frames[-s.reference_frames:]
+        if s.preflight:
+            problem = None if self.is_file else checks.fps_problem(stamps, self.cfg.fps,
+                                                                 s.min_fps_fraction)
+            problem = problem or checks.frame_problem(refs, checks.FrameLimits(
+                s.frame_min_std, s.frame_max_saturated, s.frame_max_texture,
+                s.frame_max_change))
+            if problem:
+                raise InputError(str(problem))
+            self.get_logger().info(
+                "pre-flight: camera " + ("(recording: frame rate not measured)" if self.is_file
+                                         else f"{checks.rate_hz(stamps):.1f} frames/s")
+                + f", no-contact frame texture {checks.texture(refs[0]):.2f}")
+        else:
+            self.get_logger().warning("pre-flight off (preflight: false): frame rate and "
+                                      "no-contact frame not checked")
+        with self.lock:
+            self.ring.set_reference(np.mean([f.astype(np.float32) for f in refs], axis=0)
+                                    .round().astype(np.uint8))
 
     def activate(self) -> None:
         self._stop.clear()
@@ -300,11 +345,6 @@ class GelsightNode(TactexNode):
     def _read_loop(self) -> None:
         s = self.settings
         period = 1.0 / self.cfg.fps
-        if not self._warm:
-            for _ in range(s.warmup_frames):
-                self.cap.read()
-            self._warm = True
-        refs = self._refs
         next_t = time.monotonic()
         misses = 0
         t_rate, n_rate = time.monotonic(), 0
@@ -324,11 +364,6 @@ class GelsightNode(TactexNode):
                 t_rate, n_rate = time.monotonic(), 0
                 self.get_logger().info(f"gelsight frame rate {self.measured_fps:.1f} Hz "
                                        f"(requested {self.cfg.fps:g})")
-            if len(refs) < s.reference_frames:
-                refs.append(frame.astype(np.float32))
-                if len(refs) == s.reference_frames:
-                    with self.lock:
-                        self.ring.set_reference(np.mean(refs, axis=0).round().astype(np.uint8))
             now = self.get_clock().now().nanoseconds * 1e-9
             with self.lock:
                 self.ring.push(now, frame)

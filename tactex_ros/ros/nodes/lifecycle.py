@@ -73,6 +73,26 @@ def declare_settings(node: LifecycleNode, cls: type) -> None:
         node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
 
 
+# parameters rclpy declares itself (a node option, QoS overrides when an entity asks for them)
+ROS_OWN_PARAMETERS = ("use_sim_time",)
+ROS_OWN_PREFIXES = ("qos_overrides.",)
+
+
+def check_overrides(node: LifecycleNode) -> None:
+    """Refuse parameters given to the node (``-p``, ``--params-file``) that it does not
+    declare. rclpy keeps such values as *overrides* and applies one only when a parameter of
+    that name is declared, so with ``allow_undeclared_parameters=False`` (the default) an
+    unknown name or a typo is silently ignored rather than refused: it is refused here, at
+    configure, by name (InputError)."""
+    given = set(getattr(node, "_parameter_overrides", {}) or {})
+    unknown = sorted(n for n in given if not node.has_parameter(n)
+                     and n not in ROS_OWN_PARAMETERS and not n.startswith(ROS_OWN_PREFIXES))
+    if unknown:
+        raise InputError(f"{node.get_name()} parameters: unknown parameter(s) "
+                          f"{', '.join(unknown)} (ros2 param list /{node.get_name()} shows "
+                          "the declared ones)")
+
+
 def read_settings(node: LifecycleNode, cls: type) -> Any:
     """Current parameter values as a validated settings model (InputError names a field)."""
     values = {s.name: node.get_parameter(s.name).value for s in fields(cls)}
@@ -160,6 +180,7 @@ class TactexNode(LifecycleNode):
         self._made_before["configure"] = entities(self)
 
         def configure() -> None:
+            check_overrides(self)
             self.settings = read_settings(self, self.settings_cls)
             self.configure()
         ret = self._transition("configuration", configure)

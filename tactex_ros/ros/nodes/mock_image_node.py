@@ -30,6 +30,7 @@ from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
+from ..preflight import Stopped
 from .lifecycle import TactexNode
 from .process import run
 
@@ -48,16 +49,22 @@ class MockImageNode(TactexNode):
             raise InputError(f"source {s.source!r}: use sim[:difficulty] or replay:DIR")
         if kind == "sim" and s.source.endswith(":recorded"):
             raise InputError(f"source {s.source!r}: the mock camera is live (one session); "
-                             "'recorded' is for offline trials: use sim[:difficulty]")
+                              "'recorded' is for offline trials: use sim[:difficulty]")
+        from ...sources import open_source
+        self.src = open_source(s.source)         # first: a bad source is named as such
         field = "sim_fabric" if kind == "sim" else "replay_class"
         missing = [p.id for p in self.scene.platforms if not getattr(p, field)]
         if missing:
-            raise InputError(f"scene: platforms {missing} have no {field} for source "
-                             f"{s.source!r}")
-        from ...sources import open_source
-        self.src = open_source(s.source)
+            raise InputError(f"scene {s.scene_file!r}: platforms {missing} have no {field} "
+                              f"for source {s.source!r}")
         if kind == "sim":
             self.fabrics = [p.sim_fabric for p in self.scene.ordered]
+            for p in self.scene.ordered:
+                try:
+                    self.src.fabric(p.sim_fabric)
+                except InputError as exc:
+                    raise InputError(f"scene {s.scene_file!r}: platform {p.id} sim_fabric: "
+                                     f"{exc}") from None
             if s.placement:
                 self.fabrics = self._placed(s.placement)
             self._prepare(self.fabrics)
@@ -107,6 +114,8 @@ class MockImageNode(TactexNode):
         """Build each fabric's height tile now: doing it at the first press stalls the frame
         timer for a moment and the capture window then holds no contact frame."""
         for f in dict.fromkeys(fabrics):
+            if not self.context.ok():   # a stop (SIGINT, SIGTERM) ends the building: a tile
+                raise Stopped()         # takes seconds on a loaded machine
             self.src.press(f, np.random.default_rng(0))
 
     def _on_parameters(self, params) -> SetParametersResult:

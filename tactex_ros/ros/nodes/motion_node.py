@@ -15,6 +15,13 @@ within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the p
 (error recovery action or service, waits for its result, re-activates hardware and controllers
 by the profile's service calls, waits for fresh state) and retries, or ends the goal with the
 reason (also when recovery is off, e.g. franka_msgs is not installed).
+
+Pre-flight (``preflight``, at the end of the configuration, before any target is published):
+the robot state arrives at ``min_state_rate_hz`` or faster, franka's ``robot_mode`` (where it is
+read) is move, and franka's collision thresholds are set to what the press needs through the
+profile's collision service (or the start is refused with the ``ros2 service call`` to run).
+Any failure refuses the configuration with the reason: exit status 2
+(``robot/preflight.py``, docs/hardware_checks.md).
 """
 
 from __future__ import annotations
@@ -26,16 +33,27 @@ import numpy as np
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
+from rclpy.subscription_content_filter_options import ContentFilterOptions
 
 from .. import adapter
 from ...core.errors import InputError, TrialError
+from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
+from ..preflight import Probe
 from ..settings import MotionSettings
 from ...robot.robots import fill_message, import_interface, load_profile
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode, in_thread, wait_for
 from .process import run
+
+
+MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+# only franka states not in move mode (libfranka RobotMode 2), where the middleware filters
+MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
+                                   expression_parameters=["2"])
+MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
 
 
 class RobotError(Exception):
@@ -79,9 +97,28 @@ class MotionNode(TactexNode):
             self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
                                      self._on_wrench, qos_profile_sensor_data)
         if prof.mode_topic:
+            # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
+            # franka_robot_state_broadcaster.cpp:149-150, reliable, depth 10) and only
+            # robot_mode is wanted. Where the middleware filters content (Fast DDS), only
+            # messages whose robot_mode is not move reach this process at all; otherwise they
+            # are taken raw (best effort, depth 1) and decoded at most mode_rate_hz times a
+            # second. A mode counts for MODE_HOLD_S after the last message.
             try:
-                self.create_subscription(import_interface(prof.mode_type),
-                                         s.mode_topic or prof.mode_topic, self._on_mode, 10)
+                self._mode_type = import_interface(prof.mode_type)
+                self._mode_next, self._mode_t, self.topic_mode = 0.0, float("-inf"), None
+                try:
+                    sub = self.create_subscription(
+                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        MODE_QOS, raw=True, content_filter_options=MODE_FILTER)
+                except TypeError:           # an rclpy without content filters
+                    sub = self.create_subscription(
+                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        MODE_QOS, raw=True)
+                cft = getattr(sub, "is_cft_enabled", False)   # a property or a method
+                self.get_logger().info(
+                    "robot mode: " + ("only non-move states delivered (content filter)"
+                                      if (cft() if callable(cft) else cft)
+                                      else f"decoded at most {s.mode_rate_hz:g} Hz"))
             except InputError as exc:
                 self.get_logger().warning(f"robot mode not read (reflex seen only as the state "
                                           f"stopping): {exc}")
@@ -97,6 +134,97 @@ class MotionNode(TactexNode):
         self.server = ActionServer(
             self, Press, s.press_action, execute_callback=self._execute_async,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+        if s.preflight:
+            self._preflight()
+        else:
+            self.get_logger().warning("pre-flight off (preflight: false): robot state, robot "
+                                      "mode and collision thresholds not checked")
+
+    def _preflight(self) -> None:
+        """The robot's pre-flight (module doc); InputError names the first problem."""
+        s, prof, press = self.settings, self.profile, self.scene.press
+        if prof.collision is not None:
+            problem = checks.collision_problem(prof.collision.request, press.max_force,
+                                               press.tare_max_offset_n)
+            if problem:
+                raise InputError(str(problem))
+        probe = Probe(self.context, f"{self.get_name()}_preflight")
+        try:
+            if prof.franka_state:
+                topics = [(import_interface(prof.state_type), s.state_topic or prof.state_topic)]
+            else:
+                topics = [(PoseStamped, s.pose_topic or prof.pose_topic),
+                          (WrenchStamped, s.wrench_topic or prof.wrench_topic)]
+            mode = None
+            for mtype, topic in topics:
+                stamps, last = probe.sample(mtype, topic, qos_profile_sensor_data,
+                                            s.preflight_window_s, s.preflight_deadline_s)
+                problem = checks.state_problem(stamps, s.min_state_rate_hz,
+                                               s.preflight_window_s, topic)
+                if problem:
+                    raise InputError(str(problem))
+                self.get_logger().info(f"pre-flight: {topic} at "
+                                       f"{checks.rate_hz(stamps):.0f} Hz")
+                if prof.franka_state:
+                    mode = int(last.robot_mode)
+            if mode is None and prof.mode_topic:
+                mode = self._preflight_mode(probe)
+            problem = checks.mode_problem(mode)
+            if problem:
+                raise InputError(str(problem))
+            if prof.collision is not None:
+                self._preflight_collision(probe)
+            else:
+                self.get_logger().info(f"pre-flight: robot profile {prof.name!r} names no "
+                                       "collision-threshold service (nothing to set)")
+        finally:
+            probe.close()
+
+    def _preflight_mode(self, probe: Probe) -> int | None:
+        """robot_mode from the profile's full state topic; None where its type is missing."""
+        s, prof = self.settings, self.profile
+        try:
+            mtype = import_interface(prof.mode_type)
+        except InputError as exc:
+            self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
+            return None
+        topic = s.mode_topic or prof.mode_topic
+        stamps, last = probe.sample(mtype, topic, 10, 0.0, s.preflight_deadline_s)
+        if last is None:
+            raise InputError(str(checks.Problem(
+                "robot_mode", f"no message on {topic} within preflight_deadline_s "
+                              f"({s.preflight_deadline_s} s)")))
+        return int(last.robot_mode)
+
+    def _preflight_collision(self, probe: Probe) -> None:
+        """Set franka's collision thresholds (the profile's request) through the profile's
+        service; refuse with the command to run where its type is not installed or franka
+        refuses (it takes the call only while no controller claims the arm), unless
+        ``collision_set_by_hand``."""
+        s, col = self.settings, self.profile.collision
+        command = checks.collision_command(col.service, col.type, col.request)
+        if s.collision_set_by_hand:
+            self.get_logger().warning("pre-flight: collision thresholds set by hand "
+                                      f"(collision_set_by_hand; {col.request_file}), not "
+                                      "verified here")
+            return
+        try:
+            ctype = import_interface(col.type)
+        except InputError as exc:
+            raise InputError(str(checks.Problem(
+                "collision", f"the thresholds cannot be set from here ({exc}); set them with "
+                             f"`{command}` and start again with the motion parameter "
+                             "collision_set_by_hand: true"))) from None
+        try:
+            probe.call(ctype, col.service, col.request, "success", s.preflight_deadline_s)
+        except TrialError as exc:
+            raise InputError(str(checks.Problem(
+                "collision", f"{exc}; franka takes the call only while no controller claims "
+                             f"the arm: run `{command}` before the controller is spawned (the "
+                             "bring-up in docs/hardware.md does) and start again with the "
+                             "motion parameter collision_set_by_hand: true"))) from None
+        self.get_logger().info(f"pre-flight: franka collision thresholds set "
+                               f"({col.request_file})")
 
     def _setup_diagnostics(self) -> None:
         """/diagnostics: the arm (robot mode, state rate and age, last press) and the camera
@@ -202,8 +330,16 @@ class MotionNode(TactexNode):
         self.pose_t = self.wrench_t = time.monotonic()
         self.state_meter.tick(self.pose_t)
 
-    def _on_mode(self, msg) -> None:
-        self.robot_mode = int(msg.robot_mode)
+    def _on_mode_raw(self, data: bytes) -> None:
+        """A serialized full state: its robot_mode decoded at most ``mode_rate_hz`` times a
+        second (a reflex is then seen within 1 / mode_rate_hz; the state stopping is seen by
+        the pose and wrench deadlines anyway)."""
+        now = time.monotonic()
+        self._mode_t = now
+        if now < self._mode_next:
+            return
+        self._mode_next = now + 1.0 / self.settings.mode_rate_hz
+        self.topic_mode = int(deserialize_message(data, self._mode_type).robot_mode)
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s
@@ -212,7 +348,9 @@ class MotionNode(TactexNode):
 
     def _robot_fault(self, now: float) -> str:
         """Why the robot cannot be commanded now ("" when it can)."""
-        if self.robot_mode == adapter.FRANKA_MODE_REFLEX:
+        if self.robot_mode == adapter.FRANKA_MODE_REFLEX or (
+                getattr(self, "topic_mode", None) == adapter.FRANKA_MODE_REFLEX and
+                now - self._mode_t <= MODE_HOLD_S):
             return "robot in reflex mode (franka state robot_mode)"
         if not self._fresh(now):
             return ("robot stopped: no robot state within state_timeout_s "
@@ -313,7 +451,7 @@ class MotionNode(TactexNode):
                                                   ctrl.s.capture_deadline_s)
                 pose_xyz = self.position.copy()
                 ctrl.captured(ok, reason, time.monotonic())
-            fb.phase, fb.force_n, fb.attempt = ctrl.phase, float(self.force), attempt
+            fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
             fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
             goal_handle.publish_feedback(fb)
             time.sleep(period)
@@ -322,7 +460,9 @@ class MotionNode(TactexNode):
             return False, out.reason, None
         touch = Touch(header=cap.image.header, platform_id=platform.id, platform_index=index,
                       image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
-                      attempt=attempt, no_contact_image=cap.no_contact)
+                      attempt=attempt, no_contact_image=cap.no_contact,
+                      tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
+                      tare_samples=out.tare.samples)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 

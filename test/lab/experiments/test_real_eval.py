@@ -82,3 +82,4 @@ def test_real_evaluation_end_to_end(octopi_dir, tmp_path):
     assert set(ho["settings"]["r"]["wilcoxon_touches_vs_chosen"]) >= {"p", "mean_difference"}
     assert (out / "accuracy_vs_touches.png").stat().st_size > 0
     assert (out / "pareto.png").stat().st_size > 0
+    assert (out / "accuracy_vs_time.png").stat().st_size > 0

@@ -187,6 +187,27 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
             launch.plan(values)
 
 
+def test_launch_help_defaults_exit_status_and_bag_command() -> None:
+    """The help of options under the preset shows the preset's values (the run's), not the
+    field's own default; a failed node raises (launch then returns 1); rosbag2's topic form
+    per distribution."""
+    from tactex_ros.ros.graph import option_default
+    launch = _launch_module()
+    args = {n: h for n, _, h in launch.arguments()}
+    assert option_default("strategy") == "infogain" and option_default("model") == "descriptor"
+    assert args["strategy"].endswith("('' = the node's default, 'infogain')")
+    assert args["model"].endswith("('' = the node's default, 'descriptor')")
+    assert launch.node_exited("motion", 0) == "tactex node motion exited"
+    for code in (2, 1, -2, None):
+        with pytest.raises(launch.NodeFailed):
+            launch.node_exited("gelsight", code)
+    humble = launch.bag_command("/r/bag", ["/a", "/b"], "humble")
+    jazzy = launch.bag_command("/r/bag", ["/a", "/b"], "jazzy")
+    assert humble == ["ros2", "bag", "record", "-s", "mcap", "-o", "/r/bag", "/a", "/b"]
+    assert jazzy == humble[:7] + ["--topics", "/a", "/b"]
+    assert launch.bag_command("/r/bag", ["/a"], "kilted")[-2:] == ["--topics", "/a"]
+
+
 def test_the_schema_names_every_strategy():
     from tactex_ros.core.config import STRATEGY_NAMES
     from tactex_ros.core.strategies import STRATEGIES

@@ -38,21 +38,53 @@ def test_fit_downweights_dimensions_that_vary_within_a_class(tmp_path):
 
 def test_bad_representation_files_are_refused_by_name(tmp_path):
     with pytest.raises(InputError, match="not found"):
-        rp.load(tmp_path / "missing.pt")
-    (tmp_path / "junk.pt").write_bytes(b"not an archive")
+        rp.load(tmp_path / "missing.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not an npz file")
     with pytest.raises(InputError, match="not loadable"):
-        rp.load(tmp_path / "junk.pt")
-    with (tmp_path / "other.npz").open("wb") as f:
-        np.savez(f, format=np.array("other"))
+        rp.load(tmp_path / "junk.npz")
+    np.savez(tmp_path / "other.npz", format=np.array("other"))
     with pytest.raises(InputError, match="not a tactex-representation"):
         rp.load(tmp_path / "other.npz")
-    with (tmp_path / "small.npz").open("wb") as f:
-        np.savez(f, format=np.array(rp.FORMAT), mean=np.zeros(3), std=np.ones(3),
-                 whiten=np.eye(3))
+    np.savez(tmp_path / "small.npz", format=np.array(rp.FORMAT), mean=np.zeros(3),
+             std=np.ones(3), whiten=np.eye(3))
     with pytest.raises(InputError, match="do not fit"):
         rp.load(tmp_path / "small.npz")
+    rep = rp.fit(_library(np.random.default_rng(0)))
+    rep.temperature = -1.0
+    rp.save(rep, tmp_path / "neg.npz")
+    with pytest.raises(InputError, match="temperature"):
+        rp.load(tmp_path / "neg.npz")
     with pytest.raises(InputError, match="at least 2"):
         rp.fit({"a": np.zeros((3, DIM)), "b": np.zeros((1, DIM))})
+    with pytest.raises(InputError, match="kind"):
+        rp.fit(_library(np.random.default_rng(0)), kind="pca")
+
+
+def test_lda_keeps_the_directions_the_classes_differ_in(tmp_path):
+    """Classes differ only along dims 0..2; the rest is within-class noise. The 3 LDA
+    directions then lie mostly inside dims 0..2, and the file keeps the map and temperature."""
+    rng = np.random.default_rng(3)
+    lib = {}
+    for c in range(10):
+        centre = np.zeros(DIM)
+        centre[:3] = rng.normal(0, 3.0, 3)
+        lib[f"k{c}"] = centre + rng.normal(0, 1.0, (40, DIM))
+    rep = rp.fit(lib, kind="lda", dims=3)
+    assert rep.whiten.shape == (3, DIM) and rep.dims == 3 and rep.kind == "lda"
+    w = rep.whiten / np.linalg.norm(rep.whiten, axis=1, keepdims=True)
+    share = (w[:, :3] ** 2).sum(axis=1)          # of each direction's weight on dims 0..2
+    np.testing.assert_allclose(share, [0.9369, 0.8748, 0.7304], atol=1e-3)
+    x = rng.normal(size=(4, DIM))
+    assert rep.apply(x).shape == (4, 3)
+    rep.temperature, rep.calibration = 0.25, {"trials": 7}
+    back = rp.load(rp.save(rep, tmp_path / "lda.npz"))
+    np.testing.assert_allclose(back.apply(x), rep.apply(x))
+    assert (back.kind, back.temperature, back.calibration) == ("lda", 0.25, {"trials": 7})
+    # more dims than the class means span are clipped to classes - 1
+    assert rp.fit(lib, kind="lda", dims=40).dims == 9
+    # kind none: the identity
+    ident = rp.fit(lib, kind="none")
+    np.testing.assert_allclose(ident.apply(x), x)
 
 
 @pytest.mark.slow
@@ -63,7 +95,8 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
         for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
             (lib / cls / f.name).symlink_to(f)
     out = tmp_path / "rep.npz"
-    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out)]) == 0
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--kind",
+                 "whiten", "--calibration", "off"]) == 0
     assert rp.load(out).presses == 6
     js = tmp_path / "t.json"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--classes",
@@ -72,4 +105,30 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     d = json.loads(js.read_text())
     assert d["model"] == "descriptor" and d["truth"] == "c2"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--representation",
-                 str(tmp_path / "nope.pt")]) == 2
+                 str(tmp_path / "nope.npz")]) == 2
+
+
+@pytest.mark.slow
+def test_prepare_calibrates_the_temperature_with_classes_left_out(octopi_dir, tmp_path):
+    """`tactex prepare --calibration target` on 12 real classes (2 presses each): the file holds
+    a temperature and what the left-out trials measured; a trial uses it."""
+    lib = tmp_path / "lib"
+    classes = sorted(p.name for p in octopi_dir.iterdir() if p.is_dir())[:12]
+    for cls in classes:
+        (lib / cls).mkdir(parents=True)
+        for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
+            (lib / cls / f.name).symlink_to(f)
+    out = tmp_path / "cal.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--calibration",
+                 "target", "--calibration-scenes", "3", "--calibration-budget", "2"]) == 0
+    rep = rp.load(out)
+    assert rep.kind == "whiten" and np.isfinite(rep.temperature) and rep.temperature > 0
+    cal = rep.calibration
+    assert cal["trials"] == 9 and cal["decisions"] == 27 and cal["method"] == "target"
+    assert cal["wrong_stop"]["0.9"] <= 0.03
+    js = tmp_path / "t.json"
+    assert main(["trial", "--source", f"replay:{octopi_dir}", "--classes",
+                 "basket,tissue,wires", "--reference", "tissue", "--seed", "1",
+                 "--representation", str(out), "--json", str(js), "--quiet"]) == 0
+    d = json.loads(js.read_text())
+    assert d["sure"] in (True, False) and 0 < d["confidence"] <= 1

@@ -161,3 +161,41 @@ def test_silent_server_sends_at_most_max_sends() -> None:
 def test_bad_arguments() -> None:
     with pytest.raises(ValueError, match="answer_s"):
         GoalRequest(Client(Server(1.0)), "c1", answer_s=0.0)
+
+
+def test_silence_does_not_count_time_the_caller_was_stopped():
+    from tactex_ros.ros.goal import Silence
+    now = [0.0]
+    s = Silence(clock=lambda: now[0], stall_s=0.5)
+    for _ in range(100):                   # awake, polling every 10 ms, nothing heard: 1 s
+        now[0] += 0.01
+        assert s.tick() == 0.0
+    assert s.silent_s() == pytest.approx(1.0)
+    now[0] += 20.0                         # SIGSTOP for 20 s, then SIGCONT
+    assert s.tick() == pytest.approx(20.0)
+    assert s.silent_s() == pytest.approx(1.0)       # the stall is not the server's silence
+    s.heard()
+    now[0] += 0.3
+    s.tick()
+    assert s.silent_s() == pytest.approx(0.3)
+    for _ in range(1000):                  # a server silent for 10 s while the caller is awake
+        now[0] += 0.01
+        s.tick()
+    assert s.silent_s() == pytest.approx(10.3)
+
+
+def test_result_dropped_during_a_stall_is_asked_for_again() -> None:
+    """The result request's answer is lost (the server forgot the stalled client): asking
+    again gets the ended goal's stored result; the press is used, not made again."""
+    s = Server(duration=3.0)
+    req = GoalRequest(Client(s), "c1", answer_s=2.0, clock=lambda: s.now)
+    while not req.answered():
+        s.tick(0.1)
+    s.waiting.clear()                      # the pending result request dropped
+    for _ in range(100):
+        s.tick(0.1)
+    assert not req.finished()
+    req.ask_again()
+    s.tick(0.0)
+    assert req.finished() and req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid) and len(s.goals) == 1

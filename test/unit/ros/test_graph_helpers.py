@@ -86,6 +86,12 @@ def test_adapter_state_and_markers() -> None:
                            done=False, prediction="", t=1.0, frame_id="base")
     assert st.next_platform == "c3" and list(st.touches) == [1, 2, 1, 1]
     assert st.decision_s == pytest.approx(0.3)
+    assert st.sure is False                      # not done: never sure
+    kw = dict(trial_id="t", strategy="infogain", platform_ids=["c1", "c2", "c3", "c4"],
+              reference_touches=1, prediction="c3", t=1.0, frame_id="base")
+    assert adapter.state_msg(rec, done=True, sure=True, **kw).sure is True
+    assert adapter.state_msg(rec, done=True, sure=False, **kw).sure is False
+    assert adapter.state_msg(rec, done=False, sure=True, **kw).sure is False
     ma = adapter.markers(scene, st, 1.0)
     cubes = [m for m in ma.markers if m.ns == "platforms"]
     assert len(cubes) == 5

@@ -104,6 +104,16 @@ def test_trial_report_is_self_contained_and_says_what_happened(tmp_path: Path) -
     assert out == [d / "report.html"] and (d / "report.html").read_text() == html
 
 
+def test_not_sure_reads_the_engines_outcome_when_the_result_has_it() -> None:
+    from tactex_ros.report import not_sure
+    # the engine's own verdict wins over what the stop reason and belief would suggest
+    assert not_sure({"stop_reason": "rounds", "sure": True}, 0.9, 0.5) is False
+    assert not_sure({"stop_reason": "confident", "sure": False}, 0.9, 0.95) is True
+    # older results without the field: from the stop reason and the belief
+    assert not_sure({"stop_reason": "rounds"}, 0.9, 0.7) is True
+    assert not_sure({"stop_reason": "rounds", "sure": None}, 0.0, 0.7) is False
+
+
 def test_progress_prints_each_press_and_decision_once(tmp_path: Path) -> None:
     d = _record(tmp_path)
     lines: list[tuple[str, str]] = []

@@ -1,0 +1,135 @@
+"""The pre-flight's ROS side: a probe that samples topics and calls services while a node
+configures, whether or not that node already spins in an executor (autostart: not yet; under a
+lifecycle manager: configure runs inside its executor's callback). The probe is a plain node in
+the same context with its own executor, spun in the calling thread; every wait has a deadline.
+What the samples mean is decided in ``robot/preflight.py``."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from ..core.errors import TrialError
+from ..robot.robots import fill_message
+
+SPIN_S = 0.02     # [s] longest single wait of the probe's executor
+
+
+class Stopped(Exception):
+    """The context was shut down (SIGINT, SIGTERM) during the pre-flight."""
+
+
+class Probe:
+    """Samples and service calls for a pre-flight, on a helper node ``name`` in ``context``."""
+
+    def __init__(self, context: Context, name: str) -> None:
+        self.context = context
+        # not renamed by the process's `-r __node:=...` (that names the lifecycle node)
+        self.node = Node(name, context=context, use_global_arguments=False)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+
+    def _spin(self) -> None:
+        if not self.context.ok():
+            raise Stopped()
+        self.executor.spin_once(timeout_sec=SPIN_S)
+
+    def sample(self, msg_type: type, topic: str, qos: Any, window_s: float,
+               deadline_s: float) -> tuple[list[float], Any]:
+        """Arrival times [s, monotonic] of ``topic``'s messages over ``window_s`` after the
+        first one (which must come within ``deadline_s``), and the last message (None if
+        none)."""
+        stamps: list[float] = []
+        last: list[Any] = [None]
+
+        def got(msg: Any) -> None:
+            stamps.append(time.monotonic())
+            last[0] = msg
+        sub = self.node.create_subscription(msg_type, topic, got, qos)
+        try:
+            end = time.monotonic() + deadline_s
+            while not stamps and time.monotonic() < end:
+                self._spin()
+            if stamps:
+                end = stamps[0] + window_s
+                while time.monotonic() < end:
+                    self._spin()
+        finally:
+            self.node.destroy_subscription(sub)
+        return [t for t in stamps if t <= stamps[0] + window_s] if stamps else [], last[0]
+
+    def call(self, srv_type: type, name: str, request: dict[str, Any], ok_field: str,
+             deadline_s: float) -> Any:
+        """Call service ``name`` with ``request``'s fields; the response, or TrialError when
+        the service is not there within ``deadline_s``, does not answer in time, or answers
+        ``ok_field`` false (its ``error`` / ``message`` text named)."""
+        client = self.node.create_client(srv_type, name)
+        try:
+            end = time.monotonic() + deadline_s
+            while not client.service_is_ready():
+                if time.monotonic() > end:
+                    raise TrialError(f"service {name} is not offered (waited {deadline_s} s)")
+                self._spin()
+            fut = client.call_async(fill_message(srv_type.Request(), request, name))
+            while not fut.done():
+                if time.monotonic() > end:
+                    client.remove_pending_request(fut)
+                    raise TrialError(f"service {name} did not answer within {deadline_s} s")
+                self._spin()
+            resp = fut.result()
+            if not getattr(resp, ok_field, False):
+                detail = getattr(resp, "error", "") or getattr(resp, "message", "")
+                raise TrialError(f"service {name} answered {ok_field} = false"
+                                  + (f": {detail}" if detail else ""))
+            return resp
+        finally:
+            self.node.destroy_client(client)
+
+    def close(self) -> None:
+        self.executor.remove_node(self.node)
+        self.executor.shutdown(timeout_sec=0.0)
+        self.node.destroy_node()
+
+
+def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s: float,
+               deadline_s: float, push_n: float, hold_s: float, prompt: Any) -> tuple:
+    """The wrench-sign check: the first message of ``topic`` within ``deadline_s`` [s], then
+    ``baseline_s`` [s] of hands-off samples (raw f_z by ``fz_of(msg)``), then ``prompt()``, then
+    samples until a push is seen (``push_sign``) or ``deadline_s``. Returns (PushReading,
+    hands-off samples, push samples); TrialError when no message comes."""
+    from ..robot.preflight import push_sign
+    fz: list[float] = []
+    times: list[float] = []
+
+    def got(msg: Any) -> None:
+        times.append(time.monotonic())
+        fz.append(float(fz_of(msg)))
+    sub = probe.node.create_subscription(msg_type, topic, got, 10)
+    try:
+        end = time.monotonic() + deadline_s
+        while not fz and time.monotonic() < end:     # the first message (discovery)
+            probe._spin()
+        if not fz:
+            raise TrialError(f"no message on {topic} within {deadline_s} s: is the robot's "
+                             "bring-up running (or the topic name right)?")
+        end = time.monotonic() + baseline_s
+        while time.monotonic() < end:
+            probe._spin()
+        baseline, n0 = list(fz), len(fz)
+        prompt()
+        end = time.monotonic() + deadline_s
+        look = time.monotonic()
+        while time.monotonic() < end:
+            probe._spin()
+            if time.monotonic() >= look:          # evaluated every 0.1 s, not per message
+                look = time.monotonic() + 0.1
+                reading = push_sign(baseline, times[n0:], fz[n0:], push_n, hold_s)
+                if reading.force_sign:
+                    return reading, n0, len(fz) - n0
+        return push_sign(baseline, times[n0:], fz[n0:], push_n, hold_s), n0, len(fz) - n0
+    finally:
+        probe.node.destroy_subscription(sub)

@@ -1,0 +1,240 @@
+"""Pre-flight against real processes: the motion node refuses to start (exit 2, the check
+named) without robot state, with state slower than ``min_state_rate_hz`` (a real mock-arm
+process standing in for the state broadcaster), and with a collision-threshold service it
+cannot call (franka_msgs is not installable here: the refusal carries the `ros2 service call`);
+it starts when the lab says it set them by hand. The probe's service call against real stand-in
+services (another process: ros2_control's order rule). The GelSight node refuses a recording
+that starts in contact (octopi-dev frames, read in place) and starts on one that does not.
+``tactex robot check-wrench`` against a wrench published by a real node: the sign, a wrong
+profile sign and no push."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import pytest
+import yaml
+from geometry_msgs.msg import WrenchStamped
+
+from tactex_ros.core.contact import strongest_contact
+from tactex_ros.core.errors import InputError, TrialError
+from tactex_ros.paths import config_dir
+from tactex_ros.ros.graph import NodeSpec
+from tactex_ros.ros.launcher import Graph, ros_env
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+SCENE = str(config_dir() / "scene_sim.yaml")
+
+
+def _arm(**p) -> NodeSpec:
+    return NodeSpec("mock_arm_node", "mock_arm", {"scene_file": SCENE, **p})
+
+
+def _motion(**p) -> NodeSpec:
+    return NodeSpec("motion_node", "motion", {"scene_file": SCENE, "robot": "sim",
+                                              "preflight_deadline_s": 15.0, **p})
+
+
+def _log(tmp_path: Path, name: str) -> str:
+    return (tmp_path / "logs" / f"{name}.log").read_text(errors="replace")
+
+
+def test_no_robot_state_refuses_the_start(tmp_path: Path, domain_id) -> None:
+    t0 = time.monotonic()
+    with Graph([_motion(preflight_deadline_s=2.0)], tmp_path / "logs", domain_id) as g:
+        assert g.wait("motion", 60.0) == 2
+    assert time.monotonic() - t0 < 60.0
+    assert "pre-flight state:" in _log(tmp_path, "motion")
+
+
+def test_slow_robot_state_refuses_the_start(tmp_path: Path, domain_id) -> None:
+    with Graph([_arm(rate_hz=20.0), _motion(min_state_rate_hz=50.0)], tmp_path / "logs",
+               domain_id) as g:
+        assert g.wait("motion", 90.0) == 2
+        assert g.wait("mock_arm", 0.1) is None          # the stand-in was still publishing
+    assert "pre-flight state_rate:" in _log(tmp_path, "motion")
+
+
+def _collision_profile(tmp_path: Path) -> Path:
+    prof = yaml.safe_load((config_dir() / "robots" / "sim.yaml").read_text())
+    prof["name"] = "sim_with_collision"
+    prof["collision"] = {"service": "/service_server/set_force_torque_collision_behavior",
+                         "type": "franka_msgs/srv/SetForceTorqueCollisionBehavior",
+                         "request_file": "bringup/collision_thresholds.yaml"}
+    out = tmp_path / "sim_with_collision.yaml"
+    out.write_text(yaml.safe_dump(prof))
+    return out
+
+
+def test_collision_thresholds_unsettable_refuse_with_the_command(tmp_path: Path,
+                                                                 domain_id) -> None:
+    try:
+        import franka_msgs  # noqa: F401
+        pytest.skip("franka_msgs is installed: the service would be called")
+    except ImportError:
+        pass
+    prof = str(_collision_profile(tmp_path))
+    with Graph([_arm(), _motion(robot=prof)], tmp_path / "logs", domain_id) as g:
+        assert g.wait("motion", 90.0) == 2
+    log = _log(tmp_path, "motion")
+    assert "pre-flight collision:" in log
+    assert ("ros2 service call /service_server/set_force_torque_collision_behavior "
+            "franka_msgs/srv/SetForceTorqueCollisionBehavior") in log
+
+
+def _active(listener, node: str, deadline_s: float) -> bool:
+    """True once lifecycle node ``node`` reports the active state (its get_state service)."""
+    from lifecycle_msgs.msg import State
+    from lifecycle_msgs.srv import GetState
+    client = listener.node.create_client(GetState, f"/{node}/get_state")
+    end = time.monotonic() + deadline_s
+    try:
+        while time.monotonic() < end:
+            if client.wait_for_service(timeout_sec=1.0):
+                fut = client.call_async(GetState.Request())
+                while not fut.done() and time.monotonic() < end:
+                    time.sleep(0.05)
+                if fut.done() and fut.result().current_state.id == State.PRIMARY_STATE_ACTIVE:
+                    return True
+            time.sleep(0.2)
+        return False
+    finally:
+        listener.node.destroy_client(client)
+
+
+def test_collision_thresholds_set_by_hand_let_the_start_go_on(tmp_path: Path,
+                                                              listener) -> None:
+    prof = str(_collision_profile(tmp_path))
+    with Graph([_arm(), _motion(robot=prof, collision_set_by_hand=True)], tmp_path / "logs",
+               listener.domain_id) as g:
+        assert _active(listener, "motion", 90.0)
+        assert g.wait("motion", 0.1) is None
+
+
+def test_collision_thresholds_below_the_press_refuse(tmp_path: Path, domain_id) -> None:
+    """The profile's request (upper force 25 N) against a scene whose max_force 22 N plus the
+    tare's largest offset 5 N exceeds it: refused before any state is read."""
+    scene = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
+    scene["press"]["max_force"] = 22.0
+    path = tmp_path / "scene.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    prof = str(_collision_profile(tmp_path))
+    with Graph([_motion(robot=prof, scene_file=str(path), collision_set_by_hand=True)],
+               tmp_path / "logs", domain_id) as g:
+        assert g.wait("motion", 60.0) == 2
+    assert "pre-flight collision:" in _log(tmp_path, "motion")
+
+
+def test_probe_calls_stand_in_services(tmp_path: Path, listener) -> None:
+    """The pre-flight's service call against real stand-in servers in another process
+    (std_srvs SetBool; the controller refuses before the hardware is active, as
+    ros2_control does)."""
+    from std_srvs.srv import SetBool
+
+    from tactex_ros.ros.preflight import Probe
+    with Graph([_arm(recovery_standin="service")], tmp_path / "logs", listener.domain_id):
+        probe = Probe(listener.ctx, "test_probe")
+        try:
+            assert probe.call(SetBool, "/tactex_test/set_hardware_active", {"data": False},
+                              "success", 90.0).success      # the stand-in's start-up
+            with pytest.raises(TrialError, match="success = false"):
+                probe.call(SetBool, "/tactex_test/activate_controller", {"data": True},
+                           "success", 5.0)
+            assert probe.call(SetBool, "/tactex_test/set_hardware_active", {"data": True},
+                              "success", 5.0).success
+            assert probe.call(SetBool, "/tactex_test/activate_controller", {"data": True},
+                              "success", 5.0).success
+            t0 = time.monotonic()
+            with pytest.raises(TrialError, match="not offered"):
+                probe.call(SetBool, "/tactex_test/nothing_here", {"data": True}, "success",
+                           1.0)
+            assert 1.0 <= time.monotonic() - t0 < 15.0     # the deadline, not a hang
+            with pytest.raises(InputError, match="no field"):
+                probe.call(SetBool, "/tactex_test/set_hardware_active",
+                           {"lower_force_thresholds_nominal": [1.0]}, "success", 5.0)
+        finally:
+            probe.close()
+
+
+def _frames_folder(folder: Path, frames) -> Path:
+    folder.mkdir()
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"frame_{i}.png"), f[:, :, ::-1])
+    return folder
+
+
+@pytest.mark.parametrize("start", ["contact", "no_contact"])
+def test_gelsight_refuses_a_start_in_contact(octopi_press, tmp_path: Path, listener,
+                                             start: str) -> None:
+    frames = octopi_press("steel_wool", 1)
+    i, _ = strongest_contact(frames)
+    chosen = frames[i - 3:i + 3] if start == "contact" else frames[:6]
+    rec = _frames_folder(tmp_path / "rec", chosen)
+    node = NodeSpec("gelsight_node", "gelsight", {"device": str(rec), "fps": 20.0,
+                                                  "warmup_frames": 0, "reference_frames": 5,
+                                                  "crop_fraction": 0.0})
+    with Graph([node], tmp_path / "logs", listener.domain_id) as g:
+        if start == "contact":
+            assert g.wait("gelsight", 60.0) == 2
+            assert "pre-flight contact:" in _log(tmp_path, "gelsight")
+        else:
+            assert _active(listener, "gelsight", 60.0)
+
+
+def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[int, str]:
+    """Run `tactex robot check-wrench` (sim profile, +1) against a wrench published at 200 Hz
+    by the test's node: 0.4 N until the command prompts, then ``push_fz`` (None: no push)."""
+    topic = "/check_wrench_test/wrench"
+    pub = listener.node.create_publisher(WrenchStamped, topic, 10)
+    value = [0.4]
+    stop = threading.Event()
+
+    def publish() -> None:
+        while not stop.is_set():
+            m = WrenchStamped()
+            m.wrench.force.z = value[0]
+            pub.publish(m)
+            time.sleep(0.005)
+    th = threading.Thread(target=publish, daemon=True)
+    th.start()
+    cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
+           "sys.exit(main())", "robot", "check-wrench", "--robot",
+           "sim", "--topic", topic, "--baseline-s", "1.0", "--deadline-s", "8.0"] + extra
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=ros_env(listener.domain_id))
+    seen = []
+    try:
+        for line in proc.stderr:
+            seen.append(line)
+            if line.startswith("now push"):
+                if push_fz is not None:
+                    value[0] = push_fz
+                break
+        out, err = proc.communicate(timeout=60)
+        assert out.strip().startswith("{"), f"no result; stderr: {''.join(seen)}{err}"
+    finally:
+        stop.set()
+        th.join(timeout=2.0)
+        if proc.poll() is None:
+            proc.kill()
+    return proc.returncode, out
+
+
+def test_check_wrench_reports_the_sign(listener) -> None:
+    import json
+    code, out = _check_wrench(listener, 8.4, [])
+    res = json.loads(out)
+    assert code == 0 and res["measured_force_sign"] == 1 and res["profile_force_sign"] == 1
+    assert res["push_delta_fz_n"] == pytest.approx(8.0, abs=0.01)
+    assert res["baseline_fz_n"] == pytest.approx(0.4, abs=0.01)
+    code, out = _check_wrench(listener, -7.6, [])           # the other convention
+    assert code == 1 and json.loads(out)["measured_force_sign"] == -1
+    code, out = _check_wrench(listener, -7.6, ["--force-sign", "-1"])
+    assert code == 0
+    code, out = _check_wrench(listener, None, [])            # nobody pushed
+    assert code == 1 and json.loads(out)["measured_force_sign"] == 0

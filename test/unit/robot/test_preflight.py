@@ -1,0 +1,94 @@
+"""Pre-flight decisions (pure): the no-contact frame on recorded octopi-dev presses (no-contact
+frames pass; contact, blank and saturated frames are refused), the camera and state rates,
+franka's robot mode, the collision thresholds and their request, the hand-push wrench sign."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactex_ros.core.contact import strongest_contact
+from tactex_ros.robot import preflight as pf
+from tactex_ros.robot.scene import PressSettings
+
+LIMITS = pf.FrameLimits(min_std=5.0, max_saturated=0.02, max_texture=0.8, max_change=0.8)
+MATERIALS = ("hairbrush_bristles", "steel_wool", "wires", "masking_tape", "aluminium_foil",
+             "tissue", "cotton_ball", "sponge")
+
+
+@pytest.mark.parametrize("material", MATERIALS)
+def test_recorded_no_contact_frames_pass(octopi_press, material: str) -> None:
+    frames = octopi_press(material, 1)
+    assert pf.frame_problem(list(frames[:5]), LIMITS) is None
+
+
+@pytest.mark.parametrize("material", ["hairbrush_bristles", "steel_wool", "wires",
+                                      "masking_tape", "aluminium_foil", "tissue"])
+def test_recorded_contact_is_refused(octopi_press, material: str) -> None:
+    """Frames around the strongest contact of a recorded press, as if the sensor started in
+    contact: refused (textured materials by their texture)."""
+    frames = octopi_press(material, 1)
+    i, _ = strongest_contact(frames)
+    problem = pf.frame_problem(list(frames[i - 2:i + 3]), LIMITS)
+    assert problem is not None and problem.check in ("contact", "unsteady")
+    if material in ("hairbrush_bristles", "steel_wool", "wires"):
+        assert problem.check == "contact"
+
+
+def test_blank_and_saturated_frames_are_refused(octopi_press) -> None:
+    nc = octopi_press("tissue", 1)[:5]
+    dark = [(f // 40).astype(np.uint8) for f in nc]          # LED off: a few grey levels
+    assert pf.frame_problem(dark, LIMITS).check == "blank"
+    black = [np.zeros_like(nc[0])] * 3
+    assert pf.frame_problem(black, LIMITS).check == "blank"
+    bright = [np.clip(f.astype(int) * 3, 0, 255).astype(np.uint8) for f in nc]
+    assert pf.frame_problem(bright, LIMITS).check == "saturated"
+    assert pf.frame_problem([], LIMITS).check == "no_frame"
+
+
+def test_rates() -> None:
+    t = list(np.arange(0, 1.0, 0.01))          # 100 Hz
+    assert pf.rate_hz(t) == pytest.approx(100.0)
+    assert pf.rate_hz([]) == 0.0 and pf.rate_hz([1.0]) == 0.0
+    assert pf.state_problem(t, 50.0, 1.0, "/s") is None
+    assert pf.state_problem(t, 200.0, 1.0, "/s").check == "state_rate"
+    assert pf.state_problem([], 50.0, 1.0, "/s").check == "state"
+    assert pf.fps_problem(list(np.arange(25) / 25.0), 25.0, 0.8) is None
+    assert pf.fps_problem(list(np.arange(25) / 15.0), 25.0, 0.8).check == "fps"
+
+
+def test_robot_mode() -> None:
+    assert pf.mode_problem(None) is None and pf.mode_problem(pf.ROBOT_MODE_MOVE) is None
+    for mode in (0, 1, 3, 4, 5, 6, 9):
+        assert pf.mode_problem(mode).check == "robot_mode"
+
+
+def test_collision_request_fits_the_press() -> None:
+    """The shipped request (config/bringup/collision_thresholds.yaml, upper force 25 N)
+    against the press; the command carries every field."""
+    from tactex_ros.robot.robots import load_profile
+    col = load_profile("fr3_crisp").collision
+    press = PressSettings()
+    assert pf.collision_problem(col.request, 12.0, press.tare_max_offset_n) is None
+    assert pf.collision_problem(col.request, 22.0, 5.0).check == "collision"      # 27 > 25
+    bad = dict(col.request, lower_force_thresholds_nominal=[40.0] * 6)
+    assert pf.collision_problem(bad, 12.0, 5.0).check == "collision"
+    assert pf.collision_problem({}, 12.0, 5.0).check == "collision"
+    cmd = pf.collision_command(col.service, col.type, col.request)
+    assert cmd.startswith("ros2 service call /service_server/set_force_torque_collision_"
+                          "behavior franka_msgs/srv/SetForceTorqueCollisionBehavior ")
+    assert "upper_force_thresholds_nominal: [25, 25, 25, 35, 35, 35]" in cmd
+    assert "lower_torque_thresholds_nominal: [25, 25, 22, 20, 19, 17, 14]" in cmd
+
+
+def test_push_sign() -> None:
+    rng = np.random.default_rng(0)
+    base = list(0.7 + 0.1 * rng.standard_normal(100))
+    t = np.arange(0, 2.0, 0.01)
+    up = np.where(t > 0.5, -8.0, 0.7) + 0.1 * rng.standard_normal(len(t))   # reads -z
+    r = pf.push_sign(base, t, up, push_n=5.0, hold_s=0.2)
+    assert r.force_sign == -1 and r.delta_n == pytest.approx(-8.7, abs=0.2)
+    assert pf.push_sign(base, t, -up + 1.4, 5.0, 0.2).force_sign == 1
+    blip = np.where((t > 0.5) & (t < 0.6), 9.0, 0.7)                       # too short
+    assert pf.push_sign(base, t, blip, 5.0, 0.2).force_sign == 0
+    assert pf.push_sign(base, t, np.full(len(t), 0.7), 5.0, 0.2).force_sign == 0
