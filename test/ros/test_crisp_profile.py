@@ -25,7 +25,8 @@ def _nodes(tmp_path: Path, **press):
         data["press"].update(press)
         scene = tmp_path / "scene.yaml"
         scene.write_text(yaml.safe_dump(data))
-    nodes = describe(True, scene, robot="fr3_crisp")
+    # the mock arm offers no franka collision service: the lab's by-hand path (docs/hardware.md)
+    nodes = describe(True, scene, robot="fr3_crisp", motion={"collision_set_by_hand": True})
     return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
 
 
