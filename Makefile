@@ -26,7 +26,7 @@ demo: $(BUILD_STAMP)
 	bash scripts/demo.sh
 
 test: $(BUILD_STAMP)
-	$(PY) -m pytest -q -ra test
+	$(PY) -m pytest -q -ra -n 2 --dist loadfile test
 
 test-fast: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra -m "not slow and not ros and not lab" test/unit

@@ -10,7 +10,20 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-_domains = itertools.count(100 + os.getpid() % 50 * 2)
+
+
+def _domain_ids() -> "itertools.cycle[int]":
+    """DDS domains of this test process: 1..159 shared out among pytest-xdist workers (each its
+    own block, so parallel workers never share a graph; 160..199 are the session module's);
+    cycled, so a long run stays within Fast DDS's valid ids (<= 232)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    index = int(worker[2:]) if worker[2:].isdigit() else 0
+    count = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    size = 159 // count
+    return itertools.cycle(range(1 + index * size, 1 + (index + 1) * size))
+
+
+_domains = _domain_ids()
 
 
 class Listener:
