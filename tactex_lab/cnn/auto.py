@@ -1,4 +1,4 @@
-"""Model ``auto``: a wrapper learner that starts on the cheapest CNN and moves up a ladder.
+"""Model ``cnn_auto``: a wrapper learner that starts on the cheapest CNN and moves up a ladder.
 
 The trial starts on the first stage of ``LearnerConfig.auto_ladder`` (by default
 ``small_inception`` at 48 px, then 96 px) and moves one stage up only on evidence from the trial

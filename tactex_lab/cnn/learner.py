@@ -63,8 +63,8 @@ class OnlineLearner:
         self.num_classes = num_classes
         self.seed = int(seed)
         name = model_name or cfg.model
-        if name == "auto":
-            raise InputError("model 'auto' is resolved by the trial engine, not the learner")
+        if name in ("auto", "cnn_auto"):
+            raise InputError(f"model {name!r} is a wrapper of learners, not one learner")
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
         with torch.random.fork_rng(devices=[]):

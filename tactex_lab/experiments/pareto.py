@@ -4,7 +4,7 @@ Parts (each can be switched off; all write into one results folder):
 
 - **grid**: every setting of ``--grid`` (one factor at a time around the default: input size,
   training steps per round, Monte-Carlo passes, batch-norm recalibration, model variant, model
-  ``auto``, and combinations) runs the trials of ``--trials-file`` on ``--source`` for every
+  ``cnn_auto``, and combinations) runs the trials of ``--trials-file`` on ``--source`` for every
   seed with the ``--strategy`` (variance), ``--rounds`` decisions after the baseline. Per setting:
   the median decision time per round (train + score + choose, one torch thread per worker
   process) and the trial accuracy at ``--budget`` total touches (the decision a run capped at that
@@ -70,7 +70,7 @@ GRIDS: dict[str, list[tuple[str, str, dict, bool]]] = {
         # (48 px + 8 steps is the current "default" preset: not listed twice)
         ("32px+steps24", "cnn", _b(input_size=32, steps=24), False),
         ("32px+steps12+bs16", "cnn", _b(input_size=32, batch_size=16), False),
-        ("auto", "cnn", _b(model="auto"), False),
+        ("auto", "cnn", _b(model="cnn_auto"), False),
         ("inception_v3_random@80", "cnn", _b(model="inception_v3_random", input_size=80),
          True),
         ("seed_faithful", "seed_faithful", {}, True),
@@ -79,7 +79,7 @@ GRIDS: dict[str, list[tuple[str, str, dict, bool]]] = {
         ("default", "cnn", {}, False),
         ("32px", "cnn", _b(input_size=32), False),
         ("steps4", "cnn", _b(steps=4), False),
-        ("auto", "cnn", _b(model="auto"), False),
+        ("auto", "cnn", _b(model="cnn_auto"), False),
     ],
 }
 THESIS_LABEL = "seed_faithful"
@@ -94,7 +94,7 @@ def job_key(job: TrialJob) -> str:
 
     from tactex_ros.core.config import preset
     cfg = preset(job.preset, **job.overrides).model_dump()
-    if cfg["model"] != "auto":      # the auto_* fields do not change a fixed model's run
+    if cfg["model"] != "cnn_auto":      # the auto_* fields do not change a fixed model's run
         cfg = {k: v for k, v in cfg.items() if not k.startswith("auto_")}
     d = dataclasses.asdict(job)
     d.pop("tags")

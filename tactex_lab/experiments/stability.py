@@ -14,7 +14,7 @@ Axes (each swept from easy to hard; the others held at the base condition q = ``
 - ``lr``: learning rate (training that diverges).
 
 Every strategy of ``--strategies`` runs every condition with the default model; ``--models``
-(default: ``auto`` and ``top``, the largest stage of the auto ladder) run with the variance
+(default: ``auto`` (model ``cnn_auto``) and ``top``, the largest stage of its ladder) run with the variance
 strategy on the difficulty axis and the base condition, to show the compute ``auto`` saves.
 Conditions listed in ``GUARDED`` run a second time with ``guards=False`` (before/after).
 
@@ -135,7 +135,7 @@ def acc_block(runs: list[dict]) -> dict:
 # ------------------------------------------------------------------------------ command
 def build_jobs(args) -> list[TrialJob]:
     jobs = []
-    models = {"default": {}, "auto": {"model": "auto"}, "top": {}}
+    models = {"default": {}, "auto": {"model": "cnn_auto"}, "top": {}}
     from tactex_ros.core.config import preset
     from tactex_lab.cnn.auto import parse_ladder
     d = preset("cnn", **args.overrides)
@@ -211,7 +211,7 @@ def _guards_before_after(runs: list[dict], axes: dict, strategies: list[str]) ->
 def _auto_vs_top(runs: list[dict], top_model: dict) -> dict:
     """Model ``auto`` against the largest ladder stage on the difficulty axis, paired by
     (difficulty, seed): accuracy, decision CPU, escalations."""
-    a_runs = _select(runs, axis="difficulty", strategy="variance", model="auto", guards=True)
+    a_runs = _select(runs, axis="difficulty", strategy="variance", model="cnn_auto", guards=True)
     t_runs = _select(runs, axis="difficulty", strategy="variance", model="top", guards=True)
     key = lambda r: (r["value"], r["seed"])  # noqa: E731
     ta = {key(r): r for r in t_runs}

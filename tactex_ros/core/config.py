@@ -215,7 +215,7 @@ CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
 # the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
 # that the schema, and with it `tactex trial --help`, imports no numpy
 STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
-ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
+ModelName = Literal[("descriptor",) + CNN_MODELS + ("cnn_auto", "auto")]
 
 
 class LearnerConfig(Schema):
@@ -224,7 +224,10 @@ class LearnerConfig(Schema):
 
     model: ModelName = param("descriptor",
                              "model: 'descriptor' (texture descriptor + Gaussian match belief, "
-                             "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
+                             "no training), a CNN variant, 'auto' (a ladder: descriptor, then "
+                             "the prepared representation, then a CNN, climbed only on the "
+                             "trial's evidence, core/ladder.py) or 'cnn_auto' (escalating CNN "
+                             "chooser)")
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
     sensor_crops: bool = param(False, "views are input_size px crops of the frame at sensor "
@@ -280,25 +283,48 @@ class LearnerConfig(Schema):
                                     "touches (measured: it restores accuracy under drift in "
                                     "simulation, and cost 2 of 24 replayed octopi-dev scenes, "
                                     "docs/speed_stability.md)")
-    # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto"). The first
+    # model 'cnn_auto': start cheap, escalate on evidence (tactex_lab/cnn/auto.py). The first
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
-    # (docs/speed_stability.md), and a 32 px start made auto 9 points worse than the default.
+    # (docs/speed_stability.md), and a 32 px start made it 9 points worse than the default.
     auto_ladder: str = param("small_inception@48,small_inception@96",
-                             "model 'auto': stages cheapest first, 'model@input_px' separated by "
+                             "model 'cnn_auto': stages cheapest first, 'model@input_px' separated by "
                              "commas ('model' alone = input_size)")
-    auto_patience: int = param(2, "model 'auto': rounds on a stage before the entropy test",
+    auto_patience: int = param(2, "model 'cnn_auto': rounds on a stage before the entropy test",
                                1, 1000)
-    auto_min_drop: float = param(0.7, "model 'auto': escalate when predictive entropy fell by "
+    auto_min_drop: float = param(0.7, "model 'cnn_auto': escalate when predictive entropy fell by "
                                       "less than this fraction over the last auto_patience rounds",
                                  0.0, 1.0)
-    auto_entropy: float = param(0.2, "model 'auto': ... and is still above this fraction of "
+    auto_entropy: float = param(0.2, "model 'cnn_auto': ... and is still above this fraction of "
                                      "log(C)", 0.0, 1.0)
-    auto_window: int = param(3, "model 'auto': held-back touches judged together", 1, 1000)
-    auto_heldout_acc: float = param(0.5, "model 'auto': escalate when fewer than this share of "
+    auto_window: int = param(3, "model 'cnn_auto': held-back touches judged together", 1, 1000)
+    auto_heldout_acc: float = param(0.5, "model 'cnn_auto': escalate when fewer than this share of "
                                          "the last auto_window touches were classified right "
                                          "before being trained on", 0.0, 1.0)
-    auto_catchup: int = param(3, "model 'auto': extra training rounds given at once to an "
+    auto_catchup: int = param(3, "model 'cnn_auto': extra training rounds given at once to an "
                                  "escalated model (at most the rounds trained so far)", 0, 100)
+
+    # model 'auto': the ladder of core/ladder.py (docs/unseen_materials.md, "A ladder of models")
+    ladder: str = param("descriptor,representation,cnn",
+                        "model 'auto': rungs cheapest first, separated by commas: 'descriptor', "
+                        "'representation' (skipped without a representation file) or a preset "
+                        "with a trained model ('cnn'), optionally '@px'")
+    ladder_patience: int = param(2, "model 'auto': decisions on a rung before its evidence is "
+                                    "tested; the belief-sharpening test spans this many",
+                                 1, 1000)
+    ladder_min_gain: float = param(0.1, "model 'auto': climb when the leading belief rose by "
+                                        "less than this over ladder_patience decisions ...",
+                                   0.0, 1.0)
+    ladder_sure: float = param(0.9, "model 'auto': ... while it is below this", 0.0, 1.0)
+    ladder_margin: float = param(0.1, "model 'auto': climb when the best two beliefs differ by "
+                                      "less than this (and the leader is below ladder_sure)",
+                                 0.0, 1.0)
+    ladder_window: int = param(3, "model 'auto': held-back touches judged together", 1, 1000)
+    ladder_heldout_acc: float = param(0.5, "model 'auto': climb when fewer than this share of "
+                                           "the last ladder_window comparison touches were "
+                                           "classified right before being stored", 0.0, 1.0)
+    ladder_catchup: int = param(3, "model 'auto': training rounds given at once to a trained "
+                                   "rung when it is reached (at most the decisions so far)",
+                                0, 100)
 
     # model 'descriptor' (core/texture.py, core/match.py); chosen on real presses
     # (docs/real_presses.md)
@@ -331,9 +357,9 @@ class LearnerConfig(Schema):
 
     @model_validator(mode="after")
     def _representation_needs_descriptor(self) -> "LearnerConfig":
-        if self.representation and self.model != "descriptor":
-            raise ValueError(f"representation {self.representation!r} is used only by model "
-                             f"'descriptor', not {self.model!r} (it would be ignored)")
+        if self.representation and self.model not in ("descriptor", "auto"):
+            raise ValueError(f"representation {self.representation!r} is used only by models "
+                             f"'descriptor' and 'auto', not {self.model!r} (it would be ignored)")
         return self
 
 

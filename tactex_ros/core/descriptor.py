@@ -33,6 +33,16 @@ def _load_representation(path: str) -> Representation:
     return _REPRESENTATIONS[path]
 
 
+def raw_descriptor(touch: Touch, cfg: LearnerConfig) -> np.ndarray:
+    """(DIM,) the texture descriptor of ``touch`` as ``cfg`` describes it (``descriptor_frames``,
+    ``descriptor_no_contact``), before any representation; the touch's own when it has one."""
+    if touch.descriptor is not None:
+        return np.asarray(touch.descriptor, dtype=np.float64)
+    if not cfg.descriptor_no_contact:
+        touch = Touch(touch.frame, None, touch.extra)
+    return describe_touch(touch, cfg.descriptor_frames)
+
+
 class DescriptorLearner:
     """Descriptors + match belief for one trial over ``num_classes`` comparison platforms."""
 
@@ -52,12 +62,7 @@ class DescriptorLearner:
         self._heldout: np.ndarray | None = None
 
     def _describe(self, touch: Touch) -> np.ndarray:
-        if touch.descriptor is not None:
-            x = np.asarray(touch.descriptor, dtype=np.float64)
-        else:
-            if not self.cfg.descriptor_no_contact:
-                touch = Touch(touch.frame, None, touch.extra)
-            x = describe_touch(touch, self.cfg.descriptor_frames)
+        x = raw_descriptor(touch, self.cfg)
         return x if self.representation is None else self.representation.apply(x)
 
     def add_touch(self, touch: Touch, label: int) -> np.ndarray:

@@ -22,9 +22,11 @@ the strategy's per-platform scores, the choice of the next platform (or none). A
 prediction; the stop rule ends earlier when the belief in one platform reaches
 ``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
 
-Model ``auto`` (``LearnerConfig.auto_*``) is a wrapper learner of the lab (``tactex_lab/cnn/auto.py``):
-it moves up its ladder of CNNs on evidence from the trial itself; the round records the model and
-input size it used (``RoundRecord.model``, ``input_size``) and why it escalated (``escalation``).
+Model ``auto`` (``LearnerConfig.ladder*``, ``core/ladder.py``) climbs a ladder (descriptor, the
+prepared representation, a CNN plug-in) on evidence from the trial itself; ``cnn_auto``
+(``LearnerConfig.auto_*``, the lab's ``tactex_lab/cnn/auto.py``) does the same over CNN sizes. The
+round records the model and input size it used (``RoundRecord.model``, ``input_size``) and why
+it escalated (``escalation``); ``TrialOutcome.notes`` says which rungs were skipped.
 
 Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
 ``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
@@ -97,7 +99,8 @@ class RoundRecord:
     touches: list[int]            # touches per comparison platform when deciding
     model: str
     input_size: int = 0           # model input side [px] used this round
-    escalation: str | None = None  # model 'auto': why the model was escalated before this round
+    escalation: str | None = None  # model 'auto' / 'cnn_auto': why the model climbed before
+    #                               this round
     heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
     #                               right before being trained on (empty before round 1)
     degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
@@ -128,6 +131,7 @@ class TrialOutcome:
     sure: bool | None = None      # the belief reached stop_confidence (False: the trial ended
     #                               unsure, ``prediction`` is only the best guess; None: no stop
     #                               rule, nothing to be sure against)
+    notes: list[str] = field(default_factory=list)  # model 'auto': ladder rungs skipped, why
 
     @property
     def confidence(self) -> float:
@@ -158,6 +162,7 @@ class TrialOutcome:
             "sure": self.sure, "confidence": self.confidence,
             "reference_touches": self.reference_touches,
             "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
+            "notes": list(self.notes),
             "escalations": [{"round": r.round, "reason": r.escalation,
                              "model": f"{r.model}@{r.input_size}"}
                             for r in self.rounds + [self.final] if r.escalation],
@@ -182,7 +187,8 @@ class TrialEngine:
         if len(self.platform_ids) != n_comparisons + 1:
             raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
                              f"got {len(self.platform_ids)}")
-        if self.strategy.includes_reference and self.learner_cfg.model != "descriptor":
+        if self.strategy.includes_reference and self.learner_cfg.model not in ("descriptor",
+                                                                                "auto"):
             raise InputError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
                              "another strategy, e.g. variance")
@@ -320,7 +326,8 @@ class TrialEngine:
                            rounds=list(self.records), final=self.final,
                            failed_touches=list(self.failed), platform_ids=self.platform_ids,
                            stop_reason=self.stop_reason,
-                           reference_touches=self.reference_touches, sure=self.sure)
+                           reference_touches=self.reference_touches, sure=self.sure,
+                           notes=list(getattr(self.learner, "notes", [])))
 
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,

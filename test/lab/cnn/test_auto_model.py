@@ -40,7 +40,7 @@ def test_parse_ladder_checks_names_and_sizes():
 
 def test_auto_escalates_on_evidence_and_keeps_touches():
     # thresholds that any trial meets: entropy "not falling" after 1 round
-    cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
+    cfg = preset("cnn", model="cnn_auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_patience=1, auto_min_drop=1.0, auto_entropy=0.0, auto_catchup=1,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=4), seed=1)
@@ -59,7 +59,7 @@ def test_auto_escalates_on_evidence_and_keeps_touches():
 
 
 def test_auto_stays_cheap_without_evidence():
-    cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
+    cfg = preset("cnn", model="cnn_auto", auto_ladder="small_inception@32,small_inception@40",
                  auto_heldout_acc=0.0, auto_entropy=1.0,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     res = TrialEngine(3, cfg, trial_preset("cnn", rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)

@@ -43,7 +43,7 @@ def test_presets_keep_their_values() -> None:
     ({"input_size": 8}, "LearnerConfig: input_size: Input should be greater than or equal to 32 "
                         "(got 8)"),
     ({"model": "vgg"}, "LearnerConfig: model: Input should be 'descriptor', 'small_inception', "
-                       "'inception_v3', 'inception_v3_random' or 'auto' (got 'vgg')"),
+                       "'inception_v3', 'inception_v3_random', 'cnn_auto' or 'auto' (got 'vgg')"),
     ({"epochs": True}, "LearnerConfig: epochs: Input should be a valid integer (got True)"),
     ({"lr": "0.1"}, "LearnerConfig: lr: Input should be a valid number (got '0.1')"),
     ({"epochs": 2.0}, "LearnerConfig: epochs: Input should be a valid integer (got 2.0)"),

@@ -1,0 +1,236 @@
+"""``tactex experiment ladder``: model ``auto`` (the ladder) against its rungs alone, on the same
+real scenes.
+
+Scenes: ``--scenes`` seeded 1 + C scenes of the test folder's classes (``experiment real``'s
+``draw_scenes``); every setting runs every scene with the same seed (paired), without a stop rule
+up to ``--budget`` touches after the baseline, and the belief after every decision is kept
+(``experiment real``'s ``curve``), so every stop threshold of ``--thresholds`` is exact.
+Class-disjoint: the representation file (``--representation``) must be prepared on another
+library (e.g. octopi-objects when testing on octopi-dev); the CNN learns only within the trial.
+
+Touches: the test presses' descriptors come from ``experiment unseen``'s cache (``--cache-dir``,
+built once, never in the repository); a setting whose learner may need frames (a CNN, or the
+ladder with a CNN rung) also gets the press's real frames (``ReplaySource.touch``). CPU seconds
+per trial: the process time of the learner and engine (storing touches and deciding), without
+reading the press files, up to each decision (``cpu`` in the curves), so the CPU at a stop
+threshold is exact too.
+
+Output: ``experiment real``'s (runs.json, summary.json, charts), plus per setting the CPU per
+trial at every threshold, the share of scenes that climbed each rung, and why (``ladder``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tactex_ros.core.calibration import PLACEHOLDER_FRAME
+from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset, trial_preset
+from tactex_ros.core.errors import InputError
+from tactex_ros.core.touch import Touch
+from tactex_lab.analysis.stats import wilcoxon_paired
+from tactex_lab.experiments import real
+from tactex_lab.experiments.common import results_dir
+
+THRESHOLDS = (0.8, 0.9, 0.95, 1.01)
+
+
+def default_settings(rep: str) -> list[str]:
+    """Always-cheapest, always-prepared, always-CNN and the ladder (``parse_setting`` form)."""
+    return ["descriptor=default", f"representation=default:representation={rep}",
+            "cnn=cnn", f"auto=default:model=auto,representation={rep}"]
+
+
+class CachedPresses:
+    """A ReplaySource look-alike over the cache's presses: each touch carries its cached
+    descriptor, and with ``frames`` its real frames (read from the press file) instead of a
+    placeholder."""
+
+    one_session = False
+
+    def __init__(self, cache: dict[str, np.ndarray], frames: bool) -> None:
+        from tactex_ros.sources.replay import ReplaySource  # noqa: F401 (load_touch's module)
+        self.x = cache["f0"]
+        self.paths = cache["path"]
+        self.frames = frames
+        cls = cache["cls"]
+        self.rows = {c: list(np.flatnonzero(cls == c)) for c in set(cls.tolist())}
+        self.load_s = 0.0          # process time spent reading press files
+
+    def check_class(self, c: str) -> None:
+        if c not in self.rows:
+            raise InputError(f"class {c!r} not in the cache")
+
+    def presses(self, c: str) -> list[int]:
+        return self.rows[c]
+
+    def touch(self, row: int) -> Touch:
+        if not self.frames:
+            return Touch(PLACEHOLDER_FRAME, None, None, self.x[row])
+        from tactex_ros.sources.replay import load_touch
+        t0 = time.process_time()
+        t = load_touch(str(self.paths[row]))[0]
+        self.load_s += time.process_time() - t0
+        return Touch(t.frame, t.no_contact, t.extra, self.x[row])
+
+
+def needs_frames(cfg) -> bool:
+    """Whether a learner of ``cfg`` may look at frames (not only descriptors)."""
+    if cfg.model == "descriptor":
+        return False
+    if cfg.model == "auto":
+        from tactex_ros.core.ladder import DESCRIPTOR_RUNGS, parse_rungs
+        return any(r not in DESCRIPTOR_RUNGS for r in parse_rungs(cfg.ladder))
+    return True
+
+
+def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], seed: int,
+              budget: int) -> dict:
+    """One scene under one ``parse_setting`` tuple: the belief curve (``real.curve``) plus
+    ``cpu`` (cumulative learner CPU seconds at each decision), ``escalations`` and ``notes``."""
+    from tactex_ros.core.engine import TrialSpec, run_trial
+    from tactex_ros.sources.replay import ReplayTrial
+    label, pre, strategy, over = setting
+    cfg = preset(pre, **{"guards": False, **over})
+    tcfg = trial_preset(pre, strategy=strategy, rounds=budget, stop_confidence=0.0)
+    src = CachedPresses(cache, needs_frames(cfg))
+    truth = plat[1:].index(plat[0]) + 1
+    spec = TrialSpec(len(plat) - 1, cfg, TrialConfig.check(tcfg.model_dump(), "trial"),
+                     seed=seed)
+    cpu: list[float] = []
+    t0 = time.process_time()
+
+    def on_round(rec) -> None:
+        cpu.append(time.process_time() - t0 - src.load_s)
+
+    res = run_trial(spec, ReplayTrial(src, plat, seed), truth=truth, on_round=on_round).to_dict()
+    res.update(classes=plat, truth_index=truth)
+    c = real.curve(res)
+    c.update(classes=plat, cpu=cpu, escalations=res["escalations"], notes=res["notes"],
+             models=[r["model"] for r in res["rounds"]] + [res["final"]["model"]])
+    return c
+
+
+def cpu_at_stop(c: dict, theta: float) -> float:
+    """Learner CPU seconds of the trial until it stops at ``theta`` (``real.at_stop``)."""
+    for i, conf in enumerate(c["conf"]):
+        if conf >= theta:
+            return c["cpu"][i]
+    return c["cpu"][-1]
+
+
+def rungs_at_stop(c: dict, theta: float) -> list[str]:
+    """The models a trial used until it stops at ``theta``."""
+    for i, conf in enumerate(c["conf"]):
+        if conf >= theta:
+            return c["models"][:i + 1]
+    return c["models"]
+
+
+def ladder_summary(curves: dict[str, list[dict]], thresholds: list[float],
+                   reference: str) -> dict:
+    """Per setting and threshold: CPU seconds per trial (mean, median), paired Wilcoxon on CPU
+    against ``reference``, the share of scenes whose trial reached each model, and the
+    escalation reasons (first words) over all scenes."""
+    out = {}
+    for lab, cs in curves.items():
+        row = {}
+        for th in thresholds:
+            cpu = [cpu_at_stop(c, th) for c in cs]
+            reached: dict[str, int] = {}
+            for c in cs:
+                for m in set(rungs_at_stop(c, th)):
+                    reached[m] = reached.get(m, 0) + 1
+            row[str(th)] = {"cpu_mean_s": float(np.mean(cpu)),
+                            "cpu_median_s": float(np.median(cpu)),
+                            "cpu_p": (None if lab == reference else wilcoxon_paired(
+                                [cpu_at_stop(c, th) for c in curves[reference]], cpu)["p"]),
+                            "reached": {m: n / len(cs) for m, n in sorted(reached.items())}}
+        reasons: dict[str, int] = {}
+        for c in cs:
+            for e in c["escalations"]:
+                key = e["reason"].split(":")[1].strip() if ":" in e["reason"] else e["reason"]
+                reasons[f"{e['model']}: {key}"] = reasons.get(f"{e['model']}: {key}", 0) + 1
+        out[lab] = {"thresholds": row, "escalation_reasons": reasons,
+                    "notes": sorted({n for c in cs for n in c["notes"]})}
+    return out
+
+
+def run_ladder(args: argparse.Namespace) -> dict:
+    settings = [real.parse_setting(s) for s in args.setting or
+                default_settings(args.representation)]
+    labels = [s[0] for s in settings]
+    if len(set(labels)) != len(labels):
+        raise InputError(f"--setting labels must be unique, got {labels}")
+    if args.representation and not Path(args.representation).is_file():
+        raise InputError(f"--representation {args.representation}: no such file (make it with "
+                         "`tactex prepare` on another library)")
+    path = Path(args.cache_dir) / f"{Path(args.test).name}.npz"
+    cache = real.load_cache(path)
+    classes = sorted(set(cache["cls"].tolist()))
+    scenes = real.draw_scenes(classes, args.scenes, args.comparisons, args.seed)
+    thresholds = sorted(args.thresholds or THRESHOLDS)
+    out = results_dir(args.out, "ladder", {k: v for k, v in vars(args).items() if k != "func"})
+    curves: dict[str, list[dict]] = {lab: [] for lab in labels}
+    for i, plat in enumerate(scenes):
+        for s in settings:
+            curves[s[0]].append(scene_run(s, cache, plat, args.seed + i, args.budget))
+        if not args.quiet:
+            print(f"scene {i + 1}/{len(scenes)}: " + "  ".join(
+                f"{lab} {'ok' if real.at_stop(curves[lab][-1], SHIPPED_STOP)[0] else 'x'} "
+                f"{curves[lab][-1]['cpu'][-1]:.1f}s" for lab in labels), flush=True)
+    budgets = tuple(k for k in (0, 1, 3, 5, 10) if k <= args.budget)
+    ref = labels[0]
+    summary = {"test": args.test, "representation": args.representation,
+               "comparisons": args.comparisons, "budget": args.budget, "scenes": len(scenes),
+               "settings": {s[0]: {"preset": s[1], "strategy": s[2], "overrides": s[3]}
+                            for s in settings},
+               "per_setting": real.summarise(curves, args.budget),
+               "report_rows": real.score_pairs(curves, thresholds),
+               "paired": {ref: {"budgets": real.paired_at_budgets(curves, ref, budgets),
+                                "thresholds": real.paired_at_thresholds(curves, ref,
+                                                                        thresholds)}},
+               "ladder": ladder_summary(curves, thresholds, ref),
+               "report_curves": curves}
+    args.report_only = True
+    real.write_outputs(out, summary, labels, args)
+    for lab, row in summary["ladder"].items():
+        for th, v in row["thresholds"].items():
+            print(f"    {lab:>14} at theta {th}: CPU per trial {v['cpu_mean_s']:.2f} s mean "
+                  f"(Wilcoxon vs {ref} p={v['cpu_p']}) reached {v['reached']}")
+        for note in row["notes"]:
+            print(f"    {lab:>14}: {note}")
+    return summary
+
+
+def register(esub: argparse._SubParsersAction) -> None:
+    p = esub.add_parser("ladder", help="model auto (the ladder) against always-cheapest and "
+                                       "always-richest on the same real scenes")
+    p.add_argument("--test", required=True, help="replay folder of the test presses")
+    p.add_argument("--cache-dir", required=True,
+                   help="experiment unseen's descriptor cache folder (holds <test name>.npz)")
+    p.add_argument("--representation", default="",
+                   help="tactex prepare file made on ANOTHER library (class-disjoint)")
+    p.add_argument("--setting", action="append",
+                   help="label=preset[:key=value,...] (repeat; the first is the paired "
+                        "reference); default: descriptor, representation, cnn, auto")
+    p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--scenes", type=int, default=40)
+    p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
+    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--press-s", type=float, default=real.PRESS_S)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out")
+
+    def func(args: argparse.Namespace) -> int:
+        for name in ("comparisons", "scenes", "budget"):
+            if getattr(args, name) < (2 if name == "comparisons" else 1):
+                raise InputError(f"--{name} too small: {getattr(args, name)}")
+        run_ladder(args)
+        return 0
+
+    p.set_defaults(func=func)

@@ -1,0 +1,279 @@
+"""Model ``auto``: a ladder of learners that models no more than the scene needs.
+
+The trial starts on the cheapest rung of ``LearnerConfig.ladder`` (by default the texture
+descriptor, the shipped method) and climbs one rung only where the trial's own evidence says the
+scene is hard. Rungs, cheapest first, separated by commas:
+
+- ``descriptor``: the descriptor learner as configured, without a representation;
+- ``representation``: the descriptor learner with ``LearnerConfig.representation`` (a
+  ``tactex prepare`` file). Without that file the rung is skipped (``Ladder.notes`` says so);
+- any other name: a preset of ``core/config.py`` whose model is a learner plug-in (``cnn``:
+  the lab's small Inception at 48 px), optionally ``@px`` for its input side; built through
+  ``core/learners.make_learner`` (the product imports no plug-in: a rung whose plug-in is not
+  installed is skipped, the note says why).
+
+The evidence (``escalation_reason``, a pure function of the current rung's history) is checked
+at every decision (``train_round``, called once per decision) once the rung has seen
+``ladder_patience`` decisions:
+
+- *held-back touches*: fewer than ``ladder_heldout_acc`` of the last ``ladder_window``
+  comparison touches were classified right by the rung before it stored them;
+- *the belief does not sharpen*: the belief in the leading comparison rose by less than
+  ``ladder_min_gain`` over the last ``ladder_patience`` decisions and is still below
+  ``ladder_sure``;
+- *the best two stay close*: the two largest beliefs differ by less than ``ladder_margin``.
+
+On escalation the next rung gets every touch of the trial (the raw touches are kept; a
+descriptor rung reuses the descriptor of the rung below, nothing is described twice) and a
+training rung gets ``ladder_catchup`` rounds at once (their time counts in the round's
+``TrainStats.seconds``; ``TrainStats.escalation`` says why, the round record keeps it). The
+strategy ``infogain`` is served by the highest descriptor rung in use, so the touches keep being
+chosen by expected information while a CNN decides the belief.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .descriptor import raw_descriptor
+from .config import PRESETS, LearnerConfig, preset, validate
+from .errors import InputError
+from .learners import Learner, TrainStats, make_learner, train_round
+from .plugins import LEARNERS, available
+from .touch import Touch
+
+log = logging.getLogger(__name__)
+
+DESCRIPTOR_RUNGS = ("descriptor", "representation")
+
+
+@dataclass(frozen=True)
+class Rule:
+    """The escalation rule's thresholds (``LearnerConfig.ladder_*``)."""
+
+    patience: int = 2          # decisions on a rung before any test
+    min_gain: float = 0.1      # rise of the leading belief over ``patience`` decisions
+    sure: float = 0.9          # a leading belief at or above this counts as sharp
+    margin: float = 0.1        # the best two beliefs closer than this: hard
+    window: int = 3            # held-back touches judged together
+    heldout_acc: float = 0.5   # share of them right below which the rung is not enough
+
+    @staticmethod
+    def of(cfg: LearnerConfig) -> "Rule":
+        return Rule(cfg.ladder_patience, cfg.ladder_min_gain, cfg.ladder_sure,
+                    cfg.ladder_margin, cfg.ladder_window, cfg.ladder_heldout_acc)
+
+
+def escalation_reason(beliefs: list[np.ndarray], heldout: list[bool], rule: Rule) -> str | None:
+    """Why the current rung is not enough, from its own history, or None to stay.
+
+    ``beliefs``: the (C,) belief of every decision made on this rung, oldest first;
+    ``heldout``: whether each comparison touch stored on this rung after its first decision was
+    classified right before it was stored. Nothing is tested before ``rule.patience``
+    decisions on the rung."""
+    k = rule.patience
+    if len(beliefs) < k:
+        return None
+    if len(heldout) >= rule.window:
+        acc = float(np.mean(heldout[-rule.window:]))
+        if acc < rule.heldout_acc:
+            return (f"held-back touches: {acc:.2f} of the last {rule.window} classified right "
+                    f"< {rule.heldout_acc:g}")
+    now = np.sort(np.asarray(beliefs[-1], dtype=np.float64))[::-1]
+    if now[0] < rule.sure:
+        if len(beliefs) > k:
+            then = float(np.max(beliefs[-1 - k]))
+            if now[0] - then < rule.min_gain:
+                return (f"belief not sharpening: {then:.3f} -> {now[0]:.3f} over {k} decisions "
+                        f"(< +{rule.min_gain:g}), below {rule.sure:g}")
+        if len(now) > 1 and now[0] - now[1] < rule.margin:
+            return (f"best two close: {now[0]:.3f} vs {now[1]:.3f} "
+                    f"(margin < {rule.margin:g}) after {len(beliefs)} decisions")
+    return None
+
+
+def parse_rungs(text: str) -> list[str]:
+    """``'descriptor,representation,cnn@64'`` -> the rung names, checked (InputError)."""
+    rungs = [p.strip() for p in text.split(",") if p.strip()]
+    if not rungs:
+        raise InputError("ladder is empty")
+    for r in rungs:
+        name, _, px = r.partition("@")
+        if name in DESCRIPTOR_RUNGS:
+            if px:
+                raise InputError(f"ladder rung {r!r}: a descriptor rung takes no input size")
+            continue
+        if name not in PRESETS or PRESETS[name].get("model", "descriptor") in ("descriptor",
+                                                                                "auto"):
+            cands = [p for p in PRESETS if PRESETS[p].get("model", "descriptor")
+                     not in ("descriptor", "auto")]
+            raise InputError(f"ladder rung {r!r}: one of {', '.join(DESCRIPTOR_RUNGS)} or a "
+                             f"preset with a trained model ({', '.join(cands)})[@px]")
+        if px and not (px.isdigit() and 32 <= int(px) <= 512):
+            raise InputError(f"ladder rung {r!r}: input size must be 32..512 px")
+    return rungs
+
+
+class Ladder:
+    """The learner of the current rung plus what escalation needs (raw touches, the rung's
+    beliefs and held-back outcomes). A ``core.learners.Learner`` with ``train_round``."""
+
+    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
+        self.cfg = validate(cfg)
+        self.num_classes = num_classes
+        self.seed = seed
+        self.rule = Rule.of(self.cfg)
+        self.notes: list[str] = []                      # rungs skipped, and why
+        self.rungs: list[str] = []
+        for r in parse_rungs(self.cfg.ladder):
+            why = self._missing(r)
+            if why:
+                self.notes.append(f"ladder rung {r!r} skipped: {why}")
+                log.warning(self.notes[-1])
+            else:
+                self.rungs.append(r)
+        if not self.rungs:
+            raise InputError(f"ladder {self.cfg.ladder!r}: no usable rung ({'; '.join(self.notes)})")
+        self.stage = 0
+        self.active: list[Learner] = [self._build(0)]   # every rung climbed so far
+        self._touches: list[tuple[int, Touch]] = []
+        self._references: list[Touch] = []
+        self._beliefs: list[np.ndarray] = []            # this rung's decisions
+        self._heldout: list[bool] = []                  # this rung's held-back outcomes
+        self._last_label: int | None = None
+        self._decisions = 0
+
+    # ------------------------------------------------------------------ rungs
+    def _missing(self, rung: str) -> str | None:
+        """Why ``rung`` cannot run here (None: it can)."""
+        name = rung.partition("@")[0]
+        if name == "representation" and not self.cfg.representation:
+            return "no representation file (LearnerConfig.representation, --representation)"
+        if name not in DESCRIPTOR_RUNGS:
+            model = PRESETS[name]["model"]
+            if model not in available(LEARNERS):
+                return f"the learner plug-in {model!r} is not installed"
+        return None
+
+    def rung_config(self, rung: str) -> LearnerConfig:
+        """The LearnerConfig one rung runs with."""
+        name, _, px = rung.partition("@")
+        ladder_fields = {k: v for k, v in self.cfg.model_dump().items()}
+        if name == "descriptor":
+            return LearnerConfig.check({**ladder_fields, "model": "descriptor",
+                                        "representation": ""}, "ladder rung 'descriptor'")
+        if name == "representation":
+            return LearnerConfig.check({**ladder_fields, "model": "descriptor"},
+                                       "ladder rung 'representation'")
+        over = {"guards": self.cfg.guards, "threads": self.cfg.threads}
+        if px:
+            over["input_size"] = int(px)
+        return preset(name, **over)
+
+    def _build(self, stage: int) -> Learner:
+        return make_learner(self.num_classes, self.rung_config(self.rungs[stage]), seed=self.seed)
+
+    @property
+    def inner(self) -> Learner:
+        """The learner of the current rung."""
+        return self.active[-1]
+
+    @property
+    def model_name(self) -> str:
+        r = self.rungs[self.stage]
+        return r if r in DESCRIPTOR_RUNGS else self.inner.model_name
+
+    @property
+    def rung(self) -> str:
+        return self.rungs[self.stage]
+
+    # ------------------------------------------------------------------ Learner
+    def add_touch(self, touch: Touch, label: int):
+        """Store a comparison touch in every rung climbed so far; returns the current rung's
+        sample (for ``heldout_proba``)."""
+        touch = self._described(touch)
+        self._touches.append((label, touch))
+        self._last_label = label
+        x = None
+        for learner in self.active:
+            x = learner.add_touch(touch, label)
+        return x
+
+    def add_reference(self, touch: Touch) -> None:
+        touch = self._described(touch)
+        self._references.append(touch)
+        for learner in self.active:
+            learner.add_reference(touch)
+
+    def heldout_proba(self, x) -> np.ndarray:
+        """The current rung's (C,) probabilities of the touch just added (counted for the
+        held-back test)."""
+        p = self.inner.heldout_proba(x)
+        self._heldout.append(bool(int(np.argmax(p)) == self._last_label))
+        return p
+
+    def train_round(self) -> TrainStats:
+        """Escalate first when the evidence says so, then train the current rung one round
+        (a descriptor rung trains nothing: steps 0)."""
+        reason = self.escalation()
+        extra = self._escalate() if reason else 0.0
+        self._decisions += 1
+        stats = train_round(self.inner) or TrainStats(0.0, 0, float("nan"))
+        stats.seconds += extra
+        stats.escalation = None if reason is None else f"{self.rungs[self.stage - 1]} -> " \
+                                                       f"{self.rung}: {reason}"
+        return stats
+
+    def escalation(self) -> str | None:
+        """Why to climb now (None: stay, or no rung above)."""
+        if self.stage + 1 >= len(self.rungs):
+            return None
+        return escalation_reason(self._beliefs, self._heldout, self.rule)
+
+    def reference_probs(self) -> np.ndarray:
+        return self.inner.reference_probs()
+
+    def belief(self, probs: np.ndarray) -> np.ndarray:
+        b = self.inner.belief(probs)
+        self._beliefs.append(np.asarray(b, dtype=np.float64))
+        return b
+
+    def info_gain(self, rng: np.random.Generator) -> np.ndarray:
+        """(C + 1,) expected entropy drop per platform, from the highest descriptor rung in use
+        (strategy ``infogain``)."""
+        for rung, learner in zip(reversed(self.rungs[:len(self.active)]), reversed(self.active)):
+            if rung in DESCRIPTOR_RUNGS:
+                return learner.info_gain(rng)
+        raise InputError("strategy 'infogain' needs a descriptor rung in the ladder")
+
+    def _escalate(self) -> float:
+        """Climb one rung; returns the seconds spent (re-adding touches, catch-up training)."""
+        t0 = time.perf_counter()
+        below = self.inner
+        self.stage += 1
+        learner = self._build(self.stage)
+        transfer = getattr(learner, "transfer_from", None)
+        if transfer is not None and type(below) is type(learner):
+            transfer(below)
+        for label, touch in self._touches:
+            learner.add_touch(touch, label)
+        for touch in self._references:
+            learner.add_reference(touch)
+        self.active.append(learner)
+        if self.rung not in DESCRIPTOR_RUNGS:
+            for _ in range(min(self.cfg.ladder_catchup, self._decisions)):
+                train_round(learner)
+        self._beliefs, self._heldout = [], []
+        return time.perf_counter() - t0
+
+    def _described(self, touch: Touch) -> Touch:
+        """``touch`` with its plain descriptor attached, described once per trial (a trained
+        rung ignores it)."""
+        if touch.descriptor is not None or not any(r in DESCRIPTOR_RUNGS for r in self.rungs):
+            return touch
+        return replace(touch, descriptor=raw_descriptor(touch, self.cfg))
