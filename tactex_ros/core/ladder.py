@@ -2,7 +2,7 @@
 
 The trial starts on the cheapest rung of ``LearnerConfig.ladder`` (by default the texture
 descriptor, the shipped method) and climbs one rung only where the trial's own evidence says the
-scene is hard. Rungs, cheapest first, separated by commas:
+scene is hard. Rungs, cheapest first, separated by commas (or ``+``):
 
 - ``descriptor``: the descriptor learner as configured, without a representation;
 - ``representation``: the descriptor learner with ``LearnerConfig.representation`` (a
@@ -34,7 +34,7 @@ chosen by expected information while a CNN decides the belief.
 from __future__ import annotations
 
 import logging
-import math
+import re
 import time
 from dataclasses import dataclass, replace
 
@@ -69,37 +69,58 @@ class Rule:
                     cfg.ladder_margin, cfg.ladder_window, cfg.ladder_heldout_acc)
 
 
-def escalation_reason(beliefs: list[np.ndarray], heldout: list[bool], rule: Rule) -> str | None:
+@dataclass(frozen=True)
+class Evidence:
+    """Why a rung is not enough: which ``test`` (``heldout``, ``not_sharpening``, ``close``),
+    the ``value`` measured (share right, rise of the leading belief, gap of the best two) and the
+    ``threshold`` it fell below, after ``decisions`` decisions on the rung."""
+
+    test: str
+    value: float
+    threshold: float
+    decisions: int
+
+    def __str__(self) -> str:
+        what = {"heldout": "share of held-back touches classified right",
+                "not_sharpening": "rise of the leading belief",
+                "close": "gap between the best two beliefs"}[self.test]
+        return (f"{self.test}: {what} {self.value:.3f} < {self.threshold:g} after "
+                f"{self.decisions} decisions")
+
+
+def escalation_reason(beliefs: list[np.ndarray], heldout: list[bool],
+                      rule: Rule) -> Evidence | None:
     """Why the current rung is not enough, from its own history, or None to stay.
 
     ``beliefs``: the (C,) belief of every decision made on this rung, oldest first;
     ``heldout``: whether each comparison touch stored on this rung after its first decision was
     classified right before it was stored. Nothing is tested before ``rule.patience``
-    decisions on the rung."""
-    k = rule.patience
-    if len(beliefs) < k:
+    decisions on the rung; the tests in order: held-back touches (once ``rule.window`` of
+    them), then, while the leading belief is below ``rule.sure``, its rise over the last
+    ``rule.patience`` decisions (once there are more than that) and the gap to the second."""
+    k, n = rule.patience, len(beliefs)
+    if n < k:
         return None
     if len(heldout) >= rule.window:
         acc = float(np.mean(heldout[-rule.window:]))
         if acc < rule.heldout_acc:
-            return (f"held-back touches: {acc:.2f} of the last {rule.window} classified right "
-                    f"< {rule.heldout_acc:g}")
+            return Evidence("heldout", acc, rule.heldout_acc, n)
     now = np.sort(np.asarray(beliefs[-1], dtype=np.float64))[::-1]
-    if now[0] < rule.sure:
-        if len(beliefs) > k:
-            then = float(np.max(beliefs[-1 - k]))
-            if now[0] - then < rule.min_gain:
-                return (f"belief not sharpening: {then:.3f} -> {now[0]:.3f} over {k} decisions "
-                        f"(< +{rule.min_gain:g}), below {rule.sure:g}")
-        if len(now) > 1 and now[0] - now[1] < rule.margin:
-            return (f"best two close: {now[0]:.3f} vs {now[1]:.3f} "
-                    f"(margin < {rule.margin:g}) after {len(beliefs)} decisions")
+    if now[0] >= rule.sure:
+        return None
+    if n > k:
+        gain = float(now[0] - np.max(beliefs[-1 - k]))
+        if gain < rule.min_gain:
+            return Evidence("not_sharpening", gain, rule.min_gain, n)
+    if len(now) > 1 and now[0] - now[1] < rule.margin:
+        return Evidence("close", float(now[0] - now[1]), rule.margin, n)
     return None
 
 
 def parse_rungs(text: str) -> list[str]:
-    """``'descriptor,representation,cnn@64'`` -> the rung names, checked (InputError)."""
-    rungs = [p.strip() for p in text.split(",") if p.strip()]
+    """``'descriptor,representation,cnn@64'`` (or ``+`` between rungs, for option values that
+    are themselves comma-separated) -> the rung names, checked (InputError)."""
+    rungs = [p.strip() for p in re.split(r"[,+]", text) if p.strip()]
     if not rungs:
         raise InputError("ladder is empty")
     for r in rungs:
@@ -147,6 +168,7 @@ class Ladder:
         self._heldout: list[bool] = []                  # this rung's held-back outcomes
         self._last_label: int | None = None
         self._decisions = 0
+        self.evidence: Evidence | None = None           # of the last climb
 
     # ------------------------------------------------------------------ rungs
     def _missing(self, rung: str) -> str | None:
@@ -225,11 +247,12 @@ class Ladder:
         self._decisions += 1
         stats = train_round(self.inner) or TrainStats(0.0, 0, float("nan"))
         stats.seconds += extra
-        stats.escalation = None if reason is None else f"{self.rungs[self.stage - 1]} -> " \
-                                                       f"{self.rung}: {reason}"
+        self.evidence = reason
+        stats.escalation = (None if reason is None else
+                            f"{self.rungs[self.stage - 1]} -> {self.rung}: {reason}")
         return stats
 
-    def escalation(self) -> str | None:
+    def escalation(self) -> Evidence | None:
         """Why to climb now (None: stay, or no rung above)."""
         if self.stage + 1 >= len(self.rungs):
             return None

@@ -1,0 +1,113 @@
+"""Model 'auto' (core/ladder.py): the escalation rule on synthetic beliefs (exact values), the
+rung list, a skipped rung, and a trial on synthetic descriptors that climbs and says why."""
+
+import numpy as np
+import pytest
+
+from tactex_ros.core import representation as rp
+from tactex_ros.core.calibration import PLACEHOLDER_FRAME
+from tactex_ros.core.config import TrialConfig, preset
+from tactex_ros.core.engine import TrialSpec, run_trial
+from tactex_ros.core.errors import InputError
+from tactex_ros.core.ladder import Evidence, Ladder, Rule, escalation_reason, parse_rungs
+from tactex_ros.core.texture import DIM
+from tactex_ros.core.touch import Touch
+
+RULE = Rule(patience=2, min_gain=0.1, sure=0.9, margin=0.1, window=3, heldout_acc=0.5)
+
+
+def b(*p: float) -> np.ndarray:
+    return np.array(p)
+
+
+def test_nothing_is_tested_before_patience_decisions():
+    assert escalation_reason([b(0.3, 0.3, 0.2, 0.2)], [False] * 5, RULE) is None
+
+
+def test_heldout_touches_misclassified():
+    ev = escalation_reason([b(0.6, 0.2, 0.1, 0.1)] * 2, [True, True, False, False], RULE)
+    assert ev == Evidence("heldout", pytest.approx(1 / 3), 0.5, 2)
+    # a window not yet full is not judged; 2 of 3 right is enough
+    assert escalation_reason([b(0.6, 0.2, 0.1, 0.1)] * 2, [False, False], RULE) is None
+    assert escalation_reason([b(0.6, 0.2, 0.1, 0.1)] * 2, [False, True, True], RULE) is None
+
+
+def test_belief_that_does_not_sharpen_over_patience_decisions():
+    hist = [b(0.50, 0.20, 0.20, 0.10), b(0.55, 0.20, 0.15, 0.10), b(0.58, 0.22, 0.1, 0.1)]
+    ev = escalation_reason(hist, [], RULE)
+    assert (ev.test, ev.value, ev.threshold, ev.decisions) == ("not_sharpening",
+                                                               pytest.approx(0.08), 0.1, 3)
+    rising = [b(0.40, 0.30, 0.20, 0.10), b(0.55, 0.20, 0.15, 0.10), b(0.70, 0.1, 0.1, 0.1)]
+    assert escalation_reason(rising, [], RULE) is None
+
+
+def test_best_two_close():
+    ev = escalation_reason([b(0.4, 0.3, 0.2, 0.1), b(0.45, 0.40, 0.1, 0.05)], [], RULE)
+    assert (ev.test, ev.value, ev.decisions) == ("close", pytest.approx(0.05), 2)
+    assert escalation_reason([b(0.4, 0.3, 0.2, 0.1), b(0.55, 0.40, 0.05, 0.0)], [], RULE) is None
+
+
+def test_a_sharp_belief_never_climbs_on_belief_evidence():
+    flat = [b(0.92, 0.05, 0.02, 0.01)] * 4
+    assert escalation_reason(flat, [], RULE) is None
+    assert escalation_reason(flat, [False, False, False], RULE).test == "heldout"
+
+
+@pytest.mark.parametrize("text", ["", "descriptor,vgg", "descriptor@32", "cnn@16",
+                                  "default", "auto"])
+def test_bad_rungs_refused(text):
+    with pytest.raises(InputError):
+        parse_rungs(text)
+
+
+def test_rungs_parse_with_commas_or_plus():
+    assert parse_rungs("descriptor+representation,cnn@64") == ["descriptor", "representation",
+                                                               "cnn@64"]
+
+
+def _rep_file(tmp_path) -> str:
+    rng = np.random.default_rng(0)
+    lib = {f"k{c}": rng.normal(0, 1, DIM) + rng.normal(0, 0.2, (4, DIM)) for c in range(5)}
+    return str(rp.save(rp.fit(lib), tmp_path / "rep.npz"))
+
+
+def test_rung_without_its_file_is_skipped_with_a_note():
+    lad = Ladder(4, preset("default", model="auto", ladder="descriptor,representation"))
+    assert lad.rungs == ["descriptor"]
+    assert len(lad.notes) == 1 and "representation" in lad.notes[0]
+
+
+def _scene_touches(twins: bool):
+    """Touch function over 4 comparisons whose descriptors are drawn around class centres;
+    with ``twins`` comparisons 1 and 2 (the match) have the same centre."""
+    rng = np.random.default_rng(3)
+    centres = rng.normal(0, 1, (4, DIM))
+    if twins:
+        centres[1] = centres[0]
+
+    def touch(platform: int) -> Touch:
+        c = centres[0 if platform == 0 else platform - 1]
+        return Touch(PLACEHOLDER_FRAME, None, None, c + rng.normal(0, 0.3, DIM))
+    return touch
+
+
+def test_trial_climbs_on_a_hard_scene_and_records_why(tmp_path):
+    cfg = preset("default", model="auto", guards=False, representation=_rep_file(tmp_path),
+                 ladder="descriptor,representation", ladder_patience=2)
+    spec = TrialSpec(4, cfg, TrialConfig(rounds=8, stop_confidence=0.0), seed=0)
+    out = run_trial(spec, _scene_touches(twins=True), truth=1).to_dict()
+    esc = out["escalations"]
+    assert len(esc) == 1 and esc[0]["round"] == 3          # patience 2: first test at round 3
+    assert esc[0]["reason"].startswith("descriptor -> representation")
+    models = [r["model"] for r in out["rounds"]]
+    assert models[:2] == ["descriptor", "descriptor"] and set(models[2:]) == {"representation"}
+    assert out["notes"] == []
+
+
+def test_trial_stays_on_the_descriptor_when_the_scene_is_easy(tmp_path):
+    cfg = preset("default", model="auto", guards=False, representation=_rep_file(tmp_path),
+                 ladder="descriptor,representation")
+    spec = TrialSpec(4, cfg, TrialConfig(rounds=8), seed=0)
+    out = run_trial(spec, _scene_touches(twins=False), truth=1).to_dict()
+    assert out["correct"] and out["escalations"] == []
+    assert {r["model"] for r in out["rounds"] + [out["final"]]} == {"descriptor"}
