@@ -145,13 +145,13 @@ class Ladder:
     beliefs and held-back outcomes). A ``core.learners.Learner`` with ``train_round``."""
 
     def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
-        self.cfg = validate(cfg)
+        self.base_cfg = validate(cfg)
         self.num_classes = num_classes
         self.seed = seed
-        self.rule = Rule.of(self.cfg)
+        self.rule = Rule.of(self.base_cfg)
         self.notes: list[str] = []                      # rungs skipped, and why
         self.rungs: list[str] = []
-        for r in parse_rungs(self.cfg.ladder):
+        for r in parse_rungs(self.base_cfg.ladder):
             why = self._missing(r)
             if why:
                 self.notes.append(f"ladder rung {r!r} skipped: {why}")
@@ -159,7 +159,7 @@ class Ladder:
             else:
                 self.rungs.append(r)
         if not self.rungs:
-            raise InputError(f"ladder {self.cfg.ladder!r}: no usable rung ({'; '.join(self.notes)})")
+            raise InputError(f"ladder {self.base_cfg.ladder!r}: no usable rung ({'; '.join(self.notes)})")
         self.stage = 0
         self.active: list[Learner] = [self._build(0)]   # every rung climbed so far
         self._touches: list[tuple[int, Touch]] = []
@@ -174,7 +174,7 @@ class Ladder:
     def _missing(self, rung: str) -> str | None:
         """Why ``rung`` cannot run here (None: it can)."""
         name = rung.partition("@")[0]
-        if name == "representation" and not self.cfg.representation:
+        if name == "representation" and not self.base_cfg.representation:
             return "no representation file (LearnerConfig.representation, --representation)"
         if name not in DESCRIPTOR_RUNGS:
             model = PRESETS[name]["model"]
@@ -185,14 +185,14 @@ class Ladder:
     def rung_config(self, rung: str) -> LearnerConfig:
         """The LearnerConfig one rung runs with."""
         name, _, px = rung.partition("@")
-        ladder_fields = {k: v for k, v in self.cfg.model_dump().items()}
+        ladder_fields = {k: v for k, v in self.base_cfg.model_dump().items()}
         if name == "descriptor":
             return LearnerConfig.check({**ladder_fields, "model": "descriptor",
                                         "representation": ""}, "ladder rung 'descriptor'")
         if name == "representation":
             return LearnerConfig.check({**ladder_fields, "model": "descriptor"},
                                        "ladder rung 'representation'")
-        over = {"guards": self.cfg.guards, "threads": self.cfg.threads}
+        over = {"guards": self.base_cfg.guards, "threads": self.base_cfg.threads}
         if px:
             over["input_size"] = int(px)
         return preset(name, **over)
@@ -204,6 +204,11 @@ class Ladder:
     def inner(self) -> Learner:
         """The learner of the current rung."""
         return self.active[-1]
+
+    @property
+    def cfg(self) -> LearnerConfig:
+        """The current rung's configuration (its input size goes into the round record)."""
+        return self.inner.cfg
 
     @property
     def model_name(self) -> str:
@@ -247,7 +252,8 @@ class Ladder:
         self._decisions += 1
         stats = train_round(self.inner) or TrainStats(0.0, 0, float("nan"))
         stats.seconds += extra
-        self.evidence = reason
+        if reason is not None:
+            self.evidence = reason
         stats.escalation = (None if reason is None else
                             f"{self.rungs[self.stage - 1]} -> {self.rung}: {reason}")
         return stats
@@ -289,7 +295,7 @@ class Ladder:
             learner.add_reference(touch)
         self.active.append(learner)
         if self.rung not in DESCRIPTOR_RUNGS:
-            for _ in range(min(self.cfg.ladder_catchup, self._decisions)):
+            for _ in range(min(self.base_cfg.ladder_catchup, self._decisions)):
                 train_round(learner)
         self._beliefs, self._heldout = [], []
         return time.perf_counter() - t0
@@ -299,4 +305,4 @@ class Ladder:
         rung ignores it)."""
         if touch.descriptor is not None or not any(r in DESCRIPTOR_RUNGS for r in self.rungs):
             return touch
-        return replace(touch, descriptor=raw_descriptor(touch, self.cfg))
+        return replace(touch, descriptor=raw_descriptor(touch, self.base_cfg))

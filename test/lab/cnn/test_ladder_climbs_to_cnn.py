@@ -1,0 +1,48 @@
+"""Model 'auto' (core/ladder.py) with the lab's CNN as its top rung: a scene the descriptor
+cannot settle (two comparisons alike) climbs to the CNN, which gets every touch, and the trial's
+JSON records when and why; the touches keep being chosen by information gain."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tactex_ros.core.config import TrialConfig, preset
+from tactex_ros.core.engine import TrialSpec, run_trial
+from stripes import stripe_frames
+
+
+def _touch_fn(seed: int = 0):
+    """Reference = comparison 1; comparison 2 shows the same stripes (the hard pair)."""
+    frames = stripe_frames(seed, 3)
+    rng = np.random.default_rng(seed)
+    cls = {0: 0, 1: 0, 2: 0, 3: 1, 4: 2}
+
+    def touch(p: int) -> np.ndarray:
+        f = frames[cls[p]].astype(np.int16) + rng.integers(-3, 4, frames[0].shape)
+        return np.clip(f, 0, 255).astype(np.uint8)
+    return touch
+
+
+@pytest.mark.slow
+def test_hard_scene_climbs_to_the_cnn_and_records_why():
+    cfg = preset("default", model="auto", guards=False, ladder="descriptor,cnn@32",
+                 ladder_patience=2, ladder_catchup=1)
+    spec = TrialSpec(4, cfg, TrialConfig(rounds=5, stop_confidence=0.0), seed=0)
+    eng = spec.engine()
+    out = run_trial(spec, _touch_fn(), truth=1, engine=eng)
+    d = json.loads(json.dumps(out.to_dict()))            # what the trial JSON holds
+    assert len(d["escalations"]) == 1
+    esc = d["escalations"][0]
+    assert esc["round"] == 3 and esc["model"] == "small_inception@32"
+    assert esc["reason"].startswith("descriptor -> cnn@32: ")
+    assert eng.learner.evidence.test in ("close", "not_sharpening", "heldout")
+    assert eng.learner.evidence.decisions == 2
+    models = [r["model"] for r in d["rounds"]] + [d["final"]["model"]]
+    assert models[:2] == ["descriptor", "descriptor"]
+    assert set(models[2:]) == {"small_inception"}
+    # the CNN got every comparison touch of the trial (augmented views) and trained
+    cnn = eng.learner.inner
+    assert cnn.n_views == int(eng.touches.sum()) * cnn.cfg.augment
+    assert cnn.rounds_trained >= 1 + 4        # catch-up round + one per decision on the rung
+    assert d["rounds"][2]["train_loss"] == d["rounds"][2]["train_loss"]      # not NaN
