@@ -10,7 +10,8 @@ library (e.g. octopi-objects when testing on octopi-dev); the CNN learns only wi
 
 Touches: the test presses' descriptors come from ``experiment unseen``'s cache (``--cache-dir``,
 built once, never in the repository); a setting whose learner may need frames (a CNN, or the
-ladder with a CNN rung) also gets the press's real frames (``ReplaySource.touch``). CPU seconds
+ladder with a CNN rung) also gets the press's strongest-contact and no-contact frames (read once
+per run; the CNN sees no further frames of a press). CPU seconds
 per trial: the process time of the learner and engine (storing touches and deciding), without
 reading the press files, up to each decision (``cpu`` in the curves), so the CPU at a stop
 threshold is exact too.
@@ -44,15 +45,19 @@ def default_settings(rep: str) -> list[str]:
             "cnn=cnn", f"auto=default:model=auto,representation={rep}"]
 
 
+#: Frames of presses already read in this process, {press file: (frame, no-contact frame)}: a
+#: press file is decoded once per run, not once per touch and setting.
+_FRAMES: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
+
+
 class CachedPresses:
     """A ReplaySource look-alike over the cache's presses: each touch carries its cached
-    descriptor, and with ``frames`` its real frames (read from the press file) instead of a
-    placeholder."""
+    descriptor, and with ``frames`` its real strongest-contact and no-contact frames (read from
+    the press file once per process) instead of a placeholder."""
 
     one_session = False
 
     def __init__(self, cache: dict[str, np.ndarray], frames: bool) -> None:
-        from tactex_ros.sources.replay import ReplaySource  # noqa: F401 (load_touch's module)
         self.x = cache["f0"]
         self.paths = cache["path"]
         self.frames = frames
@@ -71,10 +76,14 @@ class CachedPresses:
         if not self.frames:
             return Touch(PLACEHOLDER_FRAME, None, None, self.x[row])
         from tactex_ros.sources.replay import load_touch
-        t0 = time.process_time()
-        t = load_touch(str(self.paths[row]))[0]
-        self.load_s += time.process_time() - t0
-        return Touch(t.frame, t.no_contact, t.extra, self.x[row])
+        path = str(self.paths[row])
+        if path not in _FRAMES:
+            t0 = time.process_time()
+            t = load_touch(path)[0]
+            _FRAMES[path] = (t.frame, t.no_contact)
+            self.load_s += time.process_time() - t0
+        frame, nc = _FRAMES[path]
+        return Touch(frame, nc, None, self.x[row])
 
 
 def needs_frames(cfg) -> bool:
