@@ -339,7 +339,7 @@ class LearnerConfig(Schema):
     descriptor_no_contact: bool = param(True, "model 'descriptor': describe the contact minus "
                                               "the sensor's no-contact frame when the touch has "
                                               "one (off: against a blur of the contact frame)")
-    representation: str = param("", "model 'descriptor': a representation file made by "
+    representation: str = param("", "models 'descriptor' and 'auto': a representation file made by "
                                     "`tactex prepare` (a metric learnt from presses of other "
                                     "materials; '' = none)")
     representation_temperature: bool = param(
