@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 
-from tactex_ros.core.calibration import PLACEHOLDER_FRAME
 from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset, trial_preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
@@ -50,31 +49,20 @@ def default_settings(rep: str) -> list[str]:
 _FRAMES: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
 
 
-class CachedPresses:
-    """A ReplaySource look-alike over the cache's presses: each touch carries its cached
-    descriptor, and with ``frames`` its real strongest-contact and no-contact frames (read from
-    the press file once per process) instead of a placeholder."""
-
-    one_session = False
+class CachedPresses(real._CachedPresses):
+    """``experiment unseen``'s cached presses (each touch carries its cached descriptor), with
+    ``frames`` also the real strongest-contact and no-contact frames (read from the press file
+    once per process) instead of a placeholder."""
 
     def __init__(self, cache: dict[str, np.ndarray], frames: bool) -> None:
-        self.x = cache["f0"]
+        super().__init__(cache["f0"], cache["cls"])
         self.paths = cache["path"]
         self.frames = frames
-        cls = cache["cls"]
-        self.rows = {c: list(np.flatnonzero(cls == c)) for c in set(cls.tolist())}
         self.load_s = 0.0          # process time spent reading press files
-
-    def check_class(self, c: str) -> None:
-        if c not in self.rows:
-            raise InputError(f"class {c!r} not in the cache")
-
-    def presses(self, c: str) -> list[int]:
-        return self.rows[c]
 
     def touch(self, row: int) -> Touch:
         if not self.frames:
-            return Touch(PLACEHOLDER_FRAME, None, None, self.x[row])
+            return super().touch(row)
         from tactex_ros.sources.replay import load_touch
         path = str(self.paths[row])
         if path not in _FRAMES:
