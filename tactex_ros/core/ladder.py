@@ -159,7 +159,8 @@ class Ladder:
             else:
                 self.rungs.append(r)
         if not self.rungs:
-            raise InputError(f"ladder {self.base_cfg.ladder!r}: no usable rung ({'; '.join(self.notes)})")
+            raise InputError(f"ladder {self.base_cfg.ladder!r}: no usable rung "
+                             f"({'; '.join(self.notes)})")
         self.stage = 0
         self.active: list[Learner] = [self._build(0)]   # every rung climbed so far
         self._touches: list[tuple[int, Touch]] = []
@@ -185,7 +186,7 @@ class Ladder:
     def rung_config(self, rung: str) -> LearnerConfig:
         """The LearnerConfig one rung runs with."""
         name, _, px = rung.partition("@")
-        ladder_fields = {k: v for k, v in self.base_cfg.model_dump().items()}
+        ladder_fields = self.base_cfg.model_dump()
         if name == "descriptor":
             return LearnerConfig.check({**ladder_fields, "model": "descriptor",
                                         "representation": ""}, "ladder rung 'descriptor'")
