@@ -287,8 +287,8 @@ class LearnerConfig(Schema):
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
     # (docs/speed_stability.md), and a 32 px start made it 9 points worse than the default.
     auto_ladder: str = param("small_inception@48,small_inception@96",
-                             "model 'cnn_auto': stages cheapest first, 'model@input_px' separated by "
-                             "commas ('model' alone = input_size)")
+                             "model 'cnn_auto': stages cheapest first, 'model@input_px' "
+                             "separated by commas ('model' alone = input_size)")
     auto_patience: int = param(2, "model 'cnn_auto': rounds on a stage before the entropy test",
                                1, 1000)
     auto_min_drop: float = param(0.7, "model 'cnn_auto': escalate when predictive entropy fell by "
