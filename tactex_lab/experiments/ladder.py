@@ -32,7 +32,8 @@ from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset, trial_pres
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 from tactex_lab.analysis.stats import wilcoxon_paired
-from tactex_lab.experiments import real
+from tactex_lab.experiments import curves as real_curves
+from tactex_lab.experiments import protocol, unseen
 from tactex_lab.experiments.common import results_dir
 
 THRESHOLDS = (0.8, 0.9, 0.95, 1.01)
@@ -49,7 +50,7 @@ def default_settings(rep: str) -> list[str]:
 _FRAMES: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
 
 
-class CachedPresses(real._CachedPresses):
+class CachedPresses(unseen._CachedPresses):
     """``experiment unseen``'s cached presses (each touch carries its cached descriptor), with
     ``frames`` also the real strongest-contact and no-contact frames (read from the press file
     once per process) instead of a placeholder."""
@@ -86,7 +87,7 @@ def needs_frames(cfg) -> bool:
 
 def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], seed: int,
               budget: int) -> dict:
-    """One scene under one ``parse_setting`` tuple: the belief curve (``real.curve``) plus
+    """One scene under one ``parse_setting`` tuple: the belief curve (``curves.curve``) plus
     ``cpu`` (cumulative learner CPU seconds at each decision), ``escalations`` and ``notes``."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
@@ -105,14 +106,14 @@ def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], see
 
     res = run_trial(spec, ReplayTrial(src, plat, seed), truth=truth, on_round=on_round).to_dict()
     res.update(classes=plat, truth_index=truth)
-    c = real.curve(res)
+    c = real_curves.curve(res)
     c.update(classes=plat, cpu=cpu, escalations=res["escalations"], notes=res["notes"],
              models=[r["model"] for r in res["rounds"]] + [res["final"]["model"]])
     return c
 
 
 def cpu_at_stop(c: dict, theta: float) -> float:
-    """Learner CPU seconds of the trial until it stops at ``theta`` (``real.at_stop``)."""
+    """Learner CPU seconds of the trial until it stops at ``theta`` (``curves.at_stop``)."""
     for i, conf in enumerate(c["conf"]):
         if conf >= theta:
             return c["cpu"][i]
@@ -157,7 +158,7 @@ def ladder_summary(curves: dict[str, list[dict]], thresholds: list[float],
 
 
 def run_ladder(args: argparse.Namespace) -> dict:
-    settings = [real.parse_setting(s) for s in args.setting or
+    settings = [real_curves.parse_setting(s) for s in args.setting or
                 default_settings(args.representation)]
     labels = [s[0] for s in settings]
     if len(set(labels)) != len(labels):
@@ -166,9 +167,9 @@ def run_ladder(args: argparse.Namespace) -> dict:
         raise InputError(f"--representation {args.representation}: no such file (make it with "
                          "`tactex prepare` on another library)")
     path = Path(args.cache_dir) / f"{Path(args.test).name}.npz"
-    cache = real.load_cache(path)
+    cache = unseen.load_cache(path)
     classes = sorted(set(cache["cls"].tolist()))
-    scenes = real.draw_scenes(classes, args.scenes, args.comparisons, args.seed)
+    scenes = real_curves.draw_scenes(classes, args.scenes, args.comparisons, args.seed)
     thresholds = sorted(args.thresholds or THRESHOLDS)
     out = results_dir(args.out, "ladder", {k: v for k, v in vars(args).items() if k != "func"})
     curves: dict[str, list[dict]] = {lab: [] for lab in labels}
@@ -177,7 +178,8 @@ def run_ladder(args: argparse.Namespace) -> dict:
             curves[s[0]].append(scene_run(s, cache, plat, args.seed + i, args.budget))
         if not args.quiet:
             print(f"scene {i + 1}/{len(scenes)}: " + "  ".join(
-                f"{lab} {'ok' if real.at_stop(curves[lab][-1], SHIPPED_STOP)[0] else 'x'} "
+                f"{lab} "
+                f"{'ok' if real_curves.at_stop(curves[lab][-1], SHIPPED_STOP)[0] else 'x'} "
                 f"{curves[lab][-1]['cpu'][-1]:.1f}s" for lab in labels), flush=True)
     budgets = tuple(k for k in (0, 1, 3, 5, 10) if k <= args.budget)
     ref = labels[0]
@@ -185,15 +187,15 @@ def run_ladder(args: argparse.Namespace) -> dict:
                "comparisons": args.comparisons, "budget": args.budget, "scenes": len(scenes),
                "settings": {s[0]: {"preset": s[1], "strategy": s[2], "overrides": s[3]}
                             for s in settings},
-               "per_setting": real.summarise(curves, args.budget),
-               "report_rows": real.score_pairs(curves, thresholds),
-               "paired": {ref: {"budgets": real.paired_at_budgets(curves, ref, budgets),
-                                "thresholds": real.paired_at_thresholds(curves, ref,
+               "per_setting": protocol.summarise(curves, args.budget),
+               "report_rows": protocol.score_pairs(curves, thresholds),
+               "paired": {ref: {"budgets": real_curves.paired_at_budgets(curves, ref, budgets),
+                                "thresholds": real_curves.paired_at_thresholds(curves, ref,
                                                                         thresholds)}},
                "ladder": ladder_summary(curves, thresholds, ref),
                "report_curves": curves}
     args.report_only = True
-    real.write_outputs(out, summary, labels, args)
+    protocol.write_outputs(out, summary, labels, args)
     for lab, row in summary["ladder"].items():
         for th, v in row["thresholds"].items():
             print(f"    {lab:>14} at theta {th}: CPU per trial {v['cpu_mean_s']:.2f} s mean "
@@ -218,7 +220,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenes", type=int, default=40)
     p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
     p.add_argument("--thresholds", type=float, nargs="+")
-    p.add_argument("--press-s", type=float, default=real.PRESS_S)
+    p.add_argument("--press-s", type=float, default=protocol.PRESS_S)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out")
