@@ -50,7 +50,7 @@ def default_settings(rep: str) -> list[str]:
 _FRAMES: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
 
 
-class CachedPresses(unseen._CachedPresses):
+class FramedPresses(unseen.CachedPresses):
     """``experiment unseen``'s cached presses (each touch carries its cached descriptor), with
     ``frames`` also the real strongest-contact and no-contact frames (read from the press file
     once per process) instead of a placeholder."""
@@ -94,7 +94,7 @@ def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], see
     label, pre, strategy, over = setting
     cfg = preset(pre, **{"guards": False, **over})
     tcfg = trial_preset(pre, strategy=strategy, rounds=budget, stop_confidence=0.0)
-    src = CachedPresses(cache, needs_frames(cfg))
+    src = FramedPresses(cache, needs_frames(cfg))
     truth = plat[1:].index(plat[0]) + 1
     spec = TrialSpec(len(plat) - 1, cfg, TrialConfig.check(tcfg.model_dump(), "trial"),
                      seed=seed)

@@ -153,7 +153,7 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
     return rep
 
 
-class _CachedPresses:
+class CachedPresses:
     """A ReplaySource look-alike whose touches carry their cached feature vector."""
 
     one_session = False
@@ -180,7 +180,7 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     scene i runs with seed ``seed + i``, as ``experiment real``."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
-    src = _CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
+    src = CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
     cfg = preset("default", guards=False)
     tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
     out = []
