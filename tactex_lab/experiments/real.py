@@ -343,9 +343,10 @@ def protocol(classes: list[str], labels: list[str], runner, args: argparse.Names
 def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Namespace
                   ) -> None:
     """runs.json (the report curves), summary.json, the charts and the printed table."""
-    write_json(out / "runs.json", summary.pop("report_curves"))
+    curves = summary.pop("report_curves")
+    write_json(out / "runs.json", curves)
     write_json(out / "summary.json", summary)
-    _charts(out, summary, labels, args.budget, getattr(args, "press_s", PRESS_S))
+    _charts(out, summary, curves, labels, args.budget, getattr(args, "press_s", PRESS_S))
     _print(summary, labels, args)
 
 
@@ -388,25 +389,15 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
 PRESS_S = 3.0
 
 
-def _charts(out: Path, summary: dict, labels: list[str], budget: int,
-            press_s: float = PRESS_S) -> None:
-    """accuracy_vs_touches.png and accuracy_vs_time.png (trial time after the baseline:
-    touches x (``press_s`` + the setting's median decision time)), 95 % Wilson bands and the
-    number of scenes per line; pareto.png (the stop-threshold sweep)."""
-    for axis in ("touches", "time"):
-        series = {}
-        for lab in labels:
-            p = summary["per_setting"][lab]
-            acc = p["accuracy_vs_touches"]
-            step = 1.0 if axis == "touches" else press_s + (p["decision_s_median"] or 0.0)
-            series[lab] = {"x": [a["touches"] * step for a in acc],
-                           "accuracy": [a["accuracy"] for a in acc],
-                           "lo": [a["ci95"][0] for a in acc], "hi": [a["ci95"][1] for a in acc],
-                           "n": p["scenes"]}
-        xlabel = ("touches after the baseline" if axis == "touches" else
-                  f"trial time after the baseline [s] ({press_s:g} s per press + decision)")
-        charts.accuracy_bands(out / f"accuracy_vs_{axis}.png", series, xlabel,
-                              f"real presses, report scenes, no stop rule (budget {budget})")
+def _charts(out: Path, summary: dict, curves: dict[str, list[dict]], labels: list[str],
+            budget: int, press_s: float = PRESS_S) -> None:
+    """accuracy_vs_touches.png and accuracy_vs_time.png (``charts.touches_and_time``: Wilson
+    bands, scenes per line; ``press_s`` seconds per press) from the report ``curves``;
+    pareto.png (the stop-threshold sweep)."""
+    rows = {lab: (np.array([[at_budget(c, k) for k in range(budget + 1)] for c in curves[lab]]),
+                  summary["per_setting"][lab]["decision_s_median"] or 0.0) for lab in labels}
+    charts.touches_and_time(out, rows, summary["comparisons"] + 1, press_s,
+                            f"real presses, report scenes, no stop rule (budget {budget})")
     charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
 
 
@@ -812,26 +803,8 @@ def nearest_mean_accuracy(x: np.ndarray, cls: np.ndarray,
     the comparison whose mean of ``per`` presses lies nearest to the mean of ``per`` reference
     presses, in the belief's scene units (``core/match.py``), is the match. ``per`` = 1 is the
     belief after the baseline."""
-    rng = np.random.default_rng(seed)
-    classes = sorted(set(cls.tolist()))
-    rows = {c: np.flatnonzero(cls == c) for c in classes}
-    z = x if rep is None else rep.apply(x)
-    ok = 0
-    for _ in range(scenes):
-        comps = rng.choice(len(classes), 4, replace=False)
-        t = int(rng.integers(4))
-        ref_rows = rng.permutation(rows[classes[comps[t]]])
-        means = [z[ref_rows[:per]].mean(0)]
-        for i, c in enumerate(comps):
-            r = rows[classes[c]]
-            if i == t and len(ref_rows) > per:
-                r = ref_rows[per:]
-            means.append(z[rng.choice(r, min(per, len(r)), replace=False)].mean(0))
-        m = np.vstack(means)
-        spread = m.std(0)
-        scale = np.sqrt(spread ** 2 + (0.05 * np.median(spread)) ** 2) + 1e-12
-        ok += int(np.argmin((((m[1:] - m[0]) / scale) ** 2).sum(1)) == t)
-    return ok / scenes
+    from tactex_lab.analysis.metric_screen import scene_hits
+    return float(scene_hits(x, cls, rep, per, scenes, seed).mean())
 
 
 SCREEN = ([("frame", "none", 0, 1.0)] + [("frame", "whiten", 0, s) for s in (0.3, 1.0, 3.0)]
@@ -906,6 +879,13 @@ def run_unseen(args: argparse.Namespace) -> dict:
         rows = screen(caches["a"], caches["b"])
         write_json(out / "screen.json", rows)
         return {"screen": rows}
+    if args.screen_mlp:
+        from tactex_lab.analysis import metric_screen
+        rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
+                                    ("frame", "frames4")}, steps=args.mlp_steps,
+                                    seeds=tuple(args.mlp_seeds))
+        write_json(out / "metric_screen.json", rows)
+        return {"metric_screen": rows}
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
@@ -932,6 +912,12 @@ def register_unseen(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--screen", action="store_true",
                    help="only the screening proxy (nearest mean, no trials) of every feature x "
                         "metric of SCREEN, both directions; writes screen.json")
+    p.add_argument("--screen-mlp", action="store_true",
+                   help="only the screening of a small numpy MLP metric (analysis/mlp_metric) "
+                        "against the whitening, both directions; writes metric_screen.json")
+    p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
+    p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
+                   help="MLP training seeds (--screen-mlp)")
     p.add_argument("--setting", action="append",
                    help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
                         + " ".join(UNSEEN_SETTINGS))
@@ -949,7 +935,7 @@ def register_unseen(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--out")
 
     def func(args: argparse.Namespace) -> int:
-        for name in ("comparisons", "scenes", "budget", "folds"):
+        for name in ("comparisons", "scenes", "budget", "folds", "mlp_steps"):
             if getattr(args, name) < (2 if name in ("comparisons", "folds") else 1):
                 raise InputError(f"--{name} too small: {getattr(args, name)}")
         Path(args.cache_dir).mkdir(parents=True, exist_ok=True)
