@@ -121,16 +121,18 @@ def loss_and_grad(f: np.ndarray, anchor: np.ndarray, cand: np.ndarray, true: np.
         viol = margin * tau + dp[:, None] - d                    # (n, C), the true column = m
         viol[np.arange(n), true] = 0.0
         active = viol > 0
-        k = cand.shape[1] - 1
-        value = float(np.sum(np.where(active, viol, 0.0)) / (n * k))
-        g_d = -active.astype(np.float64) / (n * k)
-        g_d[np.arange(n), true] = active.sum(axis=1) / (n * k)
+        negs = cand.shape[1] - 1
+        value = float(np.sum(np.where(active, viol, 0.0)) / (n * negs))
+        g_d = -active.astype(np.float64) / (n * negs)
+        g_d[np.arange(n), true] = active.sum(axis=1) / (n * negs)
     else:
         raise InputError(f"MLP metric loss {loss!r}: one of {', '.join(LOSSES)}")
     g_diff = 2.0 * g_d[..., None] * diff                         # dL/d(diff) (n, C, k)
-    grad = np.zeros_like(f)
-    np.add.at(grad, anchor, g_diff.sum(axis=1))
-    np.add.at(grad, cand.reshape(-1), -g_diff.reshape(-1, f.shape[1]))
+    rows = np.concatenate([anchor, cand.reshape(-1)])
+    vals = np.concatenate([g_diff.sum(axis=1), -g_diff.reshape(-1, f.shape[1])])
+    k = f.shape[1]                                               # scatter-add by row
+    flat = (rows[:, None] * k + np.arange(k)).reshape(-1)
+    grad = np.bincount(flat, weights=vals.reshape(-1), minlength=f.size).reshape(f.shape)
     return value, grad
 
 
