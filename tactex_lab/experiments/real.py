@@ -40,6 +40,7 @@ touches, every setting x threshold).
 from __future__ import annotations
 
 import argparse
+import itertools
 import statistics
 from pathlib import Path
 from typing import Any
@@ -881,8 +882,9 @@ def run_unseen(args: argparse.Namespace) -> dict:
         return {"screen": rows}
     if args.screen_mlp:
         from tactex_lab.analysis import metric_screen
+        grid = tuple(itertools.product(args.mlp_losses, args.mlp_hidden, args.mlp_decays))
         rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
-                                    ("frame", "frames4")}, steps=args.mlp_steps,
+                                    args.mlp_features}, grid, steps=args.mlp_steps,
                                     seeds=tuple(args.mlp_seeds))
         write_json(out / "metric_screen.json", rows)
         return {"metric_screen": rows}
@@ -918,6 +920,14 @@ def register_unseen(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
                    help="MLP training seeds (--screen-mlp)")
+    p.add_argument("--mlp-losses", nargs="+", default=["episode", "triplet"],
+                   choices=["episode", "triplet"], help="MLP losses screened (--screen-mlp)")
+    p.add_argument("--mlp-hidden", type=int, nargs="+", default=[64],
+                   help="MLP hidden units screened (--screen-mlp)")
+    p.add_argument("--mlp-decays", type=float, nargs="+", default=[1e-3, 1e-2, 1e-1],
+                   help="MLP weight decays (toward the whitening) screened (--screen-mlp)")
+    p.add_argument("--mlp-features", nargs="+", default=["frame", "frames4"],
+                   choices=["frame", "frames4"], help="per-press features (--screen-mlp)")
     p.add_argument("--setting", action="append",
                    help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
                         + " ".join(UNSEEN_SETTINGS))
