@@ -58,10 +58,10 @@ def scene_hits(x: np.ndarray, cls: np.ndarray, rep, per: int, scenes: int = 3000
 
 def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
            features: dict[str, Callable[[dict], np.ndarray]], grid=GRID, steps: int = 600,
-           seeds: tuple[int, ...] = (0,)) -> list[dict]:
+           seeds: tuple[int, ...] = (0,), scenes: int = 3000) -> list[dict]:
     """Caches ``a``, ``b`` (``cls`` and the arrays ``features`` read: {name: cache -> (n, D)}).
     Every (direction, feature, metric) row: acc_1, acc_2, fit seconds, apply microseconds per
-    press, and against the whitening on the same scenes (``vs_whiten``)."""
+    press, and against the whitening on the same ``scenes`` (``vs_whiten``)."""
     rows = []
     for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
         for feat, read in features.items():
@@ -70,7 +70,7 @@ def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
             libd = {c: xl[lib["cls"] == c] for c in sorted(set(lib["cls"].tolist()))}
             t0 = time.perf_counter()
             white = representation.fit(libd, kind="whiten")
-            base = {per: scene_hits(x, cls, white, per) for per in (1, 2)}
+            base = {per: scene_hits(x, cls, white, per, scenes) for per in (1, 2)}
             rows.append({"direction": name, "feature": feat, "metric": "whiten",
                          "fit_s": time.perf_counter() - t0,
                          "acc_1": float(base[1].mean()), "acc_2": float(base[2].mean())})
@@ -82,7 +82,7 @@ def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
                 for _ in range(100):
                     m.apply(x[:1])
                 apply_us = (time.perf_counter() - t1) / 100 * 1e6
-                hits = {per: scene_hits(x, cls, m, per) for per in (1, 2)}
+                hits = {per: scene_hits(x, cls, m, per, scenes) for per in (1, 2)}
                 rows.append({"direction": name, "feature": feat, "metric": "mlp",
                              "loss": loss, "hidden": hidden, "decay": decay, "seed": seed,
                              "steps": steps, "fit_s": log["seconds"], "apply_us": apply_us,
