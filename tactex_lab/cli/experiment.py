@@ -11,8 +11,8 @@ import importlib
 
 from tactex_ros.cli.main import builds
 
-MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency", "real",
-                      "accuracy_charts"]
+MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency",
+                      "real_sessions", "unseen", "real", "accuracy_charts"]
 
 
 def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:

@@ -22,17 +22,7 @@ import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.common import budget_index
-
-
-def right_after(curve: dict, budget: int) -> list[bool]:
-    """Right after k = 0..budget touches after the baseline (no stop rule), from one scene's
-    belief curve (``extra``, ``correct``)."""
-    out = []
-    for k in range(budget + 1):
-        i = budget_index(curve["extra"], k)
-        out.append(bool(i >= 0 and curve["correct"][i]))
-    return out
+from tactex_lab.experiments.curves import at_budget
 
 
 def load_runs(folders: list[str | Path], settings: list[str] | None = None
@@ -67,7 +57,8 @@ def load_runs(folders: list[str | Path], settings: list[str] | None = None
     rows = {}
     for lab in labels:
         dec = [d for c in pooled[lab] for d in c["decision_s"]]
-        rows[lab] = (np.array([right_after(c, budget) for c in pooled[lab]], dtype=bool),
+        rows[lab] = (np.array([[at_budget(c, k) for k in range(budget + 1)]
+                               for c in pooled[lab]], dtype=bool).reshape(-1, budget + 1),
                      statistics.median(dec) if dec else 0.0)
     return rows, budget, comparisons
 

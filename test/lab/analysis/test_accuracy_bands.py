@@ -52,16 +52,14 @@ def _folder(tmp: Path, name: str, runs: dict, budget: int = 3) -> Path:
 
 def test_right_after_and_pooling_two_seeds(tmp_path):
     c = _curve([0, 1, 3], [False, True, True])
-    assert accuracy_charts.right_after(c, 3) == [False, True, True, True]
-    assert accuracy_charts.right_after(_curve([0, 2], [True, False]), 3) == [True, False,
-                                                                              False, False]
     a = _folder(tmp_path, "s0", {"default": [c], "whiten": [_curve([0], [True])]})
-    b = _folder(tmp_path, "s1", {"default": [_curve([0, 1], [True, False])] * 2})
+    b = _folder(tmp_path, "s1", {"default": [_curve([0, 2], [True, False])] * 2})
     rows, budget, comparisons = accuracy_charts.load_runs([a, b])
     assert (budget, comparisons) == (3, 4) and list(rows) == ["default", "whiten"]
     right, dec = rows["default"]
     assert right.shape == (3, 4) and dec == 0.01
-    assert right.sum(axis=0).tolist() == [2, 1, 1, 1]
+    # right after k = 0..3: [F, T, T, T] once, [T, F, F, F] twice (the last decision holds)
+    assert right.tolist() == [[False, True, True, True]] + [[True, False, False, False]] * 2
     assert rows["whiten"][0].shape == (1, 4)
     with pytest.raises(InputError):
         accuracy_charts.load_runs([a], ["nope"])
