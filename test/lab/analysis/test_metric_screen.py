@@ -48,3 +48,22 @@ def test_screen_rows_both_directions_paired_against_the_whitening(caches):
     # the same 300 scenes: the MLP alone right on 2, the whitening alone on 1
     assert (v["n"], v["a_only"], v["b_only"], v["p"]) == (300, 2, 1, 1.0)
     assert rows[1]["apply_us"] > 0 and rows[1]["loss"] == "triplet"
+
+
+@pytest.mark.slow
+def test_unseen_screen_mlp_command_writes_the_rows_and_refuses_bad_steps(caches, tmp_path):
+    import json
+
+    from tactex_ros.cli.main import main
+    for name, c in zip(("liba", "libb"), caches):
+        np.savez(tmp_path / f"{name}.npz", cls=c["cls"], f0=c["f0"],
+                 extra=np.repeat(c["f0"][:, None], 3, axis=1))
+    base = ["experiment", "unseen", "--a", str(tmp_path / "liba"), "--b",
+            str(tmp_path / "libb"), "--cache-dir", str(tmp_path), "--screen-mlp",
+            "--mlp-losses", "triplet", "--mlp-decays", "0.1", "--mlp-features", "frame"]
+    assert main(base + ["--mlp-steps", "0", "--out", str(tmp_path / "bad")]) == 2
+    assert main(base + ["--mlp-steps", "3", "--out", str(tmp_path / "out")]) == 0
+    rows = json.loads((tmp_path / "out" / "metric_screen.json").read_text())
+    assert [(r["direction"], r["metric"]) for r in rows] == [
+        ("a_with_b", "whiten"), ("a_with_b", "mlp"), ("b_with_a", "whiten"), ("b_with_a", "mlp")]
+    assert rows[1]["steps"] == 3 and rows[1]["decay"] == 0.1
