@@ -15,22 +15,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 from pathlib import Path
-
-import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.curves import at_budget
+from tactex_lab.experiments.common import write_json
+from tactex_lab.experiments.curves import paired_at_budgets, paired_at_thresholds
+from tactex_lab.experiments.protocol import DEFAULT_THRESHOLDS, band_rows, score_pairs
 
 
 def load_runs(folders: list[str | Path], settings: list[str] | None = None
-              ) -> tuple[dict[str, tuple[np.ndarray, float]], int, int]:
+              ) -> tuple[dict[str, list[dict]], int, int]:
     """Pool the report scenes of ``folders`` per setting (in first-seen order, or
-    ``settings``): ({label: (right after k touches (scenes, budget + 1), median decision time
-    [s] over every decision)}, budget, comparisons). The folders must share budget and
-    comparisons."""
+    ``settings``): ({label: [belief curve per scene]}, budget, comparisons). The folders must
+    share budget and comparisons."""
     pooled: dict[str, list[dict]] = {}
     budget = comparisons = None
     for f in folders:
@@ -54,13 +52,19 @@ def load_runs(folders: list[str | Path], settings: list[str] | None = None
     missing = [s for s in labels if s not in pooled]
     if missing:
         raise InputError(f"--settings {missing}: not in the runs; they hold {list(pooled)}")
-    rows = {}
-    for lab in labels:
-        dec = [d for c in pooled[lab] for d in c["decision_s"]]
-        rows[lab] = (np.array([[at_budget(c, k) for k in range(budget + 1)]
-                               for c in pooled[lab]], dtype=bool).reshape(-1, budget + 1),
-                     statistics.median(dec) if dec else 0.0)
-    return rows, budget, comparisons
+    return {lab: pooled[lab] for lab in labels}, budget, comparisons
+
+
+def pooled_figures(curves: dict[str, list[dict]], thresholds: list[float],
+                   against: list[str]) -> dict:
+    """The pooled scenes' figures: every (setting, theta) at the stop (``score_pairs``) and the
+    paired tests against each setting of ``against`` at fixed budgets and thresholds."""
+    budgets = (0, 1, 3, 5, 10)
+    return {"scenes": {lab: len(cs) for lab, cs in curves.items()},
+            "report_rows": score_pairs(curves, thresholds),
+            "paired": {ref: {"budgets": paired_at_budgets(curves, ref, budgets),
+                             "thresholds": paired_at_thresholds(curves, ref, thresholds)}
+                       for ref in against}}
 
 
 def register(esub: argparse._SubParsersAction) -> None:
@@ -74,15 +78,29 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--press-note", default="",
                    help="where the press time comes from (shown on the time axis)")
     p.add_argument("--title", default="real presses, report scenes, no stop rule")
-    p.add_argument("--out", required=True, help="folder for the two PNG files")
+    p.add_argument("--thresholds", type=float, nargs="+",
+                   help="stop thresholds of pooled.json (default: experiment real's)")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL",
+                   help="paired tests in pooled.json against these settings (default: the "
+                        "first)")
+    p.add_argument("--out", required=True,
+                   help="folder for the two PNG files and pooled.json (the pooled scenes' "
+                        "figures at the stop and paired tests)")
 
     def func(args: argparse.Namespace) -> int:
         if not args.press_s > 0:
             raise InputError(f"--press-s must be > 0, got {args.press_s}")
-        rows, budget, comparisons = load_runs(args.runs, args.settings)
+        curves, budget, comparisons = load_runs(args.runs, args.settings)
+        against = args.paired_against or [next(iter(curves))]
+        unknown = [a for a in against if a not in curves]
+        if unknown:
+            raise InputError(f"--paired-against {unknown}: not in the runs {list(curves)}")
+        rows = band_rows(curves, budget)
         for path in charts.touches_and_time(Path(args.out), rows, comparisons + 1,
                                             args.press_s, args.title, args.press_note):
             print(path)
+        print(write_json(Path(args.out) / "pooled.json", pooled_figures(
+            curves, sorted(args.thresholds or DEFAULT_THRESHOLDS), against)))
         for lab, (right, dec) in rows.items():
             print(f"  {lab:>14}: n = {len(right)}, +0 {right[:, 0].mean():.3f}, "
                   f"+{budget} {right[:, -1].mean():.3f}, decision {dec:.4f} s")

@@ -188,6 +188,19 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
     return out
 
 
+def band_rows(curves: dict[str, list[dict]], budget: int
+              ) -> dict[str, tuple[np.ndarray, float]]:
+    """{label: (right after k = 0..budget touches (scenes, budget + 1), median decision time
+    [s] over every decision)}: the input of ``charts.touches_and_time``."""
+    rows = {}
+    for lab, cs in curves.items():
+        dec = [d for c in cs for d in c["decision_s"]]
+        rows[lab] = (np.array([[at_budget(c, k) for k in range(budget + 1)] for c in cs],
+                              dtype=bool).reshape(-1, budget + 1),
+                     statistics.median(dec) if dec else 0.0)
+    return rows
+
+
 #: Seconds per press for the time axis when no --press-s is given: the mock arm's press on the
 #: lab scene (config/scene.yaml's speeds), median of `tactex graph summary` over one simulated
 #: trial (docs/unseen_materials.md); the faster simulated scene takes about 4.4 s.
@@ -199,8 +212,7 @@ def _charts(out: Path, summary: dict, curves: dict[str, list[dict]], labels: lis
     """accuracy_vs_touches.png and accuracy_vs_time.png (``charts.touches_and_time``: Wilson
     bands, scenes per line; ``press_s`` seconds per press) from the report ``curves``;
     pareto.png (the stop-threshold sweep)."""
-    rows = {lab: (np.array([[at_budget(c, k) for k in range(budget + 1)] for c in curves[lab]]),
-                  summary["per_setting"][lab]["decision_s_median"] or 0.0) for lab in labels}
+    rows = band_rows({lab: curves[lab] for lab in labels}, budget)
     charts.touches_and_time(out, rows, summary["comparisons"] + 1, press_s,
                             f"real presses, report scenes, no stop rule (budget {budget})")
     charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)

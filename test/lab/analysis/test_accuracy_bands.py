@@ -10,6 +10,7 @@ import pytest
 
 from tactex_lab.analysis import charts
 from tactex_lab.experiments import accuracy_charts
+from tactex_lab.experiments.protocol import band_rows
 from tactex_ros.core.errors import InputError
 
 
@@ -54,8 +55,9 @@ def test_right_after_and_pooling_two_seeds(tmp_path):
     c = _curve([0, 1, 3], [False, True, True])
     a = _folder(tmp_path, "s0", {"default": [c], "whiten": [_curve([0], [True])]})
     b = _folder(tmp_path, "s1", {"default": [_curve([0, 2], [True, False])] * 2})
-    rows, budget, comparisons = accuracy_charts.load_runs([a, b])
-    assert (budget, comparisons) == (3, 4) and list(rows) == ["default", "whiten"]
+    curves, budget, comparisons = accuracy_charts.load_runs([a, b])
+    assert (budget, comparisons) == (3, 4) and list(curves) == ["default", "whiten"]
+    rows = band_rows(curves, budget)
     right, dec = rows["default"]
     assert right.shape == (3, 4) and dec == 0.01
     # right after k = 0..3: [F, T, T, T] once, [T, F, F, F] twice (the last decision holds)
@@ -76,6 +78,13 @@ def test_command_writes_both_charts_and_refuses_bad_input(tmp_path):
                  "--out", str(out)]) == 0
     for name in ("accuracy_vs_touches.png", "accuracy_vs_time.png"):
         assert (out / name).stat().st_size > 1000
+    pooled = json.loads((out / "pooled.json").read_text())
+    assert pooled["scenes"] == {"default": 3}
+    at_09 = [r for r in pooled["report_rows"] if r["theta"] == 0.9][0]
+    # belief 0.5 never reaches 0.9: each scene ends at its last decision (3 touches, right)
+    assert (at_09["accuracy"], at_09["touches"], at_09["wrong_stop"]) == (1.0, 3.0, 0.0)
+    assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "15.5",
+                 "--paired-against", "nope", "--out", str(out)]) == 2
     assert main(["experiment", "accuracy-charts", "--runs", str(tmp_path / "none"),
                  "--press-s", "15.5", "--out", str(out)]) == 2
     assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "0",
