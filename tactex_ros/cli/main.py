@@ -97,7 +97,7 @@ def write_json(path: str | None, obj: dict) -> None:
 
 def cmd_trial(args: argparse.Namespace) -> int:
     from ..core.config import TrialSettings
-    from ..core.engine import TrialSpec, run_trial
+    from ..core.engine import TrialSpec, default_platform_ids, run_trial
     from ..sources import open_source, trial_scene
     settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
                                    "tactex trial")
@@ -118,7 +118,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
                                           args.reference)
     n = len(platform_classes) - 1
-    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
+    ids = default_platform_ids(n)
     spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
     touch = src.trial(platform_classes, args.seed)
 
