@@ -13,7 +13,6 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from ..core import plugins
 from ..core.errors import InputError, TrialError
 from .options import add_schema_options, bounded, builds, schema_values, write_json
 
@@ -148,6 +147,11 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     return 0
 
 
+# the product's commands that plug-ins do not extend (``sim`` is a group a plug-in adds to,
+# ``command_group``): ``tactex trial ...`` reads no installed metadata and loads no plug-in
+CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot"})
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The ``tactex`` parser; with ``command``, the options of that command only (``builds``).
     Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``."""
@@ -161,6 +165,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
     robot.add_commands(sub, command)
+    if command in CLOSED_COMMANDS:
+        return p                          # no plug-in adds to them: none is looked up
+    from ..core import plugins
     for name, ep in plugins.available(plugins.COMMANDS).items():
         try:
             ep.load()(sub, command)
