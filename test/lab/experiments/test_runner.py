@@ -85,3 +85,15 @@ def test_a_result_names_platforms_only_in_its_file_form():
     assert all(isinstance(p, int) for p in chosen)
     assert [r["platform"] for r in d["rounds"]] == [["reference", "c1", "c2", "c3"][p]
                                                     for p in chosen]
+
+
+def test_a_failed_trial_keeps_its_error_and_no_outcome():
+    """Every touch blank: the baseline fails; the result says why, has no outcome, and its
+    file form names the true platform and no final decision."""
+    job = TrialJob(source="sim", seed=0, preset="default", strategy="infogain", rounds=2,
+                   comparisons=3, perturb={"blank": 1.0}, catch_errors=True)
+    res = run_jobs([job], Backend("joblib", 1), quiet=True)[0]
+    assert res.outcome is None and res.prediction is None and not res.correct
+    assert res.error and res.failed_touches and res.decisions == []
+    d = res.to_dict()
+    assert d["final"] is None and d["truth"] == ["reference", "c1", "c2", "c3"][res.truth]
