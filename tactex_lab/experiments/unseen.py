@@ -194,11 +194,8 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
             eng.learner.representation = rep
             if np.isfinite(rep.temperature):
                 eng.learner.match.beta = rep.temperature
-        t0 = time.perf_counter()
-        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth,
-                        engine=eng).to_dict()
-        res.update(classes=plat, truth_index=truth, wall_s=time.perf_counter() - t0)
-        c = curve(res)
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth, engine=eng)
+        c = curve(res.rounds + [res.final], truth)
         c["classes"] = plat
         out.append(c)
     return out
