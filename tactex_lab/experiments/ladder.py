@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset, trial_preset
+from tactex_ros.core.config import SHIPPED_STOP, preset, trial_preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 from tactex_lab.analysis.stats import wilcoxon_paired
@@ -96,19 +96,19 @@ def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], see
     tcfg = trial_preset(pre, strategy=strategy, rounds=budget, stop_confidence=0.0)
     src = FramedPresses(cache, needs_frames(cfg))
     truth = plat[1:].index(plat[0]) + 1
-    spec = TrialSpec(len(plat) - 1, cfg, TrialConfig.check(tcfg.model_dump(), "trial"),
-                     seed=seed)
+    spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed)
     cpu: list[float] = []
     t0 = time.process_time()
 
     def on_round(rec) -> None:
         cpu.append(time.process_time() - t0 - src.load_s)
 
-    res = run_trial(spec, ReplayTrial(src, plat, seed), truth=truth, on_round=on_round).to_dict()
-    res.update(classes=plat, truth_index=truth)
-    c = real_curves.curve(res)
-    c.update(classes=plat, cpu=cpu, escalations=res["escalations"], notes=res["notes"],
-             models=[r["model"] for r in res["rounds"]] + [res["final"]["model"]])
+    out = run_trial(spec, ReplayTrial(src, plat, seed), truth=truth, on_round=on_round)
+    decisions = out.rounds + [out.final]
+    c = real_curves.curve(decisions, truth)
+    d = out.to_dict()
+    c.update(classes=plat, cpu=cpu, escalations=d["escalations"], notes=d["notes"],
+             models=[r.model for r in decisions])
     return c
 
 
