@@ -3,7 +3,9 @@
 A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
 engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
 shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
-``LearnerConfig.model`` (the thesis CNNs, ``cnn_auto``) is a plug-in of group ``tactex.learners``
+``LearnerConfig.model`` (the thesis CNNs, ``cnn_auto``; ``auto``, the product's ladder
+``core/ladder.py``, which builds its rungs through this function) is a plug-in of group
+``tactex.learners``
 (``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
 for a configuration that names a CNN.
 """
@@ -71,13 +73,9 @@ def train_round(learner: Learner) -> TrainStats | None:
 
 
 def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
-    """The learner ``cfg.model`` names: ``descriptor`` and ``auto`` (``core/ladder.py``) here,
-    any other a ``tactex.learners``
+    """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
     plug-in (InputError when it is not installed)."""
     if cfg.model == "descriptor":
         from .descriptor import DescriptorLearner
         return DescriptorLearner(num_classes, cfg, seed=seed)
-    if cfg.model == "auto":
-        from .ladder import Ladder
-        return Ladder(num_classes, cfg, seed=seed)
     return load(LEARNERS, cfg.model)(num_classes, cfg, seed)
