@@ -46,15 +46,15 @@ TARGET_REL = 0.25             # every statistic within 25 % of the real value
 # model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
 DEFAULT_SETTINGS: tuple[str, ...] = (
     "default=default",
-    "random=default:strategy=random",
-    "variance=default:strategy=variance",
-    "entropy=default:strategy=entropy",
-    "yoto=default:strategy=yoto",
-    "no_contact_off=default:descriptor_no_contact=false",
-    "prior0.5=default:match_prior_scale=0.5",
-    "prior3=default:match_prior_scale=3.0",
+    "random=default:trial.strategy=random",
+    "variance=default:trial.strategy=variance",
+    "entropy=default:trial.strategy=entropy",
+    "yoto=default:trial.strategy=yoto",
+    "no_contact_off=default:learner.descriptor_no_contact=false",
+    "prior0.5=default:learner.match_prior_scale=0.5",
+    "prior3=default:learner.match_prior_scale=3.0",
     "cnn=cnn",
-    "cnn_random=cnn:strategy=random",
+    "cnn_random=cnn:trial.strategy=random",
 )
 
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
+from tactex_lab.experiments.common import correct_at, learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import pareto_front, wilson
@@ -361,7 +361,7 @@ def run(args) -> int:
         raise InputError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
                          "presses)")
     args.workers = backend_of(args).resolved().workers
-    args.overrides = parse_set(args.set)
+    args.overrides = learner_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "pareto", cfg)
     done = {}
@@ -418,8 +418,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--strategies", nargs="+", default=["variance", "entropy", "random", "yoto"])
     p.add_argument("--touch-rounds", type=int, default=20)
     p.add_argument("--touch-seeds", type=int, nargs="+", default=[0])
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="learner override for every job (after the setting's own)")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override for every job (after the setting's own), e.g. "
+                        "learner.steps=4")
     p.add_argument("--out", help="results folder (default results/pareto)")
     p.add_argument("--cache", help="per-job result cache folder (re-runs skip finished jobs; "
                                    "the touches part's wall time then counts only new jobs)")

@@ -61,15 +61,16 @@ from tactex_lab.experiments.common import budget_index, parse_set, results_dir, 
 from tactex_lab.experiments.runner import Backend, TrialJob, add_runner_args, backend_of, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact, spearman_interval, wilcoxon_paired, wilson
 
-DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
-                    "variance=default:strategy=variance")
+DEFAULT_SETTINGS = ("default=default", "random=default:trial.strategy=random",
+                    "variance=default:trial.strategy=variance")
 DEFAULT_THRESHOLDS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 1.01)
 
 
 def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
 
-    ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
+    Overrides are dotted schema paths (``tactex_ros.core.config.overrides``):
+    ``learner.<field>`` and ``trial.strategy``."""
     from tactex_ros.core.config import PRESETS
     label, sep, rest = text.partition("=")
     if not sep or not label:
@@ -78,11 +79,8 @@ def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     if pre not in PRESETS:
         raise InputError(f"--setting {text!r}: unknown preset {pre!r}; one of "
                          f"{', '.join(PRESETS)}")
-    items = [it for it in kv.split(",") if it]
-    strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
-    over = parse_set([it for it in items if not it.startswith("strategy=")],
-                     option=f"--setting {text!r}:")
-    return label, pre, strategy, over
+    over = parse_set([it for it in kv.split(",") if it], f"--setting {text!r}:", ("strategy",))
+    return label, pre, over.get("trial", {}).get("strategy"), over.get("learner", {})
 
 
 def class_folds(classes: list[str], k: int, seed: int) -> list[list[str]]:

@@ -44,7 +44,7 @@ import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.common import parse_set, results_dir, write_json
+from tactex_lab.experiments.common import learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import wilson
@@ -300,7 +300,7 @@ def run(args) -> int:
         raise InputError("need at least one seed")
     backend = backend_of(args).resolved()
     args.workers = backend.workers
-    args.overrides = parse_set(args.set)
+    args.overrides = learner_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "stability", cfg)
     jobs, models = build_jobs(args)
@@ -355,8 +355,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--models", nargs="*", default=["auto", "top"],
                    help="extra models on the difficulty axis (variance): auto, top")
     p.add_argument("--guard-strategies", nargs="*", default=["variance", "yoto"])
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="learner override for every job (e.g. input_size=48)")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override for every job (e.g. learner.input_size=48)")
     p.add_argument("--seeds", type=int, nargs="+", default=list(range(10)))
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--threshold", type=float, default=0.6,

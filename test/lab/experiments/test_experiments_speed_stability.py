@@ -12,8 +12,8 @@ from tactex_lab.analysis.stats import pareto_front, wilson
 from tactex_lab.experiments.stability import condition, failure_mode
 from tactex_ros.core.errors import InputError
 
-TINY = ["--set", "input_size=32", "--set", "steps=2", "--set", "mc_passes=4",
-        "--set", "augment=3", "--set", "bn_recalibrate=8"]
+TINY = ["--set", "learner.input_size=32", "--set", "learner.steps=2", "--set", "learner.mc_passes=4",
+        "--set", "learner.augment=3", "--set", "learner.bn_recalibrate=8"]
 
 
 def test_pareto_front_keeps_only_undominated_points():
