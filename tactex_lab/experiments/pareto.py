@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.engine import training_of
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import correct_at, learner_set, results_dir, write_json
@@ -139,8 +140,9 @@ def decisions_of(res: dict) -> list[dict]:
         out.append({"total": int(sum(r["touches"])) + 1, "probs": r["probs"],
                     "decision_s": r["decision_s"], "cpu_s": r.get("cpu_s", float("nan")),
                     "entropy": r["predictive_entropy"],
-                    "model": f"{r['model']}@{r.get('input_size', 0)}",
-                    "escalation": r.get("escalation")})
+                    "model": (f"{r['model']}@{training_of(r)['input_size']}"
+                              if training_of(r) else r["model"]),
+                    "escalation": training_of(r).get("escalation")})
     return out
 
 

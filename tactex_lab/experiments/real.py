@@ -112,7 +112,7 @@ def curve(res: dict) -> dict:
         out["extra"].append(int(sum(r["touches"]) + r.get("reference_touches", 1) - base))
         out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
         out["conf"].append(float(probs.max()))
-        out["decision_s"].append(float(r["train_s"] + r["score_s"] + r["choose_s"]))
+        out["decision_s"].append(float(r["decision_s"]))
         if prev is not None and prev["platform"] not in (None, "reference", 0):
             out["touched"] += 1
             chosen = prev["platform"]

@@ -111,6 +111,19 @@ class TrainingDetail:
 #: A round's learner-typed detail: ``TrainingDetail`` for a learner that trains; None for one
 #: that trains nothing (the descriptor: its round is the common fields alone).
 RoundDetail = TrainingDetail
+TRAINING_FIELDS = tuple(f for f in TrainingDetail.__dataclass_fields__ if f != "kind")
+
+
+def training_of(round_json: dict) -> dict:
+    """The training detail of one round of a trial JSON (``TrialOutcome.to_dict``) as a dict,
+    {} for a learner that trains nothing. Also reads the flat shape of files written before
+    the detail existed (``train_loss`` etc. beside the common fields; a descriptor's there
+    were placeholders, nothing trained)."""
+    if "detail" in round_json:
+        return dict(round_json["detail"] or {})
+    if round_json.get("model", "descriptor") == "descriptor":
+        return {}
+    return {k: round_json.get(k) for k in TRAINING_FIELDS}
 
 
 @dataclass
