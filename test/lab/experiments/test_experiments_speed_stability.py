@@ -6,7 +6,7 @@ import math
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.common import correct_at, parse_set
+from tactex_lab.experiments.common import correct_at, learner_set, parse_set
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import pareto_front, wilson
 from tactex_lab.experiments.stability import condition, failure_mode
@@ -42,9 +42,13 @@ def test_correct_at_budget_reads_the_capped_decision():
 
 
 def test_parse_set_checks_keys():
-    assert parse_set(["input_size=48", "guards=false"]) == {"input_size": 48, "guards": False}
-    with pytest.raises(InputError, match="key one of"):
+    assert parse_set(["learner.input_size=48", "learner.guards=false"]) == \
+        {"learner": {"input_size": 48, "guards": False}}
+    assert learner_set(["learner.input_size=48"]) == {"input_size": 48}
+    with pytest.raises(InputError, match="unknown setting 'nope'"):
         parse_set(["nope=1"])
+    with pytest.raises(InputError, match=r"^--set trial.rounds: not taken here"):
+        parse_set(["trial.rounds=3"])
 
 
 def test_condition_maps_axes():

@@ -47,8 +47,12 @@ def test_parse_setting_names_what_is_wrong():
         "r", "default", "random", {"match_temperature": 0.1})
     with pytest.raises(InputError, match="unknown preset"):
         parse_setting("x=nope")
-    with pytest.raises(InputError, match="colour=1"):
+    with pytest.raises(InputError, match=r"unknown setting 'learner.colour'; nearest valid: "
+                                         r"'learner.\w+'"):
         parse_setting("x=default:learner.colour=1")
+    with pytest.raises(InputError, match=r"trial.rounds: not taken here \(learner.\* settings "
+                                         r"and trial.strategy are\)"):
+        parse_setting("x=default:trial.rounds=3")
 
 
 def test_replayed_presses_do_not_depend_on_string_hashing(octopi_dir):
