@@ -42,7 +42,7 @@ SOFT_THRESHOLD = 0.5          # simulated fabrics with softness >= this form the
 TARGET_REL = 0.25             # every statistic within 25 % of the real value
 
 # Learner settings ranked on both sides, in ``tactex experiment real`` syntax
-# (label=preset[:key=value,...], ``experiments/real.parse_setting``): the shipped descriptor
+# (label=preset[:PATH=value,...], ``experiments/real.parse_setting``): the shipped descriptor
 # model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
 DEFAULT_SETTINGS: tuple[str, ...] = (
     "default=default",

@@ -67,14 +67,14 @@ DEFAULT_THRESHOLDS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 1.01)
 
 
 def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
-    """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
+    """``label=preset[:PATH=val,PATH=val]`` -> (label, preset, strategy or None, overrides).
 
     Overrides are dotted schema paths (``tactex_ros.core.config.overrides``):
     ``learner.<field>`` and ``trial.strategy``."""
     from tactex_ros.core.config import PRESETS
     label, sep, rest = text.partition("=")
     if not sep or not label:
-        raise InputError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+        raise InputError(f"--setting {text!r}: expected label=preset[:PATH=value,...]")
     pre, _, kv = rest.partition(":")
     if pre not in PRESETS:
         raise InputError(f"--setting {text!r}: unknown preset {pre!r}; one of "
@@ -498,7 +498,7 @@ def register(esub: argparse._SubParsersAction) -> None:
                                               "recording session?")
     q.add_argument("--real", required=True, help="folder of recorded presses")
     q.add_argument("--setting", action="append", required=True,
-                   help="label=preset[:key=value,...] (repeat)")
+                   help="label=preset[:PATH=value,...] (repeat)")
     q.add_argument("--scenes", type=int, default=30)
     q.add_argument("--comparisons", type=int, default=4)
     q.add_argument("--budget", type=int, default=5)
@@ -524,7 +524,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
     p.add_argument("--folds", type=int, default=3, help="class folds (1 = no choosing)")
     p.add_argument("--setting", action="append",
-                   help="label=preset[:key=value,...] (repeat); default: "
+                   help="label=preset[:PATH=value,...] (repeat); default: "
                         + " ".join(DEFAULT_SETTINGS))
     p.add_argument("--thresholds", type=float, nargs="+")
     p.add_argument("--target-touches", type=float, default=5.0,

@@ -1,8 +1,8 @@
 """The descriptor learner: texture descriptors of every touch and the Gaussian match belief.
 
-The engine's cheapest model (``DescriptorSettings``, ``learner.model = 'descriptor'``): nothing is trained; each
-touch becomes a rotation-invariant descriptor (``core/texture.py``) once, when it is added, and a
-decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
+The engine's cheapest model (``DescriptorSettings``, ``learner.model = 'descriptor'``): nothing
+is trained; each touch becomes a rotation-invariant descriptor (``core/texture.py``) once,
+when it is added, and a decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
 It is a ``core.learners.Learner`` (``add_touch``, ``add_reference``, ``heldout_proba``,
 ``reference_probs``, ``belief``; no ``train_round``: nothing is trained) plus ``info_gain`` for
 the ``infogain`` strategy.

@@ -4,7 +4,8 @@ The engine does not know where touches come from. Platform indices: 0 is the ref
 are the comparison platforms (class c-1 of the learner). Every reference touch is a test sample
 (the decision uses all of them); every comparison touch is data for its platform's class.
 
-Learners (``learner.model``, the tag of ``LearnerSettings``; ``core/learners.py``): ``descriptor`` (``core/descriptor.py``:
+Learners (``learner.model``, the tag of ``LearnerSettings``; ``core/learners.py``):
+``descriptor`` (``core/descriptor.py``:
 texture descriptors and a closed-form belief over the matching comparison; nothing is trained) or
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
@@ -336,7 +337,8 @@ class TrialEngine:
             model=self.learner.model_name,
             heldout=list(self._pending_heldout), degenerate=degenerate,
             cpu_s=time.process_time() - c0,
-            detail=None if stats is None else TrainingDetail.of(stats, self.learner.cfg.input_size))
+            detail=(None if stats is None
+                    else TrainingDetail.of(stats, self.learner.cfg.input_size)))
         self._pending_heldout = []
         if final:
             self.final = rec

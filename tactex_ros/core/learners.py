@@ -3,7 +3,8 @@
 A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
 engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
 shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
-``learner.model`` (the thesis CNNs, ``auto``: ``CnnSettings``, ``AutoSettings``) is a plug-in of group ``tactex.learners``
+``learner.model`` (the thesis CNNs, ``auto``: ``CnnSettings``, ``AutoSettings``) is a plug-in
+of group ``tactex.learners``
 (``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
 for a configuration that names a CNN.
 """
