@@ -194,3 +194,17 @@ def test_the_descriptor_trains_nothing_in_a_trial() -> None:
     res = eng.run(lambda p: frames[p], truth=1)
     assert [r.detail for r in res.rounds + [res.final]] == [None, None, None]
     assert all(r.train_s == 0.0 for r in res.rounds + [res.final])
+
+
+def test_resume_reads_a_record_with_the_flat_learner_dump(tmp_path) -> None:
+    from tactex_ros.resume import check_settings
+    now = TrialSettings.check({})
+    old = {**now.learner.model_dump(), "input_size": 299, "lr": 0.001, "epochs": 10}
+    (tmp_path / "config.json").write_text(json.dumps(
+        {"learner": old, "trial": now.trial.model_dump()}))
+    check_settings(tmp_path, {"learner": now.learner.model_dump(),
+                              "trial": now.trial.model_dump()})          # accepted
+    changed = now.learner.replace(match_temperature=0.1).model_dump()
+    with pytest.raises(InputError, match=r"^resume: learner.match_temperature is 0.1 now but "
+                                         r"0.05 in the record"):
+        check_settings(tmp_path, {"learner": changed, "trial": now.trial.model_dump()})
