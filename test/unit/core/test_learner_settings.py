@@ -208,3 +208,16 @@ def test_resume_reads_a_record_with_the_flat_learner_dump(tmp_path) -> None:
     with pytest.raises(InputError, match=r"^resume: learner.match_temperature is 0.1 now but "
                                          r"0.05 in the record"):
         check_settings(tmp_path, {"learner": changed, "trial": now.trial.model_dump()})
+
+
+def test_tactex_trial_set(tmp_path, capsys) -> None:
+    from tactex_ros.cli.main import main
+    assert main(["trial", "--source", "sim", "--set", "learner.lr=0.1", "--quiet"]) == 2
+    assert "learner.lr: unknown name for a descriptor learner" in capsys.readouterr().err
+    assert main(["trial", "--source", "sim", "--set", "trial.round=1", "--quiet"]) == 2
+    assert "nearest valid: 'trial.rounds'" in capsys.readouterr().err
+    out = tmp_path / "t.json"
+    assert main(["trial", "--source", "sim", "--rounds", "5", "--set", "trial.rounds=1",
+                 "--set", "trial.stop_confidence=0", "--quiet", "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert (len(d["rounds"]), d["stop_reason"], d["final"]["detail"]) == (1, "rounds", None)
