@@ -155,9 +155,13 @@ def presets() -> list[str]:
     for name in config.choices:
         if name == config.default:
             continue
-        values = flatten(TrialSettings.check({"config": name}).model_dump())
-        rows += [(f"`{name}`", f"`{k}`", show(v), show(base.get(k, "")))
-                 for k, v in values.items() if k != "config" and v != base.get(k)]
+        s = TrialSettings.check({"config": name})
+        own = {f"learner.{k}": v for k, v in type(s.learner)().model_dump().items()}
+        values = flatten(s.model_dump())
+        rows += [(f"`{name}`", f"`{k}`", show(v),
+                  show(base[k]) if k in base else f"none (class default {show(own[k])})")
+                 for k, v in values.items()
+                 if k != "config" and v != base.get(k, own.get(k))]
     return (out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
             + plugin_lines(plugins.LEARNERS, "Learners added by plug-ins (`learner.model`)"))
 
