@@ -246,7 +246,8 @@ def run_job(job: TrialJob, threads: int = 1,
             raise
         recs = eng.records
         return {"correct": False, "prediction": None, "truth": ids[truth], "touches":
-                eng.total_touches, "rounds": [dataclasses.asdict(r) for r in recs],
+                eng.total_touches,
+                "rounds": [{**dataclasses.asdict(r), "decision_s": r.decision_s} for r in recs],
                 "final": None, "failed_touches": list(eng.failed),
                 "error": f"{type(exc).__name__}: {exc}", "job": dataclasses.asdict(job),
                 "classes": classes, "truth_index": truth, "prediction_index": None,
