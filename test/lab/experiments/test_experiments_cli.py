@@ -14,7 +14,8 @@ from tactex_lab.experiments.runner import TrialJob, run_job
 from tactex_lab.experiments.trials import find_trial_file, load_trials
 from tactex_ros.paths import config_dir
 
-TINY = ["--set", "learner.input_size=32", "--set", "learner.mc_passes=4", "--set", "learner.steps=2",
+TINY = ["--set", "learner.input_size=32", "--set", "learner.mc_passes=4",
+        "--set", "learner.steps=2",
         "--set", "learner.bn_recalibrate=8"]
 TINY_OVR = dict(input_size=32, mc_passes=4, steps=2, bn_recalibrate=8)
 

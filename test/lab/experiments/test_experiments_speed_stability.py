@@ -12,7 +12,8 @@ from tactex_lab.analysis.stats import pareto_front, wilson
 from tactex_lab.experiments.stability import condition, failure_mode
 from tactex_ros.core.errors import InputError
 
-TINY = ["--set", "learner.input_size=32", "--set", "learner.steps=2", "--set", "learner.mc_passes=4",
+TINY = ["--set", "learner.input_size=32", "--set", "learner.steps=2",
+        "--set", "learner.mc_passes=4",
         "--set", "learner.augment=3", "--set", "learner.bn_recalibrate=8"]
 
 
@@ -62,9 +63,10 @@ def test_condition_maps_axes():
 
 def _run(correct=False, probs=(0.85, 0.05, 0.05, 0.05), degenerate=False, loss=0.5,
          touches_end=(2, 2, 2, 2), error=None):
-    r = {"probs": list(probs), "scores": [0.1] * 4, "train_loss": loss,
-         "touches": [1, 1, 1, 1], "degenerate": degenerate, "skipped_steps": 0,
-         "restored": False}
+    r = {"probs": list(probs), "scores": [0.1] * 4, "model": "small_inception",
+         "touches": [1, 1, 1, 1], "degenerate": degenerate,
+         "detail": {"kind": "training", "train_loss": loss, "skipped_steps": 0,
+                    "restored": False}}
     return {"correct": correct, "error": error, "rounds": [r, dict(r), dict(r)],
             "final": dict(r, touches=list(touches_end), scores=None)}
 
