@@ -370,6 +370,8 @@ class TrialEngine:
             nxt = state["next_platform"]
             if len(records) != state["round"] or nxt is None or not 0 <= int(nxt) <= self.C:
                 raise InputError("its rounds or next platform do not fit together")
+        except InputError:
+            raise
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"checkpoint state is incomplete ({type(exc).__name__}: {exc})") \
                 from None

@@ -5,7 +5,9 @@ not fit the record is not used: the resume re-trains on the recorded touches (sa
 
 from __future__ import annotations
 
+import hashlib
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -81,12 +83,38 @@ def _run(tmp: Path, name: str, cut_after: int | None = None, cut_round: int | No
     eng = _engine()
     try:
         return eng.run(_presses(rec, src_fn, cut_after),
-                       on_round=_checkpointing(eng, rec, cut_round)), src_fn
+                       on_round=_checkpointing(eng, rec, cut_round))
     except Cut:
-        return None, src_fn
+        return None
 
 
-def _resume(tmp: Path, name: str, src_fn, start: int):
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> Path:
+    """The uninterrupted trial ('full', its outcome) and two cut ones: while asking for touch
+    8 ('cut7', checkpoint of round 3 over touches 1..7) and after touch 7 was written but
+    before round 3's checkpoint ('cut_round3', checkpoint of round 2 over 1..6)."""
+    tmp = tmp_path_factory.mktemp("runs")
+    full = _run(tmp, "full")
+    assert _run(tmp, "cut7", cut_after=7) is None
+    assert _run(tmp, "cut_round3", cut_round=3) is None
+    return tmp, full
+
+
+def _copy(runs, name: str, tmp: Path) -> Path:
+    shutil.copytree(runs[0] / name, tmp / name)
+    return tmp / name
+
+
+def _advanced_source(folder: Path):
+    """The simulated presses after the ones on disk (the source draws in order)."""
+    src_fn = _source()
+    for t in read_record(folder, images=False)["touches"]:
+        src_fn(int(t["platform_index"]))
+    return src_fn
+
+
+def _resume(tmp: Path, name: str, start: int):
+    src_fn = _advanced_source(tmp / name)
     rec = TrialRecord(tmp, name, resume=True)
     replay, _ = load_replay(tmp / name, _presses(rec, src_fn, start=start), IDS)
     eng, after, how = restore_engine(_spec(), tmp / name, replay.recorded)
@@ -112,17 +140,14 @@ def _same(a, b) -> None:
 
 
 @pytest.mark.slow
-def test_resume_from_checkpoint_equals_uninterrupted(tmp_path: Path) -> None:
-    full, _ = _run(tmp_path, "full")
+def test_resume_from_checkpoint_equals_uninterrupted(runs, tmp_path: Path) -> None:
+    full = runs[1]
     assert full is not None and len(full.rounds) == ROUNDS
-    # cut while asking for touch 8: rounds 1..3 decided, checkpoint of round 3 covers 1..7
-    part, src_fn = _run(tmp_path, "cut", cut_after=7)
-    assert part is None
-    state, after, blob = read_checkpoint(tmp_path / "cut")
+    d = _copy(runs, "cut7", tmp_path)
+    state, after, blob = read_checkpoint(d)
     assert state["round"] == 3 and after == 7 and len(blob) > 1000
-    assert [f.name for f in (tmp_path / "cut").glob("learner_*.state")] == \
-        ["learner_0003.state"]                       # older rounds' files removed
-    res, after, how, trained = _resume(tmp_path, "cut", src_fn, start=7)
+    assert [f.name for f in d.glob("learner_*.state")] == ["learner_0003.state"]  # older gone
+    res, after, how, trained = _resume(tmp_path, "cut7", start=7)
     assert after == 7 and "round 3" in how
     assert trained == ROUNDS + 1 - 3                 # rounds 4, 5 and the final decision only
     _same(full, res)
@@ -132,16 +157,15 @@ def test_resume_from_checkpoint_equals_uninterrupted(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_touches_after_the_checkpoint_are_replayed(tmp_path: Path) -> None:
+def test_touches_after_the_checkpoint_are_replayed(runs, tmp_path: Path) -> None:
     """Cut after touch 7 is on disk but before round 3's checkpoint: round 2's checkpoint
     (touches 1..6) is restored and touch 7 replayed from the record."""
-    full, _ = _run(tmp_path, "full")
-    part, src_fn = _run(tmp_path, "cut", cut_round=3)
-    assert part is None and read_checkpoint(tmp_path / "cut")[1] == 6
-    assert len(read_record(tmp_path / "cut", images=False)["touches"]) == 7
-    res, after, how, trained = _resume(tmp_path, "cut", src_fn, start=7)
+    d = _copy(runs, "cut_round3", tmp_path)
+    assert read_checkpoint(d)[1] == 6
+    assert len(read_record(d, images=False)["touches"]) == 7
+    res, after, how, trained = _resume(tmp_path, "cut_round3", start=7)
     assert after == 6 and trained == ROUNDS + 1 - 2
-    _same(full, res)
+    _same(runs[1], res)
 
 
 def _corrupt(d: Path) -> None:
@@ -167,20 +191,11 @@ def _other_touches(d: Path) -> None:
 
 
 def _other_learner(d: Path) -> None:
-    """A whole, consistent checkpoint file of a trial with another seed."""
-    other = d.parent / "other"
-    src_fn = _source()
-    rec = TrialRecord(d.parent, "other")
-    rec.save_inputs(None, {})
-    eng = _engine(seed=4)
-    with pytest.raises(Cut):
-        eng.run(_presses(rec, src_fn, cut_after=7), on_round=_checkpointing(eng, rec))
-    for f in d.glob("learner_*.state"):
-        f.unlink()
-    for f in other.glob("learner_*.state"):
-        (d / f.name).write_bytes(f.read_bytes())
-    head = json.loads((other / CHECKPOINT).read_text())
-    head["state"]["seed"] = 3                        # passes the engine's check, not the learner's
+    """A whole, consistent checkpoint whose learner bytes are another seed's learner."""
+    blob = _engine(seed=4).learner.save_state()
+    head = json.loads((d / CHECKPOINT).read_text())
+    (d / head["learner_file"]).write_bytes(blob)
+    head.update(learner_bytes=len(blob), learner_sha256=hashlib.sha256(blob).hexdigest())
     (d / CHECKPOINT).write_text(json.dumps(head))
 
 
@@ -190,14 +205,13 @@ def _other_learner(d: Path) -> None:
                                        (_other_touches, "does not fit"),
                                        (_other_learner, "another model, setting or seed"),
                                        (lambda d: (d / CHECKPOINT).unlink(), "no learner")])
-def test_unusable_checkpoint_falls_back_to_retraining(tmp_path: Path, spoil, why) -> None:
-    full, _ = _run(tmp_path, "full")
-    _, src_fn = _run(tmp_path, "cut", cut_after=7)
-    spoil(tmp_path / "cut")
-    res, after, how, trained = _resume(tmp_path, "cut", src_fn, start=7)
-    assert after == 0 and why in how and "re-training" in how
+def test_unusable_checkpoint_falls_back_to_retraining(runs, tmp_path: Path, spoil,
+                                                      why) -> None:
+    spoil(_copy(runs, "cut7", tmp_path))
+    res, after, how, trained = _resume(tmp_path, "cut7", start=7)
+    assert after == 0 and why in how
     assert trained == ROUNDS + 1                     # every round trained again
-    _same(full, res)
+    _same(runs[1], res)
 
 
 def test_restore_refuses_a_used_engine_and_other_versions() -> None:
