@@ -44,6 +44,10 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     if args.scene is None:
         orig = Path(cfg.get("scene_file") or "")
         copy = d / "scene.yaml"
+        if not copy.is_file() and not orig.is_file():
+            raise InputError(f"--resume {str(folder)!r}: the record has no scene.yaml and "
+                             f"its scene_file {str(cfg.get('scene_file') or '')!r} is not a "
+                             "file; give the scene with --scene")
         same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
         args.scene = str(orig if same or not copy.is_file() else copy)
     return ex
