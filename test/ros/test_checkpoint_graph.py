@@ -1,5 +1,6 @@
 """The CNN learner's checkpoint through the graph: `tactex graph run --sim --config cnn` stopped
-with Ctrl-C after two decisions leaves `checkpoint.json` (round 2) in the record; `--resume`
+with Ctrl-C after two decisions (every node exits 0, also an explorer stopped in the middle of
+a training round) leaves `checkpoint.json` (round 2) in the record; `--resume`
 restores it (the `resumed` event names the round, no decision before it is made again) and
 finishes the trial (exit 0, all rounds)."""
 
@@ -50,6 +51,9 @@ def test_resume_restores_the_learner_checkpoint(tmp_path: Path, domain_id: int) 
     first.send_signal(signal.SIGINT)
     first.communicate(timeout=120)
     assert first.returncode != 0 and not (rec / "result.json").exists()
+    ended = [e for e in read_record(rec, images=False)["events"]
+             if e.get("event") == "trial_ended"]
+    assert ended and set(ended[-1]["node_exit"].values()) == {0}   # Ctrl-C: a clean stop
     state, after, blob = read_checkpoint(rec)
     k = state["round"]
     assert 2 <= k < ROUNDS and len(blob) > 1000
