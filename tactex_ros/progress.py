@@ -114,8 +114,8 @@ class Progress:
             self._since, self._waited = now, 0.0
         elif self._deciding is not None and now - self._since >= self.every_s:
             self._waited += now - self._since
-            self.out(f"waiting for decision {self._deciding} or its touch: "
-                     f"{self._waited:.0f} s so far", "info")
+            self.out(f"working: {self._waited:.0f} s without a new touch or decision "
+                     f"(decisions on disk: {self._deciding - 1})", "info")
             self._since = now
 
 

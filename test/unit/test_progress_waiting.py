@@ -42,13 +42,13 @@ def test_waiting_line_during_a_long_decision_and_resume_line(tmp_path: Path) -> 
     now[0] = 162.0
     p.poll()
     waits = [t for k, t in lines[6:]]
-    assert len(waits) == 2 and all("decision 1" in t for t in waits)
+    assert len(waits) == 2 and all("disk: 0)" in t for t in waits)
     assert "31 s" in waits[0] and "62 s" in waits[1]     # counted from the last touch
     _append(tmp_path / "decisions.jsonl", {"round": 1, "belief": [1.0], "next": "c1"})
     p.poll()
     now[0] = 200.0
     p.poll()
-    assert "decision 2" in lines[-1][1]
+    assert "disk: 1)" in lines[-1][1]
     _append(tmp_path / "decisions.jsonl", {"round": 2, "belief": [1.0], "done": True,
                                            "prediction": "c1"})
     p.poll()
