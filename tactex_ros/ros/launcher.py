@@ -338,7 +338,7 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
             g.start()
             if on_start is not None:
                 on_start(g)
-            ex_pid = g.pids().get(ex.name)
+            ex_pid = g.pids.get(ex.name)
             deadlines = Deadlines(record, timeout_s, idle_s, cpu=None if ex_pid is None
                                   else (lambda: process_cpu_s(ex_pid)))
             while True:
