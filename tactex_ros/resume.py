@@ -23,10 +23,10 @@ from typing import Callable
 
 import numpy as np
 
-from .core.engine import TouchFailed
+from .core.engine import TouchFailed, TrialEngine, TrialSpec
 from .core.errors import InputError
 from .core.touch import Touch
-from .record import read_record
+from .record import read_checkpoint, read_record
 
 
 @dataclass
@@ -104,6 +104,42 @@ class Replay:
         return r.touch
 
 
+def restore_engine(spec: TrialSpec, folder: str | Path,
+                   recorded: list[RecordedTouch]) -> tuple[TrialEngine, int, str]:
+    """The engine of a resumed trial: restored from the record's last checkpoint (the
+    learner's state after its last round, ``TrialRecord.write_checkpoint``) when there is one
+    that fits, else a fresh one that re-trains while the recorded touches are replayed.
+    Returns (engine, number of the last recorded touch the checkpoint covers, 0 for none; a
+    line saying which way it went). A checkpoint that is unreadable, altered or does not fit
+    the record is not used (the line says why): the touches on disk are the ground truth."""
+    how = f"re-training on the {len(recorded)} recorded touches"
+    try:
+        got = read_checkpoint(folder)
+    except InputError as exc:
+        return spec.engine(), 0, f"{exc}; not used, {how}"
+    if got is None:
+        return spec.engine(), 0, f"no learner checkpoint in the record, {how}"
+    state, after, blob = got
+    eng = spec.engine()
+    stored = [(r.platform_index, r.touch) for r in recorded
+              if r.seq <= after and r.touch is not None and not r.rejected]
+    try:
+        if recorded and after > max(r.seq for r in recorded) or after < 1:
+            raise InputError(f"it covers touches up to {after}, the record holds "
+                             f"{max((r.seq for r in recorded), default=0)}")
+        eng.restore(state, stored, blob)
+    except InputError as exc:
+        return spec.engine(), 0, f"checkpoint does not fit the record ({exc}); not used, {how}"
+    for r in recorded:                  # the contact guard's no-contact frame, as it was
+        if r.seq <= after and r.touch is not None and r.touch.no_contact is not None:
+            if eng.guard is not None and not eng.guard.has_reference:
+                eng.guard.set_reference(r.touch.no_contact)
+            break
+    return eng, after, (f"learner restored from the checkpoint of round {len(eng.records)} "
+                        f"(touches 1..{after}); "
+                        f"{sum(r.seq > after for r in recorded)} recorded touches replayed")
+
+
 def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
                 platform_ids: list[str]) -> tuple[Replay, dict]:
     """A ``Replay`` of the record in ``folder`` and the loaded record."""
@@ -124,7 +160,9 @@ _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nic
 def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
     """Refuse a resume whose settings differ from the record's ``config.json`` where they
     change the trial (seed, strategy, model, rounds, stop rule, every learner setting); the
-    error names the first field that differs. ``now``: {section: settings dict}."""
+    error names the first field that differs. ``now``: {section: settings dict}. A record
+    written before the learners had their own settings holds every learner's fields; those the
+    learner now lacks are not compared (``learner.model`` decides which apply)."""
     import json
     p = Path(folder) / "config.json"
     try:
@@ -134,7 +172,7 @@ def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
     for section, free in _FREE.items():
         a = json.loads(json.dumps(was.get(section, {}), default=str))
         b = json.loads(json.dumps(now.get(section, {}), default=str))
-        for k in sorted(set(a) | set(b)):
+        for k in sorted(set(b) if section == "learner" else set(a) | set(b)):
             if k not in free and a.get(k) != b.get(k):
                 raise InputError(f"resume: {section}.{k} is {b.get(k)!r} now but "
                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "

@@ -41,8 +41,8 @@ THRESHOLDS = (0.8, 0.9, 0.95, 1.01)
 
 def default_settings(rep: str) -> list[str]:
     """Always-cheapest, always-prepared, always-CNN and the ladder (``parse_setting`` form)."""
-    return ["descriptor=default", f"representation=default:representation={rep}",
-            "cnn=cnn", f"auto=default:model=auto,representation={rep}"]
+    return ["descriptor=default", f"representation=default:learner.representation={rep}",
+            "cnn=cnn", f"auto=default:learner.model=auto,learner.representation={rep}"]
 
 
 #: Frames of presses already read in this process, {press file: (frame, no-contact frame)}: a

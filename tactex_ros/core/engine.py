@@ -4,7 +4,8 @@ The engine does not know where touches come from. Platform indices: 0 is the ref
 are the comparison platforms (class c-1 of the learner). Every reference touch is a test sample
 (the decision uses all of them); every comparison touch is data for its platform's class.
 
-Learners (``LearnerConfig.model``, ``core/learners.py``): ``descriptor`` (``core/descriptor.py``:
+Learners (``learner.model``, the tag of ``LearnerSettings``; ``core/learners.py``):
+``descriptor`` (``core/descriptor.py``:
 texture descriptors and a closed-form belief over the matching comparison; nothing is trained) or
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
@@ -22,13 +23,16 @@ the strategy's per-platform scores, the choice of the next platform (or none). A
 prediction; the stop rule ends earlier when the belief in one platform reaches
 ``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
 
-Model ``auto`` (``LearnerConfig.ladder*``, ``core/ladder.py``) climbs a ladder (descriptor, the
+Model ``auto`` (``LadderSettings``, ``core/ladder.py``) climbs a ladder (descriptor, the
 prepared representation, a CNN plug-in) on evidence from the trial itself; ``cnn_auto``
-(``LearnerConfig.auto_*``, the lab's ``tactex_lab/cnn/auto.py``) does the same over CNN sizes. The
-round records the model and input size it used (``RoundRecord.model``, ``input_size``) and why
-it escalated (``escalation``); ``TrialOutcome.notes`` says which rungs were skipped.
+(``AutoSettings``, the lab's ``tactex_lab/cnn/auto.py``) does the same over CNN sizes. The round
+records the model and input size it used (``RoundRecord.model``, ``TrainingDetail.input_size``)
+and why it escalated (``TrainingDetail.escalation``); ``TrialOutcome.notes`` says which rungs
+were skipped. A round's ``detail`` is its learner's: ``TrainingDetail`` for a learner that
+trains (and a ladder round that climbed or ran a CNN rung), None for the descriptor (nothing
+trained, nothing to report).
 
-Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
+Guards (``learner.guards``, see ``core/guards.py``): ``add_touch`` raises
 ``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
 failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
 then falls to the least-touched platform, ``strategies.break_ties``).
@@ -42,10 +46,11 @@ from typing import Callable
 
 import numpy as np
 
-from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
+from .config import (DescriptorSettings, LearnerSettings, TrialConfig,  # noqa: F401
+                     trial_preset, validate)
 from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, TrainStats, make_learner, train_round
+from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
@@ -91,34 +96,84 @@ def default_platform_ids(comparisons: int) -> list[str]:
 
 
 @dataclass
-class RoundRecord:
-    round: int
-    platform: int | None          # chosen next platform (1..C), None when nothing is touched
-    probs: list[float]            # (C,) mean softmax of the reference
-    scores: list[float] | None    # (C,) the strategy's scores, None for yoto / final
-    predictive_entropy: float     # nats
-    train_s: float
-    score_s: float
-    choose_s: float
-    train_loss: float
-    touches: list[int]            # touches per comparison platform when deciding
-    model: str
-    input_size: int = 0           # model input side [px] used this round
-    escalation: str | None = None  # model 'auto' / 'cnn_auto': why the model climbed before
-    #                               this round
-    heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
-    #                               right before being trained on (empty before round 1)
-    degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
+class TrainingDetail:
+    """What a round's training did, for a learner that trains (the lab's CNNs, ``cnn_auto``, a
+    round of ``auto`` that climbed or ran a CNN rung);
+    ``RoundRecord.detail`` of such a learner. JSON: ``{"kind": "training", ...}``."""
+
+    input_size: int               # model input side [px] used this round
+    train_s: float                # wall time of the round's training [s]
+    train_loss: float             # mean training loss
     skipped_steps: int = 0        # training steps skipped (non-finite loss/gradient, guards)
     restored: bool = False        # training round rolled back, learning rate halved (guards)
     grad_norm: float = float("nan")  # median gradient norm this round
+    escalation: str | None = None  # models 'auto' / 'cnn_auto': why the model climbed before
+    #                                this round
+    kind: str = "training"
+
+    @classmethod
+    def of(cls, stats: TrainStats, input_size: int) -> "TrainingDetail":
+        """The detail of one ``train_round`` (``core/learners.TrainStats``)."""
+        return cls(input_size=input_size, train_s=stats.seconds, train_loss=stats.mean_loss,
+                   skipped_steps=stats.skipped, restored=stats.restored,
+                   grad_norm=stats.grad_norm, escalation=stats.escalation)
+
+
+#: A round's learner-typed detail: ``TrainingDetail`` for a learner that trains; None for one
+#: that trains nothing (the descriptor: its round is the common fields alone).
+RoundDetail = TrainingDetail
+TRAINING_FIELDS = tuple(f for f in TrainingDetail.__dataclass_fields__ if f != "kind")
+
+
+def training_of(round_json: dict) -> dict:
+    """The training detail of one round of a trial JSON (``TrialOutcome.to_dict``) as a dict,
+    {} for a learner that trains nothing. Also reads the flat shape of files written before
+    the detail existed (``train_loss`` etc. beside the common fields; a descriptor's there
+    were placeholders, nothing trained)."""
+    if "detail" in round_json:
+        return dict(round_json["detail"] or {})
+    if round_json.get("model", "descriptor") == "descriptor":
+        return {}
+    return {k: round_json.get(k) for k in TRAINING_FIELDS}
+
+
+@dataclass
+class RoundRecord:
+    """One decision: the fields every learner has, and its learner's ``detail``."""
+
+    round: int
+    platform: int | None          # chosen next platform (1..C), None when nothing is touched
+    probs: list[float]            # (C,) belief over the comparisons
+    scores: list[float] | None    # (C,) the strategy's scores, None for yoto / final
+    predictive_entropy: float     # nats
+    score_s: float
+    choose_s: float
+    touches: list[int]            # touches per comparison platform when deciding
+    model: str
+    heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
+    #                               right before being trained on (empty before round 1)
+    degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
     cpu_s: float = float("nan")   # CPU time of the decision, all threads of this process [s]
     #                               (robust to other processes sharing the machine)
     reference_touches: int = 1    # touches of the reference when deciding
+    detail: RoundDetail | None = None
+
+    @property
+    def train_s(self) -> float:
+        """Training time of the round [s] (0 for a learner that trains nothing)."""
+        return self.detail.train_s if self.detail is not None else 0.0
 
     @property
     def decision_s(self) -> float:
         return self.train_s + self.score_s + self.choose_s
+
+    @property
+    def model_label(self) -> str:
+        """``model@input_px`` for a trained model, else the model's name (a ladder's descriptor
+        rung: its round's detail has input size 0)."""
+        if self.detail is None or not self.detail.input_size:
+            return self.model
+        return f"{self.model}@{self.detail.input_size}"
 
 
 @dataclass
@@ -157,7 +212,7 @@ class TrialOutcome:
         for r in self.rounds + [self.final]:
             d = asdict(r)
             d["platform"] = name(r.platform)
-            d["decision_s"] = r.decision_s
+            d["decision_s"] = r.decision_s      # the detail holds train_s, when there is one
             rounds.append(d)
         return {
             "correct": self.correct, "prediction": name(self.prediction),
@@ -166,18 +221,19 @@ class TrialOutcome:
             "failed_touches": self.failed_touches, "stop_reason": self.stop_reason,
             "sure": self.sure, "confidence": self.confidence,
             "reference_touches": self.reference_touches,
-            "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
+            "models": sorted({r.model_label for r in self.rounds + [self.final]}),
             "notes": list(self.notes),
-            "escalations": [{"round": r.round, "reason": r.escalation,
-                             "model": f"{r.model}@{r.input_size}"}
-                            for r in self.rounds + [self.final] if r.escalation],
+            "escalations": [{"round": r.round, "reason": r.detail.escalation,
+                             "model": r.model_label}
+                            for r in self.rounds + [self.final]
+                            if r.detail is not None and r.detail.escalation],
         }
 
 
 class TrialEngine:
     """One active-exploration trial over C comparison platforms."""
 
-    def __init__(self, n_comparisons: int, learner_cfg: LearnerConfig,
+    def __init__(self, n_comparisons: int, learner_cfg: LearnerSettings,
                  trial_cfg: TrialConfig | None = None, seed: int = 0,
                  platform_ids: list[str] | None = None) -> None:
         if n_comparisons < 2:
@@ -208,6 +264,7 @@ class TrialEngine:
         g = self.learner_cfg
         self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
         self._pending_heldout: list[bool] = []             # since the last decision
+        self._touch_due = False          # restored from a checkpoint: next_platform not touched
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
         """A no-contact frame of this sensor session: enables the guard's contact test."""
@@ -272,7 +329,7 @@ class TrialEngine:
             raise TrialError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
-        stats = train_round(self.learner) or TrainStats(0.0, 0, float("nan"))  # untrained
+        stats = train_round(self.learner)                 # None: a learner that trains nothing
         t0 = time.perf_counter()
         probs = self.learner.reference_probs()
         pbar = self.learner.belief(probs)
@@ -290,14 +347,14 @@ class TrialEngine:
         rec = RoundRecord(
             round=len(self.records) + 1, platform=choice,
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
-            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds,
-            score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
+            predictive_entropy=predictive_entropy(probs),
+            score_s=t1 - t0, choose_s=t2 - t1,
             touches=self.touches.tolist(), reference_touches=self.reference_touches,
             model=self.learner.model_name,
-            input_size=self.learner.cfg.input_size, escalation=stats.escalation,
             heldout=list(self._pending_heldout), degenerate=degenerate,
-            skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm,
-            cpu_s=time.process_time() - c0)
+            cpu_s=time.process_time() - c0,
+            detail=(None if stats is None
+                    else TrainingDetail.of(stats, getattr(self.learner.cfg, "input_size", 0))))
         self._pending_heldout = []
         if final:
             self.final = rec
@@ -333,6 +390,72 @@ class TrialEngine:
                            reference_touches=self.reference_touches, sure=self.sure,
                            notes=list(getattr(self.learner, "notes", [])))
 
+    # ------------------------------------------------------------------ checkpoint
+    def checkpoint(self) -> tuple[dict, bytes] | None:
+        """The trial's state right after a decision that asked for a touch: (engine state as
+        JSON-able dict, the learner's opaque bytes); None when the learner cannot save its
+        state (the descriptor: a resume re-adds the touches, nothing is trained) or the trial
+        is done. Written by the caller after each round (``record.TrialRecord``)."""
+        if self.done or not self.records or not can_checkpoint(self.learner):
+            return None
+        state = {"version": CHECKPOINT_VERSION, "round": len(self.records),
+                 "model": self.learner_cfg.model, "seed": self.seed,
+                 "platform_ids": self.platform_ids, "touches": self.touches.tolist(),
+                 "reference_touches": self.reference_touches,
+                 "next_platform": self.next_platform, "failed": self.failed,
+                 "records": [asdict(r) for r in self.records],
+                 "rng": self.rng.bit_generator.state}
+        return state, self.learner.save_state()   # type: ignore[attr-defined]
+
+    def restore(self, state: dict, stored: list[tuple[int, Touch]], learner_state: bytes) -> None:
+        """Continue a fresh engine from ``checkpoint()``'s state: ``stored`` are the touches
+        the learner held then, (platform 0..C, touch) in their order (accepted ones only); they
+        are added to the learner again (no training), then the learner's bytes are loaded. The
+        next ``run`` makes the touch the restored decision asked for. InputError (named) when
+        the state does not belong to this trial or to these touches; the engine is then
+        unusable (build a new one)."""
+        if self.records or self.total_touches:
+            raise TrialError("restore() needs a fresh engine")
+        if not can_checkpoint(self.learner):
+            raise InputError(f"checkpoint: learner {self.learner_cfg.model!r} cannot load a "
+                             "state")
+        try:
+            if state.get("version") != CHECKPOINT_VERSION:
+                raise InputError(f"version {state.get('version')!r}, this code reads "
+                                 f"{CHECKPOINT_VERSION}")
+            for key, now in (("model", self.learner_cfg.model), ("seed", self.seed),
+                             ("platform_ids", self.platform_ids)):
+                if state.get(key) != now:
+                    raise InputError(f"{key} is {state.get(key)!r}, the trial's {now!r}")
+            counts = np.bincount([p for p, _ in stored], minlength=self.C + 1)
+            if counts[0] != state["reference_touches"] or \
+                    counts[1:].tolist() != list(state["touches"]):
+                raise InputError(f"it holds {state['reference_touches']} reference and "
+                                 f"{list(state['touches'])} comparison touches, the record "
+                                 f"{int(counts[0])} and {counts[1:].tolist()}")
+            records = [_round_record(r) for r in state["records"]]
+            nxt = state["next_platform"]
+            if len(records) != state["round"] or nxt is None or not 0 <= int(nxt) <= self.C:
+                raise InputError("its rounds or next platform do not fit together")
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"checkpoint state is incomplete ({type(exc).__name__}: {exc})") \
+                from None
+        for platform, touch in stored:
+            if platform == 0:
+                self.learner.add_reference(touch)
+            else:
+                self.learner.add_touch(touch, platform - 1)
+        self.learner.load_state(learner_state)           # type: ignore[attr-defined]
+        self.touches = np.asarray(state["touches"], dtype=np.int64)
+        self.reference_touches = int(state["reference_touches"])
+        self.records = records
+        self.failed = list(state["failed"])
+        self.next_platform = int(nxt)
+        self.rng.bit_generator.state = state["rng"]
+        self._touch_due = True
+
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
@@ -356,6 +479,9 @@ class TrialEngine:
             missing = [self.platform_ids[p] for p in self.baseline_platforms()]
             raise TrialError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
                               f"for {missing}")
+        if self._touch_due and self.next_platform is not None:     # restored: its touch
+            self._touch_due = False
+            self._touch(self.next_platform, touch_fn, on_rejected)
         while not self.done:
             rec = self.decide()
             if on_round:
@@ -386,6 +512,26 @@ class TrialEngine:
         return False
 
 
+#: Layout of ``TrialEngine.checkpoint``'s state (a reader refuses another one).
+CHECKPOINT_VERSION = 1
+
+
+def _round_record(d: dict) -> RoundRecord:
+    """A ``RoundRecord`` from its JSON form (strict JSON wrote NaN as null: back to NaN)."""
+    from dataclasses import fields
+    known = {f.name: f for f in fields(RoundRecord)}
+    if set(d) - set(known):
+        raise InputError(f"unknown round fields {sorted(set(d) - set(known))}")
+    out = dict(d)
+    for name, f in known.items():
+        if out.get(name) is None and f.type == "float":
+            out[name] = float("nan")
+    for name in ("probs", "scores"):
+        if out.get(name) is not None:
+            out[name] = [float("nan") if v is None else float(v) for v in out[name]]
+    return RoundRecord(**out)
+
+
 @dataclass(frozen=True)
 class TrialSpec:
     """What decides a trial's outcome besides its touches: ``comparisons`` platforms besides
@@ -394,7 +540,7 @@ class TrialSpec:
     contact guard (None: the guard's flatness test only)."""
 
     comparisons: int
-    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    learner: LearnerSettings = field(default_factory=DescriptorSettings)
     trial: TrialConfig = field(default_factory=TrialConfig)
     seed: int = 0
     platform_ids: tuple[str, ...] | None = None

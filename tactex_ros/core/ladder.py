@@ -1,11 +1,11 @@
 """Model ``auto``: a ladder of learners that models no more than the scene needs.
 
-The trial starts on the cheapest rung of ``LearnerConfig.ladder`` (by default the texture
+The trial starts on the cheapest rung of ``LadderSettings.ladder`` (by default the texture
 descriptor, the shipped method) and climbs one rung only where the trial's own evidence says the
 scene is hard. Rungs, cheapest first, separated by commas (or ``+``):
 
 - ``descriptor``: the descriptor learner as configured, without a representation;
-- ``representation``: the descriptor learner with ``LearnerConfig.representation`` (a
+- ``representation``: the descriptor learner with ``LadderSettings.representation`` (a
   ``tactex prepare`` file). Without that file the rung is skipped (``Ladder.notes`` says so);
 - any other name: a preset of ``core/config.py`` whose model is a learner plug-in (``cnn``:
   the lab's small Inception at 48 px), optionally ``@px`` for its input side; built through
@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .descriptor import raw_descriptor
-from .config import PRESETS, LearnerConfig, preset, validate
+from .config import PRESETS, LadderSettings, learner_settings, preset, validate
 from .errors import InputError
 from .learners import Learner, TrainStats, make_learner, train_round
 from .plugins import LEARNERS, available
@@ -54,7 +54,7 @@ DESCRIPTOR_RUNGS = ("descriptor", "representation")
 
 @dataclass(frozen=True)
 class Rule:
-    """The escalation rule's thresholds (``LearnerConfig.ladder_*``)."""
+    """The escalation rule's thresholds (``LadderSettings.ladder_*``)."""
 
     patience: int = 2          # decisions on a rung before any test
     min_gain: float = 0.1      # rise of the leading belief over ``patience`` decisions
@@ -64,7 +64,7 @@ class Rule:
     heldout_acc: float = 0.5   # share of them right below which the rung is not enough
 
     @staticmethod
-    def of(cfg: LearnerConfig) -> "Rule":
+    def of(cfg: LadderSettings) -> "Rule":
         return Rule(cfg.ladder_patience, cfg.ladder_min_gain, cfg.ladder_sure,
                     cfg.ladder_margin, cfg.ladder_window, cfg.ladder_heldout_acc)
 
@@ -144,7 +144,7 @@ class Ladder:
     """The learner of the current rung plus what escalation needs (raw touches, the rung's
     beliefs and held-back outcomes). A ``core.learners.Learner`` with ``train_round``."""
 
-    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
+    def __init__(self, num_classes: int, cfg: LadderSettings, seed: int = 0) -> None:
         self.base_cfg = validate(cfg)
         self.num_classes = num_classes
         self.seed = seed
@@ -176,23 +176,23 @@ class Ladder:
         """Why ``rung`` cannot run here (None: it can)."""
         name = rung.partition("@")[0]
         if name == "representation" and not self.base_cfg.representation:
-            return "no representation file (LearnerConfig.representation, --representation)"
+            return "no representation file (LadderSettings.representation, --representation)"
         if name not in DESCRIPTOR_RUNGS:
             model = PRESETS[name]["model"]
             if model not in available(LEARNERS):
                 return f"the learner plug-in {model!r} is not installed"
         return None
 
-    def rung_config(self, rung: str) -> LearnerConfig:
-        """The LearnerConfig one rung runs with."""
+    def rung_config(self, rung: str):
+        """The learner settings one rung runs with: a descriptor rung the ladder's descriptor
+        settings (``DescriptorSettings``), a CNN rung its preset's (``CnnSettings``) with the
+        ladder's guards and threads."""
         name, _, px = rung.partition("@")
-        ladder_fields = self.base_cfg.model_dump()
-        if name == "descriptor":
-            return LearnerConfig.check({**ladder_fields, "model": "descriptor",
-                                        "representation": ""}, "ladder rung 'descriptor'")
-        if name == "representation":
-            return LearnerConfig.check({**ladder_fields, "model": "descriptor"},
-                                       "ladder rung 'representation'")
+        if name in DESCRIPTOR_RUNGS:
+            mine = self.base_cfg.as_model("descriptor").model_dump()
+            if name == "descriptor":
+                mine["representation"] = ""
+            return learner_settings(mine, f"ladder rung {name!r}")
         over = {"guards": self.base_cfg.guards, "threads": self.base_cfg.threads}
         if px:
             over["input_size"] = int(px)
@@ -207,7 +207,7 @@ class Ladder:
         return self.active[-1]
 
     @property
-    def cfg(self) -> LearnerConfig:
+    def cfg(self):
         """The current rung's configuration (its input size goes into the round record)."""
         return self.inner.cfg
 
@@ -245,13 +245,17 @@ class Ladder:
         self._heldout.append(bool(int(np.argmax(p)) == self._last_label))
         return p
 
-    def train_round(self) -> TrainStats:
-        """Escalate first when the evidence says so, then train the current rung one round
-        (a descriptor rung trains nothing: steps 0)."""
+    def train_round(self) -> TrainStats | None:
+        """Escalate first when the evidence says so, then train the current rung one round;
+        None when the round did neither (a descriptor rung that stays: its round has no
+        detail, as the descriptor's)."""
         reason = self.escalation()
         extra = self._escalate() if reason else 0.0
         self._decisions += 1
-        stats = train_round(self.inner) or TrainStats(0.0, 0, float("nan"))
+        stats = train_round(self.inner)
+        if stats is None and reason is None:
+            return None                 # a descriptor rung that stayed: nothing trained
+        stats = stats or TrainStats(0.0, 0, float("nan"))
         stats.seconds += extra
         if reason is not None:
             self.evidence = reason

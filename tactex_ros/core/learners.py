@@ -3,9 +3,9 @@
 A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
 engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
 shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
-``LearnerConfig.model`` (the thesis CNNs, ``cnn_auto``; ``auto``, the product's ladder
-``core/ladder.py``, which builds its rungs through this function) is a plug-in of group
-``tactex.learners``
+``learner.model`` (the thesis CNNs, ``cnn_auto``: ``CnnSettings``, ``AutoSettings``; ``auto``,
+the product's ladder ``core/ladder.py`` with ``LadderSettings``, which builds its rungs through
+this function) is a plug-in of group ``tactex.learners``
 (``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
 for a configuration that names a CNN.
 """
@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .config import LearnerConfig
+from .config import LearnerSettings
 from .plugins import LEARNERS, load
 from .touch import Touch
 
@@ -40,7 +40,7 @@ class Learner(Protocol):
     ``TrainingLearner``."""
 
     model_name: str
-    cfg: LearnerConfig
+    cfg: LearnerSettings
 
     def add_touch(self, touch: Touch, label: int) -> Any:
         """Store a comparison touch of class ``label`` (0..C-1); returns its stored sample."""
@@ -65,6 +65,28 @@ class TrainingLearner(Learner, Protocol):
         """One round of training; what it did."""
 
 
+class StatefulLearner(Learner, Protocol):
+    """A learner whose state can be written after a round and read back on resume, so a
+    resumed trial continues without re-training (the lab's CNNs). The bytes are opaque to the
+    product: the trial record stores them (``record.TrialRecord.write_checkpoint``).
+
+    ``load_state`` is called on a fresh learner (same class, settings and seed) after the
+    touches stored before the checkpoint were added again in their order; it raises
+    InputError when the bytes are not a state of this learner or do not fit those touches."""
+
+    def save_state(self) -> bytes:
+        """The learner's state now (weights, optimiser, random generators, ...)."""
+
+    def load_state(self, data: bytes) -> None:
+        """Continue from ``save_state``'s bytes (InputError when they do not fit)."""
+
+
+def can_checkpoint(learner: Learner) -> bool:
+    """True when the learner offers ``save_state`` / ``load_state`` (``StatefulLearner``)."""
+    return callable(getattr(learner, "save_state", None)) and \
+        callable(getattr(learner, "load_state", None))
+
+
 def train_round(learner: Learner) -> TrainStats | None:
     """One round of training of a ``TrainingLearner``; None for a learner that trains
     nothing (the descriptor)."""
@@ -72,7 +94,7 @@ def train_round(learner: Learner) -> TrainStats | None:
     return None if train is None else train()
 
 
-def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
+def make_learner(num_classes: int, cfg: LearnerSettings, seed: int = 0) -> Learner:
     """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
     plug-in (InputError when it is not installed)."""
     if cfg.model == "descriptor":

@@ -45,4 +45,9 @@ def test_hard_scene_climbs_to_the_cnn_and_records_why():
     cnn = eng.learner.inner
     assert cnn.n_views == int(eng.touches.sum()) * cnn.cfg.augment
     assert cnn.rounds_trained >= 1 + 4        # catch-up round + one per decision on the rung
-    assert d["rounds"][2]["train_loss"] == d["rounds"][2]["train_loss"]      # not NaN
+    # a descriptor rung's round has no detail; a CNN rung's is a TrainingDetail
+    assert d["rounds"][0]["detail"] is None and d["rounds"][1]["detail"] is None
+    detail = d["rounds"][2]["detail"]
+    assert detail["kind"] == "training" and detail["input_size"] == 32
+    assert detail["escalation"] == esc["reason"]
+    assert detail["train_loss"] == detail["train_loss"]      # not NaN

@@ -29,9 +29,10 @@ def test_ladder_experiment_pairs_settings_and_counts_cpu(tmp_path):
     rc = main(["experiment", "ladder", "--test", "/data/lab", "--cache-dir", str(tmp_path),
                "--representation", rep, "--scenes", "6", "--budget", "4", "--quiet",
                "--setting", "descriptor=default",
-               "--setting", f"auto=default:model=auto,representation={rep},"
-                            "ladder=descriptor+representation,ladder_patience=1,"
-                            "ladder_min_gain=0.5,ladder_sure=1.0",
+               "--setting", f"auto=default:learner.model=auto,learner.representation={rep},"
+                            "learner.ladder=descriptor+representation,"
+                            "learner.ladder_patience=1,learner.ladder_min_gain=0.5,"
+                            "learner.ladder_sure=1.0",
                "--thresholds", "0.9", "1.01", "--out", str(out)])
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
