@@ -33,17 +33,19 @@ chosen by expected information while a CNN decides the belief.
 
 from __future__ import annotations
 
+import json
 import logging
 import re
+import struct
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from .descriptor import raw_descriptor
 from .config import PRESETS, LadderSettings, learner_settings, preset, validate
 from .errors import InputError
-from .learners import Learner, TrainStats, make_learner, train_round
+from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
 from .plugins import LEARNERS, available
 from .touch import Touch
 
@@ -262,6 +264,57 @@ class Ladder:
         stats.escalation = (None if reason is None else
                             f"{self.rungs[self.stage - 1]} -> {self.rung}: {reason}")
         return stats
+
+    # ------------------------------------------------------------------ checkpoint
+    def save_state(self) -> bytes:
+        """The state after a round (``StatefulLearner``): the rung, this rung's evidence so far
+        and the current rung's learner state when it has one (a CNN rung's; a descriptor rung
+        is rebuilt from the touches). Layout: 4-byte big-endian length, that many bytes of
+        JSON, then the rung learner's own bytes. The raw touches are not written: the same
+        touches are added again before ``load_state``."""
+        inner = self.inner.save_state() if can_checkpoint(self.inner) else None
+        head = {"rungs": self.rungs, "stage": self.stage, "decisions": self._decisions,
+                "beliefs": [b.tolist() for b in self._beliefs], "heldout": self._heldout,
+                "last_label": self._last_label, "touches": len(self._touches),
+                "references": len(self._references), "inner": inner is not None,
+                "evidence": None if self.evidence is None else asdict(self.evidence)}
+        blob = json.dumps(head).encode()
+        return struct.pack(">I", len(blob)) + blob + (inner or b"")
+
+    def load_state(self, data: bytes) -> None:
+        """Continue from ``save_state``'s bytes: the rungs up to the saved one are built again
+        from the touches added since this ladder was made, then the rung learner's state is
+        loaded (InputError, named, when the bytes do not fit)."""
+        try:
+            (n,) = struct.unpack(">I", data[:4])
+            st = json.loads(data[4:4 + n].decode())
+            inner, stage = data[4 + n:], int(st["stage"])
+            beliefs = [np.asarray(b, dtype=np.float64) for b in st["beliefs"]]
+            heldout = [bool(x) for x in st["heldout"]]
+            ev = None if st["evidence"] is None else Evidence(**st["evidence"])
+        except (struct.error, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(f"ladder state unreadable ({type(exc).__name__}: {exc})") from None
+        if st["rungs"] != self.rungs or not 0 <= stage < len(self.rungs) or \
+                st["touches"] != len(self._touches) or \
+                st["references"] != len(self._references) or self.stage != 0:
+            raise InputError("ladder state of another ladder or other touches")
+        while self.stage < stage:
+            self.stage += 1
+            learner = self._build(self.stage)
+            for label, touch in self._touches:
+                learner.add_touch(touch, label)
+            for touch in self._references:
+                learner.add_reference(touch)
+            self.active.append(learner)
+        if st["inner"]:
+            if not can_checkpoint(self.inner):
+                raise InputError(f"ladder state: rung {self.rung!r} cannot load a state")
+            self.inner.load_state(inner)
+        elif self.rung not in DESCRIPTOR_RUNGS:
+            raise InputError(f"ladder state: rung {self.rung!r} saved no state")
+        self._decisions = int(st["decisions"])
+        self._beliefs, self._heldout, self.evidence = beliefs, heldout, ev
+        self._last_label = st["last_label"]
 
     def escalation(self) -> Evidence | None:
         """Why to climb now (None: stay, or no rung above)."""

@@ -1,4 +1,4 @@
-"""Model 'auto' (escalation on evidence) and the failure-mode guards of the trial engine."""
+"""Model 'cnn_auto' (escalation on evidence) and the failure-mode guards of the trial engine."""
 
 import numpy as np
 import pytest

@@ -227,10 +227,11 @@ def test_restore_refuses_a_used_engine_and_other_versions() -> None:
 
 @pytest.mark.slow
 def test_auto_model_resumes_on_its_escalated_stage(tmp_path: Path, monkeypatch) -> None:
-    """Model ``auto`` escalated before the cut: its checkpoint restores the second stage."""
-    cfg = preset("cnn").replace(model="auto", auto_ladder="small_inception@32,small_inception@40",
-                                steps=2, mc_passes=4, augment=2, auto_window=1,
-                                auto_heldout_acc=1.0, auto_catchup=1)
+    """Model ``cnn_auto`` escalated before the cut: its checkpoint restores the second
+    stage."""
+    cfg = preset("cnn", model="cnn_auto", auto_ladder="small_inception@32,small_inception@40",
+                 steps=2, mc_passes=4, augment=2, auto_window=1, auto_heldout_acc=1.0,
+                 auto_catchup=1)
 
     def engine(seed: int = 3) -> TrialEngine:
         return TrialEngine(4, cfg, trial_preset("cnn", rounds=ROUNDS), seed=seed,
@@ -241,5 +242,5 @@ def test_auto_model_resumes_on_its_escalated_stage(tmp_path: Path, monkeypatch) 
     state, _, blob = read_checkpoint(tmp_path / "cut7")
     res, after, how, trained = _resume(tmp_path, "cut7", start=7)
     assert after == 7 and "round 3" in how
-    assert any(r.escalation for r in full.rounds[:3])      # escalated before the checkpoint
+    assert any(r.detail.escalation for r in full.rounds[:3])   # escalated before the cut
     _same(full, res)

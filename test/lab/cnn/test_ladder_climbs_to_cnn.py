@@ -51,3 +51,44 @@ def test_hard_scene_climbs_to_the_cnn_and_records_why():
     assert detail["kind"] == "training" and detail["input_size"] == 32
     assert detail["escalation"] == esc["reason"]
     assert detail["train_loss"] == detail["train_loss"]      # not NaN
+
+
+class _Cut(Exception):
+    """The process dies here."""
+
+
+@pytest.mark.slow
+def test_ladder_resumes_on_its_cnn_rung_from_the_checkpoint():
+    """Cut after round 4 (on the CNN rung since round 3): the ladder's checkpoint restores the
+    CNN's state, and the trial goes on as the uninterrupted one without re-training."""
+    cfg = preset("default", model="auto", guards=False, ladder="descriptor,cnn@32",
+                 ladder_patience=2, ladder_catchup=1)
+
+    def engine():
+        return TrialSpec(4, cfg, TrialConfig(rounds=6, stop_confidence=0.0), seed=0).engine()
+    full = engine().run(_touch_fn(), truth=1)
+    eng, src, stored, saved = engine(), _touch_fn(), [], {}
+
+    def touch(p: int):
+        stored.append((p, src(p)))
+        return stored[-1][1]
+
+    def on_round(r) -> None:
+        saved["ck"], saved["n"] = eng.checkpoint(), len(stored)
+        if r.round == 4:
+            raise _Cut()
+    with pytest.raises(_Cut):
+        eng.run(touch, truth=1, on_round=on_round)
+    from tactex_ros.core.touch import as_touch
+    resumed = engine()
+    resumed.restore(*saved["ck"][:1], [(p, as_touch(t)) for p, t in stored[:saved["n"]]],
+                    saved["ck"][1])
+    assert resumed.learner.rung == "cnn@32"
+    trained = resumed.learner.inner.rounds_trained
+    rest = _touch_fn()
+    for p, _ in stored[:saved["n"]]:
+        rest(p)
+    res = resumed.run(rest, truth=1)
+    assert [r.platform for r in res.rounds] == [r.platform for r in full.rounds]
+    np.testing.assert_allclose(res.final.probs, full.final.probs, rtol=1e-5, atol=1e-6)
+    assert resumed.learner.inner.rounds_trained > trained
