@@ -517,7 +517,24 @@ def _round_record(d: dict) -> RoundRecord:
     for name in ("probs", "scores"):
         if out.get(name) is not None:
             out[name] = [float("nan") if v is None else float(v) for v in out[name]]
+    if isinstance(out.get("detail"), dict):
+        out["detail"] = _training_detail(out["detail"])
     return RoundRecord(**out)
+
+
+def _training_detail(d: dict) -> TrainingDetail:
+    """A ``TrainingDetail`` from its JSON form (null floats back to NaN); refuses another kind."""
+    from dataclasses import fields
+    if d.get("kind", "training") != "training":
+        raise InputError(f"unknown round detail kind {d.get('kind')!r}")
+    known = {f.name for f in fields(TrainingDetail)}
+    if set(d) - known:
+        raise InputError(f"unknown round detail fields {sorted(set(d) - known)}")
+    out = dict(d)
+    for name in ("train_s", "train_loss", "grad_norm"):
+        if out.get(name) is None:
+            out[name] = float("nan")
+    return TrainingDetail(**out)
 
 
 @dataclass(frozen=True)

@@ -136,6 +136,7 @@ def _same(a, b) -> None:
         for r in d["rounds"] + [d["final"]]:
             for k in ("train_s", "score_s", "choose_s", "decision_s", "cpu_s"):
                 r.pop(k, None)
+                (r.get("detail") or {}).pop(k, None)
     assert json.dumps(db, sort_keys=True) == json.dumps(da, sort_keys=True)
 
 
@@ -228,7 +229,7 @@ def test_restore_refuses_a_used_engine_and_other_versions() -> None:
 @pytest.mark.slow
 def test_auto_model_resumes_on_its_escalated_stage(tmp_path: Path, monkeypatch) -> None:
     """Model ``auto`` escalated before the cut: its checkpoint restores the second stage."""
-    cfg = preset("cnn").replace(model="auto", auto_ladder="small_inception@32,small_inception@40",
+    cfg = preset("cnn", model="auto", auto_ladder="small_inception@32,small_inception@40",
                                 steps=2, mc_passes=4, augment=2, auto_window=1,
                                 auto_heldout_acc=1.0, auto_catchup=1)
 
@@ -241,5 +242,5 @@ def test_auto_model_resumes_on_its_escalated_stage(tmp_path: Path, monkeypatch) 
     state, _, blob = read_checkpoint(tmp_path / "cut7")
     res, after, how, trained = _resume(tmp_path, "cut7", start=7)
     assert after == 7 and "round 3" in how
-    assert any(r.escalation for r in full.rounds[:3])      # escalated before the checkpoint
+    assert any(r.detail.escalation for r in full.rounds[:3])   # escalated before the checkpoint
     _same(full, res)
