@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import trial_preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.sources.perturb import KINDS
 from tactex_lab.analysis import charts
@@ -48,8 +49,7 @@ SEVERITIES: dict[str, list[float]] = {
 }
 UNITS = {"drift": "% gain per touch", "noise": "grey levels", "partial": "share of contact lost",
          "low_force": "share of contact difference lost", "worn": "gel blur [px]"}
-METHODS = {"default": ("default", None), "cnn": ("cnn", "variance"),
-           "seed_faithful": ("seed_faithful", "variance")}
+METHODS = ("default", "cnn", "seed_faithful")      # presets; each runs its trial preset
 GUARDED = "default+guard"
 
 
@@ -84,20 +84,18 @@ def build_jobs(args: argparse.Namespace, scenes: list[list[str]]) -> list[TrialJ
     guard_over = parse_set(args.guard_set, "--guard-set")
     for label, kind, sev in conditions(args):
         method = "default" if label == GUARDED else label
-        pre, strategy = METHODS[method]
+        tcfg = trial_preset(method)
         n = args.scenes if method == "default" else args.cnn_scenes
         rounds = args.budget if method == "default" else args.cnn_rounds
         over: dict[str, Any] = dict(guard_over) if label == GUARDED else {}
         for i, classes in enumerate(scenes[:n]):
-            kw: dict[str, Any] = {} if strategy is None else {"strategy": strategy,
-                                                              "stop_confidence": 0.0}
             jobs.append(TrialJob(
-                source=args.source, seed=args.seed + i, rounds=rounds, preset=pre,
+                source=args.source, seed=args.seed + i, rounds=rounds, preset=method,
+                strategy=tcfg.strategy, stop_confidence=tcfg.stop_confidence,
                 overrides=over, platform_classes=classes, comparisons=len(classes) - 1,
                 perturb={"touch": [kind, sev]} if kind != "clean" else {},
                 catch_errors=True, no_contact_reference=False, trial_id=f"{label}/{kind}={sev:g}/"
-                f"s{i}", tags={"method": label, "kind": kind, "severity": sev, "scene": i},
-                **kw))
+                f"s{i}", tags={"method": label, "kind": kind, "severity": sev, "scene": i}))
     return jobs
 
 
