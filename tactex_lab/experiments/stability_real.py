@@ -26,6 +26,7 @@ perturbation, one line per method with its 95 % band and number of scenes).
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -106,6 +107,31 @@ def compact(res: dict) -> dict:
             "touches": int(res["touches"]) - base, "error": res.get("error"),
             "rejected": len(res["failed_touches"]), "sure": res.get("sure"),
             "classes": res["classes"], "wall_s": res["wall_s"]}
+
+
+SAME = ("source", "seed", "budget", "comparisons", "cnn_rounds")
+
+
+def _key(tags: dict) -> tuple:
+    return (tags["method"], tags["kind"], float(tags["severity"]), int(tags["scene"]))
+
+
+def reused(folder: str, args: argparse.Namespace) -> dict[tuple, dict]:
+    """The trials of an earlier run in ``folder`` (its ``runs.json``), by (method, kind,
+    severity, scene); InputError unless it ran with the same ``SAME`` settings."""
+    d = Path(folder)
+    try:
+        cfg = json.loads((d / "config.json").read_text())["config"]
+        runs = json.loads((d / "runs.json").read_text())
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"--reuse {folder}: not a finished stability-real results folder "
+                         f"({exc})") from None
+    diff = [k for k in SAME if cfg.get(k) != vars(args).get(k)]
+    if diff:
+        raise InputError(f"--reuse {folder}: ran with other {', '.join(diff)} "
+                         f"({', '.join(f'{k}={cfg.get(k)!r}' for k in diff)})")
+    same_guard = cfg.get("guard_set") == args.guard_set
+    return {_key(r): r for r in runs if same_guard or r["method"] != GUARDED}
 
 
 def block(runs: list[dict], clean: list[dict] | None) -> dict:
@@ -213,13 +239,16 @@ def run(args: argparse.Namespace) -> int:
     scenes = scenes_of(args.source, max(args.scenes, args.cnn_scenes), args.comparisons,
                        args.seed)
     jobs = build_jobs(args, scenes)
+    done = reused(args.reuse, args) if args.reuse else {}
+    todo = [j for j in jobs if _key(j.tags) not in done]
     t0 = time.perf_counter()
-    res = run_jobs(jobs, backend, threads=args.threads,
-                   description=f"stability on real presses ({len(jobs)} trials)",
-                   quiet=args.quiet)
-    runs = [compact(r) for r in res]
+    res = iter(run_jobs(todo, backend, threads=args.threads,
+                        description=f"stability on real presses ({len(todo)} trials)",
+                        quiet=args.quiet))
+    runs = [done[_key(j.tags)] if _key(j.tags) in done else compact(next(res)) for j in jobs]
     summary = summarise(runs, args)
-    summary.update(wall_s=time.perf_counter() - t0, trials=len(jobs), source=args.source)
+    summary.update(wall_s=time.perf_counter() - t0, trials=len(jobs), run_here=len(todo),
+                   source=args.source, reused_from=args.reuse)
     write_json(out / "summary.json", summary)
     write_json(out / "runs.json", runs)
     figure(out, summary)
@@ -260,6 +289,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "--guard-set")
     p.add_argument("--guard-set", action="append", metavar="KEY=VALUE",
                    help="learner settings of the guarded run (e.g. contact_touch_min=1.0)")
+    p.add_argument("--reuse", metavar="DIR", help="take the trials an earlier run in DIR "
+                   "already made (same source, seed, budget, comparisons) instead of running "
+                   "them again")
     p.add_argument("--out", help="results folder (default results/stability_real)")
     add_runner_args(p)
     p.set_defaults(func=run)
