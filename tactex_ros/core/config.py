@@ -274,6 +274,11 @@ class LearnerConfig(Schema):
     contact_min: float = param(0.8, "reject a touch whose contact score against the session's "
                                     "no-contact reference is below this [grey levels] (0 = off; "
                                     "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
+    contact_region_min: float = param(0.0, "model 'descriptor': a touch whose contact region "
+                                           "(against its own no-contact frame) covers less than "
+                                           "this share of the frame is a partial contact and is "
+                                           "described over its region only (0 = off; "
+                                           "core/guards.py)", 0.0, 1.0)
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
     drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the "
                                     "model sees it: turn on where the lighting drifts between "
