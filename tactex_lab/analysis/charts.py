@@ -433,7 +433,7 @@ def gradcam_rounds(path: Path, labels: Sequence[str], maps: list[tuple], title: 
 def sim_vs_real(path: Path, real: Sequence, sim: Sequence, ranking: dict | None) -> Path:
     """The sim-to-real picture: top row real presses, bottom row simulated (up to 4 each, two
     per press group), each beside |contact - no contact| x8; with ``ranking``
-    (``experiments.real.run_ranking``) a last column of sim against real accuracy per setting.
+    (``experiments.ranking.run_ranking``) a last column of sim against real accuracy per setting.
     ``real``, ``sim``: ``analysis.sim_vs_real.Press`` items."""
     picks = {"real": [], "sim": []}
     for side, presses in (("real", real), ("sim", sim)):

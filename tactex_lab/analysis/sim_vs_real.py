@@ -13,7 +13,7 @@ Two parts (``tactex sim compare``):
    construction family. Each shared group is compared as sim / real ratio with the 25 % target.
 2. **Ranking agreement.** A set of learner settings (``DEFAULT_SETTINGS``, in the syntax of
    ``tactex experiment real``) runs through the real-press evaluation on simulated and on real
-   scenes (``experiments.real.run_ranking``: scene draw, runner, belief after every touch);
+   scenes (``experiments.ranking.run_ranking``: scene draw, runner, belief after every touch);
    Spearman rho between the two rankings with a bootstrap interval
    (``analysis.stats.spearman_interval``) and the accuracy gap (real - sim).
 """
@@ -42,7 +42,7 @@ SOFT_THRESHOLD = 0.5          # simulated fabrics with softness >= this form the
 TARGET_REL = 0.25             # every statistic within 25 % of the real value
 
 # Learner settings ranked on both sides, in ``tactex experiment real`` syntax
-# (label=preset[:key=value,...], ``experiments/real.parse_setting``): the shipped descriptor
+# (label=preset[:key=value,...], ``experiments/curves.parse_setting``): the shipped descriptor
 # model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
 DEFAULT_SETTINGS: tuple[str, ...] = (
     "default=default",

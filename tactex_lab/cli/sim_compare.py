@@ -14,12 +14,12 @@ def compare_with_real(real_dir: str, out_png: str, seed: int = 0, per_class: int
                       fabrics: list[str] | None = None) -> dict:
     """The sim-to-real report (``analysis/sim_vs_real.py``): frame statistics per family, a
     picture (``analysis.charts.sim_vs_real``) and, with ``ranking`` (keyword arguments of
-    ``experiments.real.run_ranking`` except the folder), the ranking agreement of learner
+    ``experiments.ranking.run_ranking`` except the folder), the ranking agreement of learner
     settings. ``fabrics``: simulated fabrics of the statistics (default: the whole
     catalogue)."""
     from tactex_lab.analysis import charts
     from tactex_lab.analysis import sim_vs_real as compare
-    from tactex_lab.experiments.real import run_ranking
+    from tactex_lab.experiments.ranking import run_ranking
 
     every = compare.real_presses(real_dir, 10 ** 6)
     real = compare.first_presses(every, real_per_class)
@@ -72,7 +72,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             raise InputError(f"--budget must be in 0..100, got {args.budget}")
         if args.workers < 1:
             raise InputError(f"--workers must be >= 1, got {args.workers}")
-        from tactex_lab.experiments.real import parse_setting
+        from tactex_lab.experiments.curves import parse_setting
         for text in args.setting or []:
             parse_setting(text)          # a bad setting is refused before any work
         ranking = dict(settings=args.setting or list(DEFAULT_SETTINGS), scenes=args.scenes,

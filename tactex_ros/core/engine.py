@@ -73,7 +73,7 @@ def stop_reason(belief_max: float, stop_confidence: float, decisions: int, round
     """Why a trial ends at a decision after ``decisions`` earlier ones: 'confident' (the stop
     rule), 'rounds' (all ``rounds`` used), 'max_touches' (no budget left), or None to go on.
     The offline evaluation of recorded belief curves applies the same rule
-    (``tactex_lab/experiments/real.py``)."""
+    (``tactex_lab/experiments/curves.py``, ``at_stop``)."""
     if confident(belief_max, stop_confidence):
         return "confident"
     if decisions >= rounds:

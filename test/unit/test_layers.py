@@ -15,7 +15,7 @@ PKG = Path(tactex_ros.__file__).resolve().parent
 LAB = Path(tactex_lab.__file__).resolve().parent
 EXPERIMENTS = LAB / "experiments"
 # shared helpers of the experiments; every other module there is one command
-SHARED = {"__init__", "common", "runner", "trials"}
+SHARED = {"__init__", "common", "runner", "trials", "curves", "protocol"}
 
 
 def _module(path: Path) -> str:

@@ -12,7 +12,7 @@ from tactex_lab.analysis import sim_vs_real as compare
 from tactex_lab.analysis.stats import spearman_interval
 from tactex_ros.cli.main import main
 from tactex_ros.core.errors import InputError
-from tactex_lab.experiments.real import run_ranking
+from tactex_lab.experiments.ranking import run_ranking
 
 
 def _press(group: str, level: float, seed: int) -> compare.Press:

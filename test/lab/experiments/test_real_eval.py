@@ -8,7 +8,8 @@ import sys
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.real import at_budget, at_stop, choose, class_folds, parse_setting
+from tactex_lab.experiments.curves import at_budget, at_stop, parse_setting
+from tactex_lab.experiments.protocol import choose, class_folds
 from tactex_ros.core.errors import InputError
 
 

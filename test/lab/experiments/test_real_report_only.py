@@ -7,7 +7,7 @@ import json
 import pytest
 
 from tactex_ros.cli import main
-from tactex_lab.experiments.real import paired_at_thresholds
+from tactex_lab.experiments.curves import paired_at_thresholds
 
 
 def _curve(correct, conf):
@@ -44,7 +44,7 @@ def test_report_only_end_to_end(octopi_dir, tmp_path):
 
 
 def test_calibration_by_hand():
-    from tactex_lab.experiments.real import calibration
+    from tactex_lab.experiments.protocol import calibration
     # bin [0.9, 1.0): confidences 0.95, 0.95, one right -> |0.95 - 0.5| = 0.45, weight 2/4;
     # bin [0.6, 0.7): 0.6 right -> |0.6 - 1| = 0.4, weight 1/4; bin [0.3, 0.4): 0.3 wrong ->
     # 0.3, weight 1/4

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.errors import InputError
-from tactex_lab.experiments import real as unseen
-from tactex_lab.experiments.real import belief_curves, draw_scenes, parse_setting
+from tactex_lab.experiments import unseen
+from tactex_lab.experiments.curves import belief_curves, draw_scenes, parse_setting
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,152 @@
+"""Belief curves of real-press scenes: the trials behind ``tactex experiment real``,
+``real-sessions``, ``unseen`` and the ranking of ``tactex sim compare``.
+
+A *scene* is 1 reference + C comparisons drawn from a set of classes with
+``sources.assign_platforms`` (the same draw as ``tactex trial --seed S``); a *setting* is
+``label=preset[:key=value,...]`` (``parse_setting``). Every setting runs every scene without a
+stop rule up to a budget of touches after the baseline and records the belief after every
+decision (``curve``); the readings of a curve (``at_budget``, ``at_stop``) and the paired tests
+of settings on the same scenes (``paired_at_budgets``, ``paired_at_thresholds``) follow from it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from tactex_ros.core.engine import confident
+from tactex_ros.core.errors import InputError
+from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired
+from tactex_lab.experiments.common import budget_index, parse_set
+from tactex_lab.experiments.runner import Backend, TrialJob, run_jobs
+
+
+def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
+    """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
+
+    ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
+    from tactex_ros.core.config import PRESETS
+    label, sep, rest = text.partition("=")
+    if not sep or not label:
+        raise InputError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+    pre, _, kv = rest.partition(":")
+    if pre not in PRESETS:
+        raise InputError(f"--setting {text!r}: unknown preset {pre!r}; one of "
+                         f"{', '.join(PRESETS)}")
+    items = [it for it in kv.split(",") if it]
+    strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
+    over = parse_set([it for it in items if not it.startswith("strategy=")],
+                     option=f"--setting {text!r}:")
+    return label, pre, strategy, over
+
+
+def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> list[list[str]]:
+    """``n`` scenes [reference, comparisons...] from ``classes`` (seeds seed0 ..)."""
+    from tactex_ros.sources import assign_platforms
+    if len(classes) < comparisons:
+        raise InputError(f"{len(classes)} classes cannot fill {comparisons} comparisons")
+    return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
+
+
+def curve(res: dict) -> dict:
+    """A runner result -> the belief after every decision (touches after the baseline)."""
+    recs = res["rounds"] + ([res["final"]] if res.get("final") else [])
+    base = len(res["classes"])
+    truth = res["truth_index"]
+    out = {"extra": [], "correct": [], "conf": [], "decision_s": [], "believed": 0,
+           "touched": 0, "error": res.get("error")}
+    prev = None
+    for r in recs:
+        probs = np.asarray(r["probs"])
+        out["extra"].append(int(sum(r["touches"]) + r.get("reference_touches", 1) - base))
+        out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
+        out["conf"].append(float(probs.max()))
+        out["decision_s"].append(float(r["train_s"] + r["score_s"] + r["choose_s"]))
+        if prev is not None and prev["platform"] not in (None, "reference", 0):
+            out["touched"] += 1
+            chosen = prev["platform"]
+            idx = int(chosen[1:]) if isinstance(chosen, str) else int(chosen)
+            out["believed"] += int(idx == int(np.argmax(prev["probs"])) + 1)
+        prev = r
+    return out
+
+
+def at_budget(c: dict, k: int) -> bool:
+    """Correct after ``k`` touches after the baseline (``common.budget_index``)."""
+    idx = budget_index(c["extra"], k)
+    return bool(idx >= 0 and c["correct"][idx])
+
+
+def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
+    """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
+    for i, conf in enumerate(c["conf"]):
+        if confident(conf, theta):
+            return c["correct"][i], c["extra"][i], True
+    return c["correct"][-1], c["extra"][-1], False
+
+
+def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
+                  budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
+                  quiet: bool = False) -> dict[str, list[dict]]:
+    """Run every scene (``[reference, comparisons...]`` classes) with every setting of
+    ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
+    i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
+    (see ``curve``, plus the scene's ``classes``)."""
+    from tactex_ros.core.engine import trial_preset
+    jobs = []
+    for i, classes in enumerate(scenes):
+        for label, pre, strategy, over in settings:
+            st = strategy or trial_preset(pre).strategy
+            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
+                                 rounds=budget, stop_confidence=0.0, preset=pre,
+                                 overrides=over, platform_classes=classes,
+                                 comparisons=len(classes) - 1, catch_errors=True,
+                                 no_contact_reference=False,
+                                 trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
+    res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
+                   quiet=quiet)
+    out: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    for r in res:
+        c = curve(r)
+        c["classes"] = r["classes"]
+        out[r["job"]["tags"]["setting"]].append(c)
+    return out
+
+
+def _paired(curves: dict[str, list[dict]], reference: str, points, outcome) -> dict:
+    """Every setting against ``reference`` on the same scenes at each point (a budget or a
+    threshold): ``outcome(curve, point)`` gives (correct, touches after the baseline or None).
+    {setting: {str(point): {"reference", "setting" (accuracies), "p" (exact McNemar)[,
+    "touches_p" (Wilcoxon on touches, where outcomes carry touches)]}}}."""
+    out = {}
+    for lab, cs in curves.items():
+        if lab == reference:
+            continue
+        row = {}
+        for pt in points:
+            a = [outcome(c, pt) for c in curves[reference]]
+            b = [outcome(c, pt) for c in cs]
+            ok_a, ok_b = [x[0] for x in a], [x[0] for x in b]
+            row[str(pt)] = {"reference": float(np.mean(ok_a)), "setting": float(np.mean(ok_b)),
+                            "p": mcnemar_exact(ok_a, ok_b)["p"]}
+            if a and a[0][1] is not None:
+                row[str(pt)]["touches_p"] = wilcoxon_paired([x[1] for x in a],
+                                                            [x[1] for x in b])["p"]
+        out[lab] = row
+    return out
+
+
+def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
+                      budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
+    """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
+    rule), on the same scenes: {setting: {str(k): {"reference", "setting", "p"}}}."""
+    return _paired(curves, reference, budgets, lambda c, k: (at_budget(c, k), None))
+
+
+def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
+                         thresholds: list[float]) -> dict:
+    """Every setting against ``reference`` under each stop threshold, on the same scenes:
+    {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),
+    "touches_p" (Wilcoxon on touches after the baseline)}}}."""
+    return _paired(curves, reference, thresholds, at_stop)

@@ -1,0 +1,356 @@
+"""``tactex experiment unseen``: prepared representations on classes no part of the pipeline saw,
+class-disjoint in both directions (issue 23, docs/unseen_materials.md).
+
+Two libraries of recorded presses, A and B (``../shared``'s octopi-dev and octopi-objects). For
+each direction (test on A with B as the lab's library, and the reverse) every setting:
+
+- prepares on the *library* only: the representation (``core/representation.py``) and the
+  belief's temperature calibrated on the library with classes left out
+  (``core/calibration.py``), exactly what ``tactex prepare`` does;
+- runs the trials of the test side through the trial engine (``core/engine.py``, infogain, no
+  stop rule, ``--budget`` touches after the baseline), each press given by its descriptor
+  computed once (``build_cache``; the draw of presses is ``ReplayTrial``'s, the scenes are
+  ``experiment real``'s, so the scenes and presses are the same as ``tactex experiment real
+  --source replay:A`` with the same seed);
+- is scored with ``experiment real``'s protocol: 3 class folds of the test side; on each fold's
+  *choose* scenes (other folds' classes) the best (setting, theta) with at most
+  ``--target-touches`` touches is chosen and measured on the fold's *report* scenes; Wilson
+  intervals, exact McNemar and Wilcoxon against the first setting (today's default) on the
+  pooled report scenes.
+
+Per-press features (``FEATURES``) tried on top of the shipped 106-number descriptor: several
+frames of the press (the strongest + 3 more in contact; the frame at half the strongest contact,
+the contact growing), and 2 x 2 regions of the strongest frame (mean and spread over regions).
+
+The cache holds descriptors of ``../shared`` presses: write it under /tmp, never into the
+repository.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactex_ros.core import calibration as belief_calibration
+from tactex_ros.core import representation
+from tactex_ros.core.config import TrialConfig, preset
+from tactex_ros.core.errors import InputError
+from tactex_ros.core.touch import Touch
+from tactex_lab.experiments.common import results_dir, write_json
+from tactex_lab.experiments.curves import curve
+from tactex_lab.experiments.protocol import protocol, write_outputs
+
+
+#: Per-press features: cache arrays -> (n, D') vectors.
+FEATURES = {
+    "frame": lambda c: c["f0"],
+    "frames4": lambda c: np.mean(np.concatenate([c["f0"][:, None], c["extra"]], axis=1), 1),
+    "growth": lambda c: np.concatenate([c["f0"], c["early"] - c["f0"]], axis=1),
+    "regions": lambda c: np.concatenate([c["reg"].mean(1), c["reg"].std(1)], axis=1),
+    "frame_regstd": lambda c: np.concatenate([c["f0"], c["reg"].std(1)], axis=1),
+}
+
+
+def build_cache(root: str | Path, out: str | Path) -> Path:
+    """Describe every press of the replay folder ``root`` once: the strongest frame (``f0``),
+    the 3 other in-contact frames of the touch (``extra``), the first frame with half the
+    strongest contact score (``early``), the 2 x 2 regions of the strongest frame's contact
+    difference (``reg``); with the class and file of each press. Written as ``out`` (.npz)."""
+    from tactex_ros.core import texture
+    from tactex_ros.core.contact import strongest_contact
+    from tactex_ros.sources.replay import ReplaySource, read_video
+    src = ReplaySource(root)
+    rows: dict[str, list] = {k: [] for k in ("cls", "path", "f0", "extra", "early", "reg")}
+    for cls in src.classes:
+        for path in src.presses(cls):
+            arr = read_video(path)
+            touch = src.touch(path)
+            nc = touch.no_contact
+            idx, scores = strongest_contact(arr)
+            f0 = texture.describe(touch.frame, nc)
+            ex = [texture.describe(x, nc) for x in (touch.extra if touch.extra is not None
+                                                    else [])]
+            ex += [f0] * (3 - len(ex))
+            rise = np.flatnonzero(scores[:idx + 1] >= 0.5 * scores[idx])
+            early = texture.describe(np.ascontiguousarray(arr[rise[0] if len(rise) else idx,
+                                                              ..., ::-1]), nc)
+            d = texture.contact_difference(touch.frame, nc)
+            h, w = d.shape[0] // 2, d.shape[1] // 2
+            reg = [texture.describe_difference(d[i * h:(i + 1) * h, j * w:(j + 1) * w])
+                   for i in range(2) for j in range(2)]
+            for k, v in (("cls", cls), ("path", str(path)), ("f0", f0),
+                         ("extra", np.stack(ex[:3])), ("early", early), ("reg", np.stack(reg))):
+                rows[k].append(v)
+    out = Path(out)
+    np.savez(out, **{k: np.array(v) for k, v in rows.items()})
+    return out
+
+
+def load_cache(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays ``build_cache`` wrote."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"feature cache not found: {p} (build it with --build-cache)")
+    with np.load(p, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def by_class(cache: dict[str, np.ndarray], feature: str) -> dict[str, np.ndarray]:
+    """{class: (n_c, D') feature vectors}."""
+    x = FEATURES[feature](cache)
+    return {c: x[cache["cls"] == c] for c in sorted(set(cache["cls"].tolist()))}
+
+
+@dataclass
+class Setting:
+    """One way to prepare: per-press feature, representation kind (``none`` = the descriptor as
+    is), output dims (lda), calibration method (``off`` = the config's temperature)."""
+    label: str
+    feature: str = "frame"
+    kind: str = "none"
+    dims: int = 0
+    calibration: str = "off"
+    shrink: float = 1.0
+
+    @staticmethod
+    def parse(text: str) -> "Setting":
+        """``label=key:value,...`` (keys feature, kind, dims, calibration, shrink)."""
+        label, sep, rest = text.partition("=")
+        if not sep or not label:
+            raise InputError(f"--setting {text!r}: expected label=key:value,...")
+        kw: dict[str, Any] = {}
+        for item in filter(None, rest.split(",")):
+            k, _, v = item.partition(":")
+            if k not in ("feature", "kind", "dims", "calibration", "shrink"):
+                raise InputError(f"--setting {text!r}: unknown key {k!r}")
+            kw[k] = int(v) if k == "dims" else float(v) if k == "shrink" else v
+        s = Setting(label, **kw)
+        if s.feature not in FEATURES:
+            raise InputError(f"--setting {text!r}: feature one of {', '.join(FEATURES)}")
+        return s
+
+
+def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int = 0
+            ) -> representation.Representation | None:
+    """What ``tactex prepare`` builds from ``library`` for ``setting`` (None: nothing)."""
+    if setting.kind == "none" and setting.calibration == "off":
+        return None
+    fit = partial(representation.fit, shrink=setting.shrink, kind=setting.kind,
+                  dims=setting.dims)
+    rep = fit(library)
+    if setting.calibration != "off":
+        trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
+        rep.temperature = belief_calibration.fit_temperature(
+            trajs, setting.calibration, *(((0.9,), 0.03) if setting.calibration == "target"
+                                          else ()))
+        rep.calibration = belief_calibration.report(trajs, rep.temperature)
+    return rep
+
+
+class _CachedPresses:
+    """A ReplaySource look-alike whose touches carry their cached feature vector."""
+
+    one_session = False
+
+    def __init__(self, x: np.ndarray, cls: np.ndarray) -> None:
+        self.x = x
+        self.rows = {c: list(np.flatnonzero(cls == c)) for c in set(cls.tolist())}
+
+    def check_class(self, c: str) -> None:
+        if c not in self.rows:
+            raise InputError(f"class {c!r} not in the cache")
+
+    def presses(self, c: str) -> list[int]:
+        return self.rows[c]
+
+    def touch(self, row: int) -> Touch:
+        return Touch(belief_calibration.PLACEHOLDER_FRAME, None, None, self.x[row])
+
+
+def scene_curves(setting: Setting, rep: representation.Representation | None,
+                 cache: dict[str, np.ndarray], scenes: list[list[str]], seed: int,
+                 budget: int) -> list[dict]:
+    """Belief curves (``experiment real``'s ``curve``) of ``scenes`` on the cached test presses;
+    scene i runs with seed ``seed + i``, as ``experiment real``."""
+    from tactex_ros.core.engine import TrialSpec, run_trial
+    from tactex_ros.sources.replay import ReplayTrial
+    src = _CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
+    cfg = preset("default", guards=False)
+    tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
+    out = []
+    for i, plat in enumerate(scenes):
+        truth = plat[1:].index(plat[0]) + 1
+        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i)
+        eng = spec.engine()
+        if rep is not None:
+            eng.learner.representation = rep
+            if np.isfinite(rep.temperature):
+                eng.learner.match.beta = rep.temperature
+        t0 = time.perf_counter()
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth,
+                        engine=eng).to_dict()
+        res.update(classes=plat, truth_index=truth, wall_s=time.perf_counter() - t0)
+        c = curve(res)
+        c["classes"] = plat
+        out.append(c)
+    return out
+
+
+def nearest_mean_accuracy(x: np.ndarray, cls: np.ndarray,
+                          rep: representation.Representation | None, per: int = 1,
+                          scenes: int = 3000, seed: int = 0) -> float:
+    """Screening proxy (no trial): share of random 1 + 4 scenes of the classes ``cls`` in which
+    the comparison whose mean of ``per`` presses lies nearest to the mean of ``per`` reference
+    presses, in the belief's scene units (``core/match.py``), is the match. ``per`` = 1 is the
+    belief after the baseline."""
+    rng = np.random.default_rng(seed)
+    classes = sorted(set(cls.tolist()))
+    rows = {c: np.flatnonzero(cls == c) for c in classes}
+    z = x if rep is None else rep.apply(x)
+    ok = 0
+    for _ in range(scenes):
+        comps = rng.choice(len(classes), 4, replace=False)
+        t = int(rng.integers(4))
+        ref_rows = rng.permutation(rows[classes[comps[t]]])
+        means = [z[ref_rows[:per]].mean(0)]
+        for i, c in enumerate(comps):
+            r = rows[classes[c]]
+            if i == t and len(ref_rows) > per:
+                r = ref_rows[per:]
+            means.append(z[rng.choice(r, min(per, len(r)), replace=False)].mean(0))
+        m = np.vstack(means)
+        spread = m.std(0)
+        scale = np.sqrt(spread ** 2 + (0.05 * np.median(spread)) ** 2) + 1e-12
+        ok += int(np.argmin((((m[1:] - m[0]) / scale) ** 2).sum(1)) == t)
+    return ok / scenes
+
+
+SCREEN = ([("frame", "none", 0, 1.0)] + [("frame", "whiten", 0, s) for s in (0.3, 1.0, 3.0)]
+          + [("frame", "lda", k, s) for k in (8, 16, 24, 32, 48) for s in (0.3, 1.0, 3.0)]
+          + [(f, kind, k, 1.0) for f in ("frames4", "growth", "regions", "frame_regstd")
+             for kind, k in (("none", 0), ("whiten", 0), ("lda", 24))])
+
+
+def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[dict]:
+    """Every (feature, kind, dims, shrink) of ``SCREEN`` fitted on one cache and scored with
+    ``nearest_mean_accuracy`` (1 and 2 presses per platform) on the other, both directions."""
+    rows = []
+    for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
+        for f, kind, k, shrink in SCREEN:
+            x = FEATURES[f](test)
+            rep = (None if kind == "none" else
+                   representation.fit(by_class(lib, f), shrink=shrink, kind=kind, dims=k))
+            rows.append({"direction": name, "feature": f, "kind": kind, "dims": k,
+                         "shrink": shrink,
+                         "acc_1": nearest_mean_accuracy(x, test["cls"], rep, 1),
+                         "acc_2": nearest_mean_accuracy(x, test["cls"], rep, 2)})
+            print("  ".join(f"{v}" if not isinstance(v, float) else f"{v:.3f}"
+                            for v in rows[-1].values()), flush=True)
+    return rows
+
+
+UNSEEN_SETTINGS = ("default=feature:frame", "whiten=feature:frame,kind:whiten",
+                   "whiten_cal=feature:frame,kind:whiten,calibration:stop",
+                   "whiten_cal_f4=feature:frames4,kind:whiten,calibration:stop")
+
+
+def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
+                  library: dict[str, np.ndarray], args: argparse.Namespace) -> dict:
+    """One direction: prepare every setting on ``library``, then ``experiment real``'s
+    protocol on the ``test`` presses. Returns the summary (``prepared``: what each setting's
+    preparation measured and took)."""
+    reps, prepared = {}, {}
+    for s in settings:
+        t0 = time.perf_counter()
+        reps[s.label] = prepare_setting(s, by_class(library, s.feature), seed=args.seed)
+        r = reps[s.label]
+        prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": vars(s),
+                             "dims": None if r is None else r.dims,
+                             "temperature": None if r is None else r.temperature,
+                             "calibration": None if r is None else r.calibration}
+
+    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[dict]]:
+        return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget)
+                for s in settings}
+
+    classes = sorted(set(test["cls"].tolist()))
+    summary = protocol(classes, [s.label for s in settings], runner, args)
+    summary["prepared"] = prepared
+    return summary
+
+
+def run_unseen(args: argparse.Namespace) -> dict:
+    """Both directions (A tested with B as the library, and B with A)."""
+    settings = [Setting.parse(t) for t in args.setting or UNSEEN_SETTINGS]
+    labels = [s.label for s in settings]
+    if len(set(labels)) != len(labels):
+        raise InputError(f"--setting labels must be unique, got {labels}")
+    caches = {}
+    for name, root in (("a", args.a), ("b", args.b)):
+        path = Path(args.cache_dir) / f"{Path(root).name}.npz"
+        if args.build_cache or not path.is_file():
+            print(f"describing every press of {root} -> {path}")
+            build_cache(root, path)
+        caches[name] = load_cache(path)
+    out = results_dir(args.out, "unseen", {k: v for k, v in vars(args).items() if k != "func"})
+    if args.screen:
+        rows = screen(caches["a"], caches["b"])
+        write_json(out / "screen.json", rows)
+        return {"screen": rows}
+    both = {}
+    for test, lib in (("a", "b"), ("b", "a")):
+        name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
+        d = out / name
+        d.mkdir(parents=True, exist_ok=True)
+        summary = run_direction(settings, caches[test], caches[lib], args)
+        summary.update(test=getattr(args, test), library=getattr(args, lib),
+                       settings={s.label: vars(s) for s in settings})
+        print(f"== test {getattr(args, test)}, library {getattr(args, lib)}")
+        write_outputs(d, summary, labels, args)
+        both[name] = summary
+    return both
+
+
+def register(esub: argparse._SubParsersAction) -> None:
+    p = esub.add_parser("unseen", help="prepared representations on unseen classes, "
+                                       "class-disjoint in both directions")
+    p.add_argument("--a", required=True, help="replay folder A (tested with B as the library)")
+    p.add_argument("--b", required=True, help="replay folder B (tested with A as the library)")
+    p.add_argument("--cache-dir", required=True,
+                   help="where the per-press descriptors are cached, e.g. under /tmp (never the "
+                        "repository: they are descriptors of ../shared's presses)")
+    p.add_argument("--build-cache", action="store_true", help="re-describe every press")
+    p.add_argument("--screen", action="store_true",
+                   help="only the screening proxy (nearest mean, no trials) of every feature x "
+                        "metric of SCREEN, both directions; writes screen.json")
+    p.add_argument("--setting", action="append",
+                   help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
+                        + " ".join(UNSEEN_SETTINGS))
+    p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
+    p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
+    p.add_argument("--folds", type=int, default=3)
+    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--target-touches", type=float, default=3.0)
+    p.add_argument("--report-only", action="store_true")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL")
+    p.add_argument("--press-s", type=float, default=3.0,
+                   help="seconds per touch for the time axis (experiment real's PRESS_S)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out")
+
+    def func(args: argparse.Namespace) -> int:
+        for name in ("comparisons", "scenes", "budget", "folds"):
+            if getattr(args, name) < (2 if name in ("comparisons", "folds") else 1):
+                raise InputError(f"--{name} too small: {getattr(args, name)}")
+        Path(args.cache_dir).mkdir(parents=True, exist_ok=True)
+        run_unseen(args)
+        return 0
+
+    p.set_defaults(func=func)
