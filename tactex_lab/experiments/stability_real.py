@@ -186,6 +186,8 @@ def summarise(runs: list[dict], args: argparse.Namespace) -> dict:
             off = {r["scene"]: r for r in runs if r["method"] == "default" and r["kind"] == g
                    and r["severity"] == v}
             pairs = [(r, off[r["scene"]]) for r in on if r["scene"] in off]
+            if not pairs:       # the unguarded runs are elsewhere (a later --reuse joins them)
+                continue
             rows.append({"severity": v, "n": len(pairs),
                          "with": float(np.mean([a["correct"] for a, _ in pairs])),
                          "without": float(np.mean([b["correct"] for _, b in pairs])),
@@ -223,6 +225,8 @@ def run(args: argparse.Namespace) -> int:
     for m in args.methods:
         if m not in METHODS:
             raise InputError(f"--methods: unknown {m!r}; choose from {', '.join(METHODS)}")
+    if not args.methods and not args.guard:
+        raise InputError("--methods: none given and no --guard: nothing to run")
     if args.guard and args.guard not in SEVERITIES:
         raise InputError(f"--guard {args.guard!r}: choose a perturbation of {', '.join(KINDS)}")
     if not args.source.startswith("replay:"):
@@ -239,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
     scenes = scenes_of(args.source, max(args.scenes, args.cnn_scenes), args.comparisons,
                        args.seed)
     jobs = build_jobs(args, scenes)
-    done = reused(args.reuse, args) if args.reuse else {}
+    done = {k: r for d in (args.reuse or []) for k, r in reused(d, args).items()}
     todo = [j for j in jobs if _key(j.tags) not in done]
     t0 = time.perf_counter()
     res = iter(run_jobs(todo, backend, threads=args.threads,
@@ -268,8 +272,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("stability-real", help="perturbations of replayed real presses: where "
                                               "each method breaks; a guard before/after")
     p.add_argument("--source", required=True, help="replay:DIR of recorded presses")
-    p.add_argument("--methods", nargs="+", default=["default", "cnn"],
-                   help=f"of {', '.join(METHODS)}")
+    p.add_argument("--methods", nargs="*", default=["default", "cnn"],
+                   help=f"of {', '.join(METHODS)} (none: only the guarded runs of --guard)")
     p.add_argument("--perturbations", nargs="+", default=list(SEVERITIES),
                    help=f"of {', '.join(SEVERITIES)}")
     p.add_argument("--scenes", type=int, default=40, help="scenes of the default method")
@@ -289,9 +293,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "--guard-set")
     p.add_argument("--guard-set", action="append", metavar="KEY=VALUE",
                    help="learner settings of the guarded run (e.g. contact_touch_min=1.0)")
-    p.add_argument("--reuse", metavar="DIR", help="take the trials an earlier run in DIR "
-                   "already made (same source, seed, budget, comparisons) instead of running "
-                   "them again")
+    p.add_argument("--reuse", metavar="DIR", nargs="+", help="take the trials earlier runs in "
+                   "these folders already made (same source, seed, budget, comparisons) "
+                   "instead of running them again")
     p.add_argument("--out", help="results folder (default results/stability_real)")
     add_runner_args(p)
     p.set_defaults(func=run)
