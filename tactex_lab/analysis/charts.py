@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from tactex_lab.analysis.stats import pareto_front
+from tactex_lab.analysis.stats import pareto_front, wilson
 
 
 def _plt():
@@ -303,21 +303,43 @@ def _bands(ax, series: dict[str, dict]) -> None:
     for lab, v in series.items():
         line, = ax.plot(v["x"], v["accuracy"], marker="o", ms=3, label=f"{lab} (n = {v['n']})")
         ax.fill_between(v["x"], v["lo"], v["hi"], color=line.get_color(), alpha=0.12)
-    ax.set_ylim(0.0, 1.02)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
 
 
+def band_series(correct: np.ndarray, x: Sequence[float]) -> dict:
+    """Accuracy with its 95 % Wilson band at each point of ``x``: ``correct`` (n scenes, K)
+    bool, scene i right at point k. {"x", "accuracy", "lo", "hi" (lists of K), "n"}."""
+    c = np.asarray(correct, dtype=bool)
+    if c.ndim != 2 or c.shape[1] != len(x):
+        raise ValueError(f"correct must be (scenes, {len(x)}), got {c.shape}")
+    n = int(c.shape[0])
+    right = c.sum(axis=0)
+    bands = [wilson(int(s), n) for s in right]
+    return {"x": [float(v) for v in x], "accuracy": [float(s) / n if n else float("nan")
+                                                    for s in right],
+            "lo": [b[0] for b in bands], "hi": [b[1] for b in bands], "n": n}
+
+
+def trial_time(touches: Sequence[int], baseline: int, press_s: float, decision_s: float
+               ) -> list[float]:
+    """Trial time [s] after ``k`` touches after the baseline: (baseline + k) presses of
+    ``press_s`` and k + 1 decisions of ``decision_s`` (one after the baseline, one per touch)."""
+    return [(baseline + k) * press_s + (k + 1) * decision_s for k in touches]
+
+
 def accuracy_bands(path: Path, series: dict[str, dict], xlabel: str, title: str) -> Path:
     """Accuracy against touches or time, one line per setting with its 95 % band and its number
-    of scenes in the legend. ``series``: {label: {"x", "accuracy", "lo", "hi", "n"}} (lists of
-    equal length, n an int)."""
+    of scenes in the legend. ``series``: {label: ``band_series``} ({"x", "accuracy", "lo",
+    "hi", "n"})."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     _bands(ax, series)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("accuracy (95 % Wilson band)")
     ax.set_title(title, fontsize=9)
+    low = min([min(v["lo"]) for v in series.values() if v["lo"]] or [0.0])
+    ax.set_ylim(max(0.0, np.floor((low - 0.05) * 10) / 10), 1.02)
     return _save(fig, path)
 
 
@@ -329,10 +351,31 @@ def accuracy_panels(path: Path, panels: dict[str, dict[str, dict]], title: str) 
     fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
     for ax, (xlabel, series) in zip(axes[0], panels.items()):
         _bands(ax, series)
+        ax.set_ylim(0.0, 1.02)
         ax.set_xlabel(xlabel, fontsize=8)
     axes[0][0].set_ylabel("accuracy (95 % Wilson band)")
     fig.suptitle(title, fontsize=9)
     return _save(fig, path)
+
+
+def touches_and_time(out: Path, rows: dict[str, tuple[np.ndarray, float]], baseline: int,
+                     press_s: float, title: str, press_note: str = "") -> list[Path]:
+    """``out``/accuracy_vs_touches.png and ``out``/accuracy_vs_time.png, one line per setting
+    with its Wilson band and scenes. ``rows``: {label: (correct (n scenes, K + 1) bool, right
+    after k = 0..K touches after the baseline; the setting's median decision time [s])}; the time
+    axis is ``trial_time`` with ``press_s`` seconds per press (``press_note``: where it comes
+    from, shown in the axis label)."""
+    by_touch, by_time = {}, {}
+    for lab, (correct, decision_s) in rows.items():
+        ks = list(range(np.asarray(correct).shape[1]))
+        by_touch[lab] = band_series(correct, ks)
+        by_time[lab] = band_series(correct, trial_time(ks, baseline, press_s, decision_s))
+    note = f"; {press_note}" if press_note else ""
+    return [accuracy_bands(Path(out) / "accuracy_vs_touches.png", by_touch,
+                           "touches after the baseline", title),
+            accuracy_bands(Path(out) / "accuracy_vs_time.png", by_time,
+                           f"trial time [s]: {baseline} baseline + k presses x {press_s:g} s"
+                           f"{note}, + decisions", title)]
 
 
 def stop_sweep(path: Path, rows: list[dict], labels: Sequence[str]) -> Path:

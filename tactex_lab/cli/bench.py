@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.cli.main import bounded, builds, write_json
+from tactex_ros.cli.options import bounded, builds, write_json
 
 
 def cmd_bench_latency(args: argparse.Namespace) -> int:

@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import importlib
 
-from tactex_ros.cli.main import builds
+from tactex_ros.cli.options import builds
 
 MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency",
-                      "real_sessions", "unseen", "real", "stability_real"]
+                      "real_sessions", "unseen", "real", "accuracy_charts", "stability_real"]
 
 
 def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:

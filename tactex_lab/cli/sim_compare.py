@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.cli.main import builds, command_group
+from tactex_ros.cli.options import builds, command_group
 from tactex_ros.core.errors import InputError
 
 
@@ -92,7 +92,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                             ranking, fabrics)
     _print_report(res)
     if args.json:
-        from tactex_ros.cli.main import write_json
+        from tactex_ros.cli.options import write_json
         write_json(args.json, res)
     print(f"wrote {args.out}")
     return 0

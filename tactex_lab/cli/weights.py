@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from tactex_ros.cli.main import builds, write_json
+from tactex_ros.cli.options import builds, write_json
 
 
 def cmd_weights_inspect(args: argparse.Namespace) -> int:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from tactex_ros.core.engine import confident
+from tactex_ros.core.engine import RoundRecord, confident
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired
 from tactex_lab.experiments.common import budget_index, parse_set
@@ -49,25 +49,24 @@ def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> lis
     return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
 
 
-def curve(res: dict) -> dict:
-    """A runner result -> the belief after every decision (touches after the baseline)."""
-    recs = res["rounds"] + ([res["final"]] if res.get("final") else [])
-    base = len(res["classes"])
-    truth = res["truth_index"]
+def curve(decisions: list[RoundRecord], truth: int, error: str | None = None) -> dict:
+    """Every decision of a trial (platform indices, the final one last; ``truth`` 1..C) -> the
+    belief after every decision (touches after the baseline), whether its top platform is the
+    match, its top probability, its time [s], and how many touches went to the platform the
+    belief favoured when choosing it (``believed`` of ``touched``)."""
     out = {"extra": [], "correct": [], "conf": [], "decision_s": [], "believed": 0,
-           "touched": 0, "error": res.get("error")}
+           "touched": 0, "error": error}
     prev = None
-    for r in recs:
-        probs = np.asarray(r["probs"])
-        out["extra"].append(int(sum(r["touches"]) + r.get("reference_touches", 1) - base))
+    for r in decisions:
+        probs = np.asarray(r.probs)
+        base = len(r.probs) + 1                 # the baseline: every platform once
+        out["extra"].append(int(sum(r.touches) + r.reference_touches - base))
         out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
         out["conf"].append(float(probs.max()))
-        out["decision_s"].append(float(r["train_s"] + r["score_s"] + r["choose_s"]))
-        if prev is not None and prev["platform"] not in (None, "reference", 0):
+        out["decision_s"].append(float(r.decision_s))
+        if prev is not None and prev.platform not in (None, 0):
             out["touched"] += 1
-            chosen = prev["platform"]
-            idx = int(chosen[1:]) if isinstance(chosen, str) else int(chosen)
-            out["believed"] += int(idx == int(np.argmax(prev["probs"])) + 1)
+            out["believed"] += int(prev.platform == int(np.argmax(prev.probs)) + 1)
         prev = r
     return out
 
@@ -108,9 +107,9 @@ def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, s
                    quiet=quiet)
     out: dict[str, list[dict]] = {s[0]: [] for s in settings}
     for r in res:
-        c = curve(r)
-        c["classes"] = r["classes"]
-        out[r["job"]["tags"]["setting"]].append(c)
+        c = curve(r.decisions, r.truth, r.error)
+        c["classes"] = r.classes
+        out[r.job.tags["setting"]].append(c)
     return out
 
 

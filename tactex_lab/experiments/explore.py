@@ -33,7 +33,8 @@ import numpy as np
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
-from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
+from tactex_lab.experiments.runner import (TrialJob, TrialResult, add_runner_args, backend_of,
+                                           cached_source, run_jobs)
 from tactex_lab.experiments.trials import find_trial_file, load_trials, platform_classes
 
 STRATEGIES_DEFAULT = ["variance", "entropy", "random", "yoto"]
@@ -44,22 +45,25 @@ THESIS_MATCHED = {"humans": 0.6688, "variance": 0.9000, "entropy": 0.8813, "rand
 
 
 # ---------------------------------------------------------------------------------- helpers
-def compact(res: dict) -> dict:
-    """A runner result -> the record kept in runs.json."""
-    job = res["job"]
+def compact(res: TrialResult) -> dict:
+    """A runner result -> the record kept in runs.json (platforms by name)."""
+    job, out = res.job, res.outcome
+    if out is None:
+        raise RuntimeError(f"trial {job.trial_id!r} failed: {res.error}")
     decisions = []
-    for r in res["rounds"] + [res["final"]]:
-        decisions.append({"probs": [round(p, 5) for p in r["probs"]],
-                          "touches": r["touches"], "total": int(sum(r["touches"])) + 1,
-                          "entropy": round(r["predictive_entropy"], 5),
-                          "next": r["platform"], "decision_s": round(r["decision_s"], 4)})
-    return {"trial": job["tags"]["trial"], "strategy": job["strategy"],
-            "model": job["tags"]["model"], "seed": job["tags"]["seed"], "job_seed": job["seed"],
-            "classes": res["classes"], "truth": res["truth_index"],
-            "prediction": res["prediction_index"], "correct": bool(res["correct"]),
-            "touches": res["touches"], "final_touches": res["final"]["touches"],
-            "decisions": decisions, "wall_s": round(res["wall_s"], 3),
-            "failed_touches": res["failed_touches"]}
+    for r in res.decisions:
+        decisions.append({"probs": [round(p, 5) for p in r.probs],
+                          "touches": list(r.touches), "total": int(sum(r.touches)) + 1,
+                          "entropy": round(r.predictive_entropy, 5),
+                          "next": None if r.platform is None else out.platform_ids[r.platform],
+                          "decision_s": round(r.decision_s, 4)})
+    return {"trial": job.tags["trial"], "strategy": job.strategy,
+            "model": job.tags["model"], "seed": job.tags["seed"], "job_seed": job.seed,
+            "classes": res.classes, "truth": res.truth,
+            "prediction": res.prediction, "correct": res.correct,
+            "touches": res.touches, "final_touches": list(out.final.touches),
+            "decisions": decisions, "wall_s": round(res.wall_s, 3),
+            "failed_touches": res.failed_touches}
 
 
 def build_jobs(trials: list[dict], source: str, strategies: list[str], models: list[str],

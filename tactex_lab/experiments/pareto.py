@@ -126,9 +126,9 @@ def run_cached(jobs: list[TrialJob], args, description: str) -> list[dict]:
                        description=f"{description}: {c0 + len(chunk)}/{len(todo)} to run, "
                                    f"{len(jobs) - len(todo)} cached", quiet=args.quiet)
         for i, r in zip(chunk, res):
-            out[i] = r
+            out[i] = r.to_dict()      # the cache's file form, as cached results are read
             if cache is not None:
-                write_json(cache / f"{job_key(jobs[i])}.json", r)
+                write_json(cache / f"{job_key(jobs[i])}.json", out[i])
     return out  # type: ignore[return-value]
 
 

@@ -147,9 +147,10 @@ def protocol(classes: list[str], labels: list[str], runner, args: argparse.Names
 def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Namespace
                   ) -> None:
     """runs.json (the report curves), summary.json, the charts and the printed table."""
-    write_json(out / "runs.json", summary.pop("report_curves"))
+    curves = summary.pop("report_curves")
+    write_json(out / "runs.json", curves)
     write_json(out / "summary.json", summary)
-    _charts(out, summary, labels, args.budget, getattr(args, "press_s", PRESS_S))
+    _charts(out, summary, curves, labels, args.budget, getattr(args, "press_s", PRESS_S))
     _print(summary, labels, args)
 
 
@@ -187,30 +188,33 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
     return out
 
 
-#: Seconds per touch for the time axis when no --press-s is given: a press of the simulated
-#: graph (impedance-control press, 10 mm/s descent) takes about 3 s (README, "make demo").
-PRESS_S = 3.0
+def band_rows(curves: dict[str, list[dict]], budget: int
+              ) -> dict[str, tuple[np.ndarray, float]]:
+    """{label: (right after k = 0..budget touches (scenes, budget + 1), median decision time
+    [s] over every decision)}: the input of ``charts.touches_and_time``."""
+    rows = {}
+    for lab, cs in curves.items():
+        dec = [d for c in cs for d in c["decision_s"]]
+        rows[lab] = (np.array([[at_budget(c, k) for k in range(budget + 1)] for c in cs],
+                              dtype=bool).reshape(-1, budget + 1),
+                     statistics.median(dec) if dec else 0.0)
+    return rows
 
 
-def _charts(out: Path, summary: dict, labels: list[str], budget: int,
-            press_s: float = PRESS_S) -> None:
-    """accuracy_vs_touches.png and accuracy_vs_time.png (trial time after the baseline:
-    touches x (``press_s`` + the setting's median decision time)), 95 % Wilson bands and the
-    number of scenes per line; pareto.png (the stop-threshold sweep)."""
-    for axis in ("touches", "time"):
-        series = {}
-        for lab in labels:
-            p = summary["per_setting"][lab]
-            acc = p["accuracy_vs_touches"]
-            step = 1.0 if axis == "touches" else press_s + (p["decision_s_median"] or 0.0)
-            series[lab] = {"x": [a["touches"] * step for a in acc],
-                           "accuracy": [a["accuracy"] for a in acc],
-                           "lo": [a["ci95"][0] for a in acc], "hi": [a["ci95"][1] for a in acc],
-                           "n": p["scenes"]}
-        xlabel = ("touches after the baseline" if axis == "touches" else
-                  f"trial time after the baseline [s] ({press_s:g} s per press + decision)")
-        charts.accuracy_bands(out / f"accuracy_vs_{axis}.png", series, xlabel,
-                              f"real presses, report scenes, no stop rule (budget {budget})")
+#: Seconds per press for the time axis when no --press-s is given: the mock arm's press on the
+#: lab scene (config/scene.yaml's speeds), median of `tactex graph summary` over one simulated
+#: trial (docs/unseen_materials.md); the faster simulated scene takes about 4.4 s.
+PRESS_S = 15.5
+
+
+def _charts(out: Path, summary: dict, curves: dict[str, list[dict]], labels: list[str],
+            budget: int, press_s: float = PRESS_S) -> None:
+    """accuracy_vs_touches.png and accuracy_vs_time.png (``charts.touches_and_time``: Wilson
+    bands, scenes per line; ``press_s`` seconds per press) from the report ``curves``;
+    pareto.png (the stop-threshold sweep)."""
+    rows = band_rows({lab: curves[lab] for lab in labels}, budget)
+    charts.touches_and_time(out, rows, summary["comparisons"] + 1, press_s,
+                            f"real presses, report scenes, no stop rule (budget {budget})")
     charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
 
 

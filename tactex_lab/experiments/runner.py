@@ -16,8 +16,10 @@ A ``TrialJob`` is everything one trial needs as plain data (so it pickles into a
 the source spec (``sim[:q]`` or ``replay:DIR``), the scene (explicit platform classes, or drawn
 from the seed), learner preset + overrides, trial settings, the seed, and an optional
 ``perturb`` dict that experiments use to degrade touches (see ``apply_perturbation``).
-``run_jobs`` returns one result dict per job in job order: the engine's ``TrialOutcome.to_dict``
-plus ``job`` (the job as a dict), ``decision_s`` per decision and ``wall_s``.
+``run_jobs`` returns one ``TrialResult`` per job in job order: the job, its scene, the engine's
+typed ``TrialOutcome`` (platform indices: 0 = the reference, 1..C the comparisons) or, when the
+trial failed, the decisions recorded before it. ``TrialResult.to_dict`` is the JSON form (platform
+names, ``job`` as a dict, ``decision_s`` per decision, ``wall_s``), only for files.
 
 Each trial runs with ``threads`` torch threads (default 1), so timings within one run are
 comparable.
@@ -35,7 +37,8 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 
 import numpy as np
 
-from tactex_ros.core.engine import TrialConfig, TrialEngine, TrialSpec, run_trial
+from tactex_ros.core.engine import (RoundRecord, TrialConfig, TrialEngine, TrialOutcome, TrialSpec,
+                                    default_platform_ids, run_trial)
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.sources.perturb import noise_image
@@ -233,9 +236,54 @@ def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
     return perturbed
 
 
+@dataclass
+class TrialResult:
+    """One job's trial: ``classes`` [reference, comparisons...], ``truth`` (1..C), every
+    decision (``RoundRecord``, the final one last; platform indices), the engine's ``outcome``
+    (None when the trial failed: ``error`` says why and ``decisions`` holds what was decided
+    before), failed touches, total touches and wall time [s]."""
+
+    job: TrialJob
+    classes: list[str]
+    truth: int
+    decisions: list[RoundRecord]
+    outcome: TrialOutcome | None
+    failed_touches: list[dict]
+    touches: int
+    wall_s: float
+    error: str | None = None
+
+    @property
+    def correct(self) -> bool:
+        return self.outcome is not None and bool(self.outcome.correct)
+
+    @property
+    def prediction(self) -> int | None:
+        """The predicted comparison (1..C), None when the trial failed."""
+        return None if self.outcome is None else self.outcome.prediction
+
+    def to_dict(self) -> dict:
+        """The JSON form (platform names) of result files and caches."""
+        job = dataclasses.asdict(self.job)
+        decision_s = [r.decision_s for r in self.decisions]
+        if self.outcome is None:
+            return {"correct": False, "prediction": None,
+                    "truth": default_platform_ids(len(self.classes) - 1)[self.truth], "touches": self.touches,
+                    "rounds": [dataclasses.asdict(r) for r in self.decisions],
+                    "final": None, "failed_touches": list(self.failed_touches),
+                    "error": self.error, "job": job, "classes": self.classes,
+                    "truth_index": self.truth, "prediction_index": None,
+                    "decision_s": decision_s, "wall_s": self.wall_s}
+        out = self.outcome.to_dict()
+        out.update(job=job, classes=self.classes, truth_index=self.truth,
+                   prediction_index=self.outcome.prediction, decision_s=decision_s,
+                   wall_s=self.wall_s)
+        return out
+
+
 def run_job(job: TrialJob, threads: int = 1,
-            engine_hook: Callable[[TrialEngine], None] | None = None) -> dict:
-    """Run one trial; returns the result dict (see module docstring)."""
+            engine_hook: Callable[[TrialEngine], None] | None = None) -> TrialResult:
+    """Run one trial; returns its ``TrialResult``."""
     import torch
 
     from tactex_ros.core.config import preset
@@ -243,13 +291,12 @@ def run_job(job: TrialJob, threads: int = 1,
         torch.set_num_threads(threads)
     classes, truth = scene(job)
     n = len(classes) - 1
-    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
     cfg = preset(job.preset, **job.overrides)
     tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
                        stop_confidence=job.stop_confidence)
     src = cached_source(job.source)
     no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
-    spec = TrialSpec(n, cfg, tcfg, seed=job.seed, platform_ids=tuple(ids), no_contact=no_contact)
+    spec = TrialSpec(n, cfg, tcfg, seed=job.seed, no_contact=no_contact)
     eng = spec.engine()
     if engine_hook:
         engine_hook(eng)
@@ -259,23 +306,15 @@ def run_job(job: TrialJob, threads: int = 1,
     except (InputError, FloatingPointError, RuntimeError) as exc:
         if not job.catch_errors:
             raise
-        recs = eng.records
-        return {"correct": False, "prediction": None, "truth": ids[truth], "touches":
-                eng.total_touches, "rounds": [dataclasses.asdict(r) for r in recs],
-                "final": None, "failed_touches": list(eng.failed),
-                "error": f"{type(exc).__name__}: {exc}", "job": dataclasses.asdict(job),
-                "classes": classes, "truth_index": truth, "prediction_index": None,
-                "decision_s": [r.decision_s for r in recs], "wall_s": time.perf_counter() - t0}
-    out = res.to_dict()
-    out.update(job=dataclasses.asdict(job), classes=classes, truth_index=truth,
-               prediction_index=res.prediction,
-               decision_s=[r.decision_s for r in res.rounds + [res.final]],
-               wall_s=time.perf_counter() - t0)
-    return out
+        return TrialResult(job, classes, truth, list(eng.records), None, list(eng.failed),
+                           eng.total_touches, time.perf_counter() - t0,
+                           error=f"{type(exc).__name__}: {exc}")
+    return TrialResult(job, classes, truth, res.rounds + [res.final], res, res.failed_touches,
+                       res.touches, time.perf_counter() - t0)
 
 
 def run_jobs(jobs: list[TrialJob], backend: Backend = Backend(), threads: int = 1,
-             description: str = "trials", quiet: bool = False) -> list[dict]:
+             description: str = "trials", quiet: bool = False) -> list[TrialResult]:
     """Run ``jobs`` on ``backend`` (``threads`` torch threads each), results in job order."""
     return run_parallel(functools.partial(run_job, threads=threads), jobs, backend,
                         description, quiet)

@@ -318,7 +318,8 @@ def run(args) -> int:
     runs = []
     for j in jobs:
         k = json.dumps([j.source, j.perturb, j.overrides, j.strategy, j.seed], sort_keys=True)
-        r = dict(res[unique[k]], job=dict(res[unique[k]]["job"], tags=j.tags))
+        d = res[unique[k]].to_dict()      # runs.json's form
+        r = dict(d, job=dict(d["job"], tags=j.tags))
         runs.append(compact(r))
     summary = summarise(runs, args, models)
     summary["wall_s"] = time.perf_counter() - t0

@@ -29,6 +29,7 @@ repository.
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -42,9 +43,10 @@ from tactex_ros.core import representation
 from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
+from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import curve
-from tactex_lab.experiments.protocol import protocol, write_outputs
+from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
 #: Per-press features: cache arrays -> (n, D') vectors.
@@ -192,11 +194,8 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
             eng.learner.representation = rep
             if np.isfinite(rep.temperature):
                 eng.learner.match.beta = rep.temperature
-        t0 = time.perf_counter()
-        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth,
-                        engine=eng).to_dict()
-        res.update(classes=plat, truth_index=truth, wall_s=time.perf_counter() - t0)
-        c = curve(res)
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth, engine=eng)
+        c = curve(res.rounds + [res.final], truth)
         c["classes"] = plat
         out.append(c)
     return out
@@ -209,26 +208,7 @@ def nearest_mean_accuracy(x: np.ndarray, cls: np.ndarray,
     the comparison whose mean of ``per`` presses lies nearest to the mean of ``per`` reference
     presses, in the belief's scene units (``core/match.py``), is the match. ``per`` = 1 is the
     belief after the baseline."""
-    rng = np.random.default_rng(seed)
-    classes = sorted(set(cls.tolist()))
-    rows = {c: np.flatnonzero(cls == c) for c in classes}
-    z = x if rep is None else rep.apply(x)
-    ok = 0
-    for _ in range(scenes):
-        comps = rng.choice(len(classes), 4, replace=False)
-        t = int(rng.integers(4))
-        ref_rows = rng.permutation(rows[classes[comps[t]]])
-        means = [z[ref_rows[:per]].mean(0)]
-        for i, c in enumerate(comps):
-            r = rows[classes[c]]
-            if i == t and len(ref_rows) > per:
-                r = ref_rows[per:]
-            means.append(z[rng.choice(r, min(per, len(r)), replace=False)].mean(0))
-        m = np.vstack(means)
-        spread = m.std(0)
-        scale = np.sqrt(spread ** 2 + (0.05 * np.median(spread)) ** 2) + 1e-12
-        ok += int(np.argmin((((m[1:] - m[0]) / scale) ** 2).sum(1)) == t)
-    return ok / scenes
+    return float(metric_screen.scene_hits(x, cls, rep, per, scenes, seed).mean())
 
 
 SCREEN = ([("frame", "none", 0, 1.0)] + [("frame", "whiten", 0, s) for s in (0.3, 1.0, 3.0)]
@@ -303,6 +283,13 @@ def run_unseen(args: argparse.Namespace) -> dict:
         rows = screen(caches["a"], caches["b"])
         write_json(out / "screen.json", rows)
         return {"screen": rows}
+    if args.screen_mlp:
+        grid = tuple(itertools.product(args.mlp_losses, args.mlp_hidden, args.mlp_decays))
+        rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
+                                    args.mlp_features}, grid, steps=args.mlp_steps,
+                                    seeds=tuple(args.mlp_seeds))
+        write_json(out / "metric_screen.json", rows)
+        return {"metric_screen": rows}
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
@@ -329,6 +316,20 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--screen", action="store_true",
                    help="only the screening proxy (nearest mean, no trials) of every feature x "
                         "metric of SCREEN, both directions; writes screen.json")
+    p.add_argument("--screen-mlp", action="store_true",
+                   help="only the screening of a small numpy MLP metric (analysis/mlp_metric) "
+                        "against the whitening, both directions; writes metric_screen.json")
+    p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
+    p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
+                   help="MLP training seeds (--screen-mlp)")
+    p.add_argument("--mlp-losses", nargs="+", default=["episode", "triplet"],
+                   choices=["episode", "triplet"], help="MLP losses screened (--screen-mlp)")
+    p.add_argument("--mlp-hidden", type=int, nargs="+", default=[64],
+                   help="MLP hidden units screened (--screen-mlp)")
+    p.add_argument("--mlp-decays", type=float, nargs="+", default=[1e-3, 1e-2, 1e-1],
+                   help="MLP weight decays (toward the whitening) screened (--screen-mlp)")
+    p.add_argument("--mlp-features", nargs="+", default=["frame", "frames4"],
+                   choices=["frame", "frames4"], help="per-press features (--screen-mlp)")
     p.add_argument("--setting", action="append",
                    help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
                         + " ".join(UNSEEN_SETTINGS))
@@ -340,13 +341,14 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--target-touches", type=float, default=3.0)
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--paired-against", nargs="+", metavar="LABEL")
-    p.add_argument("--press-s", type=float, default=3.0,
-                   help="seconds per touch for the time axis (experiment real's PRESS_S)")
+    p.add_argument("--press-s", type=float, default=PRESS_S,
+                   help="seconds per press for the time axis (protocol.PRESS_S: the mock arm on "
+                        "the lab scene)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
 
     def func(args: argparse.Namespace) -> int:
-        for name in ("comparisons", "scenes", "budget", "folds"):
+        for name in ("comparisons", "scenes", "budget", "folds", "mlp_steps"):
             if getattr(args, name) < (2 if name in ("comparisons", "folds") else 1):
                 raise InputError(f"--{name} too small: {getattr(args, name)}")
         Path(args.cache_dir).mkdir(parents=True, exist_ok=True)

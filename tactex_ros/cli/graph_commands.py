@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from .main import add_setting_option, bounded, builds
+from .options import add_setting_option, bounded, builds
 from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)

@@ -9,14 +9,12 @@ input (named).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from ..core import plugins
 from ..core.errors import InputError, TrialError
+from .options import add_schema_options, bounded, builds, schema_values, write_json
 
 if TYPE_CHECKING:                    # start-up imports no numpy (``tactex --help``)
     import numpy as np
@@ -27,77 +25,14 @@ if TYPE_CHECKING:                    # start-up imports no numpy (``tactex --hel
 MAX_COMPARISONS = 24
 
 
-def bounded(kind: type, lo: float, hi: float):
-    """argparse type: a number of ``kind`` in [lo, hi]; the error names the range."""
-    def parse(text: str):
-        try:
-            v = kind(text)
-        except ValueError:
-            what = "an integer" if kind is int else "a number"
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
-        if not lo <= v <= hi:     # also refuses nan
-            raise argparse.ArgumentTypeError(f"{text} is outside {kind(lo)}..{kind(hi)}")
-        return v
-    return parse
-
-
-def add_setting_option(p: argparse.ArgumentParser, flag: str, spec: Any, help: str) -> None:
-    """An option for one schema field (``core.config.FieldSpec``): numbers out of the schema's
-    range are refused by the parser (exit status 2, the option named); a value not among the
-    choices by the schema check (exit status 2, the field named); not given = None."""
-    kw: dict = {"default": None, "help": help + (f" (one of {', '.join(spec.choices)})"
-                                                 if spec.choices else "")}
-    if spec.kind in (int, float):
-        kw["type"] = (bounded(spec.kind, spec.lo, spec.hi) if spec.lo is not None
-                      and spec.hi is not None else spec.kind)
-    p.add_argument(flag, **kw)
-
-
-def add_schema_options(p: argparse.ArgumentParser, cls: type, names: tuple[str, ...]) -> None:
-    """One option per dotted schema field of ``cls`` (``trial.stop_confidence`` ->
-    ``--stop-confidence``), help from its description; not given = the preset's."""
-    from ..core.config import field_spec
-    for name in names:
-        spec = field_spec(cls, name)
-        add_setting_option(p, "--" + name.rsplit(".", 1)[-1].replace("_", "-"), spec,
-                           f"{spec.description} (default: the --config preset's)"
-                           if "." in name else spec.description)
-
-
-def schema_values(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
-    """The options of ``add_schema_options`` that were given, as nested settings."""
-    from ..core.config import nest
-    values = {n: getattr(args, n.rsplit(".", 1)[-1]) for n in names}
-    return nest({n: v for n, v in values.items() if v is not None})
-
-
 # what `tactex trial` takes of a trial's settings (TrialSettings, core/config.py)
 TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
-def command_group(sub: argparse._SubParsersAction, name: str,
-                  help: str) -> argparse._SubParsersAction:
-    """The sub-commands of group ``name`` (``tactex <name> ...``), made on first use, so a
-    plug-in can add a command to a group of the product (``sim compare``)."""
-    parser = sub.choices.get(name) or sub.add_parser(name, help=help)
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            return action
-    return parser.add_subparsers(dest=f"{name}_cmd", required=True)
-
-
-def write_json(path: str | None, obj: dict) -> None:
-    """Write ``obj`` as strict indented JSON to ``path`` atomically (folders made; NaN ->
-    null, ``core.outputs``); nothing when None."""
-    if path:
-        from ..core.outputs import write_json as _write
-        _write(path, obj)
-
-
 def cmd_trial(args: argparse.Namespace) -> int:
     from ..core.config import TrialSettings
-    from ..core.engine import TrialSpec, run_trial
+    from ..core.engine import TrialSpec, default_platform_ids, run_trial
     from ..sources import open_source, trial_scene
     settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
                                    "tactex trial")
@@ -118,7 +53,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
                                           args.reference)
     n = len(platform_classes) - 1
-    ids = ["reference"] + [f"c{i}" for i in range(1, n + 1)]
+    ids = default_platform_ids(n)
     spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
     touch = src.trial(platform_classes, args.seed)
 
@@ -212,11 +147,9 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     return 0
 
 
-def builds(command: str | None, name: str) -> bool:
-    """Whether ``build_parser(command)`` builds the options of command group ``name`` (all of
-    them for None; otherwise only the group asked for, the rest are listed by name and help so
-    that start-up imports nothing they need)."""
-    return command is None or command == name
+# the product's commands that plug-ins do not extend (``sim`` is a group a plug-in adds to,
+# ``command_group``): ``tactex trial ...`` reads no installed metadata and loads no plug-in
+CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot"})
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -232,6 +165,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
     robot.add_commands(sub, command)
+    if command in CLOSED_COMMANDS:
+        return p                          # no plug-in adds to them: none is looked up
+    from ..core import plugins
     for name, ep in plugins.available(plugins.COMMANDS).items():
         try:
             ep.load()(sub, command)

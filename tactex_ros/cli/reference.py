@@ -191,7 +191,7 @@ def _subparsers(p: argparse.ArgumentParser) -> list[tuple[str, str, argparse.Arg
 
 def value_type(t: Any) -> str:
     """The value an option takes: a type's name, a range checker's ``int 0..232`` (the closure
-    of ``cli.main.bounded``), or the checker function's name."""
+    of ``cli.options.bounded``), or the checker function's name."""
     if t is None:
         return "str"
     if isinstance(t, type):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .main import builds
+from .options import builds
 
 
 def cmd_report(args: argparse.Namespace) -> int:

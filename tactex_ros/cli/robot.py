@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from .main import bounded, builds
+from .options import bounded, builds
 
 
 def cmd_check_wrench(args: argparse.Namespace) -> int:

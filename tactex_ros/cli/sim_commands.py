@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..core.errors import InputError
-from .main import builds, command_group
+from .options import builds, command_group
 
 
 def cmd_fabrics(args: argparse.Namespace) -> int:

@@ -83,6 +83,11 @@ def stop_reason(belief_max: float, stop_confidence: float, decisions: int, round
     return None
 
 
+def default_platform_ids(comparisons: int) -> list[str]:
+    """The platforms' names when a scene gives none: ``reference, c1..cC``."""
+    return ["reference"] + [f"c{i}" for i in range(1, comparisons + 1)]
+
+
 @dataclass
 class RoundRecord:
     round: int
@@ -177,8 +182,7 @@ class TrialEngine:
         self.learner_cfg = validate(learner_cfg)
         self.seed = seed
         self.strategy = make_strategy(self.trial_cfg.strategy)
-        self.platform_ids = platform_ids or (["reference"] +
-                                             [f"c{i}" for i in range(1, n_comparisons + 1)])
+        self.platform_ids = platform_ids or default_platform_ids(n_comparisons)
         if len(self.platform_ids) != n_comparisons + 1:
             raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
                              f"got {len(self.platform_ids)}")

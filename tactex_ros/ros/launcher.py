@@ -27,6 +27,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from ..core.errors import InputError
 from .graph import NodeSpec, params_file
@@ -190,6 +191,62 @@ class _Signals:
             signal.signal(s, h)
 
 
+@dataclass
+class Supervised:
+    """How a supervised run of the graph ended (``supervise``): the graph, why it ended early
+    (None: the expected end), the signal received, seconds from start to the end and to stop
+    every node, every node's exit status."""
+
+    graph: Graph
+    failure: str | None
+    signal: int | None
+    elapsed_s: float
+    stop_s: float
+    exits: dict[str, int | None]
+
+
+def supervise(nodes: list[NodeSpec], log_dir: str | Path, domain_id: int | None, what: str,
+              on_exit: Callable[[str, int | None, float], str | None],
+              deadline: Callable[[float], str | None],
+              poll: Callable[[], None] | None = None,
+              on_start: Callable[[Graph], None] | None = None,
+              poll_s: float = 0.1) -> Supervised:
+    """Start the graph of ``nodes``, ``on_start(graph)`` once, then every ``poll_s``:
+    ``poll()``; the first node to exit ends the run (``on_exit(name, code, elapsed_s)`` gives
+    the failure, None when that exit is the expected end); a signal ends it (``what``: the trial,
+    the session); ``deadline(elapsed_s)`` ends it with a failure once passed. Every node is
+    stopped in every case, signals are noted (not fatal) meanwhile."""
+    with _Signals() as sig:
+        g = Graph(nodes, log_dir, domain_id)
+        t0 = time.monotonic()
+        failure: str | None = None
+        try:
+            g.start()
+            if on_start is not None:
+                on_start(g)
+            while True:
+                if poll is not None:
+                    poll()
+                gone = g.first_exit()
+                if gone is not None:
+                    failure = on_exit(gone[0], gone[1], time.monotonic() - t0)
+                    break
+                if sig.received is not None:
+                    failure = (f"interrupted by {signal.Signals(sig.received).name} "
+                               f"{time.monotonic() - t0:.1f} s into the {what}")
+                    break
+                failure = deadline(time.monotonic() - t0)
+                if failure is not None:
+                    break
+                time.sleep(poll_s)
+            elapsed = time.monotonic() - t0
+        finally:
+            t1 = time.monotonic()
+            exits = g.stop()
+            stop_s = time.monotonic() - t1
+    return Supervised(g, failure, sig.received, elapsed, stop_s, exits)
+
+
 def append_event(record: Path, event: dict) -> None:
     """One line in ``<record>/events.jsonl`` (fsync'ed), if the record folder exists."""
     from ..record import append_event as _append
@@ -296,41 +353,25 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     record = Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"]
     res_path = record / "result.json"
     before = _result_stamp(res_path)     # a result already there is not this run's
-    failure = failed_node = None
-    with _Signals() as sig:
-        g = Graph(nodes, log_dir, domain_id)
-        t0 = time.monotonic()
-        try:
-            g.start()
-            if on_start is not None:
-                on_start(g)
-            deadlines = Deadlines(record, timeout_s, idle_s)
-            while True:
-                if on_poll is not None:
-                    on_poll()
-                gone = g.first_exit()
-                if gone is not None:
-                    name, code = gone
-                    if name != ex.name or code != 0 or _result_stamp(res_path) in (None,
-                                                                                  before):
-                        failed_node = name
-                        failure = (f"node {name} ended ({exit_text(code)}) "
-                                   f"{time.monotonic() - t0:.1f} s into the trial")
-                    break
-                if sig.received is not None:
-                    failure = (f"interrupted by {signal.Signals(sig.received).name} "
-                               f"{time.monotonic() - t0:.1f} s into the trial")
-                    break
-                expired = deadlines.expired()
-                if expired is not None:
-                    failure = expired
-                    break
-                time.sleep(poll_s)
-            elapsed = time.monotonic() - t0
-        finally:
-            t1 = time.monotonic()
-            exits = g.stop()
-            stop_s = time.monotonic() - t1
+    failed_node = None
+    deadlines: list[Deadlines] = []
+
+    def started(g: Graph) -> None:
+        if on_start is not None:
+            on_start(g)
+        deadlines.append(Deadlines(record, timeout_s, idle_s))   # from here on
+
+    def ended(name: str, code: int | None, elapsed: float) -> str | None:
+        nonlocal failed_node
+        if name == ex.name and code == 0 and _result_stamp(res_path) not in (None, before):
+            return None
+        failed_node = name
+        return f"node {name} ended ({exit_text(code)}) {elapsed:.1f} s into the trial"
+
+    run = supervise(nodes, log_dir, domain_id, "trial", ended,
+                    lambda _: deadlines[0].expired(), poll=on_poll, on_start=started,
+                    poll_s=poll_s)
+    g, failure, exits = run.graph, run.failure, run.exits
     left = [k for k, p in g.procs.items() if p.poll() is None]
     result, unreadable = new_result(res_path, before)
     if unreadable is not None and failure is None:
@@ -339,11 +380,12 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     reason = node_reason(g.log_dir / f"{failed_node}.log") if failed_node else None
     if failure is not None:
         append_event(record, {"event": "trial_ended", "reason": failure, "node": failed_node,
-                              "signal": sig.received, "node_exit": exits,
+                              "signal": run.signal, "node_exit": exits,
                               "time": time.time()})
     return GraphRun(exit_code=-1 if code is None else code, result=result,
                     record=record if record.exists() else None, logs=g.log_dir,
                     timed_out=failure is not None and failure.startswith("trial not finished"),
                     node_exit=exits, failure=failure, failed_node=failed_node,
-                    signal=sig.received, elapsed_s=elapsed, stop_s=stop_s, left_running=left,
+                    signal=run.signal, elapsed_s=run.elapsed_s, stop_s=run.stop_s,
+                    left_running=left,
                     pids=g.pids, reason=reason)

@@ -12,7 +12,6 @@ with ``confirm='key'``, or never (``'none'``: someone else calls the service).
 from __future__ import annotations
 
 import json
-import signal
 import sys
 import threading
 import time
@@ -22,7 +21,7 @@ from typing import Callable
 
 from ..core.errors import InputError
 from .graph import NodeSpec
-from .launcher import Graph, _Signals, exit_text
+from .launcher import Graph, exit_text, supervise
 
 
 @dataclass
@@ -111,7 +110,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     events_path, offset = d / sess.EVENTS_FILE, 0
     if events_path.is_file():                    # a resumed session: only what is new
         offset = events_path.stat().st_size
-    failure, n_confirmed = None, 0
+    n_confirmed = 0
     waiting_key: threading.Thread | None = None
 
     def on_key() -> None:
@@ -124,76 +123,67 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         n_confirmed += ok
         out(msg if ok else f"not confirmed: {msg}", "info")
 
-    with _Signals() as sig:
-        g = Graph(nodes, log_dir, domain_id)
-        t0 = time.monotonic()
-        try:
-            g.start()
-            if on_start is not None:
-                on_start(g)
-            while True:
-                evs, offset = tail_jsonl(events_path, offset)
-                for e in evs:
-                    kind = e.get("event")
-                    if kind == "awaiting_confirmation":
-                        out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
-                        for pid, fab in e["placement"].items():
-                            out(f"  platform {pid}: {fab}", "prompt")
-                        if confirm == "yes":
-                            for _ in range(10):     # refused: not awaited (yet); try again
-                                ok, msg = confirmer.confirm()
-                                if ok:
-                                    break
-                                time.sleep(0.5)
-                            n_confirmed += ok
-                            if not ok:
-                                out(f"not confirmed: {msg}", "info")
-                        elif confirm == "key" and (waiting_key is None
-                                                   or not waiting_key.is_alive()):
-                            out("press Enter once the fabrics are in place", "prompt")
-                            waiting_key = threading.Thread(target=on_key, daemon=True)
-                            waiting_key.start()
-                        else:
-                            out(f"confirm with: ros2 service call /{ex.name}/confirm "
-                                "std_srvs/srv/Trigger", "prompt")
-                    elif kind == "trial_started":
-                        progress.follow(d / sess.record_name(e["trial"]))
-                    elif kind == "trial_done":
-                        progress.poll()
-                        out(f"trial {e['trial']}: {e.get('prediction')} after "
-                            f"{e.get('touches')} touches ({e.get('stop_reason')}); "
-                            f"{'correct' if e.get('correct') else 'wrong'}", "info")
-                    elif kind in ("session_ended", "session_done"):
-                        out(f"session: {e.get('reason') or 'done, accuracy %.3f' % e['accuracy']}",
-                            "info")
+    def poll() -> None:        # the session's events since the last poll, on the console
+        nonlocal offset, n_confirmed, waiting_key
+        evs, offset = tail_jsonl(events_path, offset)
+        for e in evs:
+            kind = e.get("event")
+            if kind == "awaiting_confirmation":
+                out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
+                for pid, fab in e["placement"].items():
+                    out(f"  platform {pid}: {fab}", "prompt")
+                if confirm == "yes":
+                    for _ in range(10):     # refused: not awaited (yet); try again
+                        ok, msg = confirmer.confirm()
+                        if ok:
+                            break
+                        time.sleep(0.5)
+                    n_confirmed += ok
+                    if not ok:
+                        out(f"not confirmed: {msg}", "info")
+                elif confirm == "key" and (waiting_key is None
+                                           or not waiting_key.is_alive()):
+                    out("press Enter once the fabrics are in place", "prompt")
+                    waiting_key = threading.Thread(target=on_key, daemon=True)
+                    waiting_key.start()
+                else:
+                    out(f"confirm with: ros2 service call /{ex.name}/confirm "
+                        "std_srvs/srv/Trigger", "prompt")
+            elif kind == "trial_started":
+                progress.follow(d / sess.record_name(e["trial"]))
+            elif kind == "trial_done":
                 progress.poll()
-                gone = g.first_exit()
-                if gone is not None:
-                    name, code = gone
-                    if name != ex.name or not (d / sess.RESULT_FILE).exists():
-                        last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
-                        failure = (last[-1]["reason"] if last and name == ex.name else
-                                   f"node {name} ended ({exit_text(code)}) "
-                                   f"{time.monotonic() - t0:.1f} s into the session")
-                    break
-                if sig.received is not None:
-                    failure = (f"interrupted by {signal.Signals(sig.received).name} "
-                               f"{time.monotonic() - t0:.1f} s into the session")
-                    break
-                if time.monotonic() - t0 > timeout_s:
-                    failure = f"session not finished within {timeout_s:g} s"
-                    break
-                time.sleep(poll_s)
-            elapsed = time.monotonic() - t0
-        finally:
-            exits = g.stop()
-            confirmer.close()
+                out(f"trial {e['trial']}: {e.get('prediction')} after "
+                    f"{e.get('touches')} touches ({e.get('stop_reason')}); "
+                    f"{'correct' if e.get('correct') else 'wrong'}", "info")
+            elif kind in ("session_ended", "session_done"):
+                out(f"session: {e.get('reason') or 'done, accuracy %.3f' % e['accuracy']}",
+                    "info")
+        progress.poll()
+
+    def ended(name: str, code: int | None, elapsed: float) -> str | None:
+        if name == ex.name and (d / sess.RESULT_FILE).exists():
+            return None
+        last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
+        return (last[-1]["reason"] if last and name == ex.name else
+                f"node {name} ended ({exit_text(code)}) {elapsed:.1f} s into the session")
+
+    def deadline(elapsed: float) -> str | None:
+        return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
+
+    try:
+        run = supervise(nodes, log_dir, domain_id, "session", ended, deadline, poll=poll,
+                        on_start=on_start, poll_s=poll_s)
+    finally:
+        confirmer.close()
+    failure, exits = run.failure, run.exits
     if failure is not None and d.is_dir():
-        sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": sig.received,
+        sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": run.signal,
                            "node_exit": exits, "time": time.time()})
     res_path = d / sess.RESULT_FILE
     result = json.loads(res_path.read_text()) if res_path.exists() else None
     code = exits.get(ex.name)
     return SessionRun(exit_code=-1 if code is None else code, result=result, session_dir=d,
-                      logs=g.log_dir, failure=failure, signal=sig.received, elapsed_s=elapsed,
+                      logs=run.graph.log_dir, failure=failure, signal=run.signal,
+                      elapsed_s=run.elapsed_s,
                       node_exit=exits, confirmations=n_confirmed)

@@ -251,3 +251,59 @@ def test_no_module_uses_a_private_member_of_another_module():
                     hits.append(f"{p.relative_to(PKG.parent)}:{node.lineno}: "
                                 f"{node.value.id}.{node.attr}")
     assert hits == []
+
+
+def _import_graph(files: list[Path]) -> dict[str, set[str]]:
+    """module -> the package's modules it imports (anywhere in the file, lazy imports and
+    ``TYPE_CHECKING`` blocks included; ``from pkg import mod`` counts as importing ``mod``)."""
+    known = {_module(p) for p in files}
+
+    def target(name: str) -> str | None:
+        while name and name not in known:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph: dict[str, set[str]] = {}
+    for p in files:
+        own = _module(p)
+        edges = set()
+        for _, mod, names in imports(p):
+            for t in [target(f"{mod}.{n}") for n in names] + [target(mod)]:
+                if t and t != own and not own.startswith(t + "."):   # not its own package
+                    edges.add(t)
+        graph[own] = edges
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import cycle of ``graph`` (modules in order, the first repeated), [] if none."""
+    state: dict[str, int] = {}          # 1 on the current path, 2 done
+    path: list[str] = []
+
+    def visit(m: str) -> list[str]:
+        state[m] = 1
+        path.append(m)
+        for n in sorted(graph.get(m, ())):
+            if state.get(n) == 1:
+                return path[path.index(n):] + [n]
+            if n not in state and (found := visit(n)):
+                return found
+        state[m] = 2
+        path.pop()
+        return []
+
+    for m in sorted(graph):
+        if m not in state and (found := visit(m)):
+            return found
+    return []
+
+
+def test_no_module_imports_back_a_module_that_imports_it():
+    """The product's and the lab's imports form no cycle, lazy and type-only ones included
+    (e.g. cli/main -> cli/robot -> cli/main; explorer_node <-> session_mode)."""
+    assert _cycle(_import_graph(_files() + _files(LAB))) == []
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) == []

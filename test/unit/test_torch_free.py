@@ -107,11 +107,12 @@ def test_launch_file_imports_were_found() -> None:
 
 @pytest.mark.parametrize("argv, absent", [
     (["--help"], ("numpy", "pydantic", "torch", "tactex_lab.experiments")),
-    (["trial", "--help"], ("numpy", "torch", "tactex_lab.experiments")),
+    (["trial", "--help"], ("numpy", "torch", "tactex_lab", "tactex_ros.core.plugins")),
 ])
 def test_help_imports_only_what_it_shows(argv, absent) -> None:
     """Start-up: ``tactex --help`` lists the commands without building their options; ``tactex
-    trial --help`` builds only the trial's (from the schema, without numpy)."""
+    trial --help`` builds only the trial's (from the schema, without numpy) and looks up no
+    plug-in (no plug-in extends ``trial``)."""
     loaded = _run("import contextlib, io; from tactex_ros.cli.main import main\n"
                   "with contextlib.redirect_stdout(io.StringIO()), "
                   "contextlib.suppress(SystemExit):\n    main(%r)" % argv)

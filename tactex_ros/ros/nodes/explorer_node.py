@@ -39,6 +39,7 @@ from ...record import TrialRecord
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
+from .session_mode import SessionMode, trial_outcome
 from ..goal import GoalRequest, Silence
 
 
@@ -46,7 +47,7 @@ class PressServerLost(InputError):
     """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
 
-class ExplorerNode(TactexNode):
+class ExplorerNode(SessionMode, TactexNode):
     settings_cls = ExplorerSettings
 
     def __init__(self, **kw) -> None:
@@ -64,8 +65,7 @@ class ExplorerNode(TactexNode):
         self.session = None
         self.record = self.bag = self.last_state = None
         if s.session_file:
-            from .session_mode import configure_session
-            configure_session(self)     # checks the trial file, opens the session folder
+            self.configure_session()    # checks the trial file, opens the session folder
             TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
                       platform_ids=tuple(self.ids)).engine()   # settings refused here
         else:
@@ -160,8 +160,7 @@ class ExplorerNode(TactexNode):
         if self.worker is None:
             target = self._trial
             if self.session is not None:
-                from .session_mode import run_session
-                target = lambda: run_session(self)    # noqa: E731
+                target = self.run_session
             self.worker = threading.Thread(target=target, name="trial", daemon=True)
             self.worker.start()
 
@@ -461,7 +460,6 @@ class ExplorerNode(TactexNode):
         if self._t_trial is not None:
             out["elapsed_s"] = time.monotonic() - self._t_trial
         if self.session_trial is not None:
-            from .session_mode import trial_outcome
             out.update(trial_outcome(self.session_trial, out))
         self.result = out
         path = self.record.finish(out)

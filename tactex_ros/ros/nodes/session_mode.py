@@ -11,121 +11,19 @@ imported) with seed ``seed + position``, its own record ``<session_dir>/trial_<i
 report, and its correctness from the trial file's truth. A session folder that already holds
 the same session is continued: finished trials are skipped, an interrupted trial resumes at
 the touch where it stopped (``resume``), pending ones run.
+
+``SessionMode`` is a mixin of ``ExplorerNode`` (``explorer_node.py`` imports this module, never
+the reverse): its methods use the node's settings, scene ids, record and trial worker.
 """
 
 from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ...core.errors import TrialError
 from ... import session as sess
-
-if TYPE_CHECKING:   # pragma: no cover
-    from .explorer_node import ExplorerNode
-
-
-def configure_session(node: "ExplorerNode") -> None:
-    """Check the trial file against the scene (row named on error), open the session folder,
-    make the confirm service, the prompt publisher and the placement client."""
-    import threading
-
-    from rcl_interfaces.srv import SetParameters
-    from std_msgs.msg import String
-    from std_srvs.srv import Trigger
-
-    from .. import adapter
-    s = node.settings
-    node.session = sess.load_session(s.session_file, node.ids, seed=s.seed)
-    d = Path(s.session_dir or Path(s.record_dir) /
-             f"{node.session.name}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
-    node.session_dir = d
-    resumed = sess.open_session(d, node.session, {
-        "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
-        "scene_file": str(Path(s.scene_file).resolve())})
-    sess.add_event(d, {"event": "resumed" if resumed else "started", "time": time.time(),
-                       "trials": len(node.session.trials)})
-    node._confirmed = threading.Event()
-    node._awaiting: str | None = None
-    node.confirm_srv = node.create_service(Trigger, "~/confirm",
-                                           lambda req, res: _on_confirm(node, res))
-    node.prompt_pub = node.create_publisher(String, s.prompt_topic, adapter.latched_qos())
-    node.placement_client = (node.create_client(SetParameters, s.placement_service)
-                             if s.placement_service else None)
-    node.get_logger().info(f"session {node.session.name}: {len(node.session.trials)} trials, "
-                           f"folder {d}{' (resumed)' if resumed else ''}")
-
-
-def _on_confirm(node: "ExplorerNode", res: Any) -> Any:
-    """``~/confirm``: the operator has placed the fabrics of the trial being prompted."""
-    if node._awaiting is None:
-        res.success, res.message = False, "nothing to confirm: no placement is awaited now"
-        return res
-    res.success, res.message = True, f"trial {node._awaiting}: placement confirmed"
-    node._confirmed.set()
-    return res
-
-
-def _prompt(node: "ExplorerNode", trial: sess.SessionTrial, k: int, n: int) -> bool:
-    """Tell the operator what to place where and wait for the confirmation; False when
-    ``confirm_timeout_s`` passed first. TrialError when the node stops meanwhile."""
-    from std_msgs.msg import String
-    s = node.settings
-    text = (f"session {node.session.name}, trial {trial.id} ({k}/{n}): place "
-            + "; ".join(trial.instructions()) + " -- then confirm")
-    node._confirmed.clear()
-    node._awaiting = trial.id          # before the prompt goes out: a quick confirm is taken
-    node.get_logger().info(text)
-    sess.add_event(node.session_dir, {"event": "awaiting_confirmation", "trial": trial.id,
-                                      "position": trial.position, "number": k, "of": n,
-                                      "placement": trial.placement, "text": text,
-                                      "time": time.time()})
-    node.prompt_pub.publish(String(data=text))
-    if s.auto_confirm:
-        node._confirmed.set()
-    deadline = time.monotonic() + s.confirm_timeout_s
-    try:
-        while not node._confirmed.wait(timeout=0.1):
-            if node._stopping or not node.context.ok():
-                raise TrialError("the explorer is stopping")
-            if time.monotonic() > deadline:
-                return False
-    finally:
-        node._awaiting = None
-    sess.add_event(node.session_dir, {"event": "confirmed", "trial": trial.id,
-                                      "by": "auto" if s.auto_confirm else "service",
-                                      "time": time.time()})
-    return True
-
-
-def _place(node: "ExplorerNode", trial: sess.SessionTrial) -> None:
-    """Simulation: set the mock camera's ``placement`` (SetParameters), within
-    ``server_timeout_s``; TrialError with the camera's reason when it refuses."""
-    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-    client, s = node.placement_client, node.settings
-    if client is None:
-        return
-    if not client.wait_for_service(timeout_sec=s.server_timeout_s):
-        raise TrialError(f"placement service {s.placement_service!r} not available within "
-                          f"server_timeout_s ({s.server_timeout_s} s)")
-    value = ParameterValue(type=ParameterType.PARAMETER_STRING,
-                           string_value=sess.placement_text(trial.placement))
-    fut = client.call_async(SetParameters.Request(
-        parameters=[Parameter(name="placement", value=value)]))
-    deadline = time.monotonic() + s.server_timeout_s
-    while not fut.done():
-        if time.monotonic() > deadline:
-            raise TrialError(f"placement service {s.placement_service!r}: no answer within "
-                              f"server_timeout_s ({s.server_timeout_s} s)")
-        if node._stopping:
-            raise TrialError("the explorer is stopping")
-        time.sleep(0.01)
-    r = fut.result().results[0]
-    if not r.successful:
-        raise TrialError(f"the mock camera refused the placement of trial {trial.id}: "
-                          f"{r.reason}")
 
 
 def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
@@ -135,67 +33,173 @@ def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
             "placement": dict(trial.placement), "seed": trial.seed}
 
 
-def run_session(node: "ExplorerNode") -> None:
-    """The session's worker thread: every trial not yet done, in order; then the session's
-    result and report. Ends the node's work (``exit_when_done``) in every case."""
-    d, trials = node.session_dir, node.session.trials
-    try:
-        for k, trial in enumerate(trials, 1):
-            state = sess.trial_state(d, trial)
-            if state == "done":
-                continue
-            if not _prompt(node, trial, k, len(trials)):
-                why = (f"placement of trial {trial.id} not confirmed within "
-                       f"confirm_timeout_s ({node.settings.confirm_timeout_s:g} s)")
-                node.get_logger().error(f"session ended: {why}")
-                sess.add_event(d, {"event": "session_ended", "reason": why,
-                                   "trial": trial.id, "time": time.time()})
-                node.exit_code = 1
-                return
-            _place(node, trial)
-            node.session_trial, node.result = trial, None
-            node._open_trial(trial.seed, str(d / trial.record_name) if state == "started"
-                             else None, trial.record_name, str(d),
-                             placed_scene=sess.placed_scene(node.settings.scene_file,
-                                                            trial.placement),
-                             extra={"session": {"name": node.session.name, "trial": trial.id,
-                                                "placement": trial.placement,
-                                                "truth": trial.truth}})
-            sess.add_event(d, {"event": "trial_started", "trial": trial.id,
-                               "resumed": state == "started",
-                               "after_touch": node.record.n_touches, "time": time.time()})
-            node._trial(finish_node=False)
-            res = node.result
-            if res is None:          # the node is being stopped: the trial stays resumable
-                return
-            if "error" in res:
-                sess.add_event(d, {"event": "session_ended", "trial": trial.id,
-                                   "reason": f"trial {trial.id} failed: {res['error']}",
-                                   "time": time.time()})
-                return
-            sess.add_event(d, {"event": "trial_done", "trial": trial.id,
-                               "prediction": res.get("prediction"),
-                               "correct": res.get("correct"), "touches": res.get("touches"),
-                               "stop_reason": res.get("stop_reason"), "time": time.time()})
-        out = sess.summary(d)
-        sess.finish_session(d, out)
-        sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
-                           "time": time.time()})
-        node.get_logger().info(f"session {node.session.name}: {out['done']} trials, accuracy "
-                               f"{out['accuracy']:.3f}; folder {d}")
-    except Exception as exc:  # the session must end in an explicit, recorded state
-        if node._stopping or not node.context.ok():
+
+class SessionMode:
+    """The explorer's session methods (mixed into ``ExplorerNode``)."""
+
+    def configure_session(self) -> None:
+        """Check the trial file against the scene (row named on error), open the session folder,
+        make the confirm service, the prompt publisher and the placement client."""
+        import threading
+
+        from rcl_interfaces.srv import SetParameters
+        from std_msgs.msg import String
+        from std_srvs.srv import Trigger
+
+        from .. import adapter
+        s = self.settings
+        self.session = sess.load_session(s.session_file, self.ids, seed=s.seed)
+        d = Path(s.session_dir or Path(s.record_dir) /
+                 f"{self.session.name}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
+        self.session_dir = d
+        resumed = sess.open_session(d, self.session, {
+            "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
+            "scene_file": str(Path(s.scene_file).resolve())})
+        sess.add_event(d, {"event": "resumed" if resumed else "started", "time": time.time(),
+                           "trials": len(self.session.trials)})
+        self._confirmed = threading.Event()
+        self._awaiting: str | None = None
+        self.confirm_srv = self.create_service(Trigger, "~/confirm",
+                                               lambda req, res: self._on_confirm(res))
+        self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
+        self.placement_client = (self.create_client(SetParameters, s.placement_service)
+                                 if s.placement_service else None)
+        self.get_logger().info(f"session {self.session.name}: {len(self.session.trials)} trials, "
+                               f"folder {d}{' (resumed)' if resumed else ''}")
+
+
+    def _on_confirm(self, res: Any) -> Any:
+        """``~/confirm``: the operator has placed the fabrics of the trial being prompted."""
+        if self._awaiting is None:
+            res.success, res.message = False, "nothing to confirm: no placement is awaited now"
+            return res
+        res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
+        self._confirmed.set()
+        return res
+
+
+    def _prompt(self, trial: sess.SessionTrial, k: int, n: int) -> bool:
+        """Tell the operator what to place where and wait for the confirmation; False when
+        ``confirm_timeout_s`` passed first. TrialError when the node stops meanwhile."""
+        from std_msgs.msg import String
+        s = self.settings
+        text = (f"session {self.session.name}, trial {trial.id} ({k}/{n}): place "
+                + "; ".join(trial.instructions()) + " -- then confirm")
+        self._confirmed.clear()
+        self._awaiting = trial.id          # before the prompt goes out: a quick confirm is taken
+        self.get_logger().info(text)
+        sess.add_event(self.session_dir, {"event": "awaiting_confirmation", "trial": trial.id,
+                                          "position": trial.position, "number": k, "of": n,
+                                          "placement": trial.placement, "text": text,
+                                          "time": time.time()})
+        self.prompt_pub.publish(String(data=text))
+        if s.auto_confirm:
+            self._confirmed.set()
+        deadline = time.monotonic() + s.confirm_timeout_s
+        try:
+            while not self._confirmed.wait(timeout=0.1):
+                if self._stopping or not self.context.ok():
+                    raise TrialError("the explorer is stopping")
+                if time.monotonic() > deadline:
+                    return False
+        finally:
+            self._awaiting = None
+        sess.add_event(self.session_dir, {"event": "confirmed", "trial": trial.id,
+                                          "by": "auto" if s.auto_confirm else "service",
+                                          "time": time.time()})
+        return True
+
+
+    def _place(self, trial: sess.SessionTrial) -> None:
+        """Simulation: set the mock camera's ``placement`` (SetParameters), within
+        ``server_timeout_s``; TrialError with the camera's reason when it refuses."""
+        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+        from rcl_interfaces.srv import SetParameters
+        client, s = self.placement_client, self.settings
+        if client is None:
             return
-        node.get_logger().error(f"session failed: {type(exc).__name__}: {exc}")
-        sess.add_event(d, {"event": "session_ended", "reason": f"{type(exc).__name__}: {exc}",
-                           "time": time.time()})
-        node.exit_code = 1
-    finally:
-        if not node._stopping:
-            try:
-                from ...report import write_session_report
-                write_session_report(d)
-            except Exception as exc:  # noqa: BLE001 - the records are the ground truth
-                node.get_logger().warning(f"session report not written: {exc}")
-        if node.settings.exit_when_done:
-            node.finished.set()
+        if not client.wait_for_service(timeout_sec=s.server_timeout_s):
+            raise TrialError(f"placement service {s.placement_service!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
+        value = ParameterValue(type=ParameterType.PARAMETER_STRING,
+                               string_value=sess.placement_text(trial.placement))
+        fut = client.call_async(SetParameters.Request(
+            parameters=[Parameter(name="placement", value=value)]))
+        deadline = time.monotonic() + s.server_timeout_s
+        while not fut.done():
+            if time.monotonic() > deadline:
+                raise TrialError(f"placement service {s.placement_service!r}: no answer within "
+                                  f"server_timeout_s ({s.server_timeout_s} s)")
+            if self._stopping:
+                raise TrialError("the explorer is stopping")
+            time.sleep(0.01)
+        r = fut.result().results[0]
+        if not r.successful:
+            raise TrialError(f"the mock camera refused the placement of trial {trial.id}: "
+                              f"{r.reason}")
+
+
+    def run_session(self) -> None:
+        """The session's worker thread: every trial not yet done, in order; then the session's
+        result and report. Ends the node's work (``exit_when_done``) in every case."""
+        d, trials = self.session_dir, self.session.trials
+        try:
+            for k, trial in enumerate(trials, 1):
+                state = sess.trial_state(d, trial)
+                if state == "done":
+                    continue
+                if not self._prompt(trial, k, len(trials)):
+                    why = (f"placement of trial {trial.id} not confirmed within "
+                           f"confirm_timeout_s ({self.settings.confirm_timeout_s:g} s)")
+                    self.get_logger().error(f"session ended: {why}")
+                    sess.add_event(d, {"event": "session_ended", "reason": why,
+                                       "trial": trial.id, "time": time.time()})
+                    self.exit_code = 1
+                    return
+                self._place(trial)
+                self.session_trial, self.result = trial, None
+                self._open_trial(trial.seed, str(d / trial.record_name) if state == "started"
+                                 else None, trial.record_name, str(d),
+                                 placed_scene=sess.placed_scene(self.settings.scene_file,
+                                                                trial.placement),
+                                 extra={"session": {"name": self.session.name, "trial": trial.id,
+                                                    "placement": trial.placement,
+                                                    "truth": trial.truth}})
+                sess.add_event(d, {"event": "trial_started", "trial": trial.id,
+                                   "resumed": state == "started",
+                                   "after_touch": self.record.n_touches, "time": time.time()})
+                self._trial(finish_node=False)
+                res = self.result
+                if res is None:          # the node is being stopped: the trial stays resumable
+                    return
+                if "error" in res:
+                    sess.add_event(d, {"event": "session_ended", "trial": trial.id,
+                                       "reason": f"trial {trial.id} failed: {res['error']}",
+                                       "time": time.time()})
+                    return
+                sess.add_event(d, {"event": "trial_done", "trial": trial.id,
+                                   "prediction": res.get("prediction"),
+                                   "correct": res.get("correct"), "touches": res.get("touches"),
+                                   "stop_reason": res.get("stop_reason"), "time": time.time()})
+            out = sess.summary(d)
+            sess.finish_session(d, out)
+            sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
+                               "time": time.time()})
+            self.get_logger().info(f"session {self.session.name}: {out['done']} trials, accuracy "
+                                   f"{out['accuracy']:.3f}; folder {d}")
+        except Exception as exc:  # the session must end in an explicit, recorded state
+            if self._stopping or not self.context.ok():
+                return
+            self.get_logger().error(f"session failed: {type(exc).__name__}: {exc}")
+            sess.add_event(d, {"event": "session_ended", "reason": f"{type(exc).__name__}: {exc}",
+                               "time": time.time()})
+            self.exit_code = 1
+        finally:
+            if not self._stopping:
+                try:
+                    from ...report import write_session_report
+                    write_session_report(d)
+                except Exception as exc:  # noqa: BLE001 - the records are the ground truth
+                    self.get_logger().warning(f"session report not written: {exc}")
+            if self.settings.exit_when_done:
+                self.finished.set()

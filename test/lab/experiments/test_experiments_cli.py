@@ -46,11 +46,10 @@ def test_budget_readout_equals_a_capped_run():
         capped = TrialJob(source="sim", seed=4, strategy=strategy, rounds=4, max_touches=k,
                           overrides=TINY_OVR, platform_classes=classes)
         rf, rc = run_job(full), run_job(capped)
-        decisions = [{"probs": r["probs"], "total": sum(r["touches"]) + 1}
-                     for r in rf["rounds"] + [rf["final"]]]
+        decisions = [{"probs": r.probs, "total": sum(r.touches) + 1} for r in rf.decisions]
         d = decision_at_budget(decisions, k)
-        np.testing.assert_allclose(d["probs"], rc["final"]["probs"], rtol=0, atol=1e-12)
-        assert d["total"] == sum(rc["final"]["touches"]) + 1
+        np.testing.assert_allclose(d["probs"], rc.outcome.final.probs, rtol=0, atol=1e-12)
+        assert d["total"] == sum(rc.outcome.final.touches) + 1
 
 
 @pytest.fixture(scope="module")

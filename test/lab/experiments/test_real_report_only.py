@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tactex_ros.cli import main
+from tactex_ros.cli.main import main
 from tactex_lab.experiments.curves import paired_at_thresholds
 
 

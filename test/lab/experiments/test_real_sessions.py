@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from tactex_ros.cli import main
+from tactex_ros.cli.main import main
 
 
 def test_real_sessions_end_to_end(octopi_dir, tmp_path):

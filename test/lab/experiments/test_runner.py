@@ -16,13 +16,12 @@ JOBS = [TrialJob(source="sim", seed=s, preset="default", strategy=st, rounds=2, 
         for s in (0, 1) for st in ("infogain", "random")]
 
 
-def _outcome(res: dict) -> dict:
-    """Everything a trial decided (no timings)."""
-    return {"trial": res["job"]["trial_id"], "classes": res["classes"],
-            "truth": res["truth_index"], "prediction": res["prediction_index"],
-            "touches": res["touches"],
-            "rounds": [(r["platform"], r["touches"], r["probs"]) for r in res["rounds"]],
-            "final": (res["final"]["touches"], res["final"]["probs"])}
+def _outcome(res) -> dict:
+    """Everything a trial decided (no timings); platforms as indices."""
+    return {"trial": res.job.trial_id, "classes": res.classes, "truth": res.truth,
+            "prediction": res.prediction, "touches": res.touches,
+            "rounds": [(r.platform, r.touches, r.probs) for r in res.decisions[:-1]],
+            "final": (res.decisions[-1].touches, res.decisions[-1].probs)}
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +38,7 @@ def test_joblib_workers_give_the_in_process_results(in_process):
     assert [_outcome(r) for r in res] == in_process
     # they ran in worker processes, not here
     assert os.getpid() not in run_parallel(_pid, range(4), Backend("joblib", 2), quiet=True)
-    assert [r["job"]["trial_id"] for r in res] == ["infogain0", "random0", "infogain1", "random1"]
+    assert [r.job.trial_id for r in res] == ["infogain0", "random0", "infogain1", "random1"]
 
 
 def test_a_local_ray_instance_gives_the_joblib_results(in_process):
@@ -74,3 +73,27 @@ def test_runner_options_and_bad_backends():
         Backend("joblib", -1)
     with pytest.raises(InputError, match="--address"):
         Backend("joblib", 2, "auto")
+
+
+def test_a_result_names_platforms_only_in_its_file_form():
+    """The runner's result carries platform indices; ``to_dict`` (files) names them."""
+    res = run_jobs(JOBS[:1], Backend("joblib", 1), quiet=True)[0]
+    d = res.to_dict()
+    assert d["prediction_index"] == res.prediction and d["truth_index"] == res.truth
+    assert d["prediction"] == ["reference", "c1", "c2", "c3"][res.prediction]
+    chosen = [r.platform for r in res.decisions[:-1]]
+    assert all(isinstance(p, int) for p in chosen)
+    assert [r["platform"] for r in d["rounds"]] == [["reference", "c1", "c2", "c3"][p]
+                                                    for p in chosen]
+
+
+def test_a_failed_trial_keeps_its_error_and_no_outcome():
+    """Every touch blank: the baseline fails; the result says why, has no outcome, and its
+    file form names the true platform and no final decision."""
+    job = TrialJob(source="sim", seed=0, preset="default", strategy="infogain", rounds=2,
+                   comparisons=3, perturb={"blank": 1.0}, catch_errors=True)
+    res = run_jobs([job], Backend("joblib", 1), quiet=True)[0]
+    assert res.outcome is None and res.prediction is None and not res.correct
+    assert res.error and res.failed_touches and res.decisions == []
+    d = res.to_dict()
+    assert d["final"] is None and d["truth"] == ["reference", "c1", "c2", "c3"][res.truth]

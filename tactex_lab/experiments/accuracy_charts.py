@@ -1,0 +1,109 @@
+"""``tactex experiment accuracy-charts``: accuracy against touches and against trial time,
+redrawn from the run JSONs of ``experiment real`` / ``experiment unseen`` (no trial is re-run).
+
+Each ``--runs`` folder holds ``runs.json`` (per setting, the belief curve of every report scene)
+and ``summary.json`` (budget, comparisons). Folders of the same protocol with other seeds (other
+folds and scenes) are pooled per setting: a setting's line counts the scenes of every folder
+that ran it, and the legend says how many. Each line has its 95 % Wilson band
+(``charts.touches_and_time``). The time axis counts ``--press-s`` seconds per press (the
+baseline's presses included) and the setting's median decision time per decision: give it the
+press time of the robot the figure speaks for (``tactex graph summary RECORD``'s
+``press_s_median``) and say where it comes from with ``--press-note``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from tactex_ros.core.errors import InputError
+from tactex_lab.analysis import charts
+from tactex_lab.experiments.common import write_json
+from tactex_lab.experiments.curves import paired_at_budgets, paired_at_thresholds
+from tactex_lab.experiments.protocol import DEFAULT_THRESHOLDS, band_rows, score_pairs
+
+
+def load_runs(folders: list[str | Path], settings: list[str] | None = None
+              ) -> tuple[dict[str, list[dict]], int, int]:
+    """Pool the report scenes of ``folders`` per setting (in first-seen order, or
+    ``settings``): ({label: [belief curve per scene]}, budget, comparisons). The folders must
+    share budget and comparisons."""
+    pooled: dict[str, list[dict]] = {}
+    budget = comparisons = None
+    for f in folders:
+        f = Path(f)
+        try:
+            runs = json.loads((f / "runs.json").read_text())
+            summary = json.loads((f / "summary.json").read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"--runs {f}: not a results folder with runs.json and "
+                             f"summary.json ({exc})") from None
+        b, c = int(summary["budget"]), int(summary["comparisons"])
+        if budget is not None and (b, c) != (budget, comparisons):
+            raise InputError(f"--runs {f}: budget {b} / comparisons {c} differ from the first "
+                             f"folder's {budget} / {comparisons}")
+        budget, comparisons = b, c
+        for lab, cs in runs.items():
+            pooled.setdefault(lab, []).extend(cs)
+    if budget is None:
+        raise InputError("--runs: no folder given")
+    labels = settings or list(pooled)
+    missing = [s for s in labels if s not in pooled]
+    if missing:
+        raise InputError(f"--settings {missing}: not in the runs; they hold {list(pooled)}")
+    return {lab: pooled[lab] for lab in labels}, budget, comparisons
+
+
+def pooled_figures(curves: dict[str, list[dict]], thresholds: list[float],
+                   against: list[str]) -> dict:
+    """The pooled scenes' figures: every (setting, theta) at the stop (``score_pairs``) and the
+    paired tests against each setting of ``against`` at fixed budgets and thresholds."""
+    budgets = (0, 1, 3, 5, 10)
+    return {"scenes": {lab: len(cs) for lab, cs in curves.items()},
+            "report_rows": score_pairs(curves, thresholds),
+            "paired": {ref: {"budgets": paired_at_budgets(curves, ref, budgets),
+                             "thresholds": paired_at_thresholds(curves, ref, thresholds)}
+                       for ref in against}}
+
+
+def register(esub: argparse._SubParsersAction) -> None:
+    p = esub.add_parser("accuracy-charts", help="accuracy against touches and trial time from "
+                                                "run JSONs, Wilson bands, seeds pooled")
+    p.add_argument("--runs", nargs="+", required=True,
+                   help="results folders with runs.json and summary.json (pooled per setting)")
+    p.add_argument("--settings", nargs="+", help="labels to draw, in order (default: all)")
+    p.add_argument("--press-s", type=float, required=True,
+                   help="seconds per press (tactex graph summary's press_s_median)")
+    p.add_argument("--press-note", default="",
+                   help="where the press time comes from (shown on the time axis)")
+    p.add_argument("--title", default="real presses, report scenes, no stop rule")
+    p.add_argument("--thresholds", type=float, nargs="+",
+                   help="stop thresholds of pooled.json (default: experiment real's)")
+    p.add_argument("--paired-against", nargs="+", metavar="LABEL",
+                   help="paired tests in pooled.json against these settings (default: the "
+                        "first)")
+    p.add_argument("--out", required=True,
+                   help="folder for the two PNG files and pooled.json (the pooled scenes' "
+                        "figures at the stop and paired tests)")
+
+    def func(args: argparse.Namespace) -> int:
+        if not args.press_s > 0:
+            raise InputError(f"--press-s must be > 0, got {args.press_s}")
+        curves, budget, comparisons = load_runs(args.runs, args.settings)
+        against = args.paired_against or [next(iter(curves))]
+        unknown = [a for a in against if a not in curves]
+        if unknown:
+            raise InputError(f"--paired-against {unknown}: not in the runs {list(curves)}")
+        rows = band_rows(curves, budget)
+        for path in charts.touches_and_time(Path(args.out), rows, comparisons + 1,
+                                            args.press_s, args.title, args.press_note):
+            print(path)
+        print(write_json(Path(args.out) / "pooled.json", pooled_figures(
+            curves, sorted(args.thresholds or DEFAULT_THRESHOLDS), against)))
+        for lab, (right, dec) in rows.items():
+            print(f"  {lab:>14}: n = {len(right)}, +0 {right[:, 0].mean():.3f}, "
+                  f"+{budget} {right[:, -1].mean():.3f}, decision {dec:.4f} s")
+        return 0
+
+    p.set_defaults(func=func)

@@ -1,0 +1,91 @@
+"""Accuracy charts (issue 23): Wilson bands per point, the trial-time axis, pooling run JSONs
+of several seeds, and the ``experiment accuracy-charts`` command's files and refusals."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactex_lab.analysis import charts
+from tactex_lab.experiments import accuracy_charts
+from tactex_lab.experiments.protocol import band_rows
+from tactex_ros.core.errors import InputError
+
+
+def _wilson(s: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    p = s / n
+    den = 1 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return mid - half, mid + half
+
+
+def test_band_series_exact_wilson():
+    right = np.array([[1, 1], [1, 0], [0, 0], [1, 1]], dtype=bool)
+    b = charts.band_series(right, [0, 1])
+    assert b["n"] == 4 and b["x"] == [0.0, 1.0] and b["accuracy"] == [0.75, 0.5]
+    np.testing.assert_allclose(b["lo"], [0.30064184258240184, 0.15003898915214953], atol=1e-12)
+    np.testing.assert_allclose(b["hi"], [0.9544127391902995, 0.8499610108478505], atol=1e-12)
+    for k, s in enumerate((3, 2)):
+        np.testing.assert_allclose((b["lo"][k], b["hi"][k]), _wilson(s, 4), atol=1e-9)
+    with pytest.raises(ValueError):
+        charts.band_series(right, [0, 1, 2])
+
+
+def test_trial_time_counts_baseline_presses_and_decisions():
+    assert charts.trial_time([0, 1, 2], 5, 15.5, 0.01) == pytest.approx([77.51, 93.02, 108.53])
+
+
+def _curve(extra, correct):
+    return {"extra": extra, "correct": correct, "conf": [0.5] * len(extra),
+            "decision_s": [0.01] * len(extra)}
+
+
+def _folder(tmp: Path, name: str, runs: dict, budget: int = 3) -> Path:
+    d = tmp / name
+    d.mkdir()
+    (d / "runs.json").write_text(json.dumps(runs))
+    (d / "summary.json").write_text(json.dumps({"budget": budget, "comparisons": 4}))
+    return d
+
+
+def test_right_after_and_pooling_two_seeds(tmp_path):
+    c = _curve([0, 1, 3], [False, True, True])
+    a = _folder(tmp_path, "s0", {"default": [c], "whiten": [_curve([0], [True])]})
+    b = _folder(tmp_path, "s1", {"default": [_curve([0, 2], [True, False])] * 2})
+    curves, budget, comparisons = accuracy_charts.load_runs([a, b])
+    assert (budget, comparisons) == (3, 4) and list(curves) == ["default", "whiten"]
+    rows = band_rows(curves, budget)
+    right, dec = rows["default"]
+    assert right.shape == (3, 4) and dec == 0.01
+    # right after k = 0..3: [F, T, T, T] once, [T, F, F, F] twice (the last decision holds)
+    assert right.tolist() == [[False, True, True, True]] + [[True, False, False, False]] * 2
+    assert rows["whiten"][0].shape == (1, 4)
+    with pytest.raises(InputError):
+        accuracy_charts.load_runs([a], ["nope"])
+    with pytest.raises(InputError):
+        accuracy_charts.load_runs([a, _folder(tmp_path, "s2", {}, budget=5)])
+
+
+@pytest.mark.slow
+def test_command_writes_both_charts_and_refuses_bad_input(tmp_path):
+    from tactex_ros.cli.main import main
+    a = _folder(tmp_path, "s0", {"default": [_curve([0, 1, 3], [False, True, True])] * 3})
+    out = tmp_path / "charts"
+    assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "15.5",
+                 "--out", str(out)]) == 0
+    for name in ("accuracy_vs_touches.png", "accuracy_vs_time.png"):
+        assert (out / name).stat().st_size > 1000
+    pooled = json.loads((out / "pooled.json").read_text())
+    assert pooled["scenes"] == {"default": 3}
+    at_09 = [r for r in pooled["report_rows"] if r["theta"] == 0.9][0]
+    # belief 0.5 never reaches 0.9: each scene ends at its last decision (3 touches, right)
+    assert (at_09["accuracy"], at_09["touches"], at_09["wrong_stop"]) == (1.0, 3.0, 0.0)
+    assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "15.5",
+                 "--paired-against", "nope", "--out", str(out)]) == 2
+    assert main(["experiment", "accuracy-charts", "--runs", str(tmp_path / "none"),
+                 "--press-s", "15.5", "--out", str(out)]) == 2
+    assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "0",
+                 "--out", str(out)]) == 2
