@@ -39,7 +39,8 @@ from tactex_ros.sources.perturb import KINDS
 from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilson
 from tactex_lab.experiments.common import parse_set, results_dir, write_json
-from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, run_jobs
+from tactex_lab.experiments.runner import (TrialJob, TrialResult, add_runner_args, backend_of,
+                                           run_jobs)
 
 SEVERITIES: dict[str, list[float]] = {
     "drift": [1.0, 2.0, 4.0, 8.0],          # % gain change per touch
@@ -100,13 +101,12 @@ def build_jobs(args: argparse.Namespace, scenes: list[list[str]]) -> list[TrialJ
     return jobs
 
 
-def compact(res: dict) -> dict:
+def compact(res: TrialResult) -> dict:
     """One trial's result -> the fields the summary reads."""
-    base = len(res["classes"])
-    return {**res["job"]["tags"], "correct": bool(res["correct"]),
-            "touches": int(res["touches"]) - base, "error": res.get("error"),
-            "rejected": len(res["failed_touches"]), "sure": res.get("sure"),
-            "classes": res["classes"], "wall_s": res["wall_s"]}
+    return {**res.job.tags, "correct": res.correct, "touches": res.touches - len(res.classes),
+            "error": res.error, "rejected": len(res.failed_touches),
+            "sure": None if res.outcome is None else res.outcome.sure,
+            "classes": res.classes, "wall_s": res.wall_s}
 
 
 SAME = ("source", "seed", "budget", "comparisons", "cnn_rounds")
