@@ -8,6 +8,11 @@ is compared twice: the whole JSON without the timing fields (``*_s`` of a round,
 ``seconds``), floats rounded to 6 decimals; and the outcome fields only (prediction, truth,
 touches, stop reason, classes, and every round's platform, belief, scores, touches, model).
 Prints one line per group: how many were compared and how many were identical each way.
+
+Both sides are read in today's shape: a file written before rounds had a learner-typed
+``detail`` (``train_loss``, ``input_size``, ... beside the common fields; a descriptor's were
+placeholders) is converted first (``upgrade``, with ``tactex_ros.core.engine.training_of``),
+so outcomes of the two shapes compare field by field.
 """
 
 from __future__ import annotations
@@ -19,8 +24,31 @@ from pathlib import Path
 
 TIMING = {"train_s", "score_s", "choose_s", "cpu_s", "decision_s", "seconds"}
 ROUND_FIELDS = ("round", "platform", "probs", "scores", "touches", "reference_touches", "model",
-                "input_size", "escalation", "heldout", "degenerate", "predictive_entropy",
-                "train_loss")
+                "heldout", "degenerate", "predictive_entropy", "detail")
+
+
+def upgrade(d: dict) -> dict:
+    """A trial JSON in today's shape: every round's training fields in its ``detail`` (None for
+    a learner that trains nothing), ``models`` / ``escalations`` labelled from it."""
+    from tactex_ros.core.engine import TRAINING_FIELDS, training_of
+    rounds = []
+    for r in d.get("rounds", []) + [d.get("final")]:
+        if r is None or "detail" in r:
+            rounds.append(r)
+            continue
+        t = training_of(r)
+        r = {k: v for k, v in r.items() if k not in TRAINING_FIELDS}
+        r["detail"] = {**t, "kind": "training"} if t else None
+        rounds.append(r)
+    out = {**d, "rounds": rounds[:-1], "final": rounds[-1]}
+    label = {r["round"]: (r["model"] if not r["detail"] else
+                          f"{r['model']}@{r['detail']['input_size']}") for r in rounds if r}
+    if "models" in d:
+        out["models"] = sorted(set(label.values()))
+    if "escalations" in d:
+        out["escalations"] = [{**e, "model": label.get(e["round"], e["model"])}
+                              for e in d["escalations"]]
+    return out
 TRIAL_FIELDS = ("prediction", "truth", "correct", "touches", "stop_reason", "reference_touches",
                 "failed_touches", "prediction_class", "truth_class", "classes")
 
@@ -52,7 +80,7 @@ def main(before: Path, after: Path) -> int:
         if not other.is_file():
             g[3].append(f"{f.name} (missing)")
             continue
-        a, b = json.loads(f.read_text()), json.loads(other.read_text())
+        a, b = upgrade(json.loads(f.read_text())), upgrade(json.loads(other.read_text()))
         g[1] += norm(a) == norm(b)
         if outcome(a) == outcome(b):
             g[2] += 1

@@ -124,7 +124,9 @@ _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nic
 def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
     """Refuse a resume whose settings differ from the record's ``config.json`` where they
     change the trial (seed, strategy, model, rounds, stop rule, every learner setting); the
-    error names the first field that differs. ``now``: {section: settings dict}."""
+    error names the first field that differs. ``now``: {section: settings dict}. A record
+    written before the learners had their own settings holds every learner's fields; those the
+    learner now lacks are not compared (``learner.model`` decides which apply)."""
     import json
     p = Path(folder) / "config.json"
     try:
@@ -134,7 +136,7 @@ def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
     for section, free in _FREE.items():
         a = json.loads(json.dumps(was.get(section, {}), default=str))
         b = json.loads(json.dumps(now.get(section, {}), default=str))
-        for k in sorted(set(a) | set(b)):
+        for k in sorted(set(b) if section == "learner" else set(a) | set(b)):
             if k not in free and a.get(k) != b.get(k):
                 raise InputError(f"resume: {section}.{k} is {b.get(k)!r} now but "
                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "

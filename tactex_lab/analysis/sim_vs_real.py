@@ -42,19 +42,19 @@ SOFT_THRESHOLD = 0.5          # simulated fabrics with softness >= this form the
 TARGET_REL = 0.25             # every statistic within 25 % of the real value
 
 # Learner settings ranked on both sides, in ``tactex experiment real`` syntax
-# (label=preset[:key=value,...], ``experiments/curves.parse_setting``): the shipped descriptor
+# (label=preset[:PATH=value,...], ``experiments/curves.parse_setting``): the shipped descriptor
 # model and its levers (strategies, prior spread, the no-contact frame) and two CNN settings.
 DEFAULT_SETTINGS: tuple[str, ...] = (
     "default=default",
-    "random=default:strategy=random",
-    "variance=default:strategy=variance",
-    "entropy=default:strategy=entropy",
-    "yoto=default:strategy=yoto",
-    "no_contact_off=default:descriptor_no_contact=false",
-    "prior0.5=default:match_prior_scale=0.5",
-    "prior3=default:match_prior_scale=3.0",
+    "random=default:trial.strategy=random",
+    "variance=default:trial.strategy=variance",
+    "entropy=default:trial.strategy=entropy",
+    "yoto=default:trial.strategy=yoto",
+    "no_contact_off=default:learner.descriptor_no_contact=false",
+    "prior0.5=default:learner.match_prior_scale=0.5",
+    "prior3=default:learner.match_prior_scale=3.0",
     "cnn=cnn",
-    "cnn_random=cnn:strategy=random",
+    "cnn_random=cnn:trial.strategy=random",
 )
 
 

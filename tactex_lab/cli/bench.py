@@ -41,7 +41,8 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                     help="epochs actually timed for the seed-faithful config (scaled to 10)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
                     help="configurations to time (ratios are to the last one): a preset, or "
-                         "label=preset:key=value,... e.g. prepared=default:representation=r.npz")
+                         "label=preset:PATH=value,... e.g. "
+                         "prepared=default:learner.representation=r.npz")
     bl.add_argument("--json")
     bl.set_defaults(func=cmd_bench_latency)
 

@@ -115,7 +115,7 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
     c.add_argument("--scenes", type=int, default=0,
                    help="scenes per side for the ranking of learner settings (0 = skip it)")
     c.add_argument("--setting", action="append",
-                   help="label=preset[:key=value,...] as for `tactex experiment real` "
+                   help="label=preset[:PATH=value,...] as for `tactex experiment real` "
                         "(repeat; default: analysis/sim_vs_real.py DEFAULT_SETTINGS)")
     c.add_argument("--comparisons", type=int, default=4)
     c.add_argument("--budget", type=int, default=5,

@@ -1,6 +1,6 @@
 """Model ``auto``: a wrapper learner that starts on the cheapest CNN and moves up a ladder.
 
-The trial starts on the first stage of ``LearnerConfig.auto_ladder`` (by default
+The trial starts on the first stage of ``AutoSettings.auto_ladder`` (by default
 ``small_inception`` at 48 px, then 96 px) and moves one stage up only on evidence from the trial
 itself, checked at the start of every training round (``train_round``, once per decision):
 
@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from tactex_lab.cnn.learner import OnlineLearner
-from tactex_ros.core.config import CNN_MODELS, LearnerConfig, validate
+from tactex_ros.core.config import CNN_MODELS, AutoSettings, CnnSettings, validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.strategies import predictive_entropy
@@ -61,7 +61,7 @@ class AutoLearner:
     """The learner of the current ladder stage, plus what escalation needs (raw touches, the
     stage's held-back outcomes and reference entropies)."""
 
-    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
+    def __init__(self, num_classes: int, cfg: AutoSettings, seed: int = 0) -> None:
         self.base_cfg = validate(cfg)
         self.num_classes = num_classes
         self.seed = seed
@@ -77,7 +77,7 @@ class AutoLearner:
 
     def _stage_learner(self) -> OnlineLearner:
         name, size = self.ladder[self.stage]
-        return OnlineLearner(self.num_classes, self.base_cfg.replace(model=name, input_size=size),
+        return OnlineLearner(self.num_classes, self.base_cfg.as_model(name, input_size=size),
                              seed=self.seed, model_name=name)
 
     # the stage learner's identity, for the round records
@@ -86,7 +86,7 @@ class AutoLearner:
         return self.inner.model_name
 
     @property
-    def cfg(self) -> LearnerConfig:
+    def cfg(self) -> CnnSettings:
         return self.inner.cfg
 
     @property

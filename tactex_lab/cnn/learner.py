@@ -33,7 +33,7 @@ import torch.nn.functional as F
 from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
-from tactex_ros.core.config import LearnerConfig, validate
+from tactex_ros.core.config import CnnSettings, validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.touch import Touch, as_touch, validate_frame
@@ -57,7 +57,7 @@ def class_weights(labels: np.ndarray, num_classes: int) -> np.ndarray:
 class OnlineLearner:
     """Model + stored views + optimiser for one trial (or one classification run)."""
 
-    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0,
+    def __init__(self, num_classes: int, cfg: CnnSettings, seed: int = 0,
                  model_name: str | None = None) -> None:
         self.cfg = validate(cfg)
         self.num_classes = num_classes

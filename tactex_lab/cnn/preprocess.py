@@ -5,7 +5,7 @@ stays inside the frame under *any* rotation: side = frame height / sqrt(2) (169.
 rotated view never contains the black corners that rotating the whole frame would create. The
 rotation, the crop and the resize to the model input (``size`` x ``size``) are one affine warp.
 
-With ``native`` (``LearnerConfig.sensor_crops``) a view is instead a ``size`` x ``size`` crop at
+With ``native`` (``learner.sensor_crops``) a view is instead a ``size`` x ``size`` crop at
 sensor resolution (no down-scaling) at a random position where it fits under any rotation
 (the unrotated view: the frame centre).
 """

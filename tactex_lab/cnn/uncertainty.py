@@ -1,7 +1,7 @@
 """The CNN's uncertainty: a (T, C) table of the reference, and per-platform scores from it.
 
 Shapes: ``probs`` is (T, C): T softmax vectors of the reference sample over the C comparison
-platforms, from one of three sources (``LearnerConfig.uncertainty``):
+platforms, from one of three sources (``learner.uncertainty``):
 
 - ``mc_dropout`` (``mc_probs``): T stochastic passes with dropout active (the thesis's method);
 - ``ensemble`` (``ensemble_probs``): one row per member of an ensemble of K heads over the

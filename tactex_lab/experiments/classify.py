@@ -22,7 +22,7 @@ The test accuracy is measured with the weights of the epoch with the best valida
 Models: ``small_inception`` (input ``--input-size``, default 64 px), ``inception_v3_random``
 and ``inception_v3`` (needs ``--weights``; included by default only when given). The full
 network needs at least 75 px; it runs at ``--inception-input-size`` (default 80). ``--fourier``
-trains on log-magnitude Fourier spectra (``LearnerConfig.fourier``).
+trains on log-magnitude Fourier spectra (``learner.fourier``).
 
 Each (model, seed) is one job; jobs run on the job runner (``--workers``, ``--backend``) with
 one torch thread each.
@@ -40,7 +40,7 @@ import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
-from tactex_lab.experiments.common import parse_set, results_dir, write_json
+from tactex_lab.experiments.common import learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import add_runner_args, backend_of, cached_source, run_parallel
 
 # thesis Table 5.1 (test accuracy)
@@ -174,7 +174,7 @@ def build_specs(args: argparse.Namespace) -> tuple[list[dict], list[str], dict]:
         raise InputError("classification needs at least 2 classes")
     models = args.models or (["inception_v3"] if args.weights else []) + \
         ["inception_v3_random", "small_inception"]
-    base = parse_set(args.set)
+    base = learner_set(args.set)
     if args.fourier:
         base["fourier"] = True
     if min(args.train, args.val, args.test) < 1:
@@ -316,7 +316,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="input of the full network [px], >= 75 (thesis: 299)")
     p.add_argument("--fourier", action="store_true", help="train on Fourier spectra")
     p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="learner override")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override, e.g. learner.lr=1e-3 (repeatable)")
     p.add_argument("--out", help="results folder (default results/classify)")
     add_runner_args(p)
     p.set_defaults(func=cmd)

@@ -48,22 +48,28 @@ def git_commit() -> str | None:
     return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
 
 
-def parse_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
-    """``key=value`` items (values parsed as YAML scalars) -> LearnerConfig overrides; a key
-    that is not a LearnerConfig field is refused, naming ``option`` and the valid keys."""
-    import yaml
-
-    from tactex_ros.core.config import LearnerConfig
+def parse_set(items: list[str] | None, option: str = "--set",
+              trial: tuple[str, ...] = ()) -> dict[str, Any]:
+    """``learner.PATH=VALUE`` items (the product's one override syntax,
+    ``tactex_ros.core.config.overrides``) -> nested overrides ``{"learner": {...}}``, plus
+    ``{"trial": {...}}`` for the trial settings named in ``trial`` (those the experiment
+    uses). Another ``trial.*`` path is refused, naming ``option``."""
+    from tactex_ros.core.config import TrialSettings, overrides
     from tactex_ros.core.errors import InputError
-    names = set(LearnerConfig.model_fields)
-    out: dict[str, Any] = {}
-    for it in items or []:
-        key, sep, val = it.partition("=")
-        if not sep or key not in names:
-            raise InputError(f"{option} {it!r}: expected key=value with key one of "
-                             f"{', '.join(sorted(names))}")
-        out[key] = yaml.safe_load(val)
+    out = overrides(TrialSettings, items, option)
+    extra = sorted(set(out) - {"learner", "trial"}) + sorted(
+        f"trial.{k}" for k in out.get("trial", {}) if k not in trial)
+    if extra:
+        raise InputError(f"{option} {', '.join(extra)}: not taken here (learner.* settings"
+                         + (f" and {', '.join('trial.' + t for t in trial)}" if trial else "")
+                         + " are)")
     return out
+
+
+def learner_set(items: list[str] | None, option: str = "--set") -> dict[str, Any]:
+    """``parse_set`` for an experiment that takes learner settings only: the learner's
+    overrides as keyword arguments of ``preset``."""
+    return parse_set(items, option).get("learner", {})
 
 
 def results_dir(out: str | None, name: str, config: dict) -> Path:

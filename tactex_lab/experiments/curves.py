@@ -3,7 +3,7 @@
 
 A *scene* is 1 reference + C comparisons drawn from a set of classes with
 ``sources.assign_platforms`` (the same draw as ``tactex trial --seed S``); a *setting* is
-``label=preset[:key=value,...]`` (``parse_setting``). Every setting runs every scene without a
+``label=preset[:PATH=value,...]`` (``parse_setting``). Every setting runs every scene without a
 stop rule up to a budget of touches after the baseline and records the belief after every
 decision (``curve``); the readings of a curve (``at_budget``, ``at_stop``) and the paired tests
 of settings on the same scenes (``paired_at_budgets``, ``paired_at_thresholds``) follow from it.
@@ -23,22 +23,20 @@ from tactex_lab.experiments.runner import Backend, TrialJob, run_jobs
 
 
 def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
-    """``label=preset[:key=val,key=val]`` -> (label, preset, strategy or None, overrides).
+    """``label=preset[:PATH=val,PATH=val]`` -> (label, preset, strategy or None, overrides).
 
-    ``strategy`` is a trial setting; every other key is a LearnerConfig field."""
+    Overrides are dotted schema paths (``tactex_ros.core.config.overrides``):
+    ``learner.<field>`` and ``trial.strategy``."""
     from tactex_ros.core.config import PRESETS
     label, sep, rest = text.partition("=")
     if not sep or not label:
-        raise InputError(f"--setting {text!r}: expected label=preset[:key=value,...]")
+        raise InputError(f"--setting {text!r}: expected label=preset[:PATH=value,...]")
     pre, _, kv = rest.partition(":")
     if pre not in PRESETS:
         raise InputError(f"--setting {text!r}: unknown preset {pre!r}; one of "
                          f"{', '.join(PRESETS)}")
-    items = [it for it in kv.split(",") if it]
-    strategy = next((it.partition("=")[2] for it in items if it.startswith("strategy=")), None)
-    over = parse_set([it for it in items if not it.startswith("strategy=")],
-                     option=f"--setting {text!r}:")
-    return label, pre, strategy, over
+    over = parse_set([it for it in kv.split(",") if it], f"--setting {text!r}:", ("strategy",))
+    return label, pre, over.get("trial", {}).get("strategy"), over.get("learner", {})
 
 
 def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> list[list[str]]:

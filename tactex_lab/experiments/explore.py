@@ -32,7 +32,7 @@ import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
-from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
+from tactex_lab.experiments.common import correct_at, learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import (TrialJob, TrialResult, add_runner_args, backend_of,
                                            cached_source, run_jobs)
 from tactex_lab.experiments.trials import find_trial_file, load_trials, platform_classes
@@ -261,7 +261,7 @@ def run(args: argparse.Namespace) -> dict:
     budgets = sorted(set(args.budgets))
     if not budgets or budgets[0] < 1:
         raise InputError("--budgets must be positive touch counts")
-    overrides = parse_set(args.set)
+    overrides = learner_set(args.set)
     jobs = build_jobs(trials, args.source, args.strategies, args.models, args.seeds,
                       args.rounds, args.config, overrides, args.weights)
     backend = backend_of(args).resolved()
@@ -339,8 +339,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--budgets", type=int, nargs="+", default=BUDGETS_DEFAULT,
                    help="total-touch budgets (baseline of 5 included) read from the runs")
     p.add_argument("--config", default="cnn", help=f"learner preset: {', '.join(PRESETS)}")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="learner override, e.g. --set input_size=32 (repeatable)")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override, e.g. --set learner.input_size=32 (repeatable)")
     p.add_argument("--out", help="results folder (default results/explore)")
     add_runner_args(p)
     p.set_defaults(func=cmd)

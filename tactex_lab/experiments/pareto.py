@@ -34,9 +34,10 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.engine import training_of
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.common import correct_at, parse_set, results_dir, write_json
+from tactex_lab.experiments.common import correct_at, learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, cached_source, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import pareto_front, wilson
@@ -139,8 +140,9 @@ def decisions_of(res: dict) -> list[dict]:
         out.append({"total": int(sum(r["touches"])) + 1, "probs": r["probs"],
                     "decision_s": r["decision_s"], "cpu_s": r.get("cpu_s", float("nan")),
                     "entropy": r["predictive_entropy"],
-                    "model": f"{r['model']}@{r.get('input_size', 0)}",
-                    "escalation": r.get("escalation")})
+                    "model": (f"{r['model']}@{training_of(r)['input_size']}"
+                              if training_of(r) else r["model"]),
+                    "escalation": training_of(r).get("escalation")})
     return out
 
 
@@ -361,7 +363,7 @@ def run(args) -> int:
         raise InputError("part faithful needs --faithful-source (e.g. replay:DIR of recorded "
                          "presses)")
     args.workers = backend_of(args).resolved().workers
-    args.overrides = parse_set(args.set)
+    args.overrides = learner_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "pareto", cfg)
     done = {}
@@ -418,8 +420,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--strategies", nargs="+", default=["variance", "entropy", "random", "yoto"])
     p.add_argument("--touch-rounds", type=int, default=20)
     p.add_argument("--touch-seeds", type=int, nargs="+", default=[0])
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="learner override for every job (after the setting's own)")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override for every job (after the setting's own), e.g. "
+                        "learner.steps=4")
     p.add_argument("--out", help="results folder (default results/pareto)")
     p.add_argument("--cache", help="per-job result cache folder (re-runs skip finished jobs; "
                                    "the touches part's wall time then counts only new jobs)")

@@ -47,8 +47,8 @@ from tactex_lab.experiments.curves import belief_curves, parse_setting
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 from tactex_lab.experiments.runner import add_runner_args, backend_of
 
-DEFAULT_SETTINGS = ("default=default", "random=default:strategy=random",
-                    "variance=default:strategy=variance")
+DEFAULT_SETTINGS = ("default=default", "random=default:trial.strategy=random",
+                    "variance=default:trial.strategy=variance")
 
 
 def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
@@ -82,7 +82,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
     p.add_argument("--folds", type=int, default=3, help="class folds (1 = no choosing)")
     p.add_argument("--setting", action="append",
-                   help="label=preset[:key=value,...] (repeat); default: "
+                   help="label=preset[:PATH=value,...] (repeat); default: "
                         + " ".join(DEFAULT_SETTINGS))
     p.add_argument("--thresholds", type=float, nargs="+")
     p.add_argument("--target-touches", type=float, default=5.0,

@@ -79,7 +79,7 @@ def register(esub: argparse._SubParsersAction) -> None:
                                               "recording session?")
     q.add_argument("--real", required=True, help="folder of recorded presses")
     q.add_argument("--setting", action="append", required=True,
-                   help="label=preset[:key=value,...] (repeat)")
+                   help="label=preset[:PATH=value,...] (repeat)")
     q.add_argument("--scenes", type=int, default=30)
     q.add_argument("--comparisons", type=int, default=4)
     q.add_argument("--budget", type=int, default=5)

@@ -269,7 +269,8 @@ class TrialResult:
         if self.outcome is None:
             return {"correct": False, "prediction": None,
                     "truth": default_platform_ids(len(self.classes) - 1)[self.truth], "touches": self.touches,
-                    "rounds": [dataclasses.asdict(r) for r in self.decisions],
+                    "rounds": [{**dataclasses.asdict(r), "decision_s": r.decision_s}
+                               for r in self.decisions],
                     "final": None, "failed_touches": list(self.failed_touches),
                     "error": self.error, "job": job, "classes": self.classes,
                     "truth_index": self.truth, "prediction_index": None,

@@ -2,7 +2,7 @@
 
 Two parts, both on ``--source`` (default: the simulator; ``replay:DIR`` for recorded presses),
 spatial inputs and, with ``--fourier both|on``, log-magnitude Fourier inputs
-(``LearnerConfig.fourier``; thesis appendix A.2):
+(``learner.fourier``; thesis appendix A.2):
 
 - **classify**: a classifier over ``--classes`` classes trained from scratch on all presses of a
   class but one (``--rounds`` rounds of the learner's schedule), for ``--folds`` folds (fold f

@@ -42,9 +42,10 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.engine import training_of
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
-from tactex_lab.experiments.common import parse_set, results_dir, write_json
+from tactex_lab.experiments.common import learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import TrialJob, add_runner_args, backend_of, run_jobs
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import wilson
@@ -84,8 +85,9 @@ def failure_mode(run: dict) -> str | None:
     if run["correct"]:
         return None
     rounds = run["rounds"] + ([run["final"]] if run.get("final") else [])
-    if any((not math.isfinite(r["train_loss"])) or r.get("skipped_steps", 0) or
-           r.get("restored") for r in rounds):
+    trained = [t for t in map(training_of, rounds) if t]
+    if any(t.get("train_loss") is None or not math.isfinite(t["train_loss"]) or
+           t.get("skipped_steps", 0) or t.get("restored") for t in trained):
         return "diverged"
     scored = [r for r in run["rounds"] if r["scores"] is not None]
     if scored and np.mean([r.get("degenerate", False) for r in scored]) >= 0.5:
@@ -102,15 +104,15 @@ def failure_mode(run: dict) -> str | None:
 
 def compact(res: dict) -> dict:
     job = res["job"]
-    rounds = [{k: r.get(k) for k in ("probs", "scores", "predictive_entropy", "train_loss",
-                                     "touches", "model", "input_size", "escalation",
-                                     "degenerate", "skipped_steps", "restored", "decision_s",
-                                     "cpu_s")}
-              for r in res["rounds"]]
+
+    def keep(r: dict, names: tuple[str, ...]) -> dict:
+        return {**{k: r.get(k) for k in names}, "detail": r.get("detail", training_of(r) or None)}
+
+    rounds = [keep(r, ("probs", "scores", "predictive_entropy", "touches", "model",
+                       "degenerate", "decision_s", "cpu_s")) for r in res["rounds"]]
     f = res.get("final")
-    final = None if f is None else {k: f.get(k) for k in (
-        "probs", "touches", "train_loss", "model", "input_size", "decision_s", "cpu_s",
-        "predictive_entropy", "skipped_steps", "restored", "escalation")}
+    final = None if f is None else keep(f, ("probs", "touches", "model", "decision_s", "cpu_s",
+                                            "predictive_entropy"))
     out = {**job["tags"], "strategy": job["strategy"], "seed": job["seed"],
            "correct": bool(res["correct"]), "error": res.get("error"), "rounds": rounds,
            "final": final, "failed_touches": len(res["failed_touches"]),
@@ -129,7 +131,8 @@ def acc_block(runs: list[dict]) -> dict:
             "modes": modes, "cpu_per_trial_s": float(np.mean([r["cpu_s"] for r in runs]))
             if runs else float("nan"),
             "rejected_touches": int(sum(r["failed_touches"] for r in runs)),
-            "escalated": sum(1 for r in runs if any(x.get("escalation") for x in r["rounds"]))}
+            "escalated": sum(1 for r in runs
+                             if any(training_of(x).get("escalation") for x in r["rounds"]))}
 
 
 # ------------------------------------------------------------------------------ command
@@ -138,7 +141,7 @@ def build_jobs(args) -> list[TrialJob]:
     models = {"default": {}, "auto": {"model": "auto"}, "top": {}}
     from tactex_ros.core.config import preset
     from tactex_lab.cnn.auto import parse_ladder
-    d = preset("cnn", **args.overrides)
+    d = preset("cnn", **{"model": "auto", **args.overrides})
     top = parse_ladder(d.auto_ladder, d.input_size)[-1]
     models["top"] = {"model": top[0], "input_size": top[1]}
     axes = {a: AXES[a] for a in args.axes}
@@ -224,9 +227,10 @@ def _auto_vs_top(runs: list[dict], top_model: dict) -> dict:
             "mcnemar_auto_vs_top": mcnemar([a["correct"] for a, _ in pairs],
                                            [t["correct"] for _, t in pairs]),
             "escalated_trials": sum(1 for a, _ in pairs
-                                    if any(x.get("escalation") for x in a["rounds"])),
-            "escalation_reasons": sorted({x["escalation"].split(":")[0] for a, _ in pairs
-                                          for x in a["rounds"] if x.get("escalation")})}
+                                    if any(training_of(x).get("escalation") for x in a["rounds"])),
+            "escalation_reasons": sorted({training_of(x)["escalation"].split(":")[0]
+                                          for a, _ in pairs for x in a["rounds"]
+                                          if training_of(x).get("escalation")})}
     auto["cpu_saved_share"] = (1 - auto["cpu_auto_s"] / auto["cpu_top_s"]
                                if auto["cpu_top_s"] else None)
     return auto
@@ -300,7 +304,7 @@ def run(args) -> int:
         raise InputError("need at least one seed")
     backend = backend_of(args).resolved()
     args.workers = backend.workers
-    args.overrides = parse_set(args.set)
+    args.overrides = learner_set(args.set)
     cfg = {k: v for k, v in vars(args).items() if k != "func"}
     out = results_dir(args.out, "stability", cfg)
     jobs, models = build_jobs(args)
@@ -356,8 +360,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--models", nargs="*", default=["auto", "top"],
                    help="extra models on the difficulty axis (variance): auto, top")
     p.add_argument("--guard-strategies", nargs="*", default=["variance", "yoto"])
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="learner override for every job (e.g. input_size=48)")
+    p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="learner override for every job (e.g. learner.input_size=48)")
     p.add_argument("--seeds", type=int, nargs="+", default=list(range(10)))
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--threshold", type=float, default=0.6,

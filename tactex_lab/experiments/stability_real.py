@@ -38,7 +38,7 @@ from tactex_ros.core.errors import InputError
 from tactex_ros.sources.perturb import KINDS
 from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilson
-from tactex_lab.experiments.common import parse_set, results_dir, write_json
+from tactex_lab.experiments.common import learner_set, results_dir, write_json
 from tactex_lab.experiments.runner import (TrialJob, TrialResult, add_runner_args, backend_of,
                                            run_jobs)
 
@@ -83,7 +83,7 @@ def conditions(args: argparse.Namespace) -> list[tuple[str, str, float]]:
 
 def build_jobs(args: argparse.Namespace, scenes: list[list[str]]) -> list[TrialJob]:
     jobs = []
-    guard_over = parse_set(args.guard_set, "--guard-set")
+    guard_over = learner_set(args.guard_set, "--guard-set")
     for label, kind, sev in conditions(args):
         method = "default" if label == GUARDED else label
         tcfg = trial_preset(method)
@@ -193,7 +193,7 @@ def summarise(runs: list[dict], args: argparse.Namespace) -> dict:
                          "without": float(np.mean([b["correct"] for _, b in pairs])),
                          "mcnemar_with_vs_without": mcnemar_exact(
                              [a["correct"] for a, _ in pairs], [b["correct"] for _, b in pairs])})
-        out["guard"] = {"perturbation": g, "set": parse_set(args.guard_set, "--guard-set"),
+        out["guard"] = {"perturbation": g, "set": learner_set(args.guard_set, "--guard-set"),
                         "per_severity": rows}
     return out
 
@@ -292,7 +292,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--guard", help="perturbation on which the default also runs with "
                                    "--guard-set")
     p.add_argument("--guard-set", action="append", metavar="KEY=VALUE",
-                   help="learner settings of the guarded run (e.g. contact_touch_min=1.0)")
+                   help="learner settings of the guarded run "
+                        "(e.g. learner.contact_region_min=0.6)")
     p.add_argument("--reuse", metavar="DIR", nargs="+", help="take the trials earlier runs in "
                    "these folders already made (same source, seed, budget, comparisons) "
                    "instead of running them again")

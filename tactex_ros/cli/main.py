@@ -31,11 +31,12 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
-    from ..core.config import TrialSettings
+    from ..core.config import TrialSettings, merge, overrides
     from ..core.engine import TrialSpec, default_platform_ids, run_trial
     from ..sources import open_source, trial_scene
-    settings = TrialSettings.check(schema_values(args, ("config",) + TRIAL_OPTIONS),
-                                   "tactex trial")
+    given = merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
+                  overrides(TrialSettings, args.set, "--set"))
+    settings = TrialSettings.check(given, "tactex trial")
     src = open_source(args.source)
     cfg, tcfg = settings.learner, settings.trial
     chosen = args.classes.split(",") if args.classes else None
@@ -187,6 +188,10 @@ def _trial_parser(sub: argparse._SubParsersAction, command: str | None) -> None:
     t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
     t.add_argument("--reference", help="class of the reference platform")
     add_schema_options(t, TrialSettings, ("config",) + TRIAL_OPTIONS)
+    t.add_argument("--set", action="append", metavar="PATH=VALUE",
+                   help="any learner or trial setting by its dotted path, e.g. "
+                        "learner.match_temperature=0.1 or trial.max_touches=8 (repeatable; "
+                        "after the options above; docs/reference.md lists them)")
     t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")

@@ -119,13 +119,21 @@ def node_parameters() -> list[str]:
             effective = {}
         rows = [(f"`{s.name}`", type_name(s.kind), show(effective.get(s.name, s.default)),
                  bounds(s.lo, s.hi, s.choices),
-                 s.description + (" (read-only)" if s.read_only else ""))
+                 s.description + (" (read-only)" if s.read_only else "")
+                 + (f" (learner: {', '.join(s.learners)})" if s.learners else ""))
                 for s in fields(cls)]
         out += [f"### `{node}` ({cls.__name__})", ""]
         if any("." in s.name for s in fields(cls)):
             out += ["Nested parameters take the value of the preset named by `config` unless "
-                    "given (defaults shown: the default preset's; other presets: "
+                    "given (defaults shown: the default preset's, or the learner class's for "
+                    "a setting the default learner does not have; other presets: "
                     "[Presets](#presets)).", ""]
+        if any(s.tag for s in fields(cls)):
+            out += ["`learner.model` picks the learner and with it the `learner.*` parameters "
+                    "the node declares: those marked *(learner: ...)* exist only for that "
+                    "learner family (`descriptor`: model descriptor; `cnn`: the CNN models; "
+                    "`auto`: model auto, which also has the `cnn` ones); one given to another "
+                    "learner is refused by name (exit status 2).", ""]
         out += table(("parameter", "type", "default", "range / choices", "description"),
                      rows) + [""]
     return out
@@ -147,9 +155,13 @@ def presets() -> list[str]:
     for name in config.choices:
         if name == config.default:
             continue
-        values = flatten(TrialSettings.check({"config": name}).model_dump())
-        rows += [(f"`{name}`", f"`{k}`", show(v), show(base.get(k, "")))
-                 for k, v in values.items() if k != "config" and v != base.get(k)]
+        s = TrialSettings.check({"config": name})
+        own = {f"learner.{k}": v for k, v in type(s.learner)().model_dump().items()}
+        values = flatten(s.model_dump())
+        rows += [(f"`{name}`", f"`{k}`", show(v),
+                  show(base[k]) if k in base else f"none (class default {show(own[k])})")
+                 for k, v in values.items()
+                 if k != "config" and v != base.get(k, own.get(k))]
     return (out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
             + plugin_lines(plugins.LEARNERS, "Learners added by plug-ins (`learner.model`)"))
 

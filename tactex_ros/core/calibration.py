@@ -30,7 +30,7 @@ from typing import Callable
 
 import numpy as np
 
-from .config import LearnerConfig, TrialConfig
+from .config import DescriptorSettings, TrialConfig
 from .errors import InputError
 from .match import softmax
 from .representation import Representation
@@ -86,7 +86,7 @@ def _scene(classes: list[str], presses: dict[str, np.ndarray], comparisons: int,
 
 
 def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Representation],
-                 cfg: LearnerConfig, folds: int = 3, scenes: int = 40, comparisons: int = 4,
+                 cfg: DescriptorSettings, folds: int = 3, scenes: int = 40, comparisons: int = 4,
                  budget: int = 10, temperature0: float | None = None,
                  seed: int = 0) -> list[Trajectory]:
     """Left-out trials on the library ``{class: (n, D) descriptors}`` (see the module

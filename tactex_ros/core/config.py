@@ -6,16 +6,19 @@ validates configs and files (errors located like ``platforms.2.position`` and na
 gives the ROS nodes their parameter descriptors (``nodes/lifecycle.declare_settings``), the
 command line its options and the launch file its arguments (``fields``).
 
-``LearnerConfig`` (how the learner trains and scores), ``TrialConfig`` (what a trial does) and
-the named presets live here; ``TrialSettings`` composes a preset with overrides of both, and is
+The learner settings (``LearnerSettings``: a discriminated union on ``model`` of
+``DescriptorSettings``, ``CnnSettings`` and ``AutoSettings``), ``TrialConfig`` (what a trial
+does), the named presets and the one override syntax (``overrides``: dotted schema paths such as
+``learner.lr=1e-3``) live here; ``TrialSettings`` composes a preset with overrides of both, and is
 what the command line and the explorer node (``ExplorerSettings``) are made of.
 """
 
 from __future__ import annotations
 
+import difflib
 import typing
-from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from dataclasses import dataclass, replace
+from typing import Annotated, Any, ClassVar, Literal, Union
 
 import annotated_types
 from pydantic import (BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
@@ -68,19 +71,46 @@ class Schema(BaseModel):
         return type(self).check({**self.model_dump(), **kw}, type(self).__name__)
 
 
-def _model_at(cls: type | None, loc: tuple) -> type | None:
-    """The schema class that holds the field at ``loc`` (None when not a schema)."""
+def variants(ann: Any) -> dict[str, type]:
+    """{tag: schema class} of a union of schema classes told apart by their ``TAG`` field
+    (``LearnerSettings``); empty when ``ann`` is not one."""
+    if typing.get_origin(ann) is Annotated:
+        ann = typing.get_args(ann)[0]
+    if typing.get_origin(ann) is not Union:
+        return {}
+    out: dict[str, type] = {}
+    for c in typing.get_args(ann):
+        if isinstance(c, type) and issubclass(c, BaseModel) and TAG in c.model_fields:
+            out.update(dict.fromkeys(typing.get_args(c.model_fields[TAG].annotation), c))
+    return out
+
+
+def _inner(ann: Any) -> Any:
+    """What a field of annotation ``ann`` holds for locating errors: a schema class, a union
+    of them (``variants``), or None."""
+    if variants(ann) or (isinstance(ann, type) and issubclass(ann, BaseModel)):
+        return ann
+    return next((a for a in typing.get_args(ann)
+                 if isinstance(a, type) and issubclass(a, BaseModel)), None)
+
+
+def _walk(root: Any, loc: tuple) -> tuple[tuple, Any, str | None]:
+    """``loc`` without the union tags pydantic puts in it (``learner.descriptor.lr`` ->
+    ``learner.lr``), the schema class (or union) that holds its last part, and the last tag
+    passed."""
+    out, cur, tag = [], root, None
     for part in loc:
-        if cls is None or isinstance(part, int):
+        tags = variants(cur)
+        if tags and part in tags:
+            cur, tag = tags[part], part   # the tag of the union member: not a field name
             continue
-        f = cls.model_fields.get(part)
-        if f is None:
-            return None
-        ann = f.annotation
-        args = typing.get_args(ann)
-        cls = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else next(
-            (a for a in args if isinstance(a, type) and issubclass(a, BaseModel)), None)
-    return cls
+        out.append(part)
+        if isinstance(part, int):
+            continue
+        f = cur.model_fields.get(part) if isinstance(cur, type) and issubclass(
+            cur, BaseModel) else None
+        cur = None if f is None else _inner(f.annotation)
+    return tuple(out), cur, tag
 
 
 class SchemaError(InputError):
@@ -96,9 +126,11 @@ def located(exc: ValidationError, origin: str, cls: type | None = None) -> Schem
     """A pydantic error as SchemaError: ``origin: a.2.b: problem (got value)``, every error."""
     out: list[tuple[tuple, str]] = []
     for e in exc.errors():
-        loc = tuple(e["loc"])
+        loc, holder, _ = _walk(cls, tuple(e["loc"])[:-1])
+        loc += tuple(e["loc"])[-1:]
         err = (e.get("ctx") or {}).get("error")
         if isinstance(err, SchemaError):      # a nested schema's own check (its __init__)
+            loc = _walk(cls, tuple(e["loc"]))[0]
             out += [(loc + sub, msg) for sub, msg in err.problems]
             continue
         if isinstance(err, FieldError):
@@ -106,9 +138,15 @@ def located(exc: ValidationError, origin: str, cls: type | None = None) -> Schem
         elif isinstance(err, Exception):
             msg = str(err)
         elif e["type"] == "extra_forbidden":
-            holder = _model_at(cls, loc[:-1])
-            msg = "unknown name" + (f"; known: {', '.join(holder.model_fields)}"
-                                    if holder is not None else "")
+            kind = getattr(holder, "kind", "")
+            msg = "unknown name" + (f" for a {kind} learner" if kind else "") + (
+                f"; known: {', '.join(holder.model_fields)}"
+                if isinstance(holder, type) and issubclass(holder, BaseModel) else "")
+        elif e["type"] == "union_tag_invalid":
+            loc, union, _ = _walk(cls, tuple(e["loc"]))
+            *head, last = map(repr, variants(union) or [e["ctx"]["expected_tags"]])
+            loc, msg = loc + (TAG,), (f"Input should be {', '.join(head)}"
+                                      f"{' or ' if head else ''}{last} (got {e['ctx']['tag']!r})")
         else:
             msg = f"{e['msg']} (got {e['input']!r})" if e["type"] != "missing" else e["msg"]
         out.append((loc, msg))
@@ -129,16 +167,25 @@ class FieldSpec:
     choices: tuple
     description: str
     read_only: bool
+    tag: bool = False             # it picks the member of a union (``learner.model``)
+    learners: tuple[str, ...] = ()   # the learner families that have it ('' = every one)
 
 
-def fields(cls: type, prefix: str = "") -> list[FieldSpec]:
+def fields(cls: type, prefix: str = "", values: dict[str, Any] | None = None) -> list[FieldSpec]:
     """The scalar fields of a schema class, nested schemas as dotted names (``trial.rounds``),
-    in declaration order."""
-    out = []
+    in declaration order. A union of learners' settings: the fields of the member ``values``
+    (nested settings, e.g. a model dump) names by its tag, or else of every member, each name
+    once with the families that have it (``FieldSpec.learners``)."""
+    out: list[FieldSpec] = []
     for name, f in cls.model_fields.items():
         ann = f.annotation
+        sub = (values or {}).get(name)
+        tags = variants(ann)
+        if tags:
+            out += _union_fields(tags, f"{prefix}{name}.", sub if isinstance(sub, dict) else None)
+            continue
         if isinstance(ann, type) and issubclass(ann, BaseModel):
-            out += fields(ann, f"{prefix}{name}.")
+            out += fields(ann, f"{prefix}{name}.", sub if isinstance(sub, dict) else None)
             continue
         choices = typing.get_args(ann) if typing.get_origin(ann) is Literal else ()
         kind = type(choices[0]) if choices else ann
@@ -151,6 +198,29 @@ def fields(cls: type, prefix: str = "") -> list[FieldSpec]:
     return out
 
 
+def _union_fields(tags: dict[str, type], prefix: str,
+                  values: dict[str, Any] | None) -> list[FieldSpec]:
+    """``fields`` of a union's member named by ``values[TAG]``, or of every member; the tag
+    field lists every member's tag as its choices."""
+    members = list(dict.fromkeys(tags.values()))
+    chosen = tags.get((values or {}).get(TAG))
+    out: dict[str, FieldSpec] = {}
+    for c in [chosen] if chosen else members:
+        for s in fields(c, prefix, values):
+            if s.name in out:
+                prev = out[s.name]
+                out[s.name] = replace(prev, learners=prev.learners + (c.kind,))
+            else:
+                out[s.name] = replace(s, learners=(c.kind,))
+    tag = out[prefix + TAG]
+    out[prefix + TAG] = replace(tag, choices=tuple(tags), tag=True, learners=(), read_only=True,
+                                default=members[0].model_fields[TAG].default)
+    if not chosen:
+        out = {k: replace(s, learners=() if len(s.learners) == len(members) else s.learners)
+               for k, s in out.items()}
+    return list(out.values())
+
+
 def field_spec(cls: type, name: str) -> FieldSpec:
     """The ``FieldSpec`` of the dotted field ``name`` of ``cls``."""
     for spec in fields(cls):
@@ -161,15 +231,58 @@ def field_spec(cls: type, name: str) -> FieldSpec:
 
 def parse_text(cls: type, name: str, text: str, origin: str) -> Any:
     """The dotted field ``name`` of ``cls`` read from ``text`` (e.g. a launch argument) and
-    checked against its type, range and choices; InputError names ``origin``."""
+    checked against its type, range and choices; InputError names ``origin``. In a union of
+    learners' settings the first member that has the field types it (the tag takes every
+    member's)."""
     *heads, last = name.split(".")
+    ann: Any = cls
     for part in heads:
-        cls = cls.model_fields[part].annotation
-    info = cls.model_fields[last]
+        ann = _holder(ann, part).model_fields[part].annotation
+    tags = variants(ann)
+    if tags and last == TAG:
+        ann, info = Literal[tuple(tags)], Field()
+    else:
+        info = _holder(ann, last).model_fields[last]
+        ann = info.annotation
     try:
-        return TypeAdapter(Annotated[info.annotation, info]).validate_strings(text)
+        return TypeAdapter(Annotated[ann, info]).validate_strings(text)
     except ValidationError as exc:
         raise located(exc, origin) from None
+
+
+def _holder(ann: Any, name: str) -> type:
+    """The schema class ``ann`` or the first member of the union ``ann`` with field ``name``."""
+    for c in list(dict.fromkeys(variants(ann).values())) or [ann]:
+        if name in c.model_fields:
+            return c
+    raise InputError(f"no setting {name!r}")
+
+
+def nearest(path: str, known: list[str]) -> str:
+    """The name in ``known`` closest to ``path``: one with the same last part
+    (``lr`` -> ``learner.lr``), else the most similar spelling."""
+    same = [k for k in known if k.rsplit(".", 1)[-1] == path.rsplit(".", 1)[-1]]
+    return (same or difflib.get_close_matches(path, known, n=1, cutoff=0.0) or [""])[0]
+
+
+def overrides(cls: type, items: list[str] | None, option: str = "--set") -> dict[str, Any]:
+    """The one override syntax: ``PATH=VALUE`` items, each ``PATH`` a dotted field of ``cls``
+    (``learner.lr=1e-3``, ``trial.strategy=infogain``) and each value read as that field's
+    type (``parse_text``). Returns nested settings (``{"learner": {"lr": 0.001}}``); a later
+    item wins. InputError (exit status 2) names ``option``, the item and, for an unknown path,
+    the nearest valid one. Whether a field fits the learner chosen is the settings' check."""
+    known = [s.name for s in fields(cls)]
+    flat: dict[str, Any] = {}
+    for item in items or []:
+        path, sep, text = item.partition("=")
+        path = path.strip()
+        if not sep or not path:
+            raise InputError(f"{option} {item!r}: expected PATH=VALUE, e.g. learner.lr=1e-3")
+        if path not in known:
+            raise InputError(f"{option} {item!r}: unknown setting {path!r}; nearest valid: "
+                             f"{nearest(path, known)!r}")
+        flat[path] = parse_text(cls, path, text.strip(), f"{option} {item!r}")
+    return nest(flat)
 
 
 def nest(flat: dict[str, Any]) -> dict[str, Any]:
@@ -215,16 +328,83 @@ CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
 # the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
 # that the schema, and with it `tactex trial --help`, imports no numpy
 STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
-ModelName = Literal[("descriptor",) + CNN_MODELS + ("auto",)]
+MODEL_NAMES = ("descriptor",) + CNN_MODELS + ("auto",)
+MODEL_HELP = ("model: 'descriptor' (texture descriptor + Gaussian match belief, no training), "
+              "a CNN variant, or 'auto' (escalating CNN chooser); it picks the learner's "
+              "settings (a descriptor has no CNN setting)")
+TAG = "model"       # the field that tells the learners' settings apart
 
 
-class LearnerConfig(Schema):
-    """How the learner describes, trains and scores (units in the descriptions). The defaults
-    are the shipped method's (model 'descriptor'); the CNN fields apply to the lab's models."""
+class LearnerBase(Schema):
+    """What every learner's settings have: its name (``model``, the union's tag) and the
+    engine's contact guards. A subclass per learner; ``LearnerSettings`` is their union."""
 
-    model: ModelName = param("descriptor",
-                             "model: 'descriptor' (texture descriptor + Gaussian match belief, "
-                             "no training), a CNN variant, or 'auto' (escalating CNN chooser)")
+    kind: ClassVar[str] = ""      # the learner family: 'descriptor', 'cnn', 'auto'
+    model: str
+    guards: bool = param(True, "failure-mode guards on: reject blank / no-contact touches, "
+                               "clip gradients and skip non-finite steps, tie-break degenerate "
+                               "scores (False = the unguarded behaviour, for before/after runs)")
+    contact_flat_min: float = param(0.35, "reject a touch whose texture (blur5 - blur_sigma8, "
+                                          "grey levels) is below this: a flat frame (0 = off)",
+                                    0.0, 50.0)
+    contact_min: float = param(0.8, "reject a touch whose contact score against the session's "
+                                    "no-contact reference is below this [grey levels] (0 = off; "
+                                    "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
+
+    def as_model(self, model: str, **kw: Any) -> "LearnerSettings":
+        """The settings of learner ``model`` (maybe of another family) with this one's values
+        of the fields that learner has, and ``kw``; validated."""
+        cls = learner_class(model)
+        mine = {k: v for k, v in self.model_dump().items() if k in cls.model_fields}
+        return cls.check({**mine, "model": model, **kw}, cls.__name__)
+
+
+class DescriptorSettings(LearnerBase):
+    """The shipped learner (``core/descriptor.py``): texture descriptors and a calibrated
+    Gaussian match belief; nothing is trained. The class defaults are the shipped method's."""
+
+    kind: ClassVar[str] = "descriptor"
+    model: Literal["descriptor"] = param("descriptor", MODEL_HELP)
+    descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
+                                      "into its descriptor (the strongest + more of the press)",
+                                   1, 16)
+    match_prior_scale: float = param(1.0, "model 'descriptor': prior within-platform spread of a "
+                                          "descriptor, as a fraction of the scene's spread",
+                                     1e-3, 10.0)
+    match_prior_strength: float = param(4.0, "model 'descriptor': weight of that prior in "
+                                             "pseudo-touches", 1e-3, 1000.0)
+    descriptor_no_contact: bool = param(True, "model 'descriptor': describe the contact minus "
+                                              "the sensor's no-contact frame when the touch has "
+                                              "one (off: against a blur of the contact frame)")
+    representation: str = param("", "model 'descriptor': a representation file made by "
+                                    "`tactex prepare` (a metric learnt from presses of other "
+                                    "materials; '' = none)")
+    representation_temperature: bool = param(
+        True, "model 'descriptor': use the belief temperature `tactex prepare` calibrated on the "
+              "library with classes left out, when the representation file has one (else "
+              "match_temperature)")
+    match_units: Literal["scene", "fixed"] = param(
+        "scene", "model 'descriptor': units of the belief: 'scene' (each dimension divided by "
+                 "its spread over this scene's platforms) or 'fixed' (as given, e.g. by a "
+                 "representation)")
+    match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
+                                           "(calibrates the belief)", 1e-4, 10.0)
+    contact_region_min: float = param(0.0, "model 'descriptor': a touch whose contact region "
+                                           "(against its own no-contact frame) covers less than "
+                                           "this share of the frame is a partial contact and is "
+                                           "described over its region only (0 = off; "
+                                           "core/guards.py)", 0.0, 1.0)
+    # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
+    # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
+
+
+class CnnSettings(LearnerBase):
+    """A thesis CNN (a plug-in of group ``tactex.learners``, ``tactex_lab/cnn/learner.py``):
+    trained between decisions, Monte-Carlo dropout or another uncertainty. The schema is
+    pure pydantic, so the product validates, declares and documents it without torch."""
+
+    kind: ClassVar[str] = "cnn"
+    model: Literal[CNN_MODELS] = param("small_inception", MODEL_HELP)
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
     sensor_crops: bool = param(False, "views are input_size px crops of the frame at sensor "
@@ -265,20 +445,6 @@ class LearnerConfig(Schema):
     channels_last: bool = param(True, "channels-last memory format for the model and stored "
                                       "views (same results, faster CPU convolutions)")
     # Guards against the failure modes of `tactex experiment stability` (core/guards.py).
-    guards: bool = param(True, "failure-mode guards on: reject blank / no-contact touches, "
-                               "clip gradients and skip non-finite steps, tie-break degenerate "
-                               "scores (False = the unguarded behaviour, for before/after runs)")
-    contact_flat_min: float = param(0.35, "reject a touch whose texture (blur5 - blur_sigma8, "
-                                          "grey levels) is below this: a flat frame (0 = off)",
-                                    0.0, 50.0)
-    contact_min: float = param(0.8, "reject a touch whose contact score against the session's "
-                                    "no-contact reference is below this [grey levels] (0 = off; "
-                                    "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
-    contact_region_min: float = param(0.0, "model 'descriptor': a touch whose contact region "
-                                           "(against its own no-contact frame) covers less than "
-                                           "this share of the frame is a partial contact and is "
-                                           "described over its region only (0 = off; "
-                                           "core/guards.py)", 0.0, 1.0)
     grad_clip: float = param(5.0, "clip the gradient norm to this (0 = off)", 0.0, 1e6)
     drift_norm: bool = param(False, "remove each touch's per-channel mean colour before the "
                                     "model sees it: turn on where the lighting drifts between "
@@ -288,6 +454,14 @@ class LearnerConfig(Schema):
     # model 'auto': start cheap, escalate on evidence (core/engine.py, "Model auto"). The first
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
     # (docs/speed_stability.md), and a 32 px start made auto 9 points worse than the default.
+
+
+class AutoSettings(CnnSettings):
+    """Model 'auto' (``tactex_lab/cnn/auto.py``): a ladder of CNNs (each with the CNN settings
+    here), moved up on evidence from the trial itself."""
+
+    kind: ClassVar[str] = "auto"
+    model: Literal["auto"] = param("auto", MODEL_HELP)
     auto_ladder: str = param("small_inception@48,small_inception@96",
                              "model 'auto': stages cheapest first, 'model@input_px' separated by "
                              "commas ('model' alone = input_size)")
@@ -307,39 +481,32 @@ class LearnerConfig(Schema):
 
     # model 'descriptor' (core/texture.py, core/match.py); chosen on real presses
     # (docs/real_presses.md)
-    descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
-                                      "into its descriptor (the strongest + more of the press)",
-                                   1, 16)
-    match_prior_scale: float = param(1.0, "model 'descriptor': prior within-platform spread of a "
-                                          "descriptor, as a fraction of the scene's spread",
-                                     1e-3, 10.0)
-    match_prior_strength: float = param(4.0, "model 'descriptor': weight of that prior in "
-                                             "pseudo-touches", 1e-3, 1000.0)
-    descriptor_no_contact: bool = param(True, "model 'descriptor': describe the contact minus "
-                                              "the sensor's no-contact frame when the touch has "
-                                              "one (off: against a blur of the contact frame)")
-    representation: str = param("", "model 'descriptor': a representation file made by "
-                                    "`tactex prepare` (a metric learnt from presses of other "
-                                    "materials; '' = none)")
-    representation_temperature: bool = param(
-        True, "model 'descriptor': use the belief temperature `tactex prepare` calibrated on the "
-              "library with classes left out, when the representation file has one (else "
-              "match_temperature)")
-    match_units: Literal["scene", "fixed"] = param(
-        "scene", "model 'descriptor': units of the belief: 'scene' (each dimension divided by "
-                 "its spread over this scene's platforms) or 'fixed' (as given, e.g. by a "
-                 "representation)")
-    match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
-                                           "(calibrates the belief)", 1e-4, 10.0)
-    # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
-    # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
 
-    @model_validator(mode="after")
-    def _representation_needs_descriptor(self) -> "LearnerConfig":
-        if self.representation and self.model != "descriptor":
-            raise ValueError(f"representation {self.representation!r} is used only by model "
-                             f"'descriptor', not {self.model!r} (it would be ignored)")
-        return self
+
+#: The learners' settings: one class per family, told apart by ``model`` (a discriminated
+#: union). A descriptor's settings carry no CNN field, and a CNN field given to it is refused.
+LearnerSettings = Annotated[Union[DescriptorSettings, CnnSettings, AutoSettings],
+                            Field(discriminator="model")]
+LEARNER_CLASSES: tuple[type, ...] = (DescriptorSettings, CnnSettings, AutoSettings)
+_LEARNERS = TypeAdapter(LearnerSettings)
+
+
+def learner_class(model: str) -> type:
+    """The settings class of learner ``model``; InputError names the known models."""
+    for cls in LEARNER_CLASSES:
+        if model in typing.get_args(cls.model_fields["model"].annotation):
+            return cls
+    raise InputError(f"model {model!r}: choose one of {', '.join(MODEL_NAMES)}")
+
+
+def learner_settings(data: dict[str, Any], origin: str = "learner") -> Any:
+    """``data`` (a mapping; ``model`` picks the class, default 'descriptor') validated into
+    its learner's settings; InputError names every bad field as ``origin: field: problem``."""
+    data = {"model": "descriptor", **data}
+    try:
+        return _LEARNERS.validate_python(data)
+    except ValidationError as exc:
+        raise located(exc, origin, LearnerSettings) from None
 
 
 #: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3
@@ -348,7 +515,7 @@ SHIPPED_STOP = 0.9
 
 
 class TrialConfig(Schema):
-    """What a trial does (the learner's settings live in LearnerConfig). The defaults are the
+    """What a trial does (the learner's settings are LearnerSettings). The defaults are the
     shipped method's: information-gain touches, stop at belief ``SHIPPED_STOP``."""
 
     strategy: Literal[STRATEGY_NAMES] = param("infogain", "exploration strategy")
@@ -367,7 +534,7 @@ class TrialConfig(Schema):
 # `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
 # and the default, chosen on real presses (`tactex evaluate`, docs/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
-    "default": dict(),          # the class defaults of LearnerConfig are the shipped method
+    "default": dict(),          # the class defaults (DescriptorSettings) are the shipped method
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
@@ -390,10 +557,24 @@ def _known_preset(name: str) -> None:
         raise InputError(f"unknown configuration {name!r}; choose one of {', '.join(PRESETS)}")
 
 
-def preset(name: str, **overrides: Any) -> LearnerConfig:
-    """A named configuration with optional overrides, validated."""
+def preset_learner(name: str, given: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The learner settings (a mapping, not yet validated) of preset ``name`` with ``given``
+    on top. When ``given`` names another family's ``model``, the preset's values that family
+    does not have are left out (``--config seed_faithful --model descriptor``); ``given``
+    itself is kept whole, so a field its learner lacks is refused by name."""
+    base, given = PRESETS[name], dict(given or {})
+    model = given.get(TAG, base.get(TAG, "descriptor"))
+    try:
+        known = learner_class(model).model_fields
+    except InputError:
+        known = {}                 # the check names the bad model
+    return {**{k: v for k, v in base.items() if k in known}, TAG: model, **given}
+
+
+def preset(name: str, **overrides: Any) -> Any:
+    """A named configuration's learner settings with optional overrides, validated."""
     _known_preset(name)
-    return LearnerConfig.check({**PRESETS[name], **overrides}, f"configuration {name!r}")
+    return learner_settings(preset_learner(name, overrides), f"configuration {name!r}")
 
 
 def trial_preset(name: str, **overrides: Any) -> TrialConfig:
@@ -419,7 +600,7 @@ class TrialSettings(Schema):
         "default", "named preset of learner and trial settings: default (texture descriptor, "
                    "information-gain touches, stop at belief 0.9), cnn, seed_faithful",
         read_only=True)
-    learner: LearnerConfig = Field(default_factory=LearnerConfig)
+    learner: LearnerSettings = Field(default_factory=DescriptorSettings)
     trial: TrialConfig = Field(default_factory=TrialConfig)
 
     @model_validator(mode="before")
@@ -429,8 +610,10 @@ class TrialSettings(Schema):
             return data           # the field checks name what is wrong
         name = data.get("config", "default")
         out = dict(data)
-        for key, presets in (("learner", PRESETS), ("trial", TRIAL_PRESETS)):
-            given = data.get(key)
-            if given is None or isinstance(given, dict):
-                out[key] = {**presets[name], **(given or {})}
+        given = data.get("learner")
+        if given is None or isinstance(given, dict):
+            out["learner"] = preset_learner(name, given)
+        given = data.get("trial")
+        if given is None or isinstance(given, dict):
+            out["trial"] = {**TRIAL_PRESETS[name], **(given or {})}
         return out

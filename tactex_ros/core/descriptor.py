@@ -1,8 +1,8 @@
 """The descriptor learner: texture descriptors of every touch and the Gaussian match belief.
 
-The engine's cheapest model (``LearnerConfig.model = 'descriptor'``): nothing is trained; each
-touch becomes a rotation-invariant descriptor (``core/texture.py``) once, when it is added, and a
-decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
+The engine's cheapest model (``DescriptorSettings``, ``learner.model = 'descriptor'``): nothing
+is trained; each touch becomes a rotation-invariant descriptor (``core/texture.py``) once,
+when it is added, and a decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
 It is a ``core.learners.Learner`` (``add_touch``, ``add_reference``, ``heldout_proba``,
 ``reference_probs``, ``belief``; no ``train_round``: nothing is trained) plus ``info_gain`` for
 the ``infogain`` strategy.
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import LearnerConfig, validate
+from .config import DescriptorSettings, validate
 from .errors import InputError
 from .match import MatchModel
 from .representation import Representation, load
@@ -38,7 +38,7 @@ class DescriptorLearner:
 
     model_name = "descriptor"
 
-    def __init__(self, num_classes: int, cfg: LearnerConfig, seed: int = 0) -> None:
+    def __init__(self, num_classes: int, cfg: DescriptorSettings, seed: int = 0) -> None:
         self.cfg = validate(cfg)
         self.num_classes = num_classes
         self.representation: Representation | None = (

@@ -4,7 +4,8 @@ The engine does not know where touches come from. Platform indices: 0 is the ref
 are the comparison platforms (class c-1 of the learner). Every reference touch is a test sample
 (the decision uses all of them); every comparison touch is data for its platform's class.
 
-Learners (``LearnerConfig.model``, ``core/learners.py``): ``descriptor`` (``core/descriptor.py``:
+Learners (``learner.model``, the tag of ``LearnerSettings``; ``core/learners.py``):
+``descriptor`` (``core/descriptor.py``:
 texture descriptors and a closed-form belief over the matching comparison; nothing is trained) or
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
@@ -22,11 +23,13 @@ the strategy's per-platform scores, the choice of the next platform (or none). A
 prediction; the stop rule ends earlier when the belief in one platform reaches
 ``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
 
-Model ``auto`` (``LearnerConfig.auto_*``) is a wrapper learner of the lab (``tactex_lab/cnn/auto.py``):
+Model ``auto`` (``AutoSettings``) is a wrapper learner of the lab (``tactex_lab/cnn/auto.py``):
 it moves up its ladder of CNNs on evidence from the trial itself; the round records the model and
-input size it used (``RoundRecord.model``, ``input_size``) and why it escalated (``escalation``).
+input size it used (``RoundRecord.model``, ``TrainingDetail.input_size``) and why it escalated
+(``TrainingDetail.escalation``). A round's ``detail`` is its learner's: ``TrainingDetail`` for
+a learner that trains, None for the descriptor (nothing trained, nothing to report).
 
-Guards (``LearnerConfig.guards``, see ``core/guards.py``): ``add_touch`` raises
+Guards (``learner.guards``, see ``core/guards.py``): ``add_touch`` raises
 ``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
 failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
 then falls to the least-touched platform, ``strategies.break_ties``).
@@ -40,7 +43,8 @@ from typing import Callable
 
 import numpy as np
 
-from .config import LearnerConfig, TrialConfig, trial_preset, validate  # noqa: F401 (re-exported)
+from .config import (DescriptorSettings, LearnerSettings, TrialConfig,  # noqa: F401
+                     trial_preset, validate)
 from .errors import InputError, TrialError
 from .guards import ContactGuard
 from .learners import Learner, TrainStats, make_learner, train_round
@@ -89,33 +93,79 @@ def default_platform_ids(comparisons: int) -> list[str]:
 
 
 @dataclass
-class RoundRecord:
-    round: int
-    platform: int | None          # chosen next platform (1..C), None when nothing is touched
-    probs: list[float]            # (C,) mean softmax of the reference
-    scores: list[float] | None    # (C,) the strategy's scores, None for yoto / final
-    predictive_entropy: float     # nats
-    train_s: float
-    score_s: float
-    choose_s: float
-    train_loss: float
-    touches: list[int]            # touches per comparison platform when deciding
-    model: str
-    input_size: int = 0           # model input side [px] used this round
-    escalation: str | None = None  # model 'auto': why the model was escalated before this round
-    heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
-    #                               right before being trained on (empty before round 1)
-    degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
+class TrainingDetail:
+    """What a round's training did, for a learner that trains (the lab's CNNs, ``auto``);
+    ``RoundRecord.detail`` of such a learner. JSON: ``{"kind": "training", ...}``."""
+
+    input_size: int               # model input side [px] used this round
+    train_s: float                # wall time of the round's training [s]
+    train_loss: float             # mean training loss
     skipped_steps: int = 0        # training steps skipped (non-finite loss/gradient, guards)
     restored: bool = False        # training round rolled back, learning rate halved (guards)
     grad_norm: float = float("nan")  # median gradient norm this round
+    escalation: str | None = None  # model 'auto': why the model was escalated before this round
+    kind: str = "training"
+
+    @classmethod
+    def of(cls, stats: TrainStats, input_size: int) -> "TrainingDetail":
+        """The detail of one ``train_round`` (``core/learners.TrainStats``)."""
+        return cls(input_size=input_size, train_s=stats.seconds, train_loss=stats.mean_loss,
+                   skipped_steps=stats.skipped, restored=stats.restored,
+                   grad_norm=stats.grad_norm, escalation=stats.escalation)
+
+
+#: A round's learner-typed detail: ``TrainingDetail`` for a learner that trains; None for one
+#: that trains nothing (the descriptor: its round is the common fields alone).
+RoundDetail = TrainingDetail
+TRAINING_FIELDS = tuple(f for f in TrainingDetail.__dataclass_fields__ if f != "kind")
+
+
+def training_of(round_json: dict) -> dict:
+    """The training detail of one round of a trial JSON (``TrialOutcome.to_dict``) as a dict,
+    {} for a learner that trains nothing. Also reads the flat shape of files written before
+    the detail existed (``train_loss`` etc. beside the common fields; a descriptor's there
+    were placeholders, nothing trained)."""
+    if "detail" in round_json:
+        return dict(round_json["detail"] or {})
+    if round_json.get("model", "descriptor") == "descriptor":
+        return {}
+    return {k: round_json.get(k) for k in TRAINING_FIELDS}
+
+
+@dataclass
+class RoundRecord:
+    """One decision: the fields every learner has, and its learner's ``detail``."""
+
+    round: int
+    platform: int | None          # chosen next platform (1..C), None when nothing is touched
+    probs: list[float]            # (C,) belief over the comparisons
+    scores: list[float] | None    # (C,) the strategy's scores, None for yoto / final
+    predictive_entropy: float     # nats
+    score_s: float
+    choose_s: float
+    touches: list[int]            # touches per comparison platform when deciding
+    model: str
+    heldout: list[bool] = field(default_factory=list)  # touches since the last round, classified
+    #                               right before being trained on (empty before round 1)
+    degenerate: bool = False      # all strategy scores equal: the choice was a tie-break
     cpu_s: float = float("nan")   # CPU time of the decision, all threads of this process [s]
     #                               (robust to other processes sharing the machine)
     reference_touches: int = 1    # touches of the reference when deciding
+    detail: RoundDetail | None = None
+
+    @property
+    def train_s(self) -> float:
+        """Training time of the round [s] (0 for a learner that trains nothing)."""
+        return self.detail.train_s if self.detail is not None else 0.0
 
     @property
     def decision_s(self) -> float:
         return self.train_s + self.score_s + self.choose_s
+
+    @property
+    def model_label(self) -> str:
+        """``model@input_px`` for a trained model, else the model's name."""
+        return self.model if self.detail is None else f"{self.model}@{self.detail.input_size}"
 
 
 @dataclass
@@ -153,7 +203,7 @@ class TrialOutcome:
         for r in self.rounds + [self.final]:
             d = asdict(r)
             d["platform"] = name(r.platform)
-            d["decision_s"] = r.decision_s
+            d["decision_s"] = r.decision_s      # the detail holds train_s, when there is one
             rounds.append(d)
         return {
             "correct": self.correct, "prediction": name(self.prediction),
@@ -162,17 +212,18 @@ class TrialOutcome:
             "failed_touches": self.failed_touches, "stop_reason": self.stop_reason,
             "sure": self.sure, "confidence": self.confidence,
             "reference_touches": self.reference_touches,
-            "models": sorted({f"{r.model}@{r.input_size}" for r in self.rounds + [self.final]}),
-            "escalations": [{"round": r.round, "reason": r.escalation,
-                             "model": f"{r.model}@{r.input_size}"}
-                            for r in self.rounds + [self.final] if r.escalation],
+            "models": sorted({r.model_label for r in self.rounds + [self.final]}),
+            "escalations": [{"round": r.round, "reason": r.detail.escalation,
+                             "model": r.model_label}
+                            for r in self.rounds + [self.final]
+                            if r.detail is not None and r.detail.escalation],
         }
 
 
 class TrialEngine:
     """One active-exploration trial over C comparison platforms."""
 
-    def __init__(self, n_comparisons: int, learner_cfg: LearnerConfig,
+    def __init__(self, n_comparisons: int, learner_cfg: LearnerSettings,
                  trial_cfg: TrialConfig | None = None, seed: int = 0,
                  platform_ids: list[str] | None = None) -> None:
         if n_comparisons < 2:
@@ -200,7 +251,8 @@ class TrialEngine:
         self.failed: list[dict] = []
         self.next_platform: int | None = None
         g = self.learner_cfg
-        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min, g.contact_region_min)
+        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min,
+                                   getattr(g, "contact_region_min", 0.0))   # descriptor only
                       if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
 
@@ -267,7 +319,7 @@ class TrialEngine:
             raise TrialError("decide() before every platform has its baseline touch: "
                               f"missing {[self.platform_ids[p] for p in self.baseline_platforms()]}")
         c0 = time.process_time()
-        stats = train_round(self.learner) or TrainStats(0.0, 0, float("nan"))  # untrained
+        stats = train_round(self.learner)                 # None: a learner that trains nothing
         t0 = time.perf_counter()
         probs = self.learner.reference_probs()
         pbar = self.learner.belief(probs)
@@ -285,14 +337,14 @@ class TrialEngine:
         rec = RoundRecord(
             round=len(self.records) + 1, platform=choice,
             probs=pbar.tolist(), scores=None if scores is None else np.asarray(scores).tolist(),
-            predictive_entropy=predictive_entropy(probs), train_s=stats.seconds,
-            score_s=t1 - t0, choose_s=t2 - t1, train_loss=stats.mean_loss,
+            predictive_entropy=predictive_entropy(probs),
+            score_s=t1 - t0, choose_s=t2 - t1,
             touches=self.touches.tolist(), reference_touches=self.reference_touches,
             model=self.learner.model_name,
-            input_size=self.learner.cfg.input_size, escalation=stats.escalation,
             heldout=list(self._pending_heldout), degenerate=degenerate,
-            skipped_steps=stats.skipped, restored=stats.restored, grad_norm=stats.grad_norm,
-            cpu_s=time.process_time() - c0)
+            cpu_s=time.process_time() - c0,
+            detail=(None if stats is None
+                    else TrainingDetail.of(stats, self.learner.cfg.input_size)))
         self._pending_heldout = []
         if final:
             self.final = rec
@@ -388,7 +440,7 @@ class TrialSpec:
     contact guard (None: the guard's flatness test only)."""
 
     comparisons: int
-    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    learner: LearnerSettings = field(default_factory=DescriptorSettings)
     trial: TrialConfig = field(default_factory=TrialConfig)
     seed: int = 0
     platform_ids: tuple[str, ...] | None = None

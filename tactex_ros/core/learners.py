@@ -3,7 +3,8 @@
 A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
 engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
 shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
-``LearnerConfig.model`` (the thesis CNNs, ``auto``) is a plug-in of group ``tactex.learners``
+``learner.model`` (the thesis CNNs, ``auto``: ``CnnSettings``, ``AutoSettings``) is a plug-in
+of group ``tactex.learners``
 (``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
 for a configuration that names a CNN.
 """
@@ -15,7 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .config import LearnerConfig
+from .config import LearnerSettings
 from .plugins import LEARNERS, load
 from .touch import Touch
 
@@ -38,7 +39,7 @@ class Learner(Protocol):
     ``TrainingLearner``."""
 
     model_name: str
-    cfg: LearnerConfig
+    cfg: LearnerSettings
 
     def add_touch(self, touch: Touch, label: int) -> Any:
         """Store a comparison touch of class ``label`` (0..C-1); returns its stored sample."""
@@ -70,7 +71,7 @@ def train_round(learner: Learner) -> TrainStats | None:
     return None if train is None else train()
 
 
-def make_learner(num_classes: int, cfg: LearnerConfig, seed: int = 0) -> Learner:
+def make_learner(num_classes: int, cfg: LearnerSettings, seed: int = 0) -> Learner:
     """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
     plug-in (InputError when it is not installed)."""
     if cfg.model == "descriptor":

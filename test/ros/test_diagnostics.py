@@ -33,7 +33,7 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
     from tactex.msg import ExplorationState
     nodes = describe(True, explorer={"trial": {"rounds": 20, "stop_confidence": 0.0},
                                      "seed": 0, "record_dir": str(tmp_path),
-                                     "trial_id": "t", "learner": {"threads": 1}})
+                                     "trial_id": "t"})
     got: list[tuple[float, object]] = []
     listener.node.create_subscription(DiagnosticArray, "/diagnostics",
                                       lambda m: got.append((time.monotonic(), m)), 50)

@@ -117,7 +117,6 @@ def _check_record(record: Path, used: list[np.ndarray]) -> dict:
 def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | None = None,
          **explorer) -> tuple:
     ex = {"trial": {"rounds": ROUNDS, "stop_confidence": 0.0}, "seed": 0,
-          "learner": {"threads": 1},
           "record_dir": str(tmp), "trial_id": "trial", **explorer}
     if resume is not None:
         ex["resume"] = str(resume)
@@ -242,7 +241,6 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     an error result, and the cut-off press is recorded as interrupted."""
     from tactex_ros.ros.launcher import Graph
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
-                                     "learner": {"threads": 1},
                                      "record_dir": str(tmp_path), "trial_id": "gone",
                                      "exit_when_done": True, "press_silence_s": 3.0})
     record = tmp_path / "gone"

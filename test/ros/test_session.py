@@ -28,7 +28,7 @@ ARTIFACTS = Path(__file__).parents[2] / "test-artifacts"
 def _nodes(tmp: Path, rounds: int = 1):
     return describe(True, explorer={"trial": {"rounds": rounds, "stop_confidence": 0.0},
                                     "seed": 3, "record_dir": str(tmp),
-                                    "session_file": str(SHORT), "learner": {"threads": 1}})
+                                    "session_file": str(SHORT)})
 
 
 @pytest.fixture(scope="module")

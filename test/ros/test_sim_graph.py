@@ -24,7 +24,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     from tactex.msg import ExplorationState
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "t1", "learner": {"threads": 1}})
+                                     "trial_id": "t1"})
     scene = load_scene(nodes[0].parameters["scene_file"])
     states = listener.collect(ExplorationState, "/tactex/state")
     marks = listener.collect(MarkerArray, "/tactex/markers")
@@ -97,7 +97,7 @@ def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> No
     captured frames and retries the press; nothing blank reaches the learner; the trial ends."""
     nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "blank", "learner": {"threads": 1}},
+                                     "trial_id": "blank"},
                      mock_image={"fault_blank": 0.2, "seed": 3})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
@@ -115,7 +115,7 @@ def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None
     rejected image stays on disk, marked, and the round is not lost."""
     nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
-                                     "trial_id": "guard", "learner": {"threads": 1}},
+                                     "trial_id": "guard"},
                      mock_image={"fault_blank": 0.3, "seed": 3},
                      motion={"min_contact_score": 0.0})
     run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)

@@ -66,6 +66,7 @@ def test_mock_camera_refuses_recorded_sessions(domain_id) -> None:
     ("motion_node", "descend_speed:=fast"),
     ("motion_node", "retries:=-5"),
     ("explorer_node", "trial.warp:=1"),
+    ("explorer_node", "learner.lr:=0.1"),        # a CNN setting; the default learner has none
 ])
 def test_unknown_parameter_refused(tmp_path: Path, node: str, param: str, domain_id) -> None:
     # rclpy keeps an undeclared -p value as an override and never applies it: refused here
@@ -81,3 +82,12 @@ def test_motion_node_without_scene_file_names_the_parameter(domain_id) -> None:
     r = _start("motion_node", [], domain_id)
     assert r.returncode == 2
     assert b"scene_file" in r.stdout + r.stderr
+
+
+def test_a_cnn_setting_under_the_descriptor_names_the_nearest(tmp_path: Path, domain_id) -> None:
+    r = _start("explorer_node", [f"scene_file:={config_dir() / 'scene_sim.yaml'}",
+                                 "learner.match_temprature:=0.1", f"record_dir:={tmp_path}"],
+               domain_id)
+    assert r.returncode == 2
+    assert b"learner.match_temprature (nearest valid: learner.match_temperature)" in \
+        r.stdout + r.stderr

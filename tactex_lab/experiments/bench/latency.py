@@ -35,15 +35,15 @@ def _frames(n: int, seed: int = 0) -> list[np.ndarray]:
 
 
 def parse_config(text: str) -> tuple[str, str, dict]:
-    """``preset`` or ``label=preset:key=value,...`` -> (label, preset, LearnerConfig
-    overrides), e.g. ``prepared=default:representation=rep.npz``."""
-    from ..common import parse_set
+    """``preset`` or ``label=preset:learner.PATH=value,...`` -> (label, preset, learner
+    overrides), e.g. ``prepared=default:learner.representation=rep.npz``."""
+    from ..common import learner_set
     label, sep, rest = text.partition("=")
     if not sep:
         return text, text, {}
     name, _, kv = rest.partition(":")
-    return label, name, parse_set([it for it in kv.split(",") if it],
-                                  option=f"--configs {text!r}:")
+    return label, name, learner_set([it for it in kv.split(",") if it],
+                                    option=f"--configs {text!r}:")
 
 
 def measure(config: str, n_touches: int, repeats: int, frames: list[np.ndarray],

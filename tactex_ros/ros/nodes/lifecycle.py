@@ -33,7 +33,7 @@ from rclpy.publisher import Publisher
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from ...core.config import FieldSpec, fields, flatten, nest
+from ...core.config import FieldSpec, fields, flatten, merge, nearest, nest
 from ...core.errors import InputError
 
 
@@ -56,21 +56,34 @@ def descriptor(spec: FieldSpec) -> ParameterDescriptor:
 def declare_settings(node: LifecycleNode, cls: type) -> None:
     """Declare one ROS parameter per field of a settings schema. Nested fields (``trial.rounds``)
     are declared after the top-level ones, with defaults the schema derives from the top-level
-    values given (e.g. the preset named by ``config``)."""
+    values given (e.g. the preset named by ``config``). A union's tag (``learner.model``) is
+    declared before the union's other fields: only the fields of the learner it names are
+    declared (a descriptor has no ``learner.lr``; one given is refused by
+    ``check_overrides``, by name)."""
     specs = fields(cls)
     top = [s for s in specs if "." not in s.name]
     for s in top:
         node.declare_parameter(s.name, s.kind(s.default), descriptor(s))
-    nested = [s for s in specs if "." in s.name]
-    if not nested:
+    if len(top) == len(specs):
         return
-    try:
-        base = flatten(cls.model_validate(
-            nest({s.name: node.get_parameter(s.name).value for s in top})).model_dump())
-    except (ValidationError, InputError):
-        base = {}       # on_configure names the bad value
-    for s in nested:
+    given = nest({s.name: node.get_parameter(s.name).value for s in top})
+    base = _effective(cls, given)
+    for s in (s for s in specs if s.tag):
         node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
+        given = merge(given, nest({s.name: node.get_parameter(s.name).value}))
+    base = _effective(cls, given)
+    for s in fields(cls, values=nest(base) if base else given):
+        if "." in s.name and not s.tag:
+            node.declare_parameter(s.name, s.kind(base.get(s.name, s.default)), descriptor(s))
+
+
+def _effective(cls: type, given: dict[str, Any]) -> dict[str, Any]:
+    """The flat settings ``cls`` makes of ``given`` (nested), {} when invalid (on_configure
+    names the bad value)."""
+    try:
+        return flatten(cls.model_validate(given).model_dump())
+    except (ValidationError, InputError):
+        return {}
 
 
 # parameters rclpy declares itself (a node option, QoS overrides when an entity asks for them)
@@ -88,14 +101,16 @@ def check_overrides(node: LifecycleNode) -> None:
     unknown = sorted(n for n in given if not node.has_parameter(n)
                      and n not in ROS_OWN_PARAMETERS and not n.startswith(ROS_OWN_PREFIXES))
     if unknown:
-        raise InputError(f"{node.get_name()} parameters: unknown parameter(s) "
-                          f"{', '.join(unknown)} (ros2 param list /{node.get_name()} shows "
-                          "the declared ones)")
+        declared = sorted(node._parameters)
+        raise InputError(f"{node.get_name()} parameters: unknown parameter(s) " + ", ".join(
+            f"{n} (nearest valid: {nearest(n, declared)})" for n in unknown)
+            + f" (ros2 param list /{node.get_name()} shows the declared ones)")
 
 
 def read_settings(node: LifecycleNode, cls: type) -> Any:
     """Current parameter values as a validated settings model (InputError names a field)."""
-    values = {s.name: node.get_parameter(s.name).value for s in fields(cls)}
+    values = {s.name: node.get_parameter(s.name).value for s in fields(cls)
+              if node.has_parameter(s.name)}
     return cls.check(nest(values), f"{node.get_name()} parameters")
 
 

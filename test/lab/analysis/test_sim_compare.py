@@ -91,7 +91,7 @@ def test_report_end_to_end_on_a_tiny_setting(tiny_real: Path, tmp_path: Path):
                  "--json", str(out_json), "--presses", "1", "--real-presses", "1",
                  "--fabrics", "polar_fleece,cotton_canvas,corduroy", "--scenes", "2",
                  "--budget", "1", "--comparisons", "2",
-                 "--setting", "default=default", "--setting", "random=default:strategy=random"]
+                 "--setting", "default=default", "--setting", "random=default:trial.strategy=random"]
                 ) == 0
     rep = json.loads(out_json.read_text())
     assert out_png.stat().st_size > 10_000

@@ -45,11 +45,11 @@ def test_auto_escalates_on_evidence_and_keeps_touches():
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     eng = TrialEngine(3, cfg, trial_preset("cnn", rounds=4), seed=1)
     res = eng.run(_touch_fn(1, 3), truth=2)
-    models = [(r.model, r.input_size) for r in res.rounds + [res.final]]
+    models = [(r.model, r.detail.input_size) for r in res.rounds + [res.final]]
     assert models[0] == ("small_inception", 32)
     assert models[-1] == ("small_inception", 40)
-    esc = [r for r in res.rounds + [res.final] if r.escalation]
-    assert len(esc) == 1 and "entropy" in esc[0].escalation
+    esc = [r for r in res.rounds + [res.final] if r.detail.escalation]
+    assert len(esc) == 1 and "entropy" in esc[0].detail.escalation
     # every stored touch was re-added to the escalated learner, at its input size
     assert eng.learner.inner.n_views == int(eng.touches.sum()) * cfg.augment
     assert [x.shape[-1] for x in eng.learner.inner._ref_parts] == [40]
@@ -63,7 +63,7 @@ def test_auto_stays_cheap_without_evidence():
                  auto_heldout_acc=0.0, auto_entropy=1.0,
                  **{k: v for k, v in FAST.items() if k != "input_size"})
     res = TrialEngine(3, cfg, trial_preset("cnn", rounds=5), seed=0).run(_touch_fn(0, 3), truth=1)
-    assert {r.input_size for r in res.rounds + [res.final]} == {32}
+    assert {r.detail.input_size for r in res.rounds + [res.final]} == {32}
     assert not res.to_dict()["escalations"]
 
 

@@ -24,5 +24,6 @@ def test_short_replayed_trial_end_to_end(tmp_path, octopi_dir):
     for r in d["rounds"]:
         assert r["platform"] in {"c1", "c2", "c3", "c4"}
         assert len(r["probs"]) == 4 and abs(sum(r["probs"]) - 1) < 1e-6
-        assert len(r["scores"]) == 4 and r["train_s"] > 0 and r["score_s"] > 0
+        assert len(r["scores"]) == 4 and r["detail"]["train_s"] > 0 and r["score_s"] > 0
+        assert r["detail"]["kind"] == "training" and r["detail"]["input_size"] == 48
     assert d["classes"]["c3"] == "steel_wool" == d["truth_class"]

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tactex_ros.core.config import LearnerConfig, preset, trial_preset
+from tactex_ros.core.config import CnnSettings, preset, trial_preset
 from tactex_ros.core.engine import TouchFailed, TrialEngine
 from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner, class_weights
@@ -48,7 +48,7 @@ def test_config_validation_names_the_field():
     with pytest.raises(InputError, match="input_size"):
         preset("cnn", input_size=8)
     with pytest.raises(InputError, match="model"):
-        LearnerConfig(model="vgg").replace()
+        CnnSettings(model="vgg")
     with pytest.raises(InputError, match="configuration"):
         preset("turbo")
 

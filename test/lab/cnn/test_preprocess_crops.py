@@ -1,4 +1,4 @@
-"""Crops at sensor resolution (``LearnerConfig.sensor_crops``): exact pixels, positions, limits."""
+"""Crops at sensor resolution (``CnnSettings.sensor_crops``): exact pixels, positions, limits."""
 
 import numpy as np
 import pytest

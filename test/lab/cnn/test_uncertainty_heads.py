@@ -9,7 +9,7 @@ import torch
 
 from tactex_lab.cnn import uncertainty as unc
 from tactex_ros.core import strategies
-from tactex_ros.core.config import LearnerConfig, preset
+from tactex_ros.core.config import CnnSettings, preset
 from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.models import build_model
@@ -150,7 +150,7 @@ def test_heads_share_the_stem_and_forward_is_the_members_mean_softmax():
 
 # ------------------------------------------------------------------ settings and learner
 def test_settings_default_unchanged_and_checked():
-    assert LearnerConfig().uncertainty == "mc_dropout"
+    assert CnnSettings().uncertainty == "mc_dropout"
     for name in ("cnn", "seed_faithful"):
         assert preset(name).uncertainty == "mc_dropout"
     with pytest.raises(InputError, match="ensemble_heads"):

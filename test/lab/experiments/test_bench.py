@@ -24,7 +24,7 @@ def test_bench_latency_json_shape(tmp_path, monkeypatch):
 def test_bench_latency_takes_labelled_configs_with_overrides(tmp_path):
     out = tmp_path / "lat.json"
     assert main(["bench", "latency", "--touches", "5", "--repeats", "3", "--configs",
-                 "default", "hot=default:match_temperature=0.2", "--json", str(out)]) == 0
+                 "default", "hot=default:learner.match_temperature=0.2", "--json", str(out)]) == 0
     d = json.loads(out.read_text())
     assert set(d["p99_s"]) == {"default", "hot"} and d["hot"]["5"] > 0
     assert main(["bench", "latency", "--configs", "x=nope"]) == 2

@@ -14,8 +14,9 @@ from tactex_lab.experiments.runner import TrialJob, run_job
 from tactex_lab.experiments.trials import find_trial_file, load_trials
 from tactex_ros.paths import config_dir
 
-TINY = ["--set", "input_size=32", "--set", "mc_passes=4", "--set", "steps=2",
-        "--set", "bn_recalibrate=8"]
+TINY = ["--set", "learner.input_size=32", "--set", "learner.mc_passes=4",
+        "--set", "learner.steps=2",
+        "--set", "learner.bn_recalibrate=8"]
 TINY_OVR = dict(input_size=32, mc_passes=4, steps=2, bn_recalibrate=8)
 
 
@@ -148,7 +149,7 @@ def test_classify_sim(tmp_path):
     assert main(["experiment", "classify", "--classes", "4,11,21", "--train", "2", "--val", "2",
                  "--test", "3", "--models", "small_inception", "--seeds", "0", "1",
                  "--epochs", "2", "--input-size", "32", "--workers", "1", "--out", str(out),
-                 "--quiet", "--set", "bn_recalibrate=8"]) == 0
+                 "--quiet", "--set", "learner.bn_recalibrate=8"]) == 0
     s = json.loads((out / "summary.json").read_text())
     m = s["models"]["small_inception"]
     assert m["test_acc"]["n"] == 2

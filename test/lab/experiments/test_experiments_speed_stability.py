@@ -6,14 +6,15 @@ import math
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.common import correct_at, parse_set
+from tactex_lab.experiments.common import correct_at, learner_set, parse_set
 from tactex_lab.analysis.stats import mcnemar_exact as mcnemar
 from tactex_lab.analysis.stats import pareto_front, wilson
 from tactex_lab.experiments.stability import condition, failure_mode
 from tactex_ros.core.errors import InputError
 
-TINY = ["--set", "input_size=32", "--set", "steps=2", "--set", "mc_passes=4",
-        "--set", "augment=3", "--set", "bn_recalibrate=8"]
+TINY = ["--set", "learner.input_size=32", "--set", "learner.steps=2",
+        "--set", "learner.mc_passes=4",
+        "--set", "learner.augment=3", "--set", "learner.bn_recalibrate=8"]
 
 
 def test_pareto_front_keeps_only_undominated_points():
@@ -42,9 +43,13 @@ def test_correct_at_budget_reads_the_capped_decision():
 
 
 def test_parse_set_checks_keys():
-    assert parse_set(["input_size=48", "guards=false"]) == {"input_size": 48, "guards": False}
-    with pytest.raises(InputError, match="key one of"):
+    assert parse_set(["learner.input_size=48", "learner.guards=false"]) == \
+        {"learner": {"input_size": 48, "guards": False}}
+    assert learner_set(["learner.input_size=48"]) == {"input_size": 48}
+    with pytest.raises(InputError, match="unknown setting 'nope'"):
         parse_set(["nope=1"])
+    with pytest.raises(InputError, match=r"^--set trial.rounds: not taken here"):
+        parse_set(["trial.rounds=3"])
 
 
 def test_condition_maps_axes():
@@ -58,9 +63,10 @@ def test_condition_maps_axes():
 
 def _run(correct=False, probs=(0.85, 0.05, 0.05, 0.05), degenerate=False, loss=0.5,
          touches_end=(2, 2, 2, 2), error=None):
-    r = {"probs": list(probs), "scores": [0.1] * 4, "train_loss": loss,
-         "touches": [1, 1, 1, 1], "degenerate": degenerate, "skipped_steps": 0,
-         "restored": False}
+    r = {"probs": list(probs), "scores": [0.1] * 4, "model": "small_inception",
+         "touches": [1, 1, 1, 1], "degenerate": degenerate,
+         "detail": {"kind": "training", "train_loss": loss, "skipped_steps": 0,
+                    "restored": False}}
     return {"correct": correct, "error": error, "rounds": [r, dict(r), dict(r)],
             "final": dict(r, touches=list(touches_end), scores=None)}
 

@@ -44,12 +44,16 @@ def test_class_folds_are_disjoint_and_cover():
 
 
 def test_parse_setting_names_what_is_wrong():
-    assert parse_setting("r=default:strategy=random,match_temperature=0.1") == (
+    assert parse_setting("r=default:trial.strategy=random,learner.match_temperature=0.1") == (
         "r", "default", "random", {"match_temperature": 0.1})
     with pytest.raises(InputError, match="unknown preset"):
         parse_setting("x=nope")
-    with pytest.raises(InputError, match="colour=1"):
-        parse_setting("x=default:colour=1")
+    with pytest.raises(InputError, match=r"unknown setting 'learner.colour'; nearest valid: "
+                                         r"'learner.\w+'"):
+        parse_setting("x=default:learner.colour=1")
+    with pytest.raises(InputError, match=r"trial.rounds: not taken here \(learner.\* settings "
+                                         r"and trial.strategy are\)"):
+        parse_setting("x=default:trial.rounds=3")
 
 
 def test_replayed_presses_do_not_depend_on_string_hashing(octopi_dir):
@@ -67,7 +71,7 @@ def test_real_evaluation_end_to_end(octopi_dir, tmp_path):
     out = tmp_path / "real"
     assert main(["experiment", "real", "--source", f"replay:{octopi_dir}", "--scenes", "2",
                  "--budget", "2", "--folds", "2", "--workers", "1", "--out", str(out),
-                 "--setting", "d=default", "--setting", "r=default:strategy=random",
+                 "--setting", "d=default", "--setting", "r=default:trial.strategy=random",
                  "--thresholds", "0.9", "1.01"]) == 0
     s = json.loads((out / "summary.json").read_text())
     ho = s["held_out"]

@@ -30,7 +30,7 @@ def test_report_only_end_to_end(octopi_dir, tmp_path):
     out = tmp_path / "uq"
     args = ["experiment", "real", "--source", f"replay:{octopi_dir}", "--scenes", "2",
             "--budget", "2", "--folds", "2", "--workers", "1", "--out", str(out),
-            "--report-only", "--setting", "d=default", "--setting", "r=default:strategy=random",
+            "--report-only", "--setting", "d=default", "--setting", "r=default:trial.strategy=random",
             "--thresholds", "0.9", "1.01"]
     assert main(args + ["--paired-against", "d", "r"]) == 0
     s = json.loads((out / "summary.json").read_text())

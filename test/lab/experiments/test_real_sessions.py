@@ -12,7 +12,7 @@ def test_real_sessions_end_to_end(octopi_dir, tmp_path):
     out = tmp_path / "rs"
     args = ["experiment", "real-sessions", "--real", str(octopi_dir), "--scenes", "3",
             "--budget", "1", "--workers", "1", "--out", str(out),
-            "--setting", "d=default", "--setting", "off=default:descriptor_no_contact=false"]
+            "--setting", "d=default", "--setting", "off=default:learner.descriptor_no_contact=false"]
     assert main(args) == 0
     s = json.loads((out / "summary.json").read_text())
     assert set(s["settings"]) == {"d", "off"}
@@ -33,5 +33,5 @@ def test_real_sessions_end_to_end(octopi_dir, tmp_path):
 
 def test_real_sessions_refuses_duplicate_labels(octopi_dir, tmp_path):
     code = main(["experiment", "real-sessions", "--real", str(octopi_dir), "--setting",
-                 "a=default", "--setting", "a=default:strategy=random", "--out", str(tmp_path)])
+                 "a=default", "--setting", "a=default:trial.strategy=random", "--out", str(tmp_path)])
     assert code == 2 and not (tmp_path / "summary.json").exists()

@@ -31,7 +31,7 @@ def test_stability_real_end_to_end(octopi_dir, tmp_path):
     args = ["experiment", "stability-real", "--source", f"replay:{octopi_dir}",
             "--methods", "default", "--perturbations", "partial", "low_force", "--scenes", "2",
             "--budget", "2", "--workers", "1", "--quiet", "--guard", "partial",
-            "--guard-set", "contact_region_min=0.6", "--out", str(out)]
+            "--guard-set", "learner.contact_region_min=0.6", "--out", str(out)]
     assert main(args) == 0
     s = json.loads((out / "summary.json").read_text())
     t = s["table"]["default"]

@@ -8,8 +8,8 @@ import re
 
 import pytest
 
-from tactex_ros.core.config import (PRESETS, SHIPPED_STOP, TRIAL_PRESETS, LearnerConfig,
-                                    TrialConfig, TrialSettings, field_spec, fields, merge,
+from tactex_ros.core.config import (PRESETS, SHIPPED_STOP, TRIAL_PRESETS, CnnSettings,
+                                    DescriptorSettings, TrialConfig, TrialSettings, field_spec, fields, merge,
                                     preset, trial_preset, typed)
 from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
@@ -17,9 +17,9 @@ from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSet
 
 def test_presets_keep_their_values() -> None:
     d = preset("default")
-    assert d == LearnerConfig(model="descriptor")
-    assert (d.model, d.input_size, d.match_temperature, d.match_prior_scale,
-            d.descriptor_frames, d.match_units) == ("descriptor", 299, 0.05, 1.0, 1, "scene")
+    assert d == DescriptorSettings(model="descriptor")
+    assert (d.model, d.match_temperature, d.match_prior_scale,
+            d.descriptor_frames, d.match_units) == ("descriptor", 0.05, 1.0, 1, "scene")
     c = preset("cnn")
     assert (c.model, c.input_size, c.epochs, c.steps, c.batch_size, c.lr, c.dropout,
             c.mc_passes, c.bn_recalibrate) == ("small_inception", 48, 0, 8, 32, 3e-3, 0.5, 20, 64)
@@ -32,7 +32,7 @@ def test_presets_keep_their_values() -> None:
             ("variance", 0.0, 20, 2)
     assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "cnn", "seed_faithful"}
     # the class defaults are the shipped method: the default preset adds nothing to them
-    assert LearnerConfig() == preset("default") and TrialConfig() == trial_preset("default")
+    assert DescriptorSettings() == preset("default") and TrialConfig() == trial_preset("default")
     assert (TrialConfig().strategy, TrialConfig().stop_confidence) == ("infogain", SHIPPED_STOP)
     # None = an option not given: the preset's value stays
     assert trial_preset("default", strategy=None, rounds=3) == \
@@ -40,27 +40,27 @@ def test_presets_keep_their_values() -> None:
 
 
 @pytest.mark.parametrize("kw, message", [
-    ({"input_size": 8}, "LearnerConfig: input_size: Input should be greater than or equal to 32 "
+    ({"input_size": 8}, "CnnSettings: input_size: Input should be greater than or equal to 32 "
                         "(got 8)"),
-    ({"model": "vgg"}, "LearnerConfig: model: Input should be 'descriptor', 'small_inception', "
-                       "'inception_v3', 'inception_v3_random' or 'auto' (got 'vgg')"),
-    ({"epochs": True}, "LearnerConfig: epochs: Input should be a valid integer (got True)"),
-    ({"lr": "0.1"}, "LearnerConfig: lr: Input should be a valid number (got '0.1')"),
-    ({"epochs": 2.0}, "LearnerConfig: epochs: Input should be a valid integer (got 2.0)"),
-    ({"colour": 1}, "LearnerConfig: colour: unknown name; known: model, input_size,"),
+    ({"model": "vgg"}, "CnnSettings: model: Input should be 'small_inception', "
+                       "'inception_v3' or 'inception_v3_random' (got 'vgg')"),
+    ({"epochs": True}, "CnnSettings: epochs: Input should be a valid integer (got True)"),
+    ({"lr": "0.1"}, "CnnSettings: lr: Input should be a valid number (got '0.1')"),
+    ({"epochs": 2.0}, "CnnSettings: epochs: Input should be a valid integer (got 2.0)"),
+    ({"colour": 1}, "CnnSettings: colour: unknown name for a cnn learner; known: model, guards,"),
 ])
 def test_learner_errors_name_the_field(kw: dict, message: str) -> None:
     with pytest.raises(InputError, match="^" + re.escape(message)):
-        LearnerConfig(**kw)
+        CnnSettings(**kw)
 
 
 def test_types_and_assignment() -> None:
-    c = LearnerConfig(lr=1)                       # an int where a float is expected
+    c = CnnSettings(lr=1)                         # an int where a float is expected
     assert c.lr == 1.0 and isinstance(c.lr, float)
     with pytest.raises(ValueError, match="input_size"):
         c.input_size = 4                          # assignments are checked too
     assert c.replace(input_size=64).input_size == 64 and c.input_size == 299
-    with pytest.raises(InputError, match="^LearnerConfig: input_size: "):
+    with pytest.raises(InputError, match="^CnnSettings: input_size: "):
         c.replace(input_size=4)
     with pytest.raises(InputError, match="^configuration 'cnn': dropout: .*0.95"):
         preset("cnn", dropout=0.99)
@@ -87,7 +87,7 @@ def test_trial_settings_are_a_preset_plus_overrides() -> None:
 
 def test_explorer_settings_are_composed_from_the_core() -> None:
     names = [f.name for f in fields(ExplorerSettings)]
-    learner = [f"learner.{n}" for n in LearnerConfig.model_fields]
+    learner = [f"learner.{n}" for n in CnnSettings.model_fields]
     trial = [f"trial.{n}" for n in TrialConfig.model_fields]
     assert set(learner + trial) <= set(names)
     assert len(names) == len(set(names))

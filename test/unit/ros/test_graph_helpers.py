@@ -75,12 +75,13 @@ def test_adapter_images_roundtrip_and_rejects() -> None:
 
 def test_adapter_state_and_markers() -> None:
     from tactex_ros.ros import adapter
-    from tactex_ros.core.engine import RoundRecord
+    from tactex_ros.core.engine import RoundRecord, TrainingDetail
     scene = load_scene(config_dir() / "scene_sim.yaml")
     rec = RoundRecord(round=2, platform=3, probs=[0.1, 0.2, 0.6, 0.1],
-                      scores=[0.01, 0.02, 0.3, 0.0], predictive_entropy=1.0, train_s=0.2,
-                      score_s=0.1, choose_s=0.0, train_loss=0.5, touches=[1, 2, 1, 1],
-                      model="small_inception")
+                      scores=[0.01, 0.02, 0.3, 0.0], predictive_entropy=1.0,
+                      score_s=0.1, choose_s=0.0, touches=[1, 2, 1, 1],
+                      model="small_inception",
+                      detail=TrainingDetail(input_size=48, train_s=0.2, train_loss=0.5))
     st = adapter.state_msg(rec, trial_id="t", strategy="variance",
                            platform_ids=["c1", "c2", "c3", "c4"], reference_touches=1,
                            done=False, prediction="", t=1.0, frame_id="base")
