@@ -1,17 +1,24 @@
 """Progress in the terminal while the graph runs: one line per press and per decision.
 
-``Progress`` follows a trial record folder (``touches.jsonl``, ``decisions.jsonl``: the files
-the explorer fsyncs as it goes) and prints each new line once: a press (platform, force [N],
-press time [s]) and a decision (belief per platform, the next platform). On a terminal it
-prints through ``rich`` (colour); in a log (not a terminal) plain lines.
+``Progress`` follows a trial record folder (``touches.jsonl``, ``decisions.jsonl``,
+``events.jsonl``: the files the explorer fsyncs as it goes) and prints each new line once: a
+press (platform, force [N], press time [s]), a decision (belief per platform, the next
+platform) and how a resume went (learner checkpoint restored, or re-training). While nothing
+new arrives (a thesis CNN's decision takes 27-98 s) it says so every ``WAITING_EVERY_S``. On a
+terminal it prints through ``rich`` (colour); in a log (not a terminal) plain lines.
 """
 
 from __future__ import annotations
 
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any, Callable
+
+
+#: [s] a decision still under way after this long (the thesis CNN: 27-98 s) is said so again
+WAITING_EVERY_S = 30.0
 
 
 def press_line(t: dict[str, Any]) -> str:
@@ -57,17 +64,25 @@ def tail_jsonl(path: Path, offset: int) -> tuple[list[dict], int]:
 class Progress:
     """Prints what is new in the followed record folder each time ``poll()`` is called."""
 
-    def __init__(self, out: Callable[[str, str], None] | None = None) -> None:
+    def __init__(self, out: Callable[[str, str], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic,
+                 every_s: float = WAITING_EVERY_S) -> None:
         self.out = out or console_printer()
+        self.clock = clock
+        self.every_s = every_s
         self.folder: Path | None = None
         self._offsets: dict[str, int] = {}
         self._ids: list[str] = []
+        self._deciding: int | None = None    # the decision the explorer is making (round)
+        self._since = 0.0                    # clock of the last line printed
+        self._waited = 0.0                   # [s] since the last touch or decision
 
     def follow(self, folder: str | Path | None) -> None:
         """Follow another record folder (the next trial of a session)."""
         folder = Path(folder) if folder else None
         if folder != self.folder:
             self.folder, self._offsets, self._ids = folder, {}, []
+            self._deciding = None
 
     def _new_lines(self, name: str) -> list[dict]:
         lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
@@ -78,10 +93,30 @@ class Progress:
             return
         if not self._ids:
             self._ids = _comparison_ids(self.folder)
+        now = self.clock()
+        printed = False
+        for e in self._new_lines("events.jsonl"):
+            if e.get("event") == "resumed" and e.get("how"):
+                self.out(f"resume: {e['how']}", "info")
+                printed = True
         for t in self._new_lines("touches.jsonl"):
             self.out(press_line(t), "press")
-        for d in self._new_lines("decisions.jsonl"):
+            printed = True
+        decisions = self._new_lines("decisions.jsonl")
+        for d in decisions:
             self.out(decision_line(d, self._ids), "decision")
+        if decisions:
+            last = decisions[-1]
+            self._deciding = None if last.get("done") else int(last.get("round") or 0) + 1
+        elif printed and not self._offsets.get("decisions.jsonl"):
+            self._deciding = 1
+        if printed or decisions:
+            self._since, self._waited = now, 0.0
+        elif self._deciding is not None and now - self._since >= self.every_s:
+            self._waited += now - self._since
+            self.out(f"working: {self._waited:.0f} s without a new touch or decision "
+                     f"(decisions on disk: {self._deciding - 1})", "info")
+            self._since = now
 
 
 def _comparison_ids(folder: Path) -> list[str]:

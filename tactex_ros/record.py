@@ -21,6 +21,7 @@ truth (a resume is rebuilt from it, ``tactex_ros.resume``); an MCAP file of the 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -32,7 +33,7 @@ import cv2
 import numpy as np
 
 from .core.errors import InputError, TrialError
-from .core.outputs import check_dir, dumps
+from .core.outputs import check_dir, dumps, write_bytes
 
 
 def _fsync_write(path: Path, data: bytes, append: bool) -> None:
@@ -238,6 +239,59 @@ class TrialRecord:
             finally:
                 os.close(fd)
             return self.dir / "result.json"
+
+    def write_checkpoint(self, state: dict[str, Any], learner_state: bytes,
+                         after_seq: int) -> Path:
+        """The trial's state after a round (``TrialEngine.checkpoint``), made from the touches
+        up to number ``after_seq`` of ``touches.jsonl``: the learner's opaque
+        bytes in ``learner_<round>.state``, then ``checkpoint.json`` (the engine's state, the
+        last touch on disk, the learner file's name, size and SHA-256) replaces the previous
+        one atomically; older learner files are removed after. A crash at any point leaves
+        the previous checkpoint or the new one, whole."""
+        with self._lock:
+            self._open()
+            name = f"learner_{int(state['round']):04d}.state"
+            write_bytes(self.dir / name, learner_state)
+            head = {"state": state, "after_seq": int(after_seq), "learner_file": name,
+                    "learner_bytes": len(learner_state),
+                    "learner_sha256": hashlib.sha256(learner_state).hexdigest()}
+            write_bytes(self.dir / CHECKPOINT, dumps(head, indent=None).encode())
+            for f in self.dir.glob("learner_*.state"):
+                if f.name != name:
+                    f.unlink(missing_ok=True)
+            return self.dir / CHECKPOINT
+
+
+CHECKPOINT = "checkpoint.json"
+
+
+def read_checkpoint(folder: str | Path) -> tuple[dict, int, bytes] | None:
+    """The last checkpoint of a record: (engine state, seq of the last touch on disk when it
+    was written, learner bytes); None when the record has none. InputError (the file named)
+    when it is unreadable, torn or its learner file is missing or altered."""
+    d = Path(folder)
+    p = d / CHECKPOINT
+    if not p.exists():
+        return None
+    try:
+        head = json.loads(p.read_text())
+        name, size, digest = head["learner_file"], head["learner_bytes"], head["learner_sha256"]
+        state, after = head["state"], int(head["after_seq"])
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError,
+            ValueError) as exc:
+        raise InputError(f"checkpoint {str(p)!r} is unreadable ({type(exc).__name__}: "
+                         f"{exc})") from None
+    if not isinstance(name, str) or "/" in name or not isinstance(state, dict):
+        raise InputError(f"checkpoint {str(p)!r} is malformed")
+    try:
+        data = (d / name).read_bytes()
+    except OSError as exc:
+        raise InputError(f"checkpoint {str(p)!r}: its learner file {name!r} cannot be read "
+                         f"({exc.strerror or exc})") from None
+    if len(data) != size or hashlib.sha256(data).hexdigest() != digest:
+        raise InputError(f"checkpoint {str(p)!r}: its learner file {name!r} is not the one "
+                         f"written ({len(data)} bytes, {size} written; SHA-256 differs)")
+    return state, after, data
 
 
 def _read_jsonl(path: Path) -> list[dict]:

@@ -23,10 +23,10 @@ from typing import Callable
 
 import numpy as np
 
-from .core.engine import TouchFailed
+from .core.engine import TouchFailed, TrialEngine, TrialSpec
 from .core.errors import InputError
 from .core.touch import Touch
-from .record import read_record
+from .record import read_checkpoint, read_record
 
 
 @dataclass
@@ -102,6 +102,42 @@ class Replay:
         if r.touch is None:
             raise TouchFailed(r.reason, retry=False)
         return r.touch
+
+
+def restore_engine(spec: TrialSpec, folder: str | Path,
+                   recorded: list[RecordedTouch]) -> tuple[TrialEngine, int, str]:
+    """The engine of a resumed trial: restored from the record's last checkpoint (the
+    learner's state after its last round, ``TrialRecord.write_checkpoint``) when there is one
+    that fits, else a fresh one that re-trains while the recorded touches are replayed.
+    Returns (engine, number of the last recorded touch the checkpoint covers, 0 for none; a
+    line saying which way it went). A checkpoint that is unreadable, altered or does not fit
+    the record is not used (the line says why): the touches on disk are the ground truth."""
+    how = f"re-training on the {len(recorded)} recorded touches"
+    try:
+        got = read_checkpoint(folder)
+    except InputError as exc:
+        return spec.engine(), 0, f"{exc}; not used, {how}"
+    if got is None:
+        return spec.engine(), 0, f"no learner checkpoint in the record, {how}"
+    state, after, blob = got
+    eng = spec.engine()
+    stored = [(r.platform_index, r.touch) for r in recorded
+              if r.seq <= after and r.touch is not None and not r.rejected]
+    try:
+        if recorded and after > max(r.seq for r in recorded) or after < 1:
+            raise InputError(f"it covers touches up to {after}, the record holds "
+                             f"{max((r.seq for r in recorded), default=0)}")
+        eng.restore(state, stored, blob)
+    except InputError as exc:
+        return spec.engine(), 0, f"checkpoint does not fit the record ({exc}); not used, {how}"
+    for r in recorded:                  # the contact guard's no-contact frame, as it was
+        if r.seq <= after and r.touch is not None and r.touch.no_contact is not None:
+            if eng.guard is not None and not eng.guard.has_reference:
+                eng.guard.set_reference(r.touch.no_contact)
+            break
+    return eng, after, (f"learner restored from the checkpoint of round {len(eng.records)} "
+                        f"(touches 1..{after}); "
+                        f"{sum(r.seq > after for r in recorded)} recorded touches replayed")
 
 
 def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],

@@ -20,10 +20,12 @@ here, and ``auto_catchup`` extra rounds are trained at once (their time counts i
 
 from __future__ import annotations
 
+import io
 import math
 import time
 
 import numpy as np
+import torch
 
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_ros.core.config import CNN_MODELS, AutoSettings, CnnSettings, validate
@@ -127,6 +129,45 @@ class AutoLearner:
 
     def belief(self, probs: np.ndarray) -> np.ndarray:
         return self.inner.belief(probs)
+
+    def save_state(self) -> bytes:
+        """The state after a round (``StatefulLearner``): the stage, the stage learner's own
+        state and the evidence gathered on this stage. The raw touches are not written: the
+        same touches are added again before ``load_state``."""
+        buf = io.BytesIO()
+        torch.save({"stage": self.stage, "ladder": self.ladder, "inner": self.inner.save_state(),
+                    "heldout": list(self._heldout), "entropies": list(self._entropies),
+                    "last_label": self._last_label, "rounds": self._rounds,
+                    "touches": len(self._frames), "references": len(self._ref_touches)}, buf)
+        return buf.getvalue()
+
+    def load_state(self, data: bytes) -> None:
+        """Continue from ``save_state``'s bytes: the stage learner of the saved stage is built
+        again from the touches added since this learner was made, then its state loaded
+        (InputError, named, when the bytes do not fit)."""
+        try:
+            st = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+            stage, inner = int(st["stage"]), st["inner"]
+            ladder = [tuple(x) for x in st["ladder"]]
+        except Exception as exc:  # noqa: BLE001 - torch raises many kinds for bad bytes
+            raise InputError(f"learner state unreadable ({type(exc).__name__}: {exc})") \
+                from None
+        if ladder != [tuple(x) for x in self.ladder] or not 0 <= stage < len(self.ladder) or \
+                st.get("touches") != len(self._frames) or \
+                st.get("references") != len(self._ref_touches):
+            raise InputError("learner state of another ladder or other touches")
+        if stage != self.stage:
+            self.stage = stage
+            self.inner = self._stage_learner()
+            for label, touch in self._frames:
+                self.inner.add_touch(touch, label)
+            for touch in self._ref_touches:
+                self.inner.add_reference(touch)
+        self.inner.load_state(inner)
+        self._heldout = [bool(x) for x in st["heldout"]]
+        self._entropies = [float(x) for x in st["entropies"]]
+        self._last_label = st["last_label"]
+        self._rounds = int(st["rounds"])
 
     def _escalation_reason(self) -> str | None:
         """Evidence from this trial that the current stage is not enough (None = stay)."""

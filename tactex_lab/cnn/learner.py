@@ -24,6 +24,8 @@ other code could have advanced.
 from __future__ import annotations
 
 import copy
+import io
+import json
 import time
 
 import numpy as np
@@ -275,6 +277,60 @@ class OnlineLearner:
                            keep_head=other.model_name == self.model_name)
         self.model.to(memory_format=self._fmt)
         return len(rep.loaded)
+
+    # ------------------------------------------------------------------ checkpoint
+    def _identity(self) -> dict:
+        """What a saved state must match: model, classes, seed, every learner setting."""
+        return {"model": self.model_name, "classes": self.num_classes, "seed": self.seed,
+                "cfg": json.dumps(self.cfg.model_dump(), sort_keys=True, default=str)}
+
+    def save_state(self) -> bytes:
+        """The learner's state after a round (``StatefulLearner``): weights, optimiser
+        (learning rate included), the generators of training and scoring, the Laplace
+        posterior, and what checks the stored views on load (their count, the view-angle
+        generator's state). The views themselves are not written: ``load_state`` expects the
+        same touches added again, which rebuilds them bit for bit."""
+        lap = self.laplace
+        state = {"identity": self._identity(), "rounds_trained": self.rounds_trained,
+                 "model": self.model.state_dict(), "opt": self.opt.state_dict(),
+                 "gen": self._gen.get_state(),
+                 "rng": json.dumps(self._rng.bit_generator.state),
+                 "views": self.n_views, "references": len(self._ref_parts),
+                 "laplace": None if lap is None else
+                 {"theta": lap.theta, "precision": lap.precision,
+                  "prior_precision": lap.prior_precision}}
+        buf = io.BytesIO()
+        torch.save(state, buf)
+        return buf.getvalue()
+
+    def load_state(self, data: bytes) -> None:
+        """Continue from ``save_state``'s bytes; InputError (named) when they are not a state
+        of this learner (other model, settings or seed) or the touches added since it was
+        built are not the ones it was saved with."""
+        try:
+            st = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+        except Exception as exc:  # noqa: BLE001 - torch raises many kinds for bad bytes
+            raise InputError(f"learner state unreadable ({type(exc).__name__}: {exc})") \
+                from None
+        if not isinstance(st, dict) or st.get("identity") != self._identity():
+            raise InputError("learner state of another model, setting or seed")
+        if st.get("views") != self.n_views or st.get("references") != len(self._ref_parts) \
+                or st.get("rng") != json.dumps(self._rng.bit_generator.state):
+            raise InputError(f"learner state saved with {st.get('views')} views and "
+                             f"{st.get('references')} reference touches, the touches added "
+                             f"again give {self.n_views} and {len(self._ref_parts)} (or "
+                             "other views)")
+        try:
+            self.model.load_state_dict(st["model"])
+            self.opt.load_state_dict(st["opt"])
+            self._gen.set_state(st["gen"])
+        except (KeyError, RuntimeError, ValueError) as exc:
+            raise InputError(f"learner state does not fit the model ({exc})") from None
+        self.model.to(memory_format=self._fmt)
+        lap = st.get("laplace")
+        self.laplace = None if lap is None else LastLayerLaplace(
+            lap["theta"], lap["precision"], float(lap["prior_precision"]))
+        self.rounds_trained = int(st["rounds_trained"])
 
     @torch.no_grad()
     def heldout_proba(self, x: torch.Tensor) -> np.ndarray:

@@ -44,6 +44,10 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     if args.scene is None:
         orig = Path(cfg.get("scene_file") or "")
         copy = d / "scene.yaml"
+        if not copy.is_file() and not orig.is_file():
+            raise InputError(f"--resume {str(folder)!r}: the record has no scene.yaml and "
+                             f"its scene_file {str(cfg.get('scene_file') or '')!r} is not a "
+                             "file; give the scene with --scene")
         same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
         args.scene = str(orig if same or not copy.is_file() else copy)
     return ex
@@ -250,8 +254,9 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                                 "only --idle-timeout)")
             p.add_argument("--idle-timeout", type=bounded(float, 1.0, 86400.0), default=600.0,
                            help="end the trial when no new touch or decision reaches the "
-                                "record for this long [s], 1..86400 (default 600: a slow "
-                                "method finishes as long as it makes progress)")
+                                "record and the explorer uses no CPU (a tenth of a core) for "
+                                "this long [s], 1..86400 (default 600: a slow method "
+                                "finishes as long as it works)")
             p.add_argument("--log-dir")
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")

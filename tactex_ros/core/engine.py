@@ -47,7 +47,7 @@ from .config import (DescriptorSettings, LearnerSettings, TrialConfig,  # noqa: 
                      trial_preset, validate)
 from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, TrainStats, make_learner, train_round
+from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
@@ -255,6 +255,7 @@ class TrialEngine:
                                    getattr(g, "contact_region_min", 0.0))   # descriptor only
                       if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
+        self._touch_due = False          # restored from a checkpoint: next_platform not touched
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
         """A no-contact frame of this sensor session: enables the guard's contact test."""
@@ -379,6 +380,72 @@ class TrialEngine:
                            stop_reason=self.stop_reason,
                            reference_touches=self.reference_touches, sure=self.sure)
 
+    # ------------------------------------------------------------------ checkpoint
+    def checkpoint(self) -> tuple[dict, bytes] | None:
+        """The trial's state right after a decision that asked for a touch: (engine state as
+        JSON-able dict, the learner's opaque bytes); None when the learner cannot save its
+        state (the descriptor: a resume re-adds the touches, nothing is trained) or the trial
+        is done. Written by the caller after each round (``record.TrialRecord``)."""
+        if self.done or not self.records or not can_checkpoint(self.learner):
+            return None
+        state = {"version": CHECKPOINT_VERSION, "round": len(self.records),
+                 "model": self.learner_cfg.model, "seed": self.seed,
+                 "platform_ids": self.platform_ids, "touches": self.touches.tolist(),
+                 "reference_touches": self.reference_touches,
+                 "next_platform": self.next_platform, "failed": self.failed,
+                 "records": [asdict(r) for r in self.records],
+                 "rng": self.rng.bit_generator.state}
+        return state, self.learner.save_state()   # type: ignore[attr-defined]
+
+    def restore(self, state: dict, stored: list[tuple[int, Touch]], learner_state: bytes) -> None:
+        """Continue a fresh engine from ``checkpoint()``'s state: ``stored`` are the touches
+        the learner held then, (platform 0..C, touch) in their order (accepted ones only); they
+        are added to the learner again (no training), then the learner's bytes are loaded. The
+        next ``run`` makes the touch the restored decision asked for. InputError (named) when
+        the state does not belong to this trial or to these touches; the engine is then
+        unusable (build a new one)."""
+        if self.records or self.total_touches:
+            raise TrialError("restore() needs a fresh engine")
+        if not can_checkpoint(self.learner):
+            raise InputError(f"checkpoint: learner {self.learner_cfg.model!r} cannot load a "
+                             "state")
+        try:
+            if state.get("version") != CHECKPOINT_VERSION:
+                raise InputError(f"version {state.get('version')!r}, this code reads "
+                                 f"{CHECKPOINT_VERSION}")
+            for key, now in (("model", self.learner_cfg.model), ("seed", self.seed),
+                             ("platform_ids", self.platform_ids)):
+                if state.get(key) != now:
+                    raise InputError(f"{key} is {state.get(key)!r}, the trial's {now!r}")
+            counts = np.bincount([p for p, _ in stored], minlength=self.C + 1)
+            if counts[0] != state["reference_touches"] or \
+                    counts[1:].tolist() != list(state["touches"]):
+                raise InputError(f"it holds {state['reference_touches']} reference and "
+                                 f"{list(state['touches'])} comparison touches, the record "
+                                 f"{int(counts[0])} and {counts[1:].tolist()}")
+            records = [_round_record(r) for r in state["records"]]
+            nxt = state["next_platform"]
+            if len(records) != state["round"] or nxt is None or not 0 <= int(nxt) <= self.C:
+                raise InputError("its rounds or next platform do not fit together")
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"checkpoint state is incomplete ({type(exc).__name__}: {exc})") \
+                from None
+        for platform, touch in stored:
+            if platform == 0:
+                self.learner.add_reference(touch)
+            else:
+                self.learner.add_touch(touch, platform - 1)
+        self.learner.load_state(learner_state)           # type: ignore[attr-defined]
+        self.touches = np.asarray(state["touches"], dtype=np.int64)
+        self.reference_touches = int(state["reference_touches"])
+        self.records = records
+        self.failed = list(state["failed"])
+        self.next_platform = int(nxt)
+        self.rng.bit_generator.state = state["rng"]
+        self._touch_due = True
+
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
@@ -402,6 +469,9 @@ class TrialEngine:
             missing = [self.platform_ids[p] for p in self.baseline_platforms()]
             raise TrialError(f"baseline touches failed {self.trial_cfg.baseline_passes} times "
                               f"for {missing}")
+        if self._touch_due and self.next_platform is not None:     # restored: its touch
+            self._touch_due = False
+            self._touch(self.next_platform, touch_fn, on_rejected)
         while not self.done:
             rec = self.decide()
             if on_round:
@@ -430,6 +500,26 @@ class TrialEngine:
                 if on_rejected is not None:
                     on_rejected(platform, exc)
         return False
+
+
+#: Layout of ``TrialEngine.checkpoint``'s state (a reader refuses another one).
+CHECKPOINT_VERSION = 1
+
+
+def _round_record(d: dict) -> RoundRecord:
+    """A ``RoundRecord`` from its JSON form (strict JSON wrote NaN as null: back to NaN)."""
+    from dataclasses import fields
+    known = {f.name: f for f in fields(RoundRecord)}
+    if set(d) - set(known):
+        raise InputError(f"unknown round fields {sorted(set(d) - set(known))}")
+    out = dict(d)
+    for name, f in known.items():
+        if out.get(name) is None and f.type == "float":
+            out[name] = float("nan")
+    for name in ("probs", "scores"):
+        if out.get(name) is not None:
+            out[name] = [float("nan") if v is None else float(v) for v in out[name]]
+    return RoundRecord(**out)
 
 
 @dataclass(frozen=True)

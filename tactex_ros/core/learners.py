@@ -64,6 +64,28 @@ class TrainingLearner(Learner, Protocol):
         """One round of training; what it did."""
 
 
+class StatefulLearner(Learner, Protocol):
+    """A learner whose state can be written after a round and read back on resume, so a
+    resumed trial continues without re-training (the lab's CNNs). The bytes are opaque to the
+    product: the trial record stores them (``record.TrialRecord.write_checkpoint``).
+
+    ``load_state`` is called on a fresh learner (same class, settings and seed) after the
+    touches stored before the checkpoint were added again in their order; it raises
+    InputError when the bytes are not a state of this learner or do not fit those touches."""
+
+    def save_state(self) -> bytes:
+        """The learner's state now (weights, optimiser, random generators, ...)."""
+
+    def load_state(self, data: bytes) -> None:
+        """Continue from ``save_state``'s bytes (InputError when they do not fit)."""
+
+
+def can_checkpoint(learner: Learner) -> bool:
+    """True when the learner offers ``save_state`` / ``load_state`` (``StatefulLearner``)."""
+    return callable(getattr(learner, "save_state", None)) and \
+        callable(getattr(learner, "load_state", None))
+
+
 def train_round(learner: Learner) -> TrainStats | None:
     """One round of training of a ``TrainingLearner``; None for a learner that trains
     nothing (the descriptor)."""

@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from ..core.contact import blur, contact_score
+from ..core.errors import DeviceError, InputError
 
 # libfranka RobotMode (franka_msgs FrankaRobotState.msg / FrankaState.msg ROBOT_MODE_*)
 ROBOT_MODES = {0: "other", 1: "idle", 2: "move", 3: "guiding", 4: "reflex", 5: "user stopped",
@@ -45,6 +46,20 @@ class Problem:
 
     def __str__(self) -> str:
         return f"pre-flight {self.check}: {self.text}"
+
+    @property
+    def absent(self) -> bool:
+        """The device gave nothing at all (no state message, no frame): a run-time failure
+        (exit status 1), not a refused setting (2)."""
+        return self.check in ABSENT
+
+    def error(self) -> Exception:
+        """The exception to raise: DeviceError when the device is absent, else InputError."""
+        return DeviceError(str(self)) if self.absent else InputError(str(self))
+
+
+#: Pre-flight checks that fail when the device is absent rather than unfit.
+ABSENT = ("state", "no_frame")
 
 
 def rate_hz(stamps: Sequence[float]) -> float:

@@ -310,14 +310,26 @@ def progress_stamp(record: Path) -> tuple:
 
 class Deadlines:
     """The runner's two deadlines: ``total_s`` from the start (None: none) and ``idle_s``
-    without progress (a new touch or decision in the record; None: none). A slow method
-    (the thesis CNN: decisions of 30-100 s) finishes as long as it makes progress."""
+    without progress (None: none). Progress is a new touch or decision in the record, or the
+    explorer working: ``cpu()`` (its CPU time [s], ``process_cpu_s``) grew by at least
+    ``BUSY_FRACTION`` of the time since the last progress, checked every ``BUSY_WINDOW_S``.
+    So a slow method finishes however long one decision takes on a loaded machine (the thesis
+    CNN: 27-98 s alone, over 450 s on 2 shared cores) while a stopped or hung explorer (no
+    CPU: SIGSTOP, a deadlock, waiting on a silent press server) still ends at ``idle_s``."""
 
     def __init__(self, record: Path, total_s: float | None, idle_s: float | None,
-                 clock=time.monotonic) -> None:
+                 clock=time.monotonic, cpu=None) -> None:
         self.record, self.total_s, self.idle_s, self.clock = record, total_s, idle_s, clock
-        self.t0 = self.last = clock()
+        self.cpu = cpu
+        self.t0 = self.last = self.window = clock()
         self.stamp = progress_stamp(record)
+        self.cpu_mark = self._cpu()
+
+    def _cpu(self) -> float | None:
+        try:
+            return None if self.cpu is None else self.cpu()
+        except OSError:
+            return None
 
     def expired(self) -> str | None:
         """Why the trial is out of time, or None."""
@@ -325,12 +337,34 @@ class Deadlines:
         stamp = progress_stamp(self.record)
         if stamp != self.stamp:
             self.stamp, self.last = stamp, now
+            self.window, self.cpu_mark = now, self._cpu()
+        elif now - self.window >= BUSY_WINDOW_S:
+            cpu = self._cpu()
+            if cpu is not None and self.cpu_mark is not None and \
+                    cpu - self.cpu_mark >= BUSY_FRACTION * (now - self.window):
+                self.last = now                      # the explorer is working (training)
+            self.window, self.cpu_mark = now, cpu
         if self.total_s is not None and now - self.t0 > self.total_s:
             return f"trial not finished within {self.total_s:g} s"
         if self.idle_s is not None and now - self.last > self.idle_s:
-            return (f"trial not finished: no new touch or decision for {self.idle_s:g} s "
-                    f"(idle deadline)")
+            return (f"trial not finished: no new touch or decision and the explorer not "
+                    f"working for {self.idle_s:g} s (idle deadline)")
         return None
+
+
+#: [s] window over which the explorer's CPU time is compared with the time passed
+BUSY_WINDOW_S = 30.0
+#: share of one core the explorer must use over a window to count as working (training uses
+#: a core or more even niced on a loaded machine, ~0.3; waiting in its 10 ms poll under 0.05)
+BUSY_FRACTION = 0.1
+
+
+def process_cpu_s(pid: int) -> float:
+    """CPU time [s] (user + system) of process ``pid`` from ``/proc/<pid>/stat``; OSError
+    when it is gone."""
+    import os
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
@@ -359,7 +393,10 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     def started(g: Graph) -> None:
         if on_start is not None:
             on_start(g)
-        deadlines.append(Deadlines(record, timeout_s, idle_s))   # from here on
+        ex_pid = g.pids.get(ex.name)                             # its CPU counts as work
+        deadlines.append(Deadlines(record, timeout_s, idle_s,   # from here on
+                                   cpu=None if ex_pid is None
+                                   else (lambda: process_cpu_s(ex_pid))))
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
         nonlocal failed_node

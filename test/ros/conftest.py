@@ -15,12 +15,16 @@ rclpy = pytest.importorskip("rclpy")
 def _domain_ids() -> "itertools.cycle[int]":
     """DDS domains of this test process: 1..159 shared out among pytest-xdist workers (each its
     own block, so parallel workers never share a graph; 160..199 are the session module's);
-    cycled, so a long run stays within Fast DDS's valid ids (<= 232)."""
+    cycled from a place set by the process id, so two test runs at once on one machine rarely
+    share a domain (a latched message of the other would arrive), and a long run stays within
+    Fast DDS's valid ids (<= 232)."""
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     index = int(worker[2:]) if worker[2:].isdigit() else 0
     count = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
     size = 159 // count
-    return itertools.cycle(range(1 + index * size, 1 + (index + 1) * size))
+    block = list(range(1 + index * size, 1 + (index + 1) * size))
+    start = os.getpid() % size       # two test runs on one machine (two checkouts) rarely meet
+    return itertools.cycle(block[start:] + block[:start])
 
 
 _domains = _domain_ids()

@@ -20,11 +20,11 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def _run(args: list[str], domain_id: int, cwd: Path,
-         timeout_s: float = 240) -> subprocess.CompletedProcess:
+         timeout_s: float = 240, sim: bool = True) -> subprocess.CompletedProcess:
     script = Path(sys.executable).parent / "tactex"      # the console script users run
     entry = [str(script)] if script.is_file() else [sys.executable, "-P", "-m",
                                                     "tactex_ros.cli.main"]
-    cmd = entry + ["graph", "run", "--sim",
+    cmd = entry + ["graph", "run"] + (["--sim"] if sim else []) + [
            "--domain-id", str(domain_id), "--timeout", "180"] + args
     return subprocess.run(cmd, env=ros_env(domain_id), capture_output=True, text=True,
                           timeout=timeout_s, cwd=cwd)
@@ -49,6 +49,19 @@ def test_node_refusal_reaches_the_console(tmp_path: Path, domain_id: int, case: 
     assert named in r.stderr and "mock_image" in r.stderr
     assert "--resume" not in r.stderr           # the same input would be refused again
     assert "Traceback" not in r.stderr
+
+
+def test_no_camera_is_a_run_time_failure(tmp_path: Path, domain_id: int) -> None:
+    """The hardware graph without its camera: exit status 1 (a device absent at run time,
+    docs/robustness.md "Exit status"), not 2; gelsight's reason with the device named on the
+    console; no touch recorded; a resume is offered (it works once the camera is there)."""
+    dev = tmp_path / "no_camera"
+    r = _run(["--device", str(dev), "--record-dir", str(tmp_path / "rec"), "--trial-id", "t",
+              "--log-dir", str(tmp_path / "logs")], domain_id, tmp_path, sim=False)
+    assert r.returncode == 1, r.stderr
+    assert "gelsight" in r.stderr and str(dev) in r.stderr
+    assert "Traceback" not in r.stderr and "--resume" in r.stderr
+    assert not (tmp_path / "rec" / "t" / "touches.jsonl").exists()
 
 
 def test_reused_trial_id_is_refused_not_reported_as_success(tmp_path: Path,

@@ -311,3 +311,28 @@ def test_idle_deadline_counts_from_the_last_progress(tmp_path):
     total = Deadlines(tmp_path, 50.0, 100.0, clock=lambda: now[0])
     now[0] += 51.0
     assert "50" in total.expired()
+
+
+def test_idle_deadline_waits_for_an_explorer_that_is_working(tmp_path):
+    """A decision longer than the idle deadline (the thesis CNN on a loaded machine) is not
+    idle while the explorer uses CPU; a stopped explorer (no CPU) is, after idle_s."""
+    from tactex_ros.ros.launcher import BUSY_WINDOW_S, Deadlines, process_cpu_s
+    now, cpu = [0.0], [0.0]
+    d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0], cpu=lambda: cpu[0])
+    for _ in range(20):                  # 600 s of training at a third of a core, no new line
+        now[0] += BUSY_WINDOW_S
+        cpu[0] += BUSY_WINDOW_S / 3
+        assert d.expired() is None
+    for _ in range(3):                   # then SIGSTOP: no CPU, no line
+        now[0] += BUSY_WINDOW_S
+        assert d.expired() is None       # 90 s
+    now[0] += BUSY_WINDOW_S
+    assert "100" in d.expired()          # 120 s without progress
+    idle = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0], cpu=lambda: cpu[0])
+    for _ in range(4):                   # a 10 ms poll loop: 2 % of a core is not work
+        now[0] += BUSY_WINDOW_S
+        cpu[0] += 0.02 * BUSY_WINDOW_S
+    assert "100" in idle.expired()
+    assert process_cpu_s(os.getpid()) > 0
+    with pytest.raises(OSError):
+        process_cpu_s(2 ** 22 + 7)       # no such process

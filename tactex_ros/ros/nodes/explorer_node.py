@@ -137,7 +137,7 @@ class ExplorerNode(SessionMode, TactexNode):
         from pathlib import Path
 
         from ...record import append_event, read_record
-        from ...resume import check_settings, load_replay
+        from ...resume import check_settings, load_replay, restore_engine
         d = Path(folder).resolve()
         self.record = TrialRecord(d.parent, d.name, resume=True)
         self.trial_id = d.name
@@ -147,11 +147,16 @@ class ExplorerNode(SessionMode, TactexNode):
             raise InputError(f"resume: the scene's platforms {self.ids} are not the record's "
                              f"{[p.id for p in was.ordered]}")
         self.replay, rec = load_replay(d, self._press, self.ids)
+        self.engine, after, how = restore_engine(self.spec, d, self.replay.recorded)
+        self.replay.recorded = [r for r in self.replay.recorded if r.seq > after]
         self._replay_decisions = rec["decisions"]
-        self._decisions = 0
+        self._decisions = len(self.engine.records)     # decisions restored, not re-made
+        self.get_logger().info(f"resume: {how}")
         append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
                          "touches_replayed": len(self.replay.recorded),
-                         "decisions_on_disk": len(rec["decisions"]), "time": time.time()})
+                         "decisions_on_disk": len(rec["decisions"]),
+                         "checkpoint_round": len(self.engine.records), "how": how,
+                         "time": time.time()})
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -425,6 +430,23 @@ class ExplorerNode(SessionMode, TactexNode):
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
 
+    def _checkpoint(self, eng) -> None:
+        """After a round that asked for a touch: the learner's state into the record, so a
+        resume continues from it instead of re-training (a learner without the hook, e.g. the
+        descriptor, writes none). A failure here never stops the trial: a resume re-trains."""
+        ck = eng.checkpoint()
+        if ck is None:
+            return
+        rp = self.replay
+        after = rp.recorded[rp.pos - 1].seq if rp is not None and rp.replaying and rp.pos \
+            else self.record.n_touches
+        try:
+            self.record.write_checkpoint(ck[0], ck[1], after)
+        except (OSError, TrialError) as exc:
+            if not getattr(self, "_ckpt_warned", False):
+                self._ckpt_warned = True
+                self.get_logger().warning(f"learner checkpoint not written: {exc}")
+
     def _write_report(self) -> None:
         """``report.html`` beside the result; a failure there never loses the trial."""
         try:
@@ -445,6 +467,7 @@ class ExplorerNode(SessionMode, TactexNode):
         def on_round(rec) -> None:
             pred = self.ids[int(np.argmax(rec.probs)) + 1] if eng.done else ""
             self._publish_state(rec, eng.done, pred)
+            self._checkpoint(eng)
 
         touch_fn = self._press if self.replay is None else self._touch
         res = run_trial(self.spec, touch_fn, on_round=on_round, on_rejected=self._on_rejected,

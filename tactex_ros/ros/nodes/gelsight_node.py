@@ -43,7 +43,7 @@ from sensor_msgs.msg import Image
 
 from .. import adapter
 from ...core.contact import crop_border
-from ...core.errors import InputError
+from ...core.errors import DeviceError, InputError
 from ..settings import GelsightSettings
 from ...robot import preflight as checks
 from ...robot.frames import FrameRing
@@ -95,8 +95,9 @@ def resolve_device(device: str, serial_lookup: str = "") -> Device:
     for link in sorted(glob.glob("/dev/v4l/by-id/*")):
         if device.lower().replace(" ", "_") in Path(link).name.lower():
             return Device(str(Path(link).resolve()), "camera")
-    raise InputError(f"gelsight device {device!r}: no such file and no camera reports that "
-                     f"name (/sys/class/video4linux/*/name, /dev/v4l/by-id){hint}")
+    raise DeviceError(f"gelsight device {device!r}: no such file and no camera reports that "
+                      f"name (/sys/class/video4linux/*/name, /dev/v4l/by-id){hint}; is the "
+                      "camera plugged in?")
 
 
 def _digit_by_serial(serial: str) -> tuple[Device | None, str]:
@@ -243,8 +244,8 @@ class GelsightNode(TactexNode):
         end = time.monotonic() + s.open_timeout_s
         while not self.cap.isOpened():
             if time.monotonic() > end:
-                raise InputError(f"gelsight device {cfg.device!r} ({path}): could not be "
-                                 f"opened within open_timeout_s ({s.open_timeout_s} s)")
+                raise DeviceError(f"gelsight device {cfg.device!r} ({path}): could not be "
+                                  f"opened within open_timeout_s ({s.open_timeout_s} s)")
             time.sleep(0.1)
             self.cap.open(path)
         if not self.is_file:
@@ -275,9 +276,9 @@ class GelsightNode(TactexNode):
         end = time.monotonic() + s.open_timeout_s + n / self.cfg.fps
         while len(frames) < n:
             if time.monotonic() > end:
-                raise InputError(str(checks.Problem(
+                raise checks.Problem(
                     "no_frame", f"only {len(frames)} of {n} frames read within "
-                                f"{s.open_timeout_s + n / self.cfg.fps:.1f} s")))
+                                f"{s.open_timeout_s + n / self.cfg.fps:.1f} s").error()
             frame = self._read_frame()
             if frame is not None:
                 frames.append(frame)

@@ -34,7 +34,7 @@ from rclpy.task import Future
 from rclpy.timer import Timer
 
 from ...core.config import FieldSpec, fields, flatten, merge, nearest, nest
-from ...core.errors import InputError
+from ...core.errors import DeviceError, InputError
 
 
 def descriptor(spec: FieldSpec) -> ParameterDescriptor:
@@ -175,9 +175,14 @@ class TactexNode(LifecycleNode):
 
     def _transition(self, name: str, fn: Callable[[], None]) -> TransitionCallbackReturn:
         """Run a hook; an exception is logged (rclpy would swallow it) and fails the
-        transition: bad input (InputError, OSError) -> FAILURE and exit status 2."""
+        transition: bad input (InputError, OSError) -> FAILURE and exit status 2; a device
+        absent at run time (DeviceError) -> FAILURE and exit status 1."""
         try:
             fn()
+        except DeviceError as exc:
+            self.get_logger().error(f"{name} failed: {exc}")
+            self.exit_code = 1
+            return TransitionCallbackReturn.FAILURE
         except (InputError, OSError) as exc:
             self.get_logger().error(f"{name} refused: {exc}")
             self.exit_code = 2

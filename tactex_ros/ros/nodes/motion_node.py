@@ -162,7 +162,7 @@ class MotionNode(TactexNode):
                 problem = checks.state_problem(stamps, s.min_state_rate_hz,
                                                s.preflight_window_s, topic)
                 if problem:
-                    raise InputError(str(problem))
+                    raise problem.error()       # silent robot: DeviceError (exit status 1)
                 self.get_logger().info(f"pre-flight: {topic} at "
                                        f"{checks.rate_hz(stamps):.0f} Hz")
                 if prof.franka_state:

@@ -4,6 +4,7 @@ spins the node until it is finished or stopped, and returns the exit status (0 d
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -58,11 +59,25 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     stop = StopRequest()
     signal.signal(signal.SIGINT, stop)   # before rclpy.init: rclpy's handler chains to it
     try:
-        return _spin(node_factory, args, stop)
+        code = _spin(node_factory, args, stop)
     finally:
         # From here on SIGINT is ignored, also during interpreter shutdown (which would put
         # back the default handler for a Python one: a late Ctrl-C would end it with -2).
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return _leave_busy_threads(code)
+
+
+def _leave_busy_threads(code: int) -> int:
+    """``code``, or leave the process at once with it while a worker thread is still running
+    (the explorer's trial thread stopped in the middle of a CNN training round). The node is
+    shut down and its record closed by now; the interpreter's normal exit would tear torch's
+    thread pool down under that thread (C++ ``terminate``: SIGABRT, exit status -6)."""
+    if any(t.is_alive() and t.daemon for t in threading.enumerate()
+           if t is not threading.current_thread()):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _spin(node_factory: Callable[[], TactexNode], args: list[str] | None,

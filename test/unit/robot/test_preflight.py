@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.contact import strongest_contact
+from tactex_ros.core.errors import DeviceError, InputError
 from tactex_ros.robot import preflight as pf
 from tactex_ros.robot.scene import PressSettings
 
@@ -53,6 +54,11 @@ def test_rates() -> None:
     assert pf.state_problem(t, 50.0, 1.0, "/s") is None
     assert pf.state_problem(t, 200.0, 1.0, "/s").check == "state_rate"
     assert pf.state_problem([], 50.0, 1.0, "/s").check == "state"
+    # nothing at all is a device absent (exit status 1), a slow one a refused start (2)
+    assert isinstance(pf.state_problem([], 50.0, 1.0, "/s").error(), DeviceError)
+    slow = pf.state_problem(t, 200.0, 1.0, "/s").error()
+    assert isinstance(slow, InputError) and not isinstance(slow, DeviceError)
+    assert isinstance(pf.frame_problem([], LIMITS).error(), DeviceError)
     assert pf.fps_problem(list(np.arange(25) / 25.0), 25.0, 0.8) is None
     assert pf.fps_problem(list(np.arange(25) / 15.0), 25.0, 0.8).check == "fps"
 

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactex_ros.core.errors import InputError
+from tactex_ros.core.errors import DeviceError, InputError
 from tactex_ros.ros.settings import GelsightSettings
 from tactex_ros.ros.nodes.gelsight_node import (FrameFolder, camera_setup, landscape,
                                             resolve_device)
@@ -131,17 +131,17 @@ def test_serial_lookup_through_digit_interface(monkeypatch) -> None:
     dev = resolve_device("D20001", "digit_interface")
     assert (dev.path, dev.kind, dev.revision, dev.recording) == ("/dev/video7", "camera", 200,
                                                                  False)
-    with pytest.raises(InputError, match="lists no DIGIT with that serial"):
+    with pytest.raises(DeviceError, match="lists no DIGIT with that serial"):
         resolve_device("D99999", "digit_interface")
     # not asked for other sensors
-    with pytest.raises(InputError) as exc:
+    with pytest.raises(DeviceError) as exc:
         resolve_device("D20001", "")
     assert "digit-interface" not in str(exc.value)
 
 
 def test_serial_lookup_without_digit_interface(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "digit_interface", None)     # import fails
-    with pytest.raises(InputError, match="digit-interface is not installed"):
+    with pytest.raises(DeviceError, match="digit-interface is not installed"):
         resolve_device("D20001", "digit_interface")
 
 
