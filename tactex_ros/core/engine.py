@@ -38,7 +38,7 @@ then falls to the least-touched platform, ``strategies.break_ties``).
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -251,7 +251,9 @@ class TrialEngine:
         self.failed: list[dict] = []
         self.next_platform: int | None = None
         g = self.learner_cfg
-        self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
+        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min,
+                                   getattr(g, "contact_region_min", 0.0))   # descriptor only
+                      if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
 
@@ -288,7 +290,7 @@ class TrialEngine:
         touch = as_touch(touch)
         frame = validate_frame(touch.frame, f"touch of platform {platform}")
         if self.guard is not None:
-            ok, reason = self.guard.check(frame)
+            ok, reason, touch = self.guard.inspect(replace(touch, frame=frame))
             if not ok:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
