@@ -298,6 +298,15 @@ def auto_compute(path: Path, values: list[float], rows: dict[str, list[dict]], t
     return _save(fig, path)
 
 
+def _bands(ax, series: dict[str, dict]) -> None:
+    """One line per series with its 95 % band, the number of scenes in the legend."""
+    for lab, v in series.items():
+        line, = ax.plot(v["x"], v["accuracy"], marker="o", ms=3, label=f"{lab} (n = {v['n']})")
+        ax.fill_between(v["x"], v["lo"], v["hi"], color=line.get_color(), alpha=0.12)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
 def band_series(correct: np.ndarray, x: Sequence[float]) -> dict:
     """Accuracy with its 95 % Wilson band at each point of ``x``: ``correct`` (n scenes, K)
     bool, scene i right at point k. {"x", "accuracy", "lo", "hi" (lists of K), "n"}."""
@@ -325,16 +334,27 @@ def accuracy_bands(path: Path, series: dict[str, dict], xlabel: str, title: str)
     "hi", "n"})."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for lab, v in series.items():
-        line, = ax.plot(v["x"], v["accuracy"], marker="o", ms=3, label=f"{lab} (n = {v['n']})")
-        ax.fill_between(v["x"], v["lo"], v["hi"], color=line.get_color(), alpha=0.12)
+    _bands(ax, series)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("accuracy (95 % Wilson band)")
     ax.set_title(title, fontsize=9)
     low = min([min(v["lo"]) for v in series.values() if v["lo"]] or [0.0])
     ax.set_ylim(max(0.0, np.floor((low - 0.05) * 10) / 10), 1.02)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def accuracy_panels(path: Path, panels: dict[str, dict[str, dict]], title: str) -> Path:
+    """One ``accuracy_bands`` panel per entry of ``panels`` ({x label: series}), side by
+    side: e.g. accuracy against the severity of each perturbation, one line per method."""
+    plt = _plt()
+    n = max(1, len(panels))
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
+    for ax, (xlabel, series) in zip(axes[0], panels.items()):
+        _bands(ax, series)
+        ax.set_ylim(0.0, 1.02)
+        ax.set_xlabel(xlabel, fontsize=8)
+    axes[0][0].set_ylabel("accuracy (95 % Wilson band)")
+    fig.suptitle(title, fontsize=9)
     return _save(fig, path)
 
 

@@ -12,7 +12,8 @@ import importlib
 from tactex_ros.cli.options import builds
 
 MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency",
-                      "real_sessions", "unseen", "real", "accuracy_charts", "ladder"]
+                      "real_sessions", "unseen", "real", "accuracy_charts", "stability_real",
+                      "ladder"]
 
 
 def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:

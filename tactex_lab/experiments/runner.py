@@ -41,6 +41,7 @@ from tactex_ros.core.engine import (RoundRecord, TrialConfig, TrialEngine, Trial
                                     default_platform_ids, run_trial)
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
+from tactex_ros.sources.perturb import noise_image
 from tactex_ros.sources.base import TouchSource
 from tactex_lab.experiments.common import progress
 
@@ -195,6 +196,8 @@ def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
     Keys (all optional): ``noise`` extra Gaussian sensor noise std [grey levels];
     ``drift`` lighting drift, a random per-channel offset with this std [grey levels];
     ``blank`` probability that the touch is a flat no-contact frame (mean colour of the image).
+    (The perturbations of whole touches on a severity axis are ``perturb["touch"]``, see
+    ``_touch_fn`` and ``tactex_ros.sources.perturb``.)
     """
     out = img.astype(np.float32)
     if perturb.get("blank", 0.0) and rng.random() < perturb["blank"]:
@@ -203,19 +206,31 @@ def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
     if perturb.get("drift", 0.0):
         out += rng.normal(0.0, perturb["drift"], 3).astype(np.float32)
     if perturb.get("noise", 0.0):
-        out += rng.normal(0.0, perturb["noise"], out.shape).astype(np.float32)
+        out = noise_image(out, perturb["noise"], rng)
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
 def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
+    """The job's touch function: its source's, perturbed as ``job.perturb`` says. Keys:
+    ``depth_spread`` (the source's), ``touch`` = [kind, severity] (every touch of the trial
+    through ``sources.perturb.Perturbation``, seeded by the job's seed), and the frame
+    perturbations of ``apply_perturbation``."""
     base = cached_source(job.source).trial(classes, job.seed, job.perturb.get("depth_spread"))
-    keys = {k for k, v in job.perturb.items() if k != "depth_spread" and v}
+    whole: Callable[[int], Touch] = base
+    if job.perturb.get("touch"):
+        from tactex_ros.sources.perturb import Perturbation
+        kind, severity = job.perturb["touch"]
+        per = Perturbation(kind, severity, job.seed)
+
+        def whole(p: int) -> Touch:
+            return per(as_touch(base(p)))
+    keys = {k for k, v in job.perturb.items() if k not in ("depth_spread", "touch") and v}
     if not keys:
-        return base
+        return whole
     rng = np.random.default_rng([job.seed, 31])
 
     def perturbed(p: int) -> Touch:
-        t = as_touch(base(p))
+        t = as_touch(whole(p))
         return replace(t, frame=apply_perturbation(t.frame, job.perturb, rng))
 
     return perturbed

@@ -391,6 +391,11 @@ class DescriptorSettings(LearnerBase):
                  "representation)")
     match_temperature: float = param(0.05, "model 'descriptor': temperature on the log evidence "
                                            "(calibrates the belief)", 1e-4, 10.0)
+    contact_region_min: float = param(0.0, "model 'descriptor': a touch whose contact region "
+                                           "(against its own no-contact frame) covers less than "
+                                           "this share of the frame is a partial contact and is "
+                                           "described over its region only (0 = off; "
+                                           "core/guards.py)", 0.0, 1.0)
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
     # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
 

@@ -41,7 +41,7 @@ then falls to the least-touched platform, ``strategies.break_ties``).
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -262,7 +262,9 @@ class TrialEngine:
         self.failed: list[dict] = []
         self.next_platform: int | None = None
         g = self.learner_cfg
-        self.guard = ContactGuard(g.contact_flat_min, g.contact_min) if g.guards else None
+        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min,
+                                   getattr(g, "contact_region_min", 0.0))   # descriptor only
+                      if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
 
@@ -299,7 +301,7 @@ class TrialEngine:
         touch = as_touch(touch)
         frame = validate_frame(touch.frame, f"touch of platform {platform}")
         if self.guard is not None:
-            ok, reason = self.guard.check(frame)
+            ok, reason, touch = self.guard.inspect(replace(touch, frame=frame))
             if not ok:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
         if platform == 0:
@@ -529,7 +531,24 @@ def _round_record(d: dict) -> RoundRecord:
     for name in ("probs", "scores"):
         if out.get(name) is not None:
             out[name] = [float("nan") if v is None else float(v) for v in out[name]]
+    if isinstance(out.get("detail"), dict):
+        out["detail"] = _training_detail(out["detail"])
     return RoundRecord(**out)
+
+
+def _training_detail(d: dict) -> TrainingDetail:
+    """A ``TrainingDetail`` from its JSON form (null floats back to NaN); refuses another kind."""
+    from dataclasses import fields
+    if d.get("kind", "training") != "training":
+        raise InputError(f"unknown round detail kind {d.get('kind')!r}")
+    known = {f.name for f in fields(TrainingDetail)}
+    if set(d) - known:
+        raise InputError(f"unknown round detail fields {sorted(set(d) - known)}")
+    out = dict(d)
+    for name in ("train_s", "train_loss", "grad_norm"):
+        if out.get(name) is None:
+            out[name] = float("nan")
+    return TrainingDetail(**out)
 
 
 @dataclass(frozen=True)

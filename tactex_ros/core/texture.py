@@ -76,13 +76,16 @@ def _radial_bands(img: np.ndarray, radius: np.ndarray, window: np.ndarray) -> np
     return out
 
 
-def _lbp_hist(grey_u8: np.ndarray, points: int, radius: int) -> np.ndarray:
+def _lbp_hist(grey_u8: np.ndarray, points: int, radius: int,
+              keep: np.ndarray | None = None) -> np.ndarray:
     codes = local_binary_pattern(grey_u8, points, radius, method="uniform").astype(np.int64)
-    h = np.bincount(codes.ravel(), minlength=points + 2).astype(np.float64)
+    codes = codes.ravel() if keep is None else codes[keep]
+    h = np.bincount(codes, minlength=points + 2).astype(np.float64)
     return np.sqrt(h / h.sum())
 
 
-def _structure(grey: np.ndarray, sigma: float) -> tuple[float, float]:
+def _structure(grey: np.ndarray, sigma: float,
+               keep: np.ndarray | None = None) -> tuple[float, float]:
     gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
     jxx = cv2.GaussianBlur(gx * gx, (0, 0), sigma)
@@ -90,6 +93,8 @@ def _structure(grey: np.ndarray, sigma: float) -> tuple[float, float]:
     jxy = cv2.GaussianBlur(gx * gy, (0, 0), sigma)
     tr = jxx + jyy
     aniso = np.sqrt((jxx - jyy) ** 2 + 4.0 * jxy ** 2)
+    if keep is not None:
+        tr, aniso = tr[keep], aniso[keep]
     return float(np.log(tr.mean() + 1e-6)), float(aniso.sum() / (tr.sum() + 1e-6))
 
 
@@ -113,22 +118,43 @@ def describe(frame: np.ndarray, no_contact: np.ndarray | None = None) -> np.ndar
     return describe_difference(contact_difference(frame, no_contact))
 
 
-def describe_difference(d: np.ndarray) -> np.ndarray:
+def describe_difference(d: np.ndarray, region: np.ndarray | None = None) -> np.ndarray:
     """(DIM,) descriptor of a contact difference (H, W, 3) float32 (``contact_difference``, or
-    a region of one at least 80 px on a side)."""
+    a region of one at least 80 px on a side).
+
+    ``region``: (H, W) bool, the pixels in contact (a partial contact, ``core/guards.py``);
+    every part is then taken over the region only, as if the contact filled the frame: the
+    intensity percentiles, the local binary patterns and the structure energy over its pixels,
+    the spectrum of the difference zeroed outside it, divided by the region's share of the
+    (squared) window. None: the whole frame (the default descriptor)."""
+    if region is not None and region.shape != d.shape[:2]:
+        raise InputError(f"texture descriptor: region {region.shape} is not the difference's "
+                         f"{d.shape[:2]}")
+    if region is not None and not region.any():
+        raise InputError("texture descriptor: empty contact region")
+    inside = np.ones(d.shape[:2], bool) if region is None else region
     mag = np.sqrt((d ** 2).sum(axis=-1))
     grey = d.mean(axis=-1)
-    q = np.percentile(mag, [50, 75, 90, 99])
-    feats = [np.log(q + 1e-3), np.log([mag.mean() + 1e-3, mag.std() + 1e-3])]
+    q = np.percentile(mag[inside], [50, 75, 90, 99])
+    feats = [np.log(q + 1e-3), np.log([mag[inside].mean() + 1e-3, mag[inside].std() + 1e-3])]
     radius, window = _geometry(*grey.shape)
-    feats += [_radial_bands(d[..., ch], radius, window) for ch in range(3)]
+    if region is None:
+        feats += [_radial_bands(d[..., ch], radius, window) for ch in range(3)]
+    else:
+        share = float((window ** 2 * region).sum() / (window ** 2).sum())
+        dz = np.where(region[..., None], d - d[region].mean(axis=0), 0.0)
+        feats += [_radial_bands(dz[..., ch], radius, window) - np.log(share) for ch in range(3)]
     smooth = cv2.GaussianBlur(grey, (0, 0), 1.0)
     u8 = np.clip(smooth * 4.0 + 128.0, 0, 255).astype(np.uint8)
     for points, rad, down in LBP_SCALES:
-        img = u8 if down == 1 else cv2.resize(u8, None, fx=1.0 / down, fy=1.0 / down,
-                                              interpolation=cv2.INTER_AREA)
-        feats.append(_lbp_hist(img, points, rad))
-    feats.append(np.array([v for s in STRUCTURE_SCALES for v in _structure(grey, s)]))
+        img, keep = u8, inside
+        if down != 1:
+            img = cv2.resize(u8, None, fx=1.0 / down, fy=1.0 / down, interpolation=cv2.INTER_AREA)
+            keep = cv2.resize(inside.astype(np.uint8), (img.shape[1], img.shape[0]),
+                              interpolation=cv2.INTER_NEAREST).astype(bool)
+        feats.append(_lbp_hist(img, points, rad, None if region is None else keep))
+    feats.append(np.array([v for s in STRUCTURE_SCALES
+                           for v in _structure(grey, s, None if region is None else inside)]))
     out = np.concatenate([np.asarray(f, dtype=np.float64).ravel() for f in feats])
     if out.shape != (DIM,) or not np.all(np.isfinite(out)):
         raise InputError("texture descriptor: non-finite or mis-sized result")

@@ -4,6 +4,7 @@ schema paths) and a round's learner-typed detail: exact values, refusals naming 
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import pytest
@@ -23,7 +24,7 @@ def test_each_learner_has_its_own_fields_and_shipped_defaults() -> None:
         "model": "descriptor", "guards": True, "contact_flat_min": 0.35, "contact_min": 0.8,
         "descriptor_frames": 1, "match_prior_scale": 1.0, "match_prior_strength": 4.0,
         "descriptor_no_contact": True, "representation": "", "representation_temperature": True,
-        "match_units": "scene", "match_temperature": 0.05}
+        "match_units": "scene", "match_temperature": 0.05, "contact_region_min": 0.0}
     assert learner_settings({}) == d == TrialSettings().learner == preset("default")
     c = CnnSettings()
     assert (c.model, c.input_size, c.epochs, c.lr, c.mc_passes, c.guards) == \
@@ -106,10 +107,10 @@ def test_fields_of_the_union() -> None:
         "learner.descriptor_frames", "learner.match_prior_scale", "learner.match_prior_strength",
         "learner.descriptor_no_contact", "learner.representation",
         "learner.representation_temperature", "learner.match_units",
-        "learner.match_temperature"]
+        "learner.match_temperature", "learner.contact_region_min"]
     cnn = {s.name for s in fields(TrialSettings, values={"learner": {"model": "inception_v3"}})}
     assert "learner.lr" in cnn and "learner.auto_patience" not in cnn
-    assert "learner.match_temperature" not in cnn
+    assert "learner.match_temperature" not in cnn and "learner.contact_region_min" not in cnn
 
 
 def test_overrides_are_dotted_schema_paths_typed_by_the_schema() -> None:
@@ -234,3 +235,25 @@ def test_tactex_trial_set(tmp_path, capsys) -> None:
                  "--set", "trial.stop_confidence=0", "--quiet", "--json", str(out)]) == 0
     d = json.loads(out.read_text())
     assert (len(d["rounds"]), d["stop_reason"], d["final"]["detail"]) == (1, "rounds", None)
+
+
+def test_round_record_with_a_training_detail_survives_its_checkpoint_form() -> None:
+    """A CNN round written into checkpoint.json (``asdict``, strict JSON) reads back equal;
+    a detail of an unknown kind is refused."""
+    from dataclasses import asdict
+
+    from tactex_ros.core.engine import RoundRecord, TrainingDetail, _round_record
+    from tactex_ros.core.outputs import dumps
+
+    rec = RoundRecord(round=2, platform=3, probs=[0.1, 0.2, 0.6, 0.1], scores=None,
+                      predictive_entropy=1.1, score_s=0.01, choose_s=0.002,
+                      touches=[1, 1, 2, 1], model="small_inception",
+                      detail=TrainingDetail(input_size=32, train_s=0.5, train_loss=0.7,
+                                            grad_norm=2.5, escalation="held-back touches"))
+    back = _round_record(json.loads(dumps(asdict(rec))))
+    assert back.detail == rec.detail and back.train_s == 0.5 and back.probs == rec.probs
+    assert math.isnan(back.cpu_s)
+    bad = asdict(rec)
+    bad["detail"]["kind"] = "other"
+    with pytest.raises(InputError, match="detail kind"):
+        _round_record(bad)
