@@ -39,7 +39,7 @@ def test_learner_parameters_follow_the_learner(domain_id) -> None:
     assert d["model_read_only"]
     assert sorted(d["values"]) == sorted([
         "learner.model", "learner.guards", "learner.contact_flat_min", "learner.contact_min",
-        "learner.descriptor_frames", "learner.match_prior_scale",
+        "learner.contact_region_min", "learner.descriptor_frames", "learner.match_prior_scale",
         "learner.match_prior_strength", "learner.descriptor_no_contact",
         "learner.representation", "learner.representation_temperature",
         "learner.match_units", "learner.match_temperature"])
@@ -47,6 +47,11 @@ def test_learner_parameters_follow_the_learner(domain_id) -> None:
     assert (s["learner.model"], s["learner.input_size"], s["learner.epochs"],
             s["learner.bn_recalibrate"]) == ("small_inception", 299, 10, 0)
     assert "learner.match_temperature" not in s and "learner.auto_ladder" not in s
-    a = _declared(domain_id, {"config": "cnn", "learner.model": "auto"})["values"]
+    a = _declared(domain_id, {"config": "cnn", "learner.model": "cnn_auto"})["values"]
     assert (a["learner.model"], a["learner.input_size"], a["learner.steps"],
-            a["learner.auto_ladder"]) == ("auto", 48, 8, "small_inception@48,small_inception@96")
+            a["learner.auto_ladder"]) == ("cnn_auto", 48, 8,
+                                          "small_inception@48,small_inception@96")
+    lad = _declared(domain_id, {"learner.model": "auto"})["values"]
+    assert (lad["learner.model"], lad["learner.ladder"], lad["learner.match_temperature"]) == \
+        ("auto", "descriptor,representation,cnn", 0.05)
+    assert "learner.lr" not in lad and "learner.auto_ladder" not in lad
