@@ -7,8 +7,8 @@ gives the ROS nodes their parameter descriptors (``nodes/lifecycle.declare_setti
 command line its options and the launch file its arguments (``fields``).
 
 The learner settings (``LearnerSettings``: a discriminated union on ``model`` of
-``DescriptorSettings``, ``LadderSettings``, ``CnnSettings`` and ``AutoSettings``), ``TrialConfig`` (what a trial
-does), the named presets and the one override syntax (``overrides``: dotted schema paths such as
+``DescriptorSettings``, ``CnnSettings``, ``AutoSettings`` and ``LadderSettings``),
+``TrialConfig`` (what a trial does), the named presets and the one override syntax (``overrides``: dotted schema paths such as
 ``learner.lr=1e-3``) live here; ``TrialSettings`` composes a preset with overrides of both, and is
 what the command line and the explorer node (``ExplorerSettings``) are made of.
 """
@@ -465,8 +465,8 @@ class AutoSettings(CnnSettings):
     kind: ClassVar[str] = "cnn_auto"
     model: Literal["cnn_auto"] = param("cnn_auto", MODEL_HELP)
     auto_ladder: str = param("small_inception@48,small_inception@96",
-                             "model 'cnn_auto': stages cheapest first, 'model@input_px' separated by "
-                             "commas ('model' alone = input_size)")
+                             "model 'cnn_auto': stages cheapest first, 'model@input_px' "
+                             "separated by commas ('model' alone = input_size)")
     auto_patience: int = param(2, "model 'cnn_auto': rounds on a stage before the entropy test",
                                1, 1000)
     auto_min_drop: float = param(0.7, "model 'cnn_auto': escalate when predictive entropy fell by "
