@@ -8,9 +8,10 @@ command line its options and the launch file its arguments (``fields``).
 
 The learner settings (``LearnerSettings``: a discriminated union on ``model`` of
 ``DescriptorSettings``, ``CnnSettings``, ``AutoSettings`` and ``LadderSettings``),
-``TrialConfig`` (what a trial does), the named presets and the one override syntax (``overrides``: dotted schema paths such as
-``learner.lr=1e-3``) live here; ``TrialSettings`` composes a preset with overrides of both, and is
-what the command line and the explorer node (``ExplorerSettings``) are made of.
+``TrialConfig`` (what a trial does), the named presets and the one override syntax
+(``overrides``: dotted schema paths such as ``learner.lr=1e-3``) live here; ``TrialSettings``
+composes a preset with overrides of both, and is what the command line and the explorer node
+(``ExplorerSettings``) are made of.
 """
 
 from __future__ import annotations
