@@ -132,7 +132,9 @@ def node_parameters() -> list[str]:
             out += ["`learner.model` picks the learner and with it the `learner.*` parameters "
                     "the node declares: those marked *(learner: ...)* exist only for that "
                     "learner family (`descriptor`: model descriptor; `cnn`: the CNN models; "
-                    "`auto`: model auto, which also has the `cnn` ones); one given to another "
+                    "`cnn_auto`: the CNN chooser, which also has the `cnn` ones; `auto`: the "
+                    "ladder descriptor -> representation -> CNN, which also has the "
+                    "`descriptor` ones); one given to another "
                     "learner is refused by name (exit status 2).", ""]
         out += table(("parameter", "type", "default", "range / choices", "description"),
                      rows) + [""]
