@@ -88,10 +88,12 @@ def preflight(nodes: list, logs: Path) -> Path:
     return check_new_record(p.get("record_dir") or "runs/trials", p["trial_id"])
 
 
-def resume_hint(run, sim: bool) -> str | None:
+def resume_hint(run, args: argparse.Namespace) -> str | None:
     """``tactex graph run --resume <record>`` when a resume of this run can work: the record
     exists and can be continued, and no node refused its input (exit status 2: the same
-    input would be refused again)."""
+    input would be refused again). The device options of this run (``--source``,
+    ``--sensor``, ``--device``: not in the record) are repeated, to be corrected when the
+    device was the failure."""
     from ..record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None
@@ -99,7 +101,11 @@ def resume_hint(run, sim: bool) -> str | None:
         check_resumable(run.record)
     except InputError:
         return None
-    return f"tactex graph run{' --sim' if sim else ''} --resume {run.record}"
+    import shlex
+    devices = "".join(f" --{o} {shlex.quote(str(getattr(args, o)))}" for o in DEVICE_OPTIONS
+                      if getattr(args, o, None) is not None)
+    return (f"tactex graph run{' --sim' if args.sim else ''}{devices} "
+            f"--resume {shlex.quote(str(run.record))}")
 
 
 def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
@@ -157,7 +163,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if run.reason:
             print(f"tactex: {run.failed_node}: {run.reason} (from "
                   f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
-        hint = resume_hint(run, args.sim)
+        hint = resume_hint(run, args)
         if hint is not None:
             from ..record import read_record
             n = len(read_record(run.record, images=False)["touches"])

@@ -89,3 +89,20 @@ def test_graph_run_refuses_before_any_node(tmp_path: Path, capsys, case) -> None
     assert named in err and "Traceback" not in err
     assert not logs.exists()                                   # no node was started
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def test_resume_hint_repeats_this_runs_device_options(tmp_path: Path) -> None:
+    """After a run-time failure the hint continues the record with the device options given
+    (not kept in the record); after a node's refusal (exit 2) or a finished record, no hint."""
+    from argparse import Namespace
+    from types import SimpleNamespace
+
+    from tactex_ros.cli.graph_commands import resume_hint
+    d = _record(tmp_path)
+    args = Namespace(sim=False, source=None, sensor="gelsight_mini", device="/dev/video 2")
+    run = SimpleNamespace(record=d, node_exit={"gelsight": 1, "explorer": 0})
+    assert resume_hint(run, args) == (f"tactex graph run --sensor gelsight_mini "
+                                      f"--device '/dev/video 2' --resume {d}")
+    assert resume_hint(SimpleNamespace(record=d, node_exit={"gelsight": 2}), args) is None
+    (d / "result.json").write_text(json.dumps({"prediction": "c1", "touches": 2}))
+    assert resume_hint(run, args) is None
