@@ -17,8 +17,8 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
-    from tactex_ros import session as sess
-    from tactex_ros.record import read_result
+    from tactex_ros.trial import session as sess
+    from tactex_ros.trial.record import read_result
     from tactex_ros.ros.graph import describe
     from tactex_ros.ros.launcher import run_trial
 

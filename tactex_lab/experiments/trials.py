@@ -1,6 +1,6 @@
 """Trial files in the offline experiments: entries -> a source's class names.
 
-The format and its loader live in the product (``tactex_ros/trialfile.py``: ``load_trials``,
+The format and its loader live in the product (``tactex_ros/trial/trialfile.py``: ``load_trials``,
 ``find_trial_file``, re-exported here); ``class_name`` / ``platform_classes`` resolve an entry
 (a catalogue fabric number or a class name) against a touch source.
 """
@@ -12,7 +12,7 @@ from typing import Any
 
 from tactex_ros.core.errors import InputError
 from tactex_ros.sources.base import TouchSource
-from tactex_ros.trialfile import find_trial_file, load_trials  # noqa: F401  (the format lives in the product)
+from tactex_ros.trial.trialfile import find_trial_file, load_trials  # noqa: F401  (the format lives in the product)
 
 
 def class_name(source: TouchSource, item: Any) -> str:

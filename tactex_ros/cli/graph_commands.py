@@ -76,7 +76,7 @@ def preflight(nodes: list, logs: Path) -> Path:
     one that can be continued (``record.check_new_record`` / ``check_resumable``). Returns
     the record folder; InputError (exit status 2) naming the path otherwise."""
     from ..core.outputs import check_dir
-    from ..record import check_new_record, check_resumable
+    from ..trial.record import check_new_record, check_resumable
     check_dir(logs, "--log-dir")
     ex = next(n for n in nodes if n.executable == "explorer_node")
     p = ex.parameters
@@ -94,7 +94,7 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     input would be refused again). The device options of this run (``--source``,
     ``--sensor``, ``--device``: not in the record) are repeated, to be corrected when the
     device was the failure."""
-    from ..record import check_resumable
+    from ..trial.record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None
     try:
@@ -144,7 +144,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         return cmd_session(args, nodes, logs)
     preflight(nodes, logs)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
-    from ..progress import Progress
+    from ..trial.progress import Progress
     progress = Progress()
 
     def follow(graph) -> None:
@@ -165,7 +165,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                   f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
         hint = resume_hint(run, args)
         if hint is not None:
-            from ..record import read_record
+            from ..trial.record import read_record
             n = len(read_record(run.record, images=False)["touches"])
             print(f"tactex: {n} touches on disk in {run.record}; continue with: {hint}",
                   file=sys.stderr)
@@ -216,12 +216,12 @@ def summarise_bag(messages: list) -> dict:
 
 
 def cmd_summary(args: argparse.Namespace) -> int:
-    from ..record import read_record
+    from ..trial.record import read_record
     if Path(args.record).is_file():
         from ..ros.bag import read_bag
         s = summarise_bag(read_bag(args.record))
     else:
-        from ..record import RECORD_FILES
+        from ..trial.record import RECORD_FILES
         if not any((Path(args.record) / f).is_file() for f in RECORD_FILES):
             raise InputError(f"{args.record!r} is not a trial record (none of "
                               f"{', '.join(RECORD_FILES)}) nor an MCAP file")

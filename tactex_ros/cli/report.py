@@ -8,7 +8,7 @@ from .options import builds
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from ..report import regenerate
+    from ..trial.report import regenerate
     for p in regenerate(args.folder):
         print(p)
     return 0

@@ -6,7 +6,7 @@ with a flush and ``fsync`` after every message: a crash loses at most the messag
 ``close()`` writes the summary and footer. ``read_bag`` reads a closed file, or a crashed one up
 to its last whole record; ``recover_bag`` writes a closed copy of a crashed file.
 
-The record folder (PNG + JSONL, ``record.py``) stays the ground truth; the bag is for ROS tools.
+The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the bag is for ROS tools.
 """
 
 from __future__ import annotations

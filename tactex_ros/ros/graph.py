@@ -175,7 +175,7 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
 def check_session(explorer: dict[str, Any], scene, sim: bool, source: str) -> None:
     """A study session's trial file checked against the scene before anything starts (the
     row named); in simulation the explorer drives the mock camera's placement."""
-    from ..session import load_session
+    from ..trial.session import load_session
     load_session(explorer["session_file"], [p.id for p in scene.ordered],
                  seed=int(explorer.get("seed", 0)))
     if sim:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.record import read_checkpoint, read_record
+from tactex_ros.trial.record import read_checkpoint, read_record
 from tactex_ros.ros.launcher import ros_env
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -25,7 +25,7 @@ from tactex_ros.ros.bag import TOUCH_TOPIC, read_bag
 from tactex_ros.cli.graph_commands import summarise_bag
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
-from tactex_ros.record import read_record, read_result
+from tactex_ros.trial.record import read_record, read_result
 from tactex_ros.ros.launcher import ros_env, run_trial
 from tactex_ros.robot.scene import load_scene
 

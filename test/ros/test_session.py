@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros import session as sess
-from tactex_ros.record import read_record
+from tactex_ros.trial import session as sess
+from tactex_ros.trial.record import read_record
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.session_runner import run_session
 

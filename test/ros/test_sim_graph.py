@@ -13,7 +13,7 @@ from visualization_msgs.msg import MarkerArray
 
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC
-from tactex_ros.record import read_record
+from tactex_ros.trial.record import read_record
 from tactex_ros.ros.launcher import run_trial
 from tactex_ros.robot.scene import load_scene
 

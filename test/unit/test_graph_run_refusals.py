@@ -13,7 +13,7 @@ import pytest
 from tactex_ros.cli.main import main
 from tactex_ros.core.config import preset, trial_preset
 from tactex_ros.paths import config_dir
-from tactex_ros.record import TrialRecord
+from tactex_ros.trial.record import TrialRecord
 
 
 def _record(root: Path, name: str = "t", touches: int = 2) -> Path:

@@ -71,14 +71,8 @@ ALLOWED = {
     "sim": {"core", "robot", "sim", "paths"},       # paths: read_yaml only (test below)
     "sources": {"core", "robot", "sim", "sources", "paths"},
     "paths": {"core", "paths"},
-    "record": {"core", "record"},
-    "resume": {"core", "record", "resume"},
-    "trialfile": {"core", "paths", "trialfile"},
-    "session": {"core", "paths", "record", "trialfile", "session"},
-    "report": {"core", "record", "session", "report"},
-    "progress": {"progress"},
-    "ros": {"core", "robot", "sim", "sources", "paths", "record", "resume", "ros",
-            "trialfile", "session", "report", "progress"},
+    "trial": {"core", "paths", "trial"},
+    "ros": {"core", "robot", "sim", "sources", "paths", "trial", "ros"},
 }
 PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
 
@@ -88,8 +82,7 @@ LAB_ALLOWED = {
     "cnn": ({"cnn"}, {"core"}),
     "analysis": ({"analysis"}, {"core", "robot", "sim", "sources", "paths"}),
     "experiments": ({"cnn", "analysis", "experiments"},
-                    {"core", "robot", "sim", "sources", "paths", "record", "resume",
-                     "trialfile"}),
+                    {"core", "robot", "sim", "sources", "paths", "trial"}),
     "cli": ({"cnn", "analysis", "experiments", "cli"}, PRODUCT_BELOW_CLI | {"cli"}),
 }
 

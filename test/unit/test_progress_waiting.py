@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tactex_ros.progress import Progress
+from tactex_ros.trial.progress import Progress
 
 
 def _append(path: Path, obj: dict) -> None:

@@ -13,8 +13,8 @@ from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TouchFailed, TrialEngine, trial_preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
-from tactex_ros.record import TrialRecord, read_record
-from tactex_ros.resume import Replay, load_replay
+from tactex_ros.trial.record import TrialRecord, read_record
+from tactex_ros.trial.resume import Replay, load_replay
 from tactex_ros.sources import open_source
 
 IDS = ["reference", "c1", "c2", "c3", "c4"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros import session as sess
+from tactex_ros.trial import session as sess
 from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_dir
 

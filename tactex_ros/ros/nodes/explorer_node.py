@@ -35,7 +35,7 @@ from ...core.errors import InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
-from ...record import TrialRecord
+from ...trial.record import TrialRecord
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
@@ -136,8 +136,8 @@ class ExplorerNode(SessionMode, TactexNode):
         """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
         from pathlib import Path
 
-        from ...record import append_event, read_record
-        from ...resume import check_settings, load_replay, restore_engine
+        from ...trial.record import append_event, read_record
+        from ...trial.resume import check_settings, load_replay, restore_engine
         d = Path(folder).resolve()
         self.record = TrialRecord(d.parent, d.name, resume=True)
         self.trial_id = d.name
@@ -204,7 +204,7 @@ class ExplorerNode(SessionMode, TactexNode):
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
         if self.session is not None:
-            from ... import session as sess
+            from ...trial import session as sess
             done = sum(sess.trial_state(self.session_dir, t) == "done"
                        for t in self.session.trials)
             values.update(session=self.session.name, **{"trials done": done,
@@ -257,7 +257,7 @@ class ExplorerNode(SessionMode, TactexNode):
         diff = float(np.max(np.abs(np.subtract(was, list(msg.belief))))) \
             if len(was) == len(msg.belief) else float("inf")
         if diff > 1e-4:
-            from ...record import append_event
+            from ...trial.record import append_event
             append_event(self.record.dir, {"event": "replay_differs", "decision": i + 1,
                                            "max_belief_diff": diff})
             self.get_logger().warning(f"resume: decision {i + 1} differs from the record "
@@ -450,7 +450,7 @@ class ExplorerNode(SessionMode, TactexNode):
     def _write_report(self) -> None:
         """``report.html`` beside the result; a failure there never loses the trial."""
         try:
-            from ...report import write_trial_report
+            from ...trial.report import write_trial_report
             write_trial_report(self.record.dir)
         except Exception as exc:  # noqa: BLE001 - the record is the ground truth
             self.get_logger().warning(f"report.html not written: {exc}")
@@ -477,7 +477,7 @@ class ExplorerNode(SessionMode, TactexNode):
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name,
                    seed=self.spec.seed)
         if self.replay is not None:
-            from ...record import read_record
+            from ...trial.record import read_record
             out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
                               if e.get("event") == "resumed"]
         if self._t_trial is not None:

@@ -102,7 +102,7 @@ class MockImageNode(TactexNode):
 
     def _placed(self, text: str) -> list[str]:
         """Fabric per platform (scene order) for a ``placement`` text (InputError: why not)."""
-        from ...session import parse_placement
+        from ...trial.session import parse_placement
         ids = [p.id for p in self.scene.ordered]
         given = parse_placement(text, ids)
         out = [given.get(pid, p.sim_fabric) for pid, p in zip(ids, self.scene.ordered)]

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.errors import TrialError
-from ... import session as sess
+from ...trial import session as sess
 
 
 def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
@@ -197,7 +197,7 @@ class SessionMode:
         finally:
             if not self._stopping:
                 try:
-                    from ...report import write_session_report
+                    from ...trial.report import write_session_report
                     write_session_report(d)
                 except Exception as exc:  # noqa: BLE001 - the records are the ground truth
                     self.get_logger().warning(f"session report not written: {exc}")

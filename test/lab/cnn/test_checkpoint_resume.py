@@ -17,8 +17,8 @@ from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialEngine, trial_preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
-from tactex_ros.record import CHECKPOINT, TrialRecord, read_checkpoint, read_record
-from tactex_ros.resume import load_replay, restore_engine
+from tactex_ros.trial.record import CHECKPOINT, TrialRecord, read_checkpoint, read_record
+from tactex_ros.trial.resume import load_replay, restore_engine
 from tactex_ros.sources import open_source
 
 IDS = ["reference", "c1", "c2", "c3", "c4"]

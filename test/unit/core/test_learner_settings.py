@@ -211,7 +211,7 @@ def test_the_descriptor_trains_nothing_in_a_trial() -> None:
 
 
 def test_resume_reads_a_record_with_the_flat_learner_dump(tmp_path) -> None:
-    from tactex_ros.resume import check_settings
+    from tactex_ros.trial.resume import check_settings
     now = TrialSettings.check({})
     old = {**now.learner.model_dump(), "input_size": 299, "lr": 0.001, "epochs": 10}
     (tmp_path / "config.json").write_text(json.dumps(

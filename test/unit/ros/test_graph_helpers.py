@@ -104,7 +104,7 @@ def test_adapter_state_and_markers() -> None:
 
 
 def test_record_writes_every_touch(tmp_path) -> None:
-    from tactex_ros.record import TrialRecord, read_record
+    from tactex_ros.trial.record import TrialRecord, read_record
     r = TrialRecord(tmp_path, "t1")
     img = np.random.default_rng(1).integers(0, 255, (240, 320, 3), dtype=np.uint8)
     r.add_touch(img, {"platform_id": "c1", "accepted": True})
@@ -139,7 +139,7 @@ def test_graph_description() -> None:
 
 def test_record_summary(tmp_path) -> None:
     from tactex_ros.cli.graph_commands import summarise
-    from tactex_ros.record import TrialRecord, read_record
+    from tactex_ros.trial.record import TrialRecord, read_record
     r = TrialRecord(tmp_path, "s")
     img = np.random.default_rng(2).integers(0, 255, (240, 320, 3), dtype=np.uint8)
     for k, dur in enumerate([2.0, 3.0, 5.0]):

@@ -12,9 +12,9 @@ import pytest
 import yaml
 
 from tactex_ros.paths import config_dir
-from tactex_ros.progress import Progress, decision_line, press_line
-from tactex_ros.record import TrialRecord
-from tactex_ros.report import regenerate, trial_html
+from tactex_ros.trial.progress import Progress, decision_line, press_line
+from tactex_ros.trial.record import TrialRecord
+from tactex_ros.trial.report import regenerate, trial_html
 from tactex_ros.ros import diagnostics as dg
 from tactex_ros.ros.settings import (MARKER_TOPIC, POSE_TOPIC, STATE_TOPIC, TOUCH_IMAGE_TOPIC,
                                      WRENCH_TOPIC, CameraHealthSettings)
@@ -105,7 +105,7 @@ def test_trial_report_is_self_contained_and_says_what_happened(tmp_path: Path) -
 
 
 def test_not_sure_reads_the_engines_outcome_when_the_result_has_it() -> None:
-    from tactex_ros.report import not_sure
+    from tactex_ros.trial.report import not_sure
     # the engine's own verdict wins over what the stop reason and belief would suggest
     assert not_sure({"stop_reason": "rounds", "sure": True}, 0.9, 0.5) is False
     assert not_sure({"stop_reason": "confident", "sure": False}, 0.9, 0.95) is True

@@ -10,7 +10,7 @@ Format (YAML)::
 ``id`` any scalar, unique (kept as a string); ``reference`` and every comparison are either an
 integer (a fabric number of the catalogue ``config/fabrics.yaml``) or a class name. The reference
 must be one of the comparisons: that platform is the true match. Read by the study session
-(``tactex_ros.session``) and by the offline experiments.
+(``tactex_ros.trial.session``) and by the offline experiments.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .core.errors import InputError
-from .paths import config_file, read_yaml
+from ..core.errors import InputError
+from ..paths import config_file, read_yaml
 
 
 def find_trial_file(spec: str | None) -> Path:

@@ -23,9 +23,9 @@ from typing import Callable
 
 import numpy as np
 
-from .core.engine import TouchFailed, TrialEngine, TrialSpec
-from .core.errors import InputError
-from .core.touch import Touch
+from ..core.engine import TouchFailed, TrialEngine, TrialSpec
+from ..core.errors import InputError
+from ..core.touch import Touch
 from .record import read_checkpoint, read_record
 
 

@@ -13,7 +13,7 @@ Session folder ``<session_dir>/``::
     session_events.jsonl   prompts, confirmations, trials started / finished, timeouts, resumes
     trial_<id>/            one trial record per trial (``record.TrialRecord``)
     session_result.json    written once every trial has its result (atomic)
-    report.html            the session report (``tactex_ros.report``)
+    report.html            the session report (``tactex_ros.trial.report``)
 
 ``progress`` tells from the folder which trials are done, which one was interrupted (its record
 exists without a result: it is resumed at the touch where it stopped) and which are pending.
@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .core.errors import InputError
+from ..core.errors import InputError
 from .record import read_result
 from .trialfile import find_trial_file, load_trials
 
@@ -76,7 +76,7 @@ class Session:
 
 def catalogue_names(path: str | Path | None = None) -> list[str]:
     """Fabric names of the catalogue (``config/fabrics.yaml``) in number order (1-based)."""
-    from .paths import config_dir, read_yaml
+    from ..paths import config_dir, read_yaml
     p = Path(path) if path else config_dir() / "fabrics.yaml"
     doc = read_yaml(p, "fabric catalogue")
     try:

@@ -15,7 +15,7 @@ Layout of ``<root>/<trial_id>/``::
 
 Line-per-event files with ``fsync`` after every write lose nothing already recorded when the
 process dies; a reader (``read_record``) ignores a torn last line. This folder is the ground
-truth (a resume is rebuilt from it, ``tactex_ros.resume``); an MCAP file of the trial's topics
+truth (a resume is rebuilt from it, ``tactex_ros.trial.resume``); an MCAP file of the trial's topics
 (``ros/bag.py``) is written beside it for ROS tools.
 """
 
@@ -32,8 +32,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .core.errors import InputError, TrialError
-from .core.outputs import check_dir, dumps, write_bytes
+from ..core.errors import InputError, TrialError
+from ..core.outputs import check_dir, dumps, write_bytes
 
 
 def _fsync_write(path: Path, data: bytes, append: bool) -> None:

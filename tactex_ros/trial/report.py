@@ -25,7 +25,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from .core.errors import InputError
+from ..core.errors import InputError
 from .record import read_record
 
 REPORT = "report.html"
