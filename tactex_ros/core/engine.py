@@ -50,7 +50,8 @@ from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_pres
 from .schema import validate
 from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
+from .build import make_learner
+from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
