@@ -36,6 +36,9 @@ class LearnerBase(Schema):
     engine's contact guards. A subclass per learner; ``LearnerSettings`` is their union."""
 
     kind: ClassVar[str] = ""      # the learner family: 'descriptor', 'cnn', 'cnn_auto', 'auto'
+    # capability: its belief takes touches of the reference too, so a strategy that scores the
+    # reference (``Strategy.includes_reference``, infogain) can run with it
+    scores_reference: ClassVar[bool] = False
     model: str
     guards: bool = param(True, "failure-mode guards on: reject blank / no-contact touches, "
                                "clip gradients and skip non-finite steps, tie-break degenerate "
@@ -60,6 +63,7 @@ class DescriptorSettings(LearnerBase):
     Gaussian match belief; nothing is trained. The class defaults are the shipped method's."""
 
     kind: ClassVar[str] = "descriptor"
+    scores_reference: ClassVar[bool] = True
     model: Literal["descriptor"] = param("descriptor", MODEL_HELP)
     descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
                                       "into its descriptor (the strongest + more of the press)",

@@ -248,8 +248,7 @@ class TrialEngine:
         if len(self.platform_ids) != n_comparisons + 1:
             raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
                              f"got {len(self.platform_ids)}")
-        if self.strategy.includes_reference and self.learner_cfg.model not in ("descriptor",
-                                                                                "auto"):
+        if self.strategy.includes_reference and not self.learner_cfg.scores_reference:
             raise InputError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
                              "another strategy, e.g. variance")
