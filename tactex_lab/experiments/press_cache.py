@@ -1,5 +1,5 @@
 """Recorded presses described once (a cache, .npz) and given back as the touches of a trial:
-the per-press features of ``tactex experiment unseen`` and ``ladder`` (docs/unseen_materials.md).
+the per-press features of ``tactex experiment unseen`` and ``ladder`` (docs/research/unseen_materials.md).
 
 The cache holds descriptors of ``../shared`` presses: write it under /tmp, never into the
 repository.

@@ -1,5 +1,5 @@
 """``tactex experiment unseen``: prepared representations on classes no part of the pipeline saw,
-class-disjoint in both directions (issue 23, docs/unseen_materials.md).
+class-disjoint in both directions (issue 23, docs/research/unseen_materials.md).
 
 Two libraries of recorded presses, A and B (``../shared``'s octopi-dev and octopi-objects). For
 each direction (test on A with B as the lab's library, and the reverse) every setting:

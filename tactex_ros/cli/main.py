@@ -214,7 +214,7 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                     help="ridge added to the within-class covariance (standardised units)")
     pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
                     help="the metric: whiten (within-class whitening; measured best, "
-                         "docs/unseen_materials.md), lda (Fisher directions of the library, "
+                         "docs/research/unseen_materials.md), lda (Fisher directions of the library, "
                          "--dims of them), none (descriptor as is; the file then only carries "
                          "the calibrated temperature)")
     pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
@@ -224,7 +224,7 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                          "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "
                          "--max-wrong at --stop-at), nll, off (default: the config's "
                          "temperature; the calibrated ones stopped wrong more often on unseen "
-                         "classes, docs/unseen_materials.md)")
+                         "classes, docs/research/unseen_materials.md)")
     pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=0.9,
                     help="the trials' stop threshold, for --calibration target")
     pr.add_argument("--max-wrong", type=bounded(float, 0.0, 0.5), default=0.03,
