@@ -73,3 +73,15 @@ def test_every_module_the_product_imports_comes_with_its_requirements():
         if top not in OPTIONAL and not dists & have:
             missing.append(f"{top} ({', '.join(sorted(dists)) or 'no distribution'})")
     assert missing == []
+
+
+def test_package_xml_names_the_products_ros_imports_and_no_lab_dependency():
+    import xml.etree.ElementTree as ET
+    root = ET.parse(ROOT / "package.xml").getroot()
+    deps = {e.text for e in root if e.tag in ("depend", "exec_depend")}
+    ros = {t for t in _third_party(ROOT / "tactex_ros")
+           if t.endswith(("_msgs", "_srvs", "_interfaces")) or t in ("rclpy",
+                                                                      "ament_index_python")}
+    assert ros - deps == set() and "rclpy" in ros
+    assert not deps & {"python3-torch", "python3-sklearn", "python3-matplotlib",
+                       "python3-joblib"}
