@@ -323,7 +323,8 @@ class TrialSettings(Schema):
 
     config: Literal[tuple(PRESETS)] = param(
         "default", "named preset of learner and trial settings: default (texture descriptor, "
-                   "information-gain touches, stop at belief 0.9), cnn, seed_faithful",
+                   f"information-gain touches, stop at belief {SHIPPED_STOP:g}), cnn, "
+                   "seed_faithful",
         read_only=True)
     learner: LearnerSettings = Field(default_factory=DescriptorSettings)
     trial: TrialConfig = Field(default_factory=TrialConfig)
