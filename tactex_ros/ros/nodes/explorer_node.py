@@ -121,10 +121,7 @@ class ExplorerNode(TactexNode):
         placement); ``extra``: more inputs for config.json (a session trial's placement and
         truth)."""
         s = self.settings
-        explorer = s.model_dump(exclude={"learner", "trial"})
-        explorer["seed"] = seed
-        inputs = {"explorer": explorer, "learner": s.learner.model_dump(),
-                  "trial": s.trial.model_dump()}
+        inputs = s.record_inputs(seed)
         if extra:
             inputs.update(extra)
         self.trial = TrialRun(self._spec(seed), record_dir, trial_id, press=self._press,
