@@ -115,7 +115,7 @@ def explorer_set(text: str) -> dict[str, Any]:
     syntax of ``--set``); InputError names the item and the nearest valid path."""
     import re
 
-    from tactex_ros.core.config import overrides
+    from tactex_ros.core.schema import overrides
     from tactex_ros.ros.settings import ExplorerSettings
     items = [i for i in re.split(r"[;\s]+", text.strip()) if i]
     return overrides(ExplorerSettings, items, "explorer_set:=") if items else {}
@@ -127,7 +127,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``pose_topic``, ``wrench_topic`` and ``state_topic`` (the topics of its state), the
     ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
-    from tactex_ros.core.config import merge
+    from tactex_ros.core.schema import merge
     from tactex_ros.core.errors import InputError
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile

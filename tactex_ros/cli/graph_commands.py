@@ -31,7 +31,7 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
                          f"({exc})") from None
-    from ..core.config import flatten
+    from ..core.schema import flatten
     was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]
@@ -57,7 +57,7 @@ def _nodes(args: argparse.Namespace):
     """The graph these options ask for, as ``launch/explore.launch.py`` builds it from its
     arguments: the options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
     ``explorer_set:=``) over config/explorer.yaml."""
-    from ..core.config import merge, overrides
+    from ..core.schema import merge, overrides
     from ..ros.graph import describe, option_overrides
     from ..ros.settings import ExplorerSettings
     given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})

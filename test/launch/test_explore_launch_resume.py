@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-launch_testing = pytest.importorskip(
-    "launch_testing", reason="launch_testing is not installed (ROS 2 launch not available)")
+pytest.importorskip(
+    "launch_testing", reason="launch_testing is not installed (not on PyPI; ROS 2 system only)")
 import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
 import launch_testing.asserts  # noqa: E402
