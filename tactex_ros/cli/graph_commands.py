@@ -54,11 +54,17 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
 
 
 def _nodes(args: argparse.Namespace):
+    """The graph these options ask for, as ``launch/explore.launch.py`` builds it from its
+    arguments: the options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
+    ``explorer_set:=``) over config/explorer.yaml."""
+    from ..core.schema import merge, overrides
     from ..ros.graph import describe, option_overrides
+    from ..ros.settings import ExplorerSettings
     given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
-    return describe(args.sim, args.scene, explorer=given.get("explorer"),
+    explorer = merge(given.get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    return describe(args.sim, args.scene, explorer=explorer, explorer_file=args.settings,
                     mock_image=given.get("mock_image"), gelsight=given.get("gelsight"))
 
 
@@ -254,6 +260,12 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                                        "config/scene.yaml)")
         for option in EXPLORER_OPTIONS + DEVICE_OPTIONS:
             add_option(p, option)
+        p.add_argument("--settings", metavar="FILE",
+                       help="YAML of explorer parameters over config/explorer.yaml (the "
+                            "launch argument settings:=)")
+        p.add_argument("--set", action="append", metavar="PATH=VALUE",
+                       help="an explorer setting, dotted (e.g. trial.stop_confidence=0.95); "
+                            "repeatable (the launch argument explorer_set:=)")
         if name == "run":
             p.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=None,
                            help="deadline of the whole trial [s], 1..86400 (default: none, "

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from ..core.contact import blur, contact_score
-from ..core.errors import DeviceError, InputError
+from ..core.errors import DeviceError, DeviceNotReady, InputError
 
 # libfranka RobotMode (franka_msgs FrankaRobotState.msg / FrankaState.msg ROBOT_MODE_*)
 ROBOT_MODES = {0: "other", 1: "idle", 2: "move", 3: "guiding", 4: "reflex", 5: "user stopped",
@@ -54,12 +54,19 @@ class Problem:
         return self.check in ABSENT
 
     def error(self) -> Exception:
-        """The exception to raise: DeviceError when the device is absent, else InputError."""
-        return DeviceError(str(self)) if self.absent else InputError(str(self))
+        """The exception to raise: DeviceError when the device is absent, DeviceNotReady when
+        it is in a state that forbids the work (robot mode), else InputError."""
+        if self.absent:
+            return DeviceError(str(self))
+        if self.check in NOT_READY:
+            return DeviceNotReady(str(self))
+        return InputError(str(self))
 
 
 #: Pre-flight checks that fail when the device is absent rather than unfit.
 ABSENT = ("state", "no_frame")
+#: Pre-flight checks that fail on a run-time state of the device, not on a setting.
+NOT_READY = ("robot_mode",)
 
 
 def rate_hz(stamps: Sequence[float]) -> float:

@@ -46,7 +46,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
     "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
     "session": ("explorer", "session_file"), "session_dir": ("explorer", "session_dir"),
-    "auto_confirm": ("explorer", "auto_confirm"),
+    "auto_confirm": ("explorer", "auto_confirm"), "resume": ("explorer", "resume"),
     "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
     "source": ("mock_image", "source")}
 

@@ -1,6 +1,6 @@
 """Run a study session on the graph without ``launch`` (``tactex graph run --session``).
 
-The graph starts once; the explorer runs the session's trials (``nodes/session_mode.py``).
+The graph starts once; the explorer runs the session's trials (``trial/session_run.py``).
 This runner supervises the processes as ``launcher.run_trial`` does (a node that exits ends
 the run, named; SIGINT/SIGTERM/SIGHUP stop every node; the deadline), follows the session
 folder (``session_events.jsonl``) and, for every placement the explorer awaits, shows the

@@ -229,6 +229,15 @@ class ExplorerSettings(TrialSettings):
                                               "server counts as silent")
         return self
 
+    def record_inputs(self, seed: int) -> dict[str, dict]:
+        """What a trial's ``config.json`` keeps of these settings with ``seed`` (a session
+        trial's own): {"explorer", "learner", "trial"}; a resume compares them
+        (``trial.resume.check_settings``)."""
+        explorer = self.model_dump(exclude={"learner", "trial"})
+        explorer["seed"] = seed
+        return {"explorer": explorer, "learner": self.learner.model_dump(),
+                "trial": self.trial.model_dump()}
+
 
 class MockArmSettings(Schema):
     scene_file: str = param("", "scene YAML (platform surfaces)")

@@ -171,7 +171,7 @@ class MotionNode(TactexNode):
                 mode = self._preflight_mode(probe)
             problem = checks.mode_problem(mode)
             if problem:
-                raise InputError(str(problem))
+                raise problem.error()       # not in move mode: DeviceNotReady (exit status 1)
             if prof.collision is not None:
                 self._preflight_collision(probe)
             else:

@@ -98,3 +98,16 @@ def test_push_sign() -> None:
     blip = np.where((t > 0.5) & (t < 0.6), 9.0, 0.7)                       # too short
     assert pf.push_sign(base, t, blip, 5.0, 0.2).force_sign == 0
     assert pf.push_sign(base, t, np.full(len(t), 0.7), 5.0, 0.2).force_sign == 0
+
+
+def test_each_problem_raises_the_error_of_its_meaning() -> None:
+    """A device absent (no state) or not ready (robot mode) is a run-time state (exit status
+    1); an unfit setting is bad input (exit status 2)."""
+    from tactex_ros.core.errors import DeviceError, DeviceNotReady, InputError, TrialError
+    not_ready = pf.mode_problem(4).error()
+    assert isinstance(not_ready, DeviceNotReady) and isinstance(not_ready, TrialError)
+    assert not isinstance(not_ready, InputError)
+    absent = pf.state_problem([], 100.0, 1.0, "/robot_state").error()
+    assert isinstance(absent, DeviceError) and not isinstance(absent, DeviceNotReady)
+    slow = pf.state_problem([0.0, 1.0], 100.0, 1.0, "/robot_state").error()
+    assert isinstance(slow, InputError)
