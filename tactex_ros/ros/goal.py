@@ -66,6 +66,8 @@ class GoalRequest:
         self._result_fut: Any = None
         self.refused = False
         self.switched = False    # a probe showed that an unanswered goal ran: its result used
+        self.stalled_s = 0.0     # [s] time this process was not running while it followed
+        self._last_poll = clock()
         self._send()
 
     # ---------------------------------------------------------------- caller's view
@@ -135,7 +137,19 @@ class GoalRequest:
     def _is(self, s: _Sent) -> bool:
         return self.handle is not None and bytes(s.gid.uuid) == bytes(self.handle.goal_id.uuid)
 
+    STALL_S = 0.5     # [s] a gap between polls longer than this: the caller was not running
+
     def _poll(self) -> None:
+        now = self.clock()
+        gap, self._last_poll = now - self._last_poll, now
+        if gap > self.STALL_S:
+            # this process was stopped (SIGSTOP, a starved machine): answers that came
+            # meanwhile are still queued for the executor, so the wait for an answer starts
+            # again now instead of counting the stall as the server's silence (a goal re-sent
+            # here would press a second time after a press made during the stall)
+            self.stalled_s += gap
+            for s in self.sent:
+                s.t += gap
         if self.refused:
             return
         # an unanswered goal that ran after all (a probe came back with its status): its

@@ -70,6 +70,8 @@ class ExplorerNode(SessionMode, TactexNode):
                       platform_ids=tuple(self.ids)).engine()   # settings refused here
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
+        import uuid
+        self.run_id = s.run_id or uuid.uuid4().hex      # this graph's identity on every goal
         self.press = ActionClient(self, Press, s.press_action)
         latched = adapter.latched_qos()     # late joiners (rviz, foxglove) get the last one
         self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
@@ -108,10 +110,8 @@ class ExplorerNode(SessionMode, TactexNode):
             self._open_resume(resume, inputs)
         else:
             self.trial_id = trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
-            self.record = TrialRecord(record_dir, self.trial_id)
-            self.record.save_inputs(s.scene_file, inputs)
-            if placed_scene is not None:
-                (self.record.dir / "scene.yaml").write_text(placed_scene)
+            self.record = TrialRecord(record_dir, self.trial_id, min_free_mb=s.min_free_mb)
+            self.record.save_inputs(s.scene_file, inputs, scene_text=placed_scene)
         self.bag = self._open_bag()
         self.last_state = None
 
@@ -131,6 +131,12 @@ class ExplorerNode(SessionMode, TactexNode):
             if not getattr(self, "_bag_warned", False):
                 self._bag_warned = True
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
+                try:
+                    from ...trial.record import append_event
+                    append_event(self.record.dir, {"event": "mcap_failed", "reason": str(exc),
+                                                   "time": time.time()})
+                except TrialError:
+                    pass           # the disk is full: the next touch ends the trial
 
     def _open_resume(self, folder: str, inputs: dict) -> None:
         """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
@@ -139,7 +145,8 @@ class ExplorerNode(SessionMode, TactexNode):
         from ...trial.record import append_event, read_record
         from ...trial.resume import check_settings, load_replay, restore_engine
         d = Path(folder).resolve()
-        self.record = TrialRecord(d.parent, d.name, resume=True)
+        self.record = TrialRecord(d.parent, d.name, resume=True,
+                                  min_free_mb=self.settings.min_free_mb)
         self.trial_id = d.name
         check_settings(d, inputs)
         was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
@@ -151,7 +158,10 @@ class ExplorerNode(SessionMode, TactexNode):
         self.replay.recorded = [r for r in self.replay.recorded if r.seq > after]
         self._replay_decisions = rec["decisions"]
         self._decisions = len(self.engine.records)     # decisions restored, not re-made
-        self.get_logger().info(f"resume: {how}")
+        if "not used" in how:
+            self.get_logger().warning(f"resume: {how}")     # damaged: re-trained instead
+        else:
+            self.get_logger().info(f"resume: {how}")
         append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
                          "touches_replayed": len(self.replay.recorded),
                          "decisions_on_disk": len(rec["decisions"]),
@@ -333,14 +343,16 @@ class ExplorerNode(SessionMode, TactexNode):
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
-        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid, run_id=self.run_id),
                           answer_s=self.settings.goal_answer_s,
                           feedback_callback=self._on_feedback)
         try:
             if not self._wait(req.answered, deadline, watch=True):
                 self._failed(platform, meta, "press goal not answered before the deadline")
             if req.refused:
-                self._failed(platform, meta, "press goal rejected by the motion node")
+                self._failed(platform, meta, "press goal rejected by the motion node (busy, "
+                                             "inactive, or serving another run than "
+                                             f"{self.run_id}: its log names which)")
             if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
                 req.cancel()
                 self._failed(platform, meta, f"press not finished within press_timeout_s "
@@ -354,7 +366,11 @@ class ExplorerNode(SessionMode, TactexNode):
             self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
                                       "its answer was lost")
         if req.result.status == GoalStatus.STATUS_UNKNOWN:
-            self._failed(platform, meta, "press goal lost: the motion node never took it")
+            self._failed(platform, meta, "press goal lost: the motion node never took it"
+                         + (f" (the explorer was stopped for {req.stalled_s:.1f} s while it "
+                            "waited)" if req.stalled_s else ""))
+        if req.stalled_s:
+            meta["explorer_stalled_s"] = round(req.stalled_s, 3)
         res = req.result.result
         if not res.success:
             self._failed(platform, meta, res.reason or "press failed", res.attempts)
@@ -423,10 +439,13 @@ class ExplorerNode(SessionMode, TactexNode):
                 return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
             self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
             self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
-            self.record.finish(self.result)
             self.exit_code = 1
+            try:
+                self.record.finish(self.result)
+            except TrialError as why:     # e.g. the disk is full: the record stays resumable
+                self.get_logger().error(f"the failure could not be recorded: {why}")
         finally:
-            self.bag.close()
+            self.bag.close()              # never raises (ros/bag.py)
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
 

@@ -191,9 +191,13 @@ class SessionMode:
             if self._stopping or not self.context.ok():
                 return
             self.get_logger().error(f"session failed: {type(exc).__name__}: {exc}")
-            sess.add_event(d, {"event": "session_ended", "reason": f"{type(exc).__name__}: {exc}",
-                               "time": time.time()})
-            self.exit_code = 1
+            self.exit_code = 1             # before the event: a full disk may refuse it too
+            try:
+                sess.add_event(d, {"event": "session_ended",
+                                   "reason": f"{type(exc).__name__}: {exc}",
+                                   "time": time.time()})
+            except TrialError as why:
+                self.get_logger().error(f"session end not recorded: {why}")
         finally:
             if not self._stopping:
                 try:
