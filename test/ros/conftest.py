@@ -115,3 +115,11 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
 def press(listener):
     """``press(platform_id, timeout=90.0)``: :func:`press_goal` through the test's listener."""
     return lambda platform_id, timeout=90.0: press_goal(listener, platform_id, timeout)
+
+
+@pytest.fixture
+def press_as(listener):
+    """``press_as(platform_id, run_id, timeout=90.0)``: :func:`press_goal` carrying an
+    explorer's ``run_id`` (its graph identity)."""
+    return lambda platform_id, run_id, timeout=90.0: press_goal(listener, platform_id, timeout,
+                                                                run_id=run_id)

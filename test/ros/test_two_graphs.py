@@ -9,33 +9,28 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.paths import config_dir
-from tactex_ros.ros.graph import NodeSpec
+from tactex_ros.robot.robots import load_profile
+from tactex_ros.ros.graph import describe
 from tactex_ros.ros.launcher import Graph
 
-from .conftest import press_goal
-
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
-SCENE = str(config_dir() / "scene_sim.yaml")
 START_S = 180.0      # [s] a graph's start on a loaded machine (load 10 on 2 cores)
 
 
-def _motion(**p) -> NodeSpec:
-    return NodeSpec("motion_node", "motion", {"scene_file": SCENE, "robot": "sim",
-                                              "preflight_deadline_s": 30.0, **p})
-
-
-def test_a_second_graph_on_the_domain_is_refused(tmp_path: Path, domain_id, listener) -> None:
-    arm = NodeSpec("mock_arm_node", "mock_arm", {"scene_file": SCENE})
-    with Graph([arm, _motion()], tmp_path / "a", domain_id) as first:
-        res = press_goal(listener, "c1", timeout=START_S, run_id="run-a")
+def test_a_second_graph_on_the_domain_is_refused(tmp_path: Path, domain_id, press_as) -> None:
+    graph = [n for n in describe(True, motion={"preflight_deadline_s": 30.0})
+             if n.name in ("mock_arm", "mock_image", "motion")]
+    with Graph(graph, tmp_path / "a", domain_id) as first:
+        res = press_as("c1", "run-a", START_S)
         assert res is not None and res.success, res          # the first graph presses
-        with Graph([_motion()], tmp_path / "b", domain_id) as second:
+        second_graph = [n for n in describe(True, motion={"preflight_deadline_s": 30.0})
+                        if n.name == "motion"]               # its state: the first's arm
+        with Graph(second_graph, tmp_path / "b", domain_id) as second:
             assert second.wait("motion", START_S) == 2         # refused by its pre-flight
         log = (tmp_path / "b" / "motion.log").read_text(errors="replace")
-        assert "/tactex/press/_action/status" in log or "target" in log
-        assert first.wait("motion", 0.1) is None and first.wait("mock_arm", 0.1) is None
+        assert load_profile("sim").target_topic in log      # the shared topic named
+        assert all(first.wait(n.name, 0.1) is None for n in graph)   # the first runs on
         # a second explorer's goal (another run) is refused; the first run is still served
-        assert press_goal(listener, "c2", timeout=START_S, run_id="run-b") is None
-        res = press_goal(listener, "c2", timeout=START_S, run_id="run-a")
-        assert res is not None and res.success
+        assert press_as("c2", "run-b", START_S) is None
+        res = press_as("c2", "run-a", START_S)
+        assert res is not None and res.success, res

@@ -160,6 +160,13 @@ class MotionNode(TactexNode):
             for mtype, topic in topics:
                 stamps, last = probe.sample(mtype, topic, qos_profile_sensor_data,
                                             s.preflight_window_s, s.preflight_deadline_s)
+                # one graph per arm, checked once the sampling gave discovery its time
+                problem = probe.other_graph(
+                    [("the arm's target", s.target_topic or prof.target_topic),
+                     ("the press action's status", f"{s.press_action}/_action/status")]
+                    + [("the robot state", t) for _, t in topics])
+                if problem:
+                    raise InputError(f"pre-flight: {problem}")
                 problem = checks.state_problem(stamps, s.min_state_rate_hz,
                                                s.preflight_window_s, topic)
                 if problem:
@@ -173,12 +180,6 @@ class MotionNode(TactexNode):
             problem = checks.mode_problem(mode)
             if problem:
                 raise InputError(str(problem))
-            problem = probe.other_graph(
-                [("the arm's target", s.target_topic or prof.target_topic),
-                 ("the press action's status", f"{s.press_action}/_action/status")]
-                + [("the robot state", t) for _, t in topics])
-            if problem:
-                raise InputError(f"pre-flight: {problem}")
             if prof.collision is not None:
                 self._preflight_collision(probe)
             else:
