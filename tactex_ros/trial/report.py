@@ -383,7 +383,6 @@ def write_session_report(folder: str | Path) -> Path:
 def regenerate(folder: str | Path) -> list[Path]:
     """``tactex report``: a trial record -> its report; a session folder -> every trial's
     report and the session report. InputError when ``folder`` is neither."""
-    from . import session as sess
     d = Path(folder)
     try:
         return _regenerate(d)
