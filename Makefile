@@ -1,8 +1,9 @@
 # The two commands of this project: `make demo` and `make test` (`make test-fast`: the product's
 # pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests;
 # `make lint`: ruff, which `make test` and `make test-fast` run first).
-# Each first installs what is missing into .venv (pinned, see requirements.txt) and builds the
-# ROS 2 package with colcon into it; a second run finds the stamps and installs nothing.
+# Each first installs what is missing into .venv (pinned: requirements.txt, the product's;
+# requirements-lab.txt, the lab's) and builds the ROS 2 package with colcon into it; a second
+# run finds the stamps and installs nothing.
 SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -15,7 +16,7 @@ BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.
 
 setup: $(BUILD_STAMP)
 
-$(DEPS_STAMP): requirements.txt scripts/setup_env.sh
+$(DEPS_STAMP): requirements.txt requirements-lab.txt scripts/setup_env.sh
 	bash scripts/setup_env.sh deps
 	touch $@
 

@@ -1,5 +1,5 @@
 """``tactex experiment unseen``: prepared representations on classes no part of the pipeline saw,
-class-disjoint in both directions (issue 23, docs/unseen_materials.md).
+class-disjoint in both directions (issue 23, docs/research/unseen_materials.md).
 
 Two libraries of recorded presses, A and B (``../shared``'s octopi-dev and octopi-objects). For
 each direction (test on A with B as the lab's library, and the reverse) every setting:
@@ -40,7 +40,7 @@ import numpy as np
 
 from tactex_ros.core import calibration as belief_calibration
 from tactex_ros.core import representation
-from tactex_ros.core.config import TrialConfig, preset
+from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
@@ -90,7 +90,7 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
     if setting.calibration != "off":
         trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
         rep.temperature = belief_calibration.fit_temperature(
-            trajs, setting.calibration, *(((0.9,), 0.03) if setting.calibration == "target"
+            trajs, setting.calibration, *(((SHIPPED_STOP,), 0.03) if setting.calibration == "target"
                                           else ()))
         rep.calibration = belief_calibration.report(trajs, rep.temperature)
     return rep

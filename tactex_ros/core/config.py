@@ -36,6 +36,9 @@ class LearnerBase(Schema):
     engine's contact guards. A subclass per learner; ``LearnerSettings`` is their union."""
 
     kind: ClassVar[str] = ""      # the learner family: 'descriptor', 'cnn', 'cnn_auto', 'auto'
+    # capability: its belief takes touches of the reference too, so a strategy that scores the
+    # reference (``Strategy.includes_reference``, infogain) can run with it
+    scores_reference: ClassVar[bool] = False
     model: str
     guards: bool = param(True, "failure-mode guards on: reject blank / no-contact touches, "
                                "clip gradients and skip non-finite steps, tie-break degenerate "
@@ -60,6 +63,7 @@ class DescriptorSettings(LearnerBase):
     Gaussian match belief; nothing is trained. The class defaults are the shipped method's."""
 
     kind: ClassVar[str] = "descriptor"
+    scores_reference: ClassVar[bool] = True
     model: Literal["descriptor"] = param("descriptor", MODEL_HELP)
     descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
                                       "into its descriptor (the strongest + more of the press)",
@@ -91,7 +95,7 @@ class DescriptorSettings(LearnerBase):
                                            "described over its region only (0 = off; "
                                            "core/guards.py)", 0.0, 1.0)
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
-    # were chosen in every one of 3 class folds of octopi-dev (docs/real_presses.md)
+    # were chosen in every one of 3 class folds of octopi-dev (docs/research/real_presses.md)
 
 
 class CnnSettings(LearnerBase):
@@ -146,10 +150,10 @@ class CnnSettings(LearnerBase):
                                     "model sees it: turn on where the lighting drifts between "
                                     "touches (measured: it restores accuracy under drift in "
                                     "simulation, and cost 2 of 24 replayed octopi-dev scenes, "
-                                    "docs/speed_stability.md)")
+                                    "docs/research/speed_stability.md)")
     # model 'cnn_auto': start cheap, escalate on evidence (tactex_lab/cnn/auto.py). The first
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
-    # (docs/speed_stability.md), and a 32 px start made it 9 points worse than the default.
+    # (docs/research/speed_stability.md), and a 32 px start made it 9 points worse than the default.
 
 
 class AutoSettings(CnnSettings):
@@ -178,7 +182,7 @@ class AutoSettings(CnnSettings):
 
 
 class LadderSettings(DescriptorSettings):
-    """Model 'auto' (``core/ladder.py``, docs/unseen_materials.md "A ladder of models"): the
+    """Model 'auto' (``core/ladder.py``, docs/research/unseen_materials.md "A ladder of models"): the
     descriptor's settings (its rungs 'descriptor' and 'representation' run with them) and the
     ladder's; a CNN rung runs with its preset's settings."""
 
@@ -237,7 +241,7 @@ def learner_settings(data: dict[str, Any], origin: str = "learner") -> Any:
 
 
 #: The shipped stop rule's threshold on the belief, chosen on real presses in every one of 3
-#: class folds of octopi-dev (docs/real_presses.md); ``stop_reason`` (core/engine.py) applies it.
+#: class folds of octopi-dev (docs/research/real_presses.md); ``stop_reason`` (core/engine.py) applies it.
 SHIPPED_STOP = 0.9
 
 
@@ -259,19 +263,19 @@ class TrialConfig(Schema):
 
 # The thesis's setting, kept by name for reproductions; the CNN setting chosen by
 # `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
-# and the default, chosen on real presses (`tactex evaluate`, docs/real_presses.md).
+# and the default, chosen on real presses (`tactex evaluate`, docs/research/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
     "default": dict(),          # the class defaults (DescriptorSettings) are the shipped method
     "seed_faithful": dict(model="small_inception", input_size=299, epochs=10, steps=0,
                           batch_size=32, lr=1e-3, dropout=0.5, mc_passes=20,
                           bn_recalibrate=0),
     # 48 px and 8 steps per round since issue 5 (was 64 px, 12 steps): 2.8x less CPU per
-    # decision at equal or better accuracy (docs/speed_stability.md).
+    # decision at equal or better accuracy (docs/research/speed_stability.md).
     "cnn": dict(model="small_inception", input_size=48, epochs=0, steps=8,
                 batch_size=32, lr=3e-3, dropout=0.5, mc_passes=20),
 }
 # What a trial does under each preset (TrialConfig fields); the default stops on a calibrated
-# belief and picks touches by expected information about the match (docs/real_presses.md).
+# belief and picks touches by expected information about the match (docs/research/real_presses.md).
 TRIAL_PRESETS: dict[str, dict[str, Any]] = {
     "default": dict(),          # the class defaults of TrialConfig are the shipped method
     "seed_faithful": dict(strategy="variance", stop_confidence=0.0),
@@ -319,7 +323,8 @@ class TrialSettings(Schema):
 
     config: Literal[tuple(PRESETS)] = param(
         "default", "named preset of learner and trial settings: default (texture descriptor, "
-                   "information-gain touches, stop at belief 0.9), cnn, seed_faithful",
+                   f"information-gain touches, stop at belief {SHIPPED_STOP:g}), cnn, "
+                   "seed_faithful",
         read_only=True)
     learner: LearnerSettings = Field(default_factory=DescriptorSettings)
     trial: TrialConfig = Field(default_factory=TrialConfig)
