@@ -123,6 +123,9 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     ex = next(n for n in nodes if n.name == "explorer")
     d = args.session_dir or str(Path(ex.parameters.get("record_dir") or "runs/trials") /
                                 f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    from ..trial.session import check_session_dir
+    check_session_dir(d, args.session)      # a file, unwritable, torn or another session's
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
     run = run_session(nodes, logs, d, confirm=confirm,
                       timeout_s=args.timeout if args.timeout is not None else 86400.0,
@@ -130,6 +133,13 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     if run.result is None:
         print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
               file=sys.stderr)
+        from ..ros.launcher import node_reason
+        refused = [n for n, c in run.node_exit.items() if c == 2]
+        for n in refused:            # a refusal's reason on the console, not only in its log
+            print(f"tactex: {n}: {node_reason(Path(logs) / f'{n}.log')} (from "
+                  f"{Path(logs) / f'{n}.log'})", file=sys.stderr)
+        if refused:
+            return 2                 # a refusal: continuing the same way would fail again
         print(f"tactex: continue with: tactex graph run{' --sim' if args.sim else ''} "
               f"--session {args.session} --session-dir {run.session_dir}", file=sys.stderr)
         return 128 + run.signal if run.signal else 1
@@ -146,7 +156,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.session:
         from ..core.outputs import check_dir
         check_dir(logs, "--log-dir")
-        print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
         return cmd_session(args, nodes, logs)
     preflight(nodes, logs)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)

@@ -38,6 +38,24 @@ class Probe:
             raise Stopped()
         self.executor.spin_once(timeout_sec=SPIN_S)
 
+    def other_graph(self, topics: list[tuple[str, str]]) -> str | None:
+        """One graph per arm: each of ``topics`` ((what, topic)) must have at most one
+        publisher on this ROS domain (this graph's: the arm's target and the press action's
+        status are this motion node's, the robot state the robot's). A second one is another
+        tactex graph, or another program driving or playing the arm; the problem names the
+        topic and the publishing nodes, None when there is none. Called after the state was
+        sampled, so discovery has had that long."""
+        for what, topic in topics:
+            name = self.node.resolve_topic_name(topic)
+            pubs = self.node.get_publishers_info_by_topic(name)
+            if len(pubs) > 1:
+                nodes = sorted({f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in pubs})
+                return (f"{len(pubs)} publishers of {what} {name} on ROS_DOMAIN_ID "
+                        f"{self.context.get_domain_id()} (nodes {', '.join(nodes)}): another "
+                        "tactex graph or program drives this arm; stop it, or give each graph "
+                        "its own ROS_DOMAIN_ID (docs/hardware.md)")
+        return None
+
     def sample(self, msg_type: type, topic: str, qos: Any, window_s: float,
                deadline_s: float) -> tuple[list[float], Any]:
         """Arrival times [s, monotonic] of ``topic``'s messages over ``window_s`` after the

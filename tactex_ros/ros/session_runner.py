@@ -88,6 +88,15 @@ class Confirmer:
             self._node = None
 
 
+def _stamp(p: Path) -> tuple[int, int] | None:
+    """(inode, mtime [ns]) of a file, None when absent: tells a rewritten file apart."""
+    try:
+        st = p.stat()
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns
+
+
 def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | Path, *,
                 confirm: str = "yes", timeout_s: float = 86400.0,
                 domain_id: int | None = None, poll_s: float = 0.1,
@@ -107,6 +116,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     out = out or console_printer()
     progress = Progress(out)
     confirmer = Confirmer(f"/{ex.name}/confirm", domain_id)
+    res_path = d / sess.RESULT_FILE      # a result from before this start is not this run's
+    stale = _stamp(res_path)
     events_path, offset = d / sess.EVENTS_FILE, 0
     if events_path.is_file():                    # a resumed session: only what is new
         offset = events_path.stat().st_size
@@ -162,11 +173,14 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         progress.poll()
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
-        if name == ex.name and (d / sess.RESULT_FILE).exists():
+        if name == ex.name and fresh_result():
             return None
         last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
         return (last[-1]["reason"] if last and name == ex.name else
                 f"node {name} ended ({exit_text(code)}) {elapsed:.1f} s into the session")
+
+    def fresh_result() -> bool:
+        return res_path.is_file() and _stamp(res_path) != stale
 
     def deadline(elapsed: float) -> str | None:
         return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
@@ -180,8 +194,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     if failure is not None and d.is_dir():
         sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": run.signal,
                            "node_exit": exits, "time": time.time()})
-    res_path = d / sess.RESULT_FILE
-    result = json.loads(res_path.read_text()) if res_path.exists() else None
+    result = json.loads(res_path.read_text()) if fresh_result() else None
     code = exits.get(ex.name)
     return SessionRun(exit_code=-1 if code is None else code, result=result, session_dir=d,
                       logs=run.graph.log_dir, failure=failure, signal=run.signal,

@@ -126,6 +126,9 @@ class MotionSettings(Schema):
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
     press_action: str = param(PRESS_ACTION, "the press action this node serves")
+    run_id: str = param("", "serve only the press goals of this run (the explorer's run_id) "
+                            "('' = the run of the first goal taken; another run's are "
+                            "rejected)")
     recovery_name: str = param("", "error recovery action or service ('' = the profile's)")
     recovery_timeout_s: float = param(30.0, "deadline for error recovery and re-activation, "
                                             "each call [s]", 0.5, 600.0)
@@ -177,10 +180,16 @@ class ExplorerSettings(TrialSettings):
     scene_file: str = param("", "scene YAML (platform ids and order)")
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")
+    min_free_mb: float = param(50.0, "free space [MB] the record's disk must keep: checked "
+                                     "before the trial and before each touch is written (a "
+                                     "fuller disk ends the trial, resumable; 0 = off)",
+                               0.0, 1e6)
     trial_id: str = param("", "record sub-folder ('' = time stamp)")
     resume: str = param("", "record folder of an interrupted trial to continue ('' = a new "
                             "trial); its settings must equal this node's")
     press_action: str = param(PRESS_ACTION, "press action served by the motion node")
+    run_id: str = param("", "this graph's identity, sent with every press goal (a motion node "
+                            "serves one run's explorer) ('' = a new one at configure)")
     state_topic: str = param(STATE_TOPIC, "where the exploration state is published after "
                                           "each decision")
     marker_topic: str = param(MARKER_TOPIC, "where the rviz markers are published")

@@ -21,12 +21,11 @@ from __future__ import annotations
 import base64
 import html
 import json
-import os
 from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
-from .record import read_record
+from .record import read_record, read_result
 
 REPORT = "report.html"
 COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -63,10 +62,8 @@ def _page(title: str, body: str) -> str:
 
 
 def _write(path: Path, text: str) -> Path:
-    tmp = path.with_suffix(".html.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    from ..core.outputs import write_bytes
+    return write_bytes(path, text.encode("utf-8"))     # whole or not at all (WriteError)
 
 
 def line_chart(series: dict[str, list[tuple[float, float]]], *, chart_id: str, x_label: str,
@@ -150,10 +147,16 @@ def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
 
 
 def _config(d: Path) -> dict:
+    """``config.json`` of a record ({} when absent or unreadable); InputError naming the file
+    and the field when it is not an object or a section is not one."""
+    p = d / "config.json"
     try:
-        return json.loads((d / "config.json").read_text())
-    except (OSError, json.JSONDecodeError):
+        cfg = json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return {}
+    from .record import check_fields
+    return check_fields(cfg, {k: (dict, None) for k in ("trial", "session", "explorer",
+                                                        "learner")}, repr(str(p)))
 
 
 def not_sure(result: dict, stop_confidence: float | None, belief: float | None) -> bool:
@@ -318,10 +321,9 @@ def session_html(folder: str | Path) -> str:
             if f not in fabrics:
                 fabrics.append(f)
         conf[(ref_fab, got)] = conf.get((ref_fab, got), 0) + 1
-        res = json.loads((d / r["record"] / "result.json").read_text())
+        res = read_result(d / r["record"]) or {}
         mark = "<span class='ok'>yes</span>" if r["correct"] else "<span class='bad'>no</span>"
-        stop_conf = (json.loads((d / r["record"] / "config.json").read_text()).get("trial")
-                     or {}).get("stop_confidence")
+        stop_conf = (_config(d / r["record"]).get("trial") or {}).get("stop_confidence")
         dec = read_record(d / r["record"], images=False)["decisions"]
         comps_ = list(placement)[1:]
         b = (dec[-1].get("belief") or []) if dec else []
@@ -381,8 +383,19 @@ def write_session_report(folder: str | Path) -> Path:
 def regenerate(folder: str | Path) -> list[Path]:
     """``tactex report``: a trial record -> its report; a session folder -> every trial's
     report and the session report. InputError when ``folder`` is neither."""
-    from . import session as sess
     d = Path(folder)
+    try:
+        return _regenerate(d)
+    except InputError:
+        raise
+    except (KeyError, TypeError, AttributeError, IndexError, ValueError) as exc:
+        # a file of the folder holds other types than a record's: refused, not a traceback
+        raise InputError(f"{str(d)!r}: a file of the record or session is damaged "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+def _regenerate(d: Path) -> list[Path]:
+    from . import session as sess
     if (d / sess.SESSION_FILE).is_file():
         out = [write_trial_report(p.parent) for p in sorted(d.glob("trial_*/config.json"))]
         return out + [write_session_report(d)]

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
+from ..core.errors import TrialError
 from . import session as sess
 
 
@@ -133,8 +134,11 @@ class SessionRun:
             if stopping():
                 return 0
             self.log(logging.ERROR, f"session failed: {type(exc).__name__}: {exc}")
-            sess.add_event(d, {"event": "session_ended", "reason": f"{type(exc).__name__}: {exc}",
-                               "time": time.time()})
+            try:
+                sess.add_event(d, {"event": "session_ended",
+                                   "reason": f"{type(exc).__name__}: {exc}", "time": time.time()})
+            except TrialError as why:   # a full disk may refuse the event too
+                self.log(logging.ERROR, f"session end not recorded: {why}")
             return 1
         finally:
             if not stopping():

@@ -81,6 +81,8 @@ class ExplorerNode(TactexNode):
             self._spec(s.seed).engine()   # settings refused here
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
+        import uuid
+        self.run_id = s.run_id or uuid.uuid4().hex      # this graph's identity on every goal
         self.press = ActionClient(self, Press, s.press_action)
         latched = adapter.latched_qos()     # late joiners (rviz, foxglove) get the last one
         self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
@@ -127,7 +129,7 @@ class ExplorerNode(TactexNode):
         self.trial = TrialRun(self._spec(seed), record_dir, trial_id, press=self._press,
                               inputs=inputs, resume=resume, scene_file=s.scene_file,
                               placed_scene=placed_scene, check_record=self._check_scene,
-                              log=self._log)
+                              log=self._log, min_free_mb=s.min_free_mb)
         self.trial_id = self.trial.trial_id
         self.bag = self._open_bag()
         self.last_state = None
@@ -164,6 +166,12 @@ class ExplorerNode(TactexNode):
             if not getattr(self, "_bag_warned", False):
                 self._bag_warned = True
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
+                try:
+                    from ...trial.record import append_event
+                    append_event(self.record.dir, {"event": "mcap_failed", "reason": str(exc),
+                                                   "time": time.time()})
+                except TrialError:
+                    pass           # the disk is full: the next touch ends the trial
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -308,13 +316,14 @@ class ExplorerNode(TactexNode):
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
-        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid, run_id=self.run_id),
                           answer_s=self.settings.goal_answer_s,
                           feedback_callback=self._on_feedback)
         if not self._wait(req.answered, deadline, watch=True):
             self._failed(meta, "press goal not answered before the deadline")
         if req.refused:
-            self._failed(meta, "press goal rejected by the motion node")
+            self._failed(meta, "press goal rejected by the motion node (busy, inactive, or "
+                               f"serving another run than {self.run_id}: its log names which)")
         if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
             req.cancel()
             self._failed(meta, f"press not finished within press_timeout_s "
@@ -324,7 +333,11 @@ class ExplorerNode(TactexNode):
             self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
                                       "its answer was lost")
         if req.result.status == GoalStatus.STATUS_UNKNOWN:
-            self._failed(meta, "press goal lost: the motion node never took it")
+            self._failed(meta, "press goal lost: the motion node never took it"
+                         + (f" (the explorer was stopped for {req.stalled_s:.1f} s while it "
+                            "waited)" if req.stalled_s else ""))
+        if req.stalled_s:
+            meta["explorer_stalled_s"] = round(req.stalled_s, 3)
         res = req.result.result
         if not res.success:
             self._failed(meta, res.reason or "press failed", res.attempts)
@@ -371,7 +384,7 @@ class ExplorerNode(TactexNode):
             self.result = self.trial.fail(exc)
             self.exit_code = 1
         finally:
-            self.bag.close()
+            self.bag.close()              # never raises (ros/bag.py)
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
 

@@ -26,6 +26,7 @@ Any failure refuses the configuration with the reason: exit status 2
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -159,6 +160,13 @@ class MotionNode(TactexNode):
             for mtype, topic in topics:
                 stamps, last = probe.sample(mtype, topic, qos_profile_sensor_data,
                                             s.preflight_window_s, s.preflight_deadline_s)
+                # one graph per arm, checked once the sampling gave discovery its time
+                problem = probe.other_graph(
+                    [("the arm's target", s.target_topic or prof.target_topic),
+                     ("the press action's status", f"{s.press_action}/_action/status")]
+                    + [("the robot state", t) for _, t in topics])
+                if problem:
+                    raise InputError(f"pre-flight: {problem}")
                 problem = checks.state_problem(stamps, s.min_state_rate_hz,
                                                s.preflight_window_s, topic)
                 if problem:
@@ -370,7 +378,28 @@ class MotionNode(TactexNode):
         if self.busy.locked():
             self.get_logger().warning("press goal rejected: a press is running")
             return GoalResponse.REJECT
+        why = self._serves(goal.run_id)
+        if why:
+            self.get_logger().error(f"press goal rejected: {why}")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
+
+    def _serves(self, run_id: str) -> str | None:
+        """One graph per arm: the first run whose goal is taken (or ``run_id`` set) is served;
+        a goal of another run (a second explorer on this ROS domain) is refused, the reason
+        returned."""
+        mine = getattr(self, "served_run", None) or self.settings.run_id
+        if not mine:
+            self.served_run = run_id
+            if run_id:
+                self.get_logger().info(f"serving the explorer of run {run_id}")
+            return None
+        if run_id != mine:
+            return (f"this motion node serves run {mine}; a goal of run {run_id or '(none)'} "
+                    "came from a second explorer on the ROS domain "
+                    f"{os.environ.get('ROS_DOMAIN_ID', '0')}: give each graph its own "
+                    "domain (docs/hardware.md)")
+        return None
 
     async def _execute_async(self, goal_handle):
         return await in_thread(self, self._execute, goal_handle)
