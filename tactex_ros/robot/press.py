@@ -167,13 +167,16 @@ def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
     return press.surface_search + press.max_depth + press.max_force / stiffness
 
 
-def spring_cap(press: PressSettings, offset_n: float) -> float:
-    """Largest spring force ``K (x - x_eq)`` [N] the press ever commands, given the tare's
-    offset [N]: the midpoint of threshold and limit, plus the offset (a static force upward
-    that the contact must also overcome), kept between the midpoint of threshold and that
-    midpoint (a static force downward adds to the contact) and ``max_force``."""
+def spring_cap(press: PressSettings, lift_n: float) -> float:
+    """Largest spring force ``K (x - x_eq)`` [N] the press ever commands, given the static
+    force ``lift_n`` [N] that holds the arm above its target at rest in free space (a cable, a
+    payload heavier or lighter than configured; ``K`` times the offset of the arm from its
+    target at the tare; a wrench bias does not move the arm): the midpoint of threshold and
+    limit plus that lift (the contact must overcome it too), kept between the midpoint of
+    threshold and that midpoint (a static force downward adds to the contact) and
+    ``max_force``."""
     mid = 0.5 * (press.force_threshold + press.max_force)
-    return float(np.clip(mid + offset_n, 0.5 * (press.force_threshold + mid), press.max_force))
+    return float(np.clip(mid + lift_n, 0.5 * (press.force_threshold + mid), press.max_force))
 
 
 def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
@@ -253,6 +256,7 @@ class PressController:
         self.tare: TareResult | None = None
         self.force_n = 0.0
         self.force_avg = 0.0               # smoothed normal force [N]
+        self.lift_n = 0.0                   # static force holding the arm up at the tare [N]
         self.cap = spring_cap(self.s, 0.0)  # largest commanded spring force [N]
         self.surface_found: float | None = None   # z where the descent met the surface [m]
         self._prev: np.ndarray | None = None
@@ -400,7 +404,8 @@ class PressController:
                            "model error; the press would act on a force that far off)", now)
                 return
             self.tare = got
-            self.cap = spring_cap(s, got.offset_n)
+            self.lift_n = self.k * float(position[2] - self.target[2])
+            self.cap = spring_cap(s, self.lift_n)
             self.force_avg = 0.0
             self._enter(DESCEND, now)
         elif now - self.phase_start > s.tare_deadline_s:
