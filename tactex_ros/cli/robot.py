@@ -111,7 +111,9 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
     from rclpy.qos import qos_profile_sensor_data
 
     from ..core.errors import InputError
-    from ..paths import read_yaml, write_yaml
+    import yaml
+
+    from ..paths import read_yaml
     from ..robot.measure import corrected_scene, light_press
     from ..robot.press import PressController, check_press
     from ..robot.robots import import_interface, load_profile
@@ -192,7 +194,9 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
             probe.close()
         rclpy.try_shutdown()
     if found:
-        write_yaml(args.out, corrected_scene(read_yaml(args.scene, "scene file"), found))
+        with open(args.out, "w") as fh:
+            yaml.safe_dump(corrected_scene(read_yaml(args.scene, "scene file"), found), fh,
+                           sort_keys=False)
         load_scene(args.out)      # what was written is a valid scene
         report["written"] = str(args.out)
     missing = [pid for pid in wanted if pid not in found]

@@ -259,6 +259,7 @@ class PressController:
         self.lift_n = 0.0                   # static force holding the arm up at the tare [N]
         self.cap = spring_cap(self.s, 0.0)  # largest commanded spring force [N]
         self.surface_found: float | None = None   # z where the descent met the surface [m]
+        self._touch = (0.0, 0.0)           # (z [m], smoothed force [N]) when it met it
         self._prev: np.ndarray | None = None
         self.speed = 0.0                   # smoothed measured speed [m/s]
         self._rest_since: float | None = None
@@ -432,6 +433,11 @@ class PressController:
         if self.surface_found is not None or self.force_avg < s.contact_force_n:
             return
         self.surface_found = float(position[2])
+        self._touch = (self.surface_found, self.force_avg)
+        self._warn_moved()
+
+    def _warn_moved(self) -> None:
+        s = self.s
         moved = self.surface_found - self.surface_z
         if abs(moved) > s.surface_warn_m:
             self.warning = (f"surface moved: {self.platform.id} found at z "
@@ -469,7 +475,13 @@ class PressController:
             return
         at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
         self._guard(position)
-        if at_bottom and self._at_rest(now):
+        capped = self.target[2] <= position[2] - self.cap / self.k + 1e-6
+        if capped and self._at_rest(now):
+            self.abort(f"stalled: {self.force_avg:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the spring at its cap {self.cap:.1f} N "
+                       f"(lift at the tare {self.lift_n:.1f} N) and the arm at rest: an "
+                       "unmodelled force or friction holds the arm up", now)
+        elif at_bottom and self._at_rest(now):
             self.abort(f"no contact: {self.force_avg:.2f} N < force_threshold "
                        f"{s.force_threshold} N with the equilibrium at its floor "
                        f"{self.surface_z - self.target[2]:.4f} m below the scene's surface",
@@ -498,6 +510,14 @@ class PressController:
                            f"{s.hold_deadline_s} s", now)
             return
         self.capture_force = self.force_avg
+        if self.surface_found is not None:
+            # the surface where the force would be zero: back along the line through the
+            # touch and the hold (a soft platform is already pressed in at contact_force_n)
+            z0, f0 = self._touch
+            if self.force_avg > f0 + 0.5 and z0 > position[2]:
+                self.surface_found = z0 + (z0 - position[2]) * f0 / (self.force_avg - f0)
+                self.warning = ""
+                self._warn_moved()
         found = self.surface_z if self.surface_found is None else self.surface_found
         self.capture_depth = max(0.0, found - position[2])
         if self.wants_capture:

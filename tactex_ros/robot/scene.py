@@ -76,7 +76,7 @@ class PressSettings(Schema):
                                      0.1, 50.0)
     tare_deadline_s: float = param(3.0, "a tare that has not settled within this refuses the "
                                         "press [s]", 0.1, 60.0)
-    surface_search: float = param(0.006, "the descent looks for the surface this far below "
+    surface_search: float = param(0.01, "the descent looks for the surface this far below "
                                          "the scene's surface (a surface lower than measured "
                                          "is still found) [m]", 0.0, 0.05)
     contact_force_n: float = param(1.0, "the smoothed tared normal force that says the sensor "
