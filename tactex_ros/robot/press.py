@@ -462,12 +462,38 @@ class PressController:
             return True
         return False
 
+    def _capped(self, position: np.ndarray) -> bool:
+        """The spring pushes with its cap at the measured pose (``_guard`` binds)."""
+        return bool(self.target[2] <= position[2] - self.cap / self.k + 1e-6)
+
+    def _stalled(self, now: float, position: np.ndarray) -> bool:
+        """The spring pushes with its cap, the arm is at rest and the force is below the
+        threshold's band (``force_tolerance_n``): something holds the arm up (an upward force, friction) that the tare's
+        lift underestimated. The spring's push minus the contact force measures it: the cap
+        grows by it, up to ``max_force``; at ``max_force`` the press is refused (True)."""
+        s = self.s
+        if (not self._capped(position) or self.force_avg >= s.force_threshold - s.force_tolerance_n
+                or not self._at_rest(now)):
+            return False
+        if self.cap >= s.max_force - 1e-9:
+            self.abort(f"stalled: {self.force_avg:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the spring at max_force {s.max_force} N "
+                       "and the arm at rest: an unmodelled force or friction holds it up",
+                       now)
+            return True
+        self.lift_n = max(self.lift_n, self.cap - self.force_avg)
+        self.cap = spring_cap(s, self.lift_n)
+        self._rest_since = None          # judge again after the next rest
+        return False
+
     def _descend(self, now: float, position: np.ndarray, dt: float) -> None:
         """Guarded descent: the equilibrium goes down past the scene's surface until the
         smoothed force says contact (the surface found) and then the threshold (hold)."""
         s = self.s
         self._found(position)
-        if self.force_avg >= s.force_threshold:
+        if self.force_avg >= s.force_threshold or (
+                self.force_avg >= s.force_threshold - s.force_tolerance_n
+                and self._capped(position) and self._at_rest(now)):   # the hold's work
             self._band_since = None
             self._enter(SETTLE, now)
             return
@@ -475,13 +501,9 @@ class PressController:
             return
         at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
         self._guard(position)
-        capped = self.target[2] <= position[2] - self.cap / self.k + 1e-6
-        if capped and self._at_rest(now):
-            self.abort(f"stalled: {self.force_avg:.2f} N < force_threshold "
-                       f"{s.force_threshold} N with the spring at its cap {self.cap:.1f} N "
-                       f"(lift at the tare {self.lift_n:.1f} N) and the arm at rest: an "
-                       "unmodelled force or friction holds the arm up", now)
-        elif at_bottom and self._at_rest(now):
+        if self._stalled(now, position):
+            return
+        if at_bottom and self._at_rest(now):
             self.abort(f"no contact: {self.force_avg:.2f} N < force_threshold "
                        f"{s.force_threshold} N with the equilibrium at its floor "
                        f"{self.surface_z - self.target[2]:.4f} m below the scene's surface",
@@ -498,6 +520,8 @@ class PressController:
         err = s.force_threshold - self.force_avg
         self.target = self.target - [0.0, 0.0, err / (self.k * HOLD_TAU_S) * dt]
         self._guard(position)
+        if self._stalled(now, position):
+            return
         if abs(err) <= s.force_tolerance_n and self.speed <= s.rest_speed:
             self._band_since = now if self._band_since is None else self._band_since
         else:
