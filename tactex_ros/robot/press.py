@@ -1,28 +1,40 @@
-"""The press sequence as a pure state machine (no rclpy), ticked by the motion node, and the
-mock arm's physics.
+"""The press sequence as a pure state machine (no rclpy), ticked by the motion node. (The mock
+arm it presses in tests and in the simulated graph: ``robot/mock_world.py``.)
 
 The robot is under Cartesian impedance control: the motion node commands the controller's
 *equilibrium* pose, and the arm pushes with ``F = K (x - x_eq)`` (``K`` the controller's
-translational stiffness [N/m]). A press therefore commands the equilibrium *below* the surface:
+translational stiffness [N/m], known only roughly: CRISP 2.3 clamps it). A press therefore
+commands the equilibrium *below* the surface, and trusts neither the scene's surface height nor
+``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
 ``approach_height`` above its surface) -> ``tare`` (at the approach point and at rest, the
 normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
 window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
-above ``tare_max_offset_n``, refuses the press with that reason) -> ``descend`` (the equilibrium goes straight down at
-``descend_speed`` until the normal force reaches ``force_threshold``) -> ``settle`` (the
-equilibrium is held at ``position - force / K``, never deeper than it already was: the static
-force at the measured pose is then the force measured at the threshold, so the contact stays
-at the threshold during settle and capture) -> ``capture`` (the caller
-grabs a frame and calls ``captured``) -> ``retract`` (back to the approach point) -> ``done``.
+above ``tare_max_offset_n``, refuses the press with that reason; the arm's height above its
+target there, times ``K``, is the *lift*: a static force that holds it up) -> ``descend`` (a
+guarded descent: the equilibrium goes straight down at ``descend_speed``, on past the scene's
+surface, until the smoothed tared force reaches ``contact_force_n``: the surface is *found*
+there, with a warning when it lies more than ``surface_warn_m`` from the scene's; then on until
+``force_threshold``) -> ``settle`` (the hold: the force error moves the equilibrium with time
+constant ``HOLD_TAU_S`` until the force has stayed within ``force_tolerance_n`` of the
+threshold, at rest, for ``settle_s``; not within ``hold_deadline_s``: refused ``hold``) ->
+``capture`` (the caller grabs a frame and calls ``captured``; a light press without capture
+goes straight on) -> ``retract`` (back to the approach point) -> ``done``.
 
-The equilibrium never goes deeper than ``equilibrium_floor`` below the surface:
-``max(max_depth, (force_threshold + max_force) / 2 / K)``. For compliant controllers
-(``K * max_depth <= (force_threshold + max_force) / 2``) the static force at that floor is below
-the midpoint of threshold and limit whatever the platform's stiffness, because the contact spring
-only adds compliance in series; stiffer controllers rely on the threshold stop, checked every tick.
-No contact: the sensor is ``max_depth`` below the surface, or the equilibrium has reached its
-floor and the arm has settled there, and the force is still below the threshold.
+A goal is reached when the arm is within ``position_tolerance`` of it, or within
+``rest_tolerance`` and at rest (slower than ``rest_speed`` for ``rest_s``): a cable or a payload
+error that holds the arm off still lets it arrive.
+
+The spring's push at the measured pose, ``K (x - x_eq)``, is clipped every tick at ``cap``
+(``spring_cap``: the midpoint of threshold and limit plus the lift, never above ``max_force``).
+When the spring is at its cap, the arm at rest and the force below the threshold's band,
+something the lift missed holds the arm up: the cap grows by the spring's push minus the contact
+force, up to ``max_force``; there the press is refused ``stalled``. The equilibrium never goes
+below ``equilibrium_floor`` under the scene's surface (``surface_search + max_depth + max_force
+/ K``) nor below the workspace. No contact: the sensor ``surface_search`` below the scene's
+surface without contact (``no contact``), ``max_depth`` below the surface found without the
+threshold (``too soft``), or the equilibrium at its floor with the arm at rest.
 
 Enforced on every tick, whatever the phase: the commanded target stays inside the workspace
 box and moves at most ``max_speed`` (and the phase's own speed) per second; the force magnitude
@@ -468,12 +480,13 @@ class PressController:
 
     def _stalled(self, now: float, position: np.ndarray) -> bool:
         """The spring pushes with its cap, the arm is at rest and the force is below the
-        threshold's band (``force_tolerance_n``): something holds the arm up (an upward force, friction) that the tare's
-        lift underestimated. The spring's push minus the contact force measures it: the cap
-        grows by it, up to ``max_force``; at ``max_force`` the press is refused (True)."""
+        threshold's band (``force_tolerance_n``): something holds the arm up (an upward force,
+        friction) that the tare's lift underestimated. The spring's push minus the contact
+        force measures it: the cap grows by it, up to ``max_force``; at ``max_force`` the
+        press is refused (True)."""
         s = self.s
-        if (not self._capped(position) or self.force_avg >= s.force_threshold - s.force_tolerance_n
-                or not self._at_rest(now)):
+        if (not self._capped(position) or not self._at_rest(now)
+                or self.force_avg >= s.force_threshold - s.force_tolerance_n):
             return False
         if self.cap >= s.max_force - 1e-9:
             self.abort(f"stalled: {self.force_avg:.2f} N < force_threshold "

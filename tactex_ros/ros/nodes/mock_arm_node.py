@@ -18,7 +18,8 @@ the wrench estimate's ``wrench_offset_*``, ``offset_gradient``, ``wrench_drift_*
 ``viscous_friction`` (``world_seed`` draws the noise); the controller's ``max_stiffness``
 clamp, ``state_filter`` and ``output_filter`` (CRISP 2.3.x) and ``activation_jump_*`` (the
 transient after each activation). The published wrench is what the robot would report:
-``wrench_sign`` x (contact + static force + bias + noise). Robot errors: ``reflex_force``: above that contact force the arm stops and the state stops (the hardware
+``wrench_sign`` x (contact + static force + bias + noise). Robot errors: ``reflex_force``:
+above that contact force the arm stops and the state stops (the hardware
 component and its controllers are down, as after a franka reflex) until a stand-in recovery
 (``recovery_standin``: an action or a service) clears the error and the stand-in re-activation
 services bring hardware, then controllers, back -- in that order, as franka_ros2 requires.
