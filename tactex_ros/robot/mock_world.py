@@ -26,7 +26,7 @@ stiffness clamp, error clip, torque rate limit and the activation transient.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace as _replace
+from dataclasses import dataclass, replace as _replace
 from typing import Sequence
 
 import numpy as np
