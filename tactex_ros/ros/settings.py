@@ -275,6 +275,45 @@ class MockArmSettings(Schema):
     surface_offset: float = param(0.0, "platforms' true surface z minus the scene's [m] "
                                        "(fault injection: < 0 means lower, no contact)",
                                   -0.5, 0.5)
+    # the simulated world's faults (robot.mock_world.Faults; ranges and sources:
+    # docs/simulated_world.md)
+    wrench_offset_x: float = param(0.0, "wrench estimate bias, x [N]", -50.0, 50.0)
+    wrench_offset_y: float = param(0.0, "wrench estimate bias, y [N]", -50.0, 50.0)
+    wrench_offset_z: float = param(0.0, "wrench estimate bias, z [N]", -50.0, 50.0)
+    offset_gradient: float = param(0.0, "the bias changes by this per metre moved from the "
+                                        "start (configuration dependence) [N/m]", 0.0, 1000.0)
+    wrench_drift_x: float = param(0.0, "slow drift of the bias, x [N/s]", -1.0, 1.0)
+    wrench_drift_y: float = param(0.0, "slow drift of the bias, y [N/s]", -1.0, 1.0)
+    wrench_drift_z: float = param(0.0, "slow drift of the bias, z [N/s]", -1.0, 1.0)
+    wrench_noise: float = param(0.0, "wrench estimate noise, std per axis and sample [N]",
+                                0.0, 10.0)
+    static_force_x: float = param(0.0, "unmodelled static force on the arm (payload, cable), "
+                                       "x [N]", -50.0, 50.0)
+    static_force_y: float = param(0.0, "unmodelled static force on the arm, y [N]",
+                                  -50.0, 50.0)
+    static_force_z: float = param(0.0, "unmodelled static force on the arm, z, + up [N]",
+                                  -50.0, 50.0)
+    coulomb_friction: float = param(0.0, "Coulomb (stick-slip) friction per axis [N]",
+                                    0.0, 50.0)
+    viscous_friction: float = param(0.0, "viscous friction [N s/m]", 0.0, 1000.0)
+    world_seed: int = param(0, "seed of the noise and of the offset's direction of change",
+                            0, 2**31 - 1)
+    max_stiffness: float = param(0.0, "controller clamps the stiffness here, damping still "
+                                      "from the requested one (CRISP 2.3 "
+                                      "variable_max_stiffness.translational: 900) [N/m] "
+                                      "(0 = no clamp)", 0.0, 1e6)
+    state_filter: float = param(0.0, "controller's EMA weight on the measured position and "
+                                     "velocity (CRISP 2.3 filter.q / filter.dq: 0.5)",
+                                0.0, 0.999)
+    output_filter: float = param(0.0, "controller's EMA weight on its output force (CRISP "
+                                      "2.3 filter.output_torque: 0.5)", 0.0, 0.999)
+    activation_jump_x: float = param(0.0, "after each activation the controller's target is "
+                                          "off by this for activation_jump_s, x [m]",
+                                     -0.5, 0.5)
+    activation_jump_y: float = param(0.0, "activation transient, y [m]", -0.5, 0.5)
+    activation_jump_z: float = param(0.0, "activation transient, z [m]", -0.5, 0.5)
+    activation_jump_s: float = param(0.0, "how long the activation transient lasts [s]",
+                                     0.0, 1.0)
     reflex_force: float = param(0.0, "contact force above which the mock goes into a reflex: "
                                      "the arm stops and no state is published until recovered "
                                      "(0 = never) [N]", 0.0, 1000.0)

@@ -62,6 +62,9 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     assert all(t["array"].shape == (240, 320, 3) for t in accepted)
     # the impedance press holds the force measured at the threshold (dynamics: a few %)
     assert all(t["force_n"] >= 0.9 * scene.press.force_threshold for t in accepted)
+    # the surface found is in the record: the mock's surfaces are where the scene says
+    assert all(abs(t["surface"]["error_m"]) < 0.001 and not t["surface"]["warning"]
+               for t in accepted)
     assert rec["result"]["prediction"] == truth
     assert len(rec["decisions"]) == 3
     assert json.loads((run.record / "config.json").read_text())["trial"]["rounds"] == 2

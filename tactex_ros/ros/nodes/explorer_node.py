@@ -346,6 +346,8 @@ class ExplorerNode(TactexNode):
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
                     tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
                           "samples": int(touch.tare_samples)},
+                    surface={"z_m": touch.surface_z, "error_m": touch.surface_error_m,
+                             "warning": touch.warning},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")

@@ -25,7 +25,7 @@ from sensor_msgs.msg import Image
 
 from .. import adapter
 from ...robot.frames import FrameRing
-from ...robot.press import platform_under
+from ...robot.mock_world import platform_under
 from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene

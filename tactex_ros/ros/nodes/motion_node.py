@@ -5,9 +5,10 @@ Serves the ``tactex/action/Press`` action (goal: platform id from the scene). Th
 equilibrium topic and type (PoseStamped, or multipanda_ros2's Float64MultiArray), the state
 (PoseStamped + WrenchStamped of franka_robot_state_broadcaster, or a franka state message), the
 controller stiffness, the wrench sign and the recovery interface. The press sequence is
-``robot.press.PressController``: approach, descend (the equilibrium goes below the surface until
-the force threshold), hold the force during settle and capture (GelSight capture service),
-retract. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
+``robot.press.PressController``: approach, descend (guarded: the equilibrium goes on past the
+scene's surface until the tared force finds it, then to the force threshold), hold the force by
+feedback during settle and capture (GelSight capture service), retract; where the surface was
+found, and a warning if it moved, go into the touch. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
 every phase. A failed attempt (no contact, no image, force limit) is retried up to
 ``press.retries`` times. A robot error (the state stops arriving during a press, or the franka
 state reports a reflex) ends the attempt at once; if fresh state does not come back by itself
@@ -491,7 +492,11 @@ class MotionNode(TactexNode):
                       image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
                       attempt=attempt, no_contact_image=cap.no_contact,
                       tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
-                      tare_samples=out.tare.samples)
+                      tare_samples=out.tare.samples, surface_z=out.surface_z,
+                      surface_error_m=out.surface_z - platform.position[2],
+                      warning=out.warning)
+        if out.warning:
+            self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
