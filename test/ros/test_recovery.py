@@ -76,3 +76,18 @@ def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
     assert "robot stopped" in res.reason
     assert "not retried: recovery failed" in res.reason
     assert "/tactex_test/activate_controller" in res.reason
+
+
+def test_calls_before_the_recovery_come_first(tmp_path: Path, listener, press) -> None:
+    """The profile's `before` calls (franka_ros2 on Humble: deactivate the controllers) are
+    made before the recovery itself, and one that fails ends the goal with its service named:
+    here a service nobody offers, while the recovery action would have succeeded."""
+    missing = {"service": "/tactex_test/deactivate_first", "type": "std_srvs/srv/SetBool",
+               "request": {"data": False}, "ok_field": "success"}
+    rec = {"kind": "action", "name": "/tactex_test/error_recovery",
+           "type": "tactex/action/Press", "before": [missing], "then": [HW, CTL]}
+    with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
+        res = press("c1")
+    assert not res.success and 1 <= res.attempts <= 2
+    assert "not retried: recovery failed" in res.reason
+    assert "/tactex_test/deactivate_first not available" in res.reason
