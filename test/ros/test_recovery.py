@@ -47,13 +47,15 @@ def _graph(tmp_path: Path, kind: str, recovery: dict):
     return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
 
 
-@pytest.mark.parametrize("kind,rtype,ok_field", [
-    ("action", "tactex/action/Press", ""),
-    ("service", "std_srvs/srv/Trigger", "success"),
+@pytest.mark.parametrize("kind,rtype,ok_field,hold", [
+    ("action", "tactex/action/Press", "", False),
+    ("service", "std_srvs/srv/Trigger", "success", False),
+    ("service", "std_srvs/srv/Trigger", "success", True),     # the Panda's hold target first
 ])
 def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, press, kind, rtype,
-                                             ok_field) -> None:
-    rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL]}
+                                             ok_field, hold) -> None:
+    rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL],
+           "hold_target": hold}
     if ok_field:
         rec["ok_field"] = ok_field
     with Graph(_graph(tmp_path, kind, rec), tmp_path / "logs", listener.domain_id):
