@@ -24,16 +24,21 @@ def cmd_check_wrench(args: argparse.Namespace) -> int:
     from geometry_msgs.msg import WrenchStamped
 
     from ..robot.robots import import_interface, load_profile
+    from ..ros.adapter import qos_profile
     from ..ros.preflight import Probe, Stopped, watch_push
 
     prof = load_profile(args.robot)
+    # the subscription asks for the upstream publisher's QoS (franka's wrench: best effort,
+    # keep last 1; a reliable reader would never match it)
     if prof.franka_state:
         msg_type, topic = import_interface(prof.state_type), args.topic or prof.state_topic
+        qos = qos_profile(prof.state_qos)
 
         def fz_of(msg):
             return msg.o_f_ext_hat_k[2]
     else:
         msg_type, topic = WrenchStamped, args.topic or prof.wrench_topic
+        qos = qos_profile(prof.wrench_qos)
 
         def fz_of(msg):
             return msg.wrench.force.z
@@ -49,8 +54,9 @@ def cmd_check_wrench(args: argparse.Namespace) -> int:
         probe = Probe(rclpy.get_default_context(), "tactex_check_wrench")
         print(f"reading {topic} hands off for {args.baseline_s:g} s ...", file=sys.stderr,
               flush=True)
-        reading, n_base, n_push = watch_push(probe, msg_type, topic, fz_of, args.baseline_s,
-                                             args.deadline_s, args.push_n, args.hold_s, prompt)
+        reading, n_base, n_push = watch_push(probe, msg_type, topic, qos, fz_of,
+                                             args.baseline_s, args.deadline_s, args.push_n,
+                                             args.hold_s, prompt)
     except Stopped:
         return 130
     finally:

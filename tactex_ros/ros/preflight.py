@@ -113,9 +113,11 @@ class Probe:
         self.node.destroy_node()
 
 
-def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s: float,
-               deadline_s: float, push_n: float, hold_s: float, prompt: Any) -> tuple:
-    """The wrench-sign check: the first message of ``topic`` within ``deadline_s`` [s], then
+def watch_push(probe: Probe, msg_type: type, topic: str, qos: Any, fz_of: Any,
+               baseline_s: float, deadline_s: float, push_n: float, hold_s: float,
+               prompt: Any) -> tuple:
+    """The wrench-sign check: the first message of ``topic`` (subscribed with ``qos``, its
+    upstream publisher's) within ``deadline_s`` [s], then
     ``baseline_s`` [s] of hands-off samples (raw f_z by ``fz_of(msg)``), then ``prompt()``, then
     samples until a push is seen (``push_sign``) or ``deadline_s``. Returns (PushReading,
     hands-off samples, push samples); TrialError when no message comes."""
@@ -126,7 +128,7 @@ def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s:
     def got(msg: Any) -> None:
         times.append(time.monotonic())
         fz.append(float(fz_of(msg)))
-    sub = probe.node.create_subscription(msg_type, topic, got, 10)
+    sub = probe.node.create_subscription(msg_type, topic, got, qos)
     try:
         end = time.monotonic() + deadline_s
         while not fz and time.monotonic() < end:     # the first message (discovery)

@@ -149,8 +149,9 @@ class MotionSettings(Schema):
                                            "its first message [s]", 0.1, 30.0)
     preflight_deadline_s: float = param(20.0, "deadline for the first robot state message and "
                                               "for franka's collision service [s]", 0.1, 120.0)
-    min_state_rate_hz: float = param(50.0, "robot state slower than this refuses the start "
-                                           "[Hz] (franka_robot_state_broadcaster: 1000)",
+    min_state_rate_hz: float = param(0.0, "robot state slower than this refuses the start "
+                                          "[Hz] (0 = the robot profile's state.min_rate_hz, "
+                                          "set from the rate its bring-up publishes at)",
                                      0.0, 10000.0)
     collision_set_by_hand: bool = param(False, "franka's collision thresholds (the robot "
                                                "profile's collision request) were set with "

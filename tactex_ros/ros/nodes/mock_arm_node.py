@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, Vector3, WrenchStamped
-from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Header
 
 from .. import adapter
@@ -62,9 +61,10 @@ class MockArmNode(TactexNode):
         self.sign = s.wrench_sign or prof.force_sign
         self.quat = np.array(scene.tool_orientation)
         self.pose_pub = self.create_lifecycle_publisher(
-            PoseStamped, s.pose_topic or prof.pose_topic, qos_profile_sensor_data)
+            PoseStamped, s.pose_topic or prof.pose_topic, adapter.qos_profile(prof.pose_qos))
         self.wrench_pub = self.create_lifecycle_publisher(
-            WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
+            WrenchStamped, s.wrench_topic or prof.wrench_topic,
+            adapter.qos_profile(prof.wrench_qos))
         self.target_topic = s.target_topic or prof.target_topic
         # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
         self.create_subscription(import_interface(prof.target_type), self.target_topic,
