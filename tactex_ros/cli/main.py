@@ -155,9 +155,10 @@ def cmd_prepare(args: argparse.Namespace) -> int:
 CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot"})
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+def build_parser(command: str | None = None, plugins: bool = True) -> argparse.ArgumentParser:
     """The ``tactex`` parser; with ``command``, the options of that command only (``builds``).
-    Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``."""
+    Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``
+    (``plugins=False``: the product's commands only)."""
     p = argparse.ArgumentParser(prog="tactex", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
     _trial_parser(sub, command)
@@ -168,10 +169,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
     robot.add_commands(sub, command)
-    if command in CLOSED_COMMANDS:
+    if command in CLOSED_COMMANDS or not plugins:
         return p                          # no plug-in adds to them: none is looked up
-    from ..core import plugins
-    for name, ep in plugins.available(plugins.COMMANDS).items():
+    from ..core.plugins import COMMANDS, available
+    for name, ep in available(COMMANDS).items():
         try:
             ep.load()(sub, command)
         except ImportError as exc:        # a plug-in whose package is not installed
