@@ -101,6 +101,10 @@ class ExplorerNode(SessionMode, TactexNode):
         explorer["seed"] = seed
         inputs = {"explorer": explorer, "learner": s.learner.model_dump(),
                   "trial": s.trial.model_dump()}
+        from ...trial.report import changed_settings, run_info
+        base = type(s)(config=s.config).model_dump(exclude={"learner", "trial"})
+        inputs["run"] = dict(run_info(), non_default=changed_settings(explorer, base,
+                                                                      "explorer."))
         if extra:
             inputs.update(extra)
         self.replay = None
@@ -156,7 +160,7 @@ class ExplorerNode(SessionMode, TactexNode):
                          "touches_replayed": len(self.replay.recorded),
                          "decisions_on_disk": len(rec["decisions"]),
                          "checkpoint_round": len(self.engine.records), "how": how,
-                         "time": time.time()})
+                         "time": time.time(), "command": os.environ.get("TACTEX_COMMAND", "")})
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -203,6 +207,9 @@ class ExplorerNode(SessionMode, TactexNode):
                         "stop reason": res.get("stop_reason", ""),
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
+        if self.result is None and not self.press.server_is_ready():
+            msg = "starting: waiting for the press server (motion node)"
+            values["state"] = "starting"
         if self.session is not None:
             from ...trial import session as sess
             done = sum(sess.trial_state(self.session_dir, t) == "done"
@@ -245,7 +252,8 @@ class ExplorerNode(SessionMode, TactexNode):
                                   "touches": list(msg.touches), "model": rec.model,
                                   "decision_s": rec.decision_s, "done": done,
                                   "prediction": prediction,
-                                  "sure": self.engine.sure if done else None})
+                                  "sure": self.engine.sure if done else None,
+                                  "time": time.time()})
 
     def _replayed_decision(self, msg) -> bool:
         """True for a decision a resumed trial re-made that the record already holds (a
@@ -359,6 +367,8 @@ class ExplorerNode(SessionMode, TactexNode):
         if not res.success:
             self._failed(platform, meta, res.reason or "press failed", res.attempts)
         touch = res.touch
+        if res.reason:        # attempts that failed before this one (motion node)
+            meta["attempt_failures"] = res.reason
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
                     tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,

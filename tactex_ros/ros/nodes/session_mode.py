@@ -2,8 +2,11 @@
 
 Before each trial the operator is told what to place where (logged, published latched on
 ``prompt_topic`` as ``std_msgs/String``, written to ``session_events.jsonl``) and confirms with
-the explorer's ``~/confirm`` service (``std_srvs/srv/Trigger``); ``auto_confirm`` confirms at
-once (scripted sessions). A placement not confirmed within ``confirm_timeout_s`` ends the
+the explorer's ``~/confirm`` service (``std_srvs/srv/Trigger``: recorded as by ``service``) or
+``~/confirm_by`` (``tactex/srv/Confirm``: how and by whom, e.g. ``enter`` or ``yes_flag`` from
+``tactex graph run``); ``auto_confirm`` confirms at once (scripted sessions). The confirmation
+is recorded with its source and caller and published on ``prompt_topic``, so every place that
+shows the prompt shows who confirmed it. A placement not confirmed within ``confirm_timeout_s`` ends the
 session: recorded, resumable. In simulation the mock camera's ``placement`` parameter is set
 through its SetParameters service (``placement_service``) so it shows the trial's fabrics.
 Every trial gets a fresh engine (belief and learner reset; the learner's modules stay
@@ -59,8 +62,13 @@ class SessionMode:
                            "trials": len(self.session.trials)})
         self._confirmed = threading.Event()
         self._awaiting: str | None = None
+        from tactex.srv import Confirm
+        self._confirmed_by: tuple[str, str] = ("", "")
         self.confirm_srv = self.create_service(Trigger, "~/confirm",
                                                lambda req, res: self._on_confirm(res))
+        self.confirm_by_srv = self.create_service(
+            Confirm, "~/confirm_by",
+            lambda req, res: self._on_confirm(res, req.by or "service", req.caller))
         self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
         self.placement_client = (self.create_client(SetParameters, s.placement_service)
                                  if s.placement_service else None)
@@ -68,12 +76,14 @@ class SessionMode:
                                f"folder {d}{' (resumed)' if resumed else ''}")
 
 
-    def _on_confirm(self, res: Any) -> Any:
-        """``~/confirm``: the operator has placed the fabrics of the trial being prompted."""
-        if self._awaiting is None:
+    def _on_confirm(self, res: Any, by: str = "service", caller: str = "") -> Any:
+        """``~/confirm`` / ``~/confirm_by``: the operator has placed the fabrics of the trial
+        being prompted; ``by`` / ``caller``: how and by whom (recorded)."""
+        if self._awaiting is None or self._confirmed.is_set():
             res.success, res.message = False, "nothing to confirm: no placement is awaited now"
             return res
         res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
+        self._confirmed_by = (by, caller)
         self._confirmed.set()
         return res
 
@@ -93,7 +103,9 @@ class SessionMode:
                                           "placement": trial.placement, "text": text,
                                           "time": time.time()})
         self.prompt_pub.publish(String(data=text))
+        self._confirmed_by = ("", "")
         if s.auto_confirm:
+            self._confirmed_by = ("auto_confirm", "the explorer's auto_confirm parameter")
             self._confirmed.set()
         deadline = time.monotonic() + s.confirm_timeout_s
         try:
@@ -104,9 +116,14 @@ class SessionMode:
                     return False
         finally:
             self._awaiting = None
+        by, caller = self._confirmed_by
         sess.add_event(self.session_dir, {"event": "confirmed", "trial": trial.id,
-                                          "by": "auto" if s.auto_confirm else "service",
+                                          "by": by, "caller": caller or None,
                                           "time": time.time()})
+        said = f"trial {trial.id}: placement confirmed by {by}" + \
+            (f" ({caller})" if caller else "")
+        self.get_logger().info(said)
+        self.prompt_pub.publish(String(data=said))
         return True
 
 
