@@ -31,7 +31,8 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
-    from ..core.config import TrialSettings, merge, overrides
+    from ..core.config import TrialSettings
+    from ..core.schema import merge, overrides
     from ..core.engine import TrialSpec, default_platform_ids, run_trial
     from ..sources import open_source, trial_scene
     given = merge(schema_values(args, ("config",) + TRIAL_OPTIONS),

@@ -46,8 +46,8 @@ from typing import Callable
 
 import numpy as np
 
-from .config import (DescriptorSettings, LearnerSettings, TrialConfig,  # noqa: F401
-                     trial_preset, validate)
+from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_preset  # noqa: F401
+from .schema import validate
 from .errors import InputError, TrialError
 from .guards import ContactGuard
 from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round

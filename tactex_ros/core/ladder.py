@@ -43,7 +43,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from .descriptor import raw_descriptor
-from .config import PRESETS, LadderSettings, learner_settings, preset, validate
+from .config import PRESETS, LadderSettings, learner_settings, preset
+from .schema import validate
 from .errors import InputError
 from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
 from .plugins import LEARNERS, available

@@ -40,6 +40,7 @@ class _Sent:
     fut: Any                          # future of the goal response (a ClientGoalHandle)
     t: float                          # when it was sent [s, monotonic]
     probes: list = field(default_factory=list)   # futures of result requests by its id
+    probe_t: float = 0.0              # when the last probe was sent [s, monotonic]
     canceled: bool = False
 
 
@@ -66,6 +67,9 @@ class GoalRequest:
         self._result_fut: Any = None
         self.refused = False
         self.switched = False    # a probe showed that an unanswered goal ran: its result used
+        # an unanswered goal followed by its id: a STATUS_UNKNOWN probe is not final while its
+        # goal response may still come (a loaded machine answers late, after the re-send)
+        self._unanswered: _Sent | None = None
         self._send()
 
     # ---------------------------------------------------------------- caller's view
@@ -77,7 +81,8 @@ class GoalRequest:
     def finished(self) -> bool:
         """True once the followed goal's result is in, or every goal was refused (polls)."""
         self._poll()
-        return self.refused or (self._result_fut is not None and self._result_fut.done())
+        return self.refused or (self._result_fut is not None and self._result_fut.done()
+                                and self._unanswered is None)
 
     @property
     def result(self) -> Any:
@@ -127,6 +132,7 @@ class GoalRequest:
         STATUS_UNKNOWN at once for an id it never took)."""
         p = self._handle_of(s).get_result_async()
         s.probes.append(p)
+        s.probe_t = self.clock()
         return p
 
     def _follow(self, handle: ClientGoalHandle, result_fut: Any) -> None:
@@ -136,6 +142,9 @@ class GoalRequest:
         return self.handle is not None and bytes(s.gid.uuid) == bytes(self.handle.goal_id.uuid)
 
     def _poll(self) -> None:
+        if self.refused:
+            return
+        self._settle_unanswered()
         if self.refused:
             return
         # an unanswered goal that ran after all (a probe came back with its status): its
@@ -171,11 +180,38 @@ class GoalRequest:
             # the refusal (a probe sent earlier may have overtaken the goal request)
             first = lost[0]
             self._follow(self._handle_of(first), self._probe(first))
+            self._unanswered = first
             return
         newest = self.sent[-1]
         if self.clock() - newest.t >= self.answer_s and len(self.sent) < self.max_sends:
             self._probe(newest)      # in case it was taken and has ended already
             self._send()
+
+    def _settle_unanswered(self) -> None:
+        """An unanswered goal followed by its id whose probe came back: a real status is its
+        result; STATUS_UNKNOWN is final only once its own response says so (rejected: every
+        goal refused; accepted: followed by its handle) or, with the response still missing,
+        after ``max_sends`` probes ``answer_s`` apart (the request was lost)."""
+        s = self._unanswered
+        if s is None or self._result_fut is None or not self._result_fut.done():
+            return
+        r = self._result_fut.result()
+        if r is not None and r.status != GoalStatus.STATUS_UNKNOWN:
+            self._unanswered = None
+            return
+        if s.fut.done():
+            self._unanswered = None
+            h = s.fut.result()
+            if h is not None and h.accepted:
+                self._follow(h, h.get_result_async())
+            elif all(x.fut.done() and (x.fut.result() is None or not x.fut.result().accepted)
+                     for x in self.sent):
+                self.refused, self.handle, self._result_fut = True, None, None
+            return
+        if len(s.probes) >= self.max_sends:
+            self._unanswered = None                   # never answered: never taken
+        elif self.clock() - s.probe_t >= self.answer_s:
+            self._result_fut = self._probe(s)
 
     def _cancel_others(self) -> None:
         """Cancel every other goal the server took or may have taken (once each): a re-sent

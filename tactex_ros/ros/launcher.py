@@ -140,8 +140,9 @@ class Graph:
         done.sort(key=lambda kv: kv[0] != "explorer")
         return done[0] if done else None
 
-    def stop(self, grace_s: float = 5.0) -> dict[str, int | None]:
-        """SIGINT to every running node, SIGKILL to its process group after ``grace_s``."""
+    def stop(self, grace_s: float = 15.0) -> dict[str, int | None]:
+        """SIGINT to every running node, SIGKILL to its process group after ``grace_s`` (sized
+        for a loaded machine: a node in a CNN training step at load 26 needed more than 5 s)."""
         for p in self.procs.values():
             if p.poll() is None:
                 try:

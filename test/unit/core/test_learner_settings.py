@@ -9,9 +9,9 @@ import re
 
 import pytest
 
-from tactex_ros.core.config import (AutoSettings, CnnSettings, DescriptorSettings,
-                                    LadderSettings, TrialSettings, fields, learner_class, learner_settings,
-                                    nearest, overrides, preset)
+from tactex_ros.core.config import (AutoSettings, CnnSettings, DescriptorSettings, LadderSettings,
+                                    TrialSettings, learner_class, learner_settings, preset)
+from tactex_ros.core.schema import fields, nearest, overrides
 from tactex_ros.core.engine import (RoundRecord, TrainingDetail, TrialOutcome, TrialSpec,
                                     training_of)
 from tactex_ros.core.errors import InputError

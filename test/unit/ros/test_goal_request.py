@@ -34,9 +34,12 @@ class Server:
     numbered in ``lose_request`` never arrive, the responses in ``lose_response`` never come
     back; goals for ``bad`` are rejected."""
 
-    def __init__(self, duration: float, lose_request=(), lose_response=(), bad="") -> None:
+    def __init__(self, duration: float, lose_request=(), lose_response=(), bad="",
+                 late_response=None) -> None:
         self.now, self.duration, self.bad = 0.0, duration, bad
         self.lose_request, self.lose_response = set(lose_request), set(lose_response)
+        self.late_response = dict(late_response or {})   # request number -> delay [s]
+        self.late: list[tuple[float, Fut, object]] = []  # (due, future, response)
         self.n_requests = 0
         self.goals: dict[bytes, dict] = {}     # goal id -> start, end, status
         self.waiting: list[tuple[bytes, Fut]] = []
@@ -46,6 +49,10 @@ class Server:
 
     def tick(self, dt: float) -> None:
         self.now += dt
+        for due, f, value in list(self.late):
+            if self.now >= due:
+                f.set(value)
+                self.late.remove((due, f, value))
         for g in self.goals.values():
             if g["status"] == GoalStatus.STATUS_EXECUTING and self.now >= g["end"]:
                 g["status"] = GoalStatus.STATUS_SUCCEEDED
@@ -70,8 +77,11 @@ class Client:
         ok = goal != s.bad and not s.running()
         if ok:
             s.goals[gid] = {"status": GoalStatus.STATUS_EXECUTING, "end": s.now + s.duration}
-        if i not in s.lose_response:
-            f.set(ClientGoalHandle(self, goal_uuid, SimpleNamespace(accepted=ok)))
+        response = ClientGoalHandle(self, goal_uuid, SimpleNamespace(accepted=ok))
+        if i in s.late_response:
+            s.late.append((s.now + s.late_response[i], f, response))
+        elif i not in s.lose_response:
+            f.set(response)
         return f
 
     def _get_result_async(self, handle):
@@ -150,6 +160,24 @@ def test_lost_rejection_ends_unknown() -> None:
     assert req.finished() and not req.refused
     assert req.result.status == GoalStatus.STATUS_UNKNOWN   # the server never took it
     assert s.goals == {}
+
+
+def test_late_rejection_is_a_refusal_not_a_lost_goal() -> None:
+    # a loaded machine: the rejection of the first goal arrives after the re-send was refused
+    # and after the probe said STATUS_UNKNOWN: still a refusal (CI at load 26)
+    s = Server(duration=1.0, bad="nope", late_response={0: 3.0})
+    req = run(s, goal="nope")
+    assert req.refused and req.result is None and req.resent == 1
+    assert s.now == pytest.approx(3.0, abs=0.15)
+
+
+def test_late_acceptance_is_followed_to_its_result() -> None:
+    # the server is busy with another goal, so the re-send is refused; the first goal's
+    # acceptance then arrives late: its result is the one followed (one touch)
+    s = Server(duration=6.0, late_response={0: 3.0})
+    req = run(s)
+    assert not req.refused and req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid) and len(s.goals) == 1
 
 
 def test_silent_server_sends_at_most_max_sends() -> None:
