@@ -186,7 +186,40 @@ def test_a_session_interrupted_and_resumed_raises_no_error(tmp_path: Path, liste
     assert {e["by"] for e in ev if e["event"] == "confirmed"} == {"yes_flag"}
     art = Path(__file__).parents[2] / "test-artifacts"
     art.mkdir(exist_ok=True)
+    _screenshots(d, art, tmp_path)
     (art / "session_diagnostics.json").write_text(json.dumps(
         {"statuses": len(got), "names": sorted(seen), "states": sorted(states),
          "errors_outside_the_kill": errors(0.0, cut["kill"]) +
          errors(cut["restart"], cut["done"])}, indent=1) + "\n")
+
+
+def _screenshots(d: Path, art: Path, tmp: Path) -> None:
+    """The resumed trial's report and the session report in headless Chromium: the context
+    table, the marked outcome, both belief charts; screenshots kept in test-artifacts/."""
+    import shutil
+    wd = pytest.importorskip("selenium.webdriver")
+    chrome, driver = shutil.which("chromium"), shutil.which("chromedriver")
+    if not chrome or not driver:
+        return
+    from selenium.webdriver.chrome.service import Service
+    opts = wd.ChromeOptions()
+    opts.binary_location = chrome
+    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+              "--disable-background-networking", "--window-size=1200,3000",
+              f"--user-data-dir={tmp / 'chrome-profile'}"):
+        opts.add_argument(a)
+    drv = wd.Chrome(service=Service(driver), options=opts)
+    try:
+        drv.get((d / "trial_2" / "report.html").as_uri())
+        assert drv.find_element("id", "context").is_displayed()
+        assert drv.find_element("id", "verdict").text in ("correct", "wrong")
+        assert drv.find_elements("css selector", ".platform.chosen, .platform.wrong")
+        for chart in ("belief-chart", "belief-time-chart"):
+            assert len(drv.find_elements("css selector", f"#{chart} polyline.series")) == 4
+        assert "resumed after touch" in drv.find_element("id", "timeline").text
+        drv.save_screenshot(str(art / "session_trial_2_report.png"))
+        drv.get((d / "report.html").as_uri())
+        assert len(drv.find_elements("css selector", "table.trials tr")) == 1 + 3
+        drv.save_screenshot(str(art / "session_report.png"))
+    finally:
+        drv.quit()
