@@ -132,7 +132,9 @@ def test_a_session_interrupted_and_resumed_raises_no_error(tmp_path: Path, liste
         # rate, 0.5 s); the test asks for ERROR below 5 Hz and past 1.5 s
         return describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0},
                                         "seed": 3, "record_dir": str(tmp_path),
-                                        "session_file": str(short)},
+                                        "session_file": str(short),
+                                        # a placement took over 30 s to prepare at load 24
+                                        "server_timeout_s": 120.0},
                         mock_image={"diag_rate_error": 0.2},
                         motion={"diag_camera_error_s": 1.5})
 
