@@ -275,6 +275,10 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    import os
+    import shlex
+    # the command as typed, kept by every record this run writes (config.json "run")
+    os.environ["TACTEX_COMMAND"] = shlex.join(["tactex", *argv])
     command = argv[0] if argv and not argv[0].startswith("-") else ""
     args = build_parser(command).parse_args(argv)
     try:

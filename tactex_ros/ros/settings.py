@@ -45,6 +45,12 @@ class CameraHealthSettings(Schema):
                                         "since the start [grey levels]", 0.0, 255.0)
     diag_drift_error: float = param(15.0, "ERROR above this no-contact drift [grey levels]",
                                     0.0, 255.0)
+    diag_startup_s: float = param(120.0, "start-up: no frame yet is WARN ('starting') until "
+                                         "this long after configuration, then ERROR [s]",
+                                  1.0, 3600.0)
+    diag_pause_s: float = param(60.0, "an expected pause of the frames (the mock camera "
+                                      "preparing a new placement) is WARN until this long, "
+                                      "then ERROR [s]", 1.0, 3600.0)
 
 
 class GelsightSettings(CameraHealthSettings):
@@ -173,6 +179,12 @@ class MotionSettings(Schema):
     diag_camera_error_s: float = param(0.5, "camera link: ERROR when the newest image is older "
                                             "than this [s] (a capture would find no fresh "
                                             "frame)", 0.01, 60.0)
+    diag_startup_s: float = param(120.0, "start-up: no robot state or camera image yet is "
+                                         "WARN ('starting') until this long after "
+                                         "configuration, then ERROR [s]", 1.0, 3600.0)
+    capture_wait_s: float = param(60.0, "a press waits this long for the camera's capture "
+                                         "service before it is refused (the arm does not "
+                                         "move without a camera) [s]", 0.1, 3600.0)
 
 
 class ExplorerSettings(TrialSettings):
@@ -328,6 +340,7 @@ class MockArmSettings(Schema):
                                   "stand-in hardware re-activation service (SetBool)")
     controller_service: str = param("/tactex_test/activate_controller",
                                     "stand-in controller re-activation service (SetBool)")
+    diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
 
 
 class MockImageSettings(CameraHealthSettings):

@@ -19,6 +19,7 @@ over. A resumed trial ends with the outcome of the uninterrupted one.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -108,7 +109,7 @@ class TrialRun:
                          "touches_replayed": len(self.replay.recorded),
                          "decisions_on_disk": len(rec["decisions"]),
                          "checkpoint_round": len(self.engine.records), "how": how,
-                         "time": time.time()})
+                         "time": time.time(), "command": os.environ.get("TACTEX_COMMAND", "")})
 
     @property
     def dir(self) -> Path:
@@ -174,7 +175,7 @@ class TrialRun:
         line = {"round": rec.round, "next": d["next"], "belief": d["belief"],
                 "uncertainty": d["uncertainty"], "touches": d["touches"], "model": rec.model,
                 "decision_s": rec.decision_s, "done": eng.done, "prediction": pred,
-                "sure": eng.sure if eng.done else None}
+                "sure": eng.sure if eng.done else None, "time": time.time()}
         if self.replay is None or not self._replayed_decision(d["belief"]):
             self.record.add_decision(line)
         self._checkpoint()

@@ -31,9 +31,10 @@ class Operator(Protocol):
     def tell(self, text: str) -> None:
         """Say what to place where."""
 
-    def wait(self) -> str | None:
-        """Wait for the confirmation: who confirmed ('auto', 'service'), None when the
-        deadline passed first. TrialError when the process stops meanwhile."""
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for the confirmation: (how: 'enter', 'yes_flag', 'service', 'auto_confirm';
+        by whom, '' when unknown), None when the deadline passed first. TrialError when the
+        process stops meanwhile."""
 
     def place(self, trial: sess.SessionTrial) -> None:
         """Put the trial's fabrics in place where a machine can (simulation); else nothing."""
@@ -80,13 +81,14 @@ class SessionRun:
                                   "time": time.time()})
         try:
             operator.tell(text)
-            by = operator.wait()
+            got = operator.wait()
         finally:
             self.awaiting = None
-        if by is None:
+        if got is None:
             return False
+        by, caller = got
         sess.add_event(self.dir, {"event": "confirmed", "trial": trial.id, "by": by,
-                                  "time": time.time()})
+                                  "caller": caller or None, "time": time.time()})
         return True
 
     def run(self, operator: Operator,

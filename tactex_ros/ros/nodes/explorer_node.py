@@ -124,6 +124,10 @@ class ExplorerNode(TactexNode):
         truth)."""
         s = self.settings
         inputs = s.record_inputs(seed)
+        from ...trial.report import changed_settings, run_info
+        base = type(s)(config=s.config).model_dump(exclude={"learner", "trial"})
+        inputs["run"] = dict(run_info(), non_default=changed_settings(inputs["explorer"], base,
+                                                                      "explorer."))
         if extra:
             inputs.update(extra)
         self.trial = TrialRun(self._spec(seed), record_dir, trial_id, press=self._press,
@@ -218,6 +222,9 @@ class ExplorerNode(TactexNode):
                         "stop reason": res.get("stop_reason", ""),
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
+        if self.result is None and not self.press.server_is_ready():
+            msg = "starting: waiting for the press server (motion node)"
+            values["state"] = "starting"
         if self.session is not None:
             done, n = self.session.done(), len(self.session.session.trials)
             values.update(session=self.session.session.name, **{"trials done": done,
@@ -342,6 +349,8 @@ class ExplorerNode(TactexNode):
         if not res.success:
             self._failed(meta, res.reason or "press failed", res.attempts)
         touch = res.touch
+        if res.reason:        # attempts that failed before this one (motion node)
+            meta["attempt_failures"] = res.reason
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
                     tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
@@ -424,37 +433,50 @@ class ExplorerNode(TactexNode):
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
             log=self._log)
         self.session_dir = d
+        from tactex.srv import Confirm
         self._confirmed = threading.Event()
+        self._confirmed_by: tuple[str, str] = ("", "")
         self.confirm_srv = self.create_service(Trigger, "~/confirm",
                                                lambda req, res: self._on_confirm(res))
+        self.confirm_by_srv = self.create_service(
+            Confirm, "~/confirm_by",
+            lambda req, res: self._on_confirm(res, req.by or "service", req.caller))
         self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
         self.placement_client = (self.create_client(SetParameters, s.placement_service)
                                  if s.placement_service else None)
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
                                f"folder {d}{' (resumed)' if self.session.resumed else ''}")
 
-    def _on_confirm(self, res: Any) -> Any:
-        """``~/confirm``: the operator has placed the fabrics of the trial being prompted."""
-        if self._awaiting is None:
+    def _on_confirm(self, res: Any, by: str = "service", caller: str = "") -> Any:
+        """``~/confirm`` (``std_srvs/Trigger``: recorded as by ``service``) / ``~/confirm_by``
+        (``tactex/srv/Confirm``: how and by whom, e.g. ``enter`` or ``yes_flag``): the operator
+        has placed the fabrics of the trial being prompted."""
+        if self._awaiting is None or self._confirmed.is_set():
             res.success, res.message = False, "nothing to confirm: no placement is awaited now"
             return res
         res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
+        self._confirmed_by = (by, caller)
         self._confirmed.set()
         return res
 
     # the session's operator (``session_run.Operator``): the confirm service, the prompt topic
     def expect(self, trial_id: str) -> None:
         self._confirmed.clear()
+        self._confirmed_by = ("", "")
         self._awaiting = trial_id
 
     def tell(self, text: str) -> None:
         from std_msgs.msg import String
         self.prompt_pub.publish(String(data=text))
         if self.settings.auto_confirm:
+            self._confirmed_by = ("auto_confirm", "the explorer's auto_confirm parameter")
             self._confirmed.set()
 
-    def wait(self) -> str | None:
-        """Wait for ``~/confirm`` up to ``confirm_timeout_s``; TrialError when stopping."""
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for a confirmation up to ``confirm_timeout_s``: (how, by whom); the
+        confirmation is published on the prompt topic, so every place that shows the prompt
+        shows it. TrialError when stopping."""
+        from std_msgs.msg import String
         deadline = time.monotonic() + self.settings.confirm_timeout_s
         try:
             while not self._confirmed.wait(timeout=0.1):
@@ -462,9 +484,14 @@ class ExplorerNode(TactexNode):
                     raise TrialError("the explorer is stopping")
                 if time.monotonic() > deadline:
                     return None
+            trial = self._awaiting
         finally:
             self._awaiting = None
-        return "auto" if self.settings.auto_confirm else "service"
+        by, caller = self._confirmed_by
+        said = f"trial {trial}: placement confirmed by {by}" + (f" ({caller})" if caller else "")
+        self.get_logger().info(said)
+        self.prompt_pub.publish(String(data=said))
+        return by, caller
 
     def place(self, trial: sess.SessionTrial) -> None:
         """Simulation: set the mock camera's ``placement`` (SetParameters), within

@@ -23,6 +23,10 @@ above that contact force the arm stops and the state stops (the hardware
 component and its controllers are down, as after a franka reflex) until a stand-in recovery
 (``recovery_standin``: an action or a service) clears the error and the stand-in re-activation
 services bring hardware, then controllers, back -- in that order, as franka_ros2 requires.
+
+/diagnostics ``mock_arm: arm``: the simulated state's publish rate, hardware and controller
+active, reflexes injected, targets ignored; ERROR while an injected reflex is not recovered (the
+stand-in of a robot fault), WARN while targets are ignored (too many publishers).
 """
 
 from __future__ import annotations
@@ -76,6 +80,12 @@ class MockArmNode(TactexNode):
         self.reflexes = 0
         if s.recovery_standin != "none":
             self._serve_standins(s)
+        from ..diagnostics import Diagnostics, RateMeter
+        self.state_meter = RateMeter()
+        self._ignored_seen = (0, 0.0)     # (ignored targets, when that count was read)
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("arm", f"mock arm, robot profile {prof.name} ({scene.frame_id})",
+                      self._health)
 
     def activate(self) -> None:
         self._last = self.get_clock().now().nanoseconds * 1e-9
@@ -118,6 +128,29 @@ class MockArmNode(TactexNode):
         self.create_service(SetBool, s.hardware_service, hardware)
         self.create_service(SetBool, s.controller_service, controller)
 
+    def _health(self) -> tuple[int, str, dict]:
+        from ..diagnostics import ERROR, OK, WARN
+        import time
+        rate = self.state_meter.rate()
+        ignored, _ = self._ignored_seen
+        newly = self.ignored_targets - ignored
+        self._ignored_seen = (self.ignored_targets, time.monotonic())
+        values = {"state rate [Hz]": rate, "nominal rate [Hz]": self.settings.rate_hz,
+                  "hardware active": self.hardware_active,
+                  "controller active": self.controller_active,
+                  "reflexes injected": self.reflexes, "targets ignored": self.ignored_targets,
+                  "contact force [N]": float(self.arm.normal_force()),
+                  "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position)}
+        if self.error or not self.controller_active:
+            return ERROR, ("reflex (injected): arm stopped, no state until recovered"
+                           if self.error else "controller inactive: no state"), values
+        if not self.active:
+            return OK, "configured, not active yet: no state published", values
+        if newly:
+            return WARN, (f"{newly} target(s) ignored since the last status: more than "
+                          f"{self.max_publishers} publisher(s) on {self.target_topic}"), values
+        return OK, f"simulating, state at {rate:.0f} Hz", values
+
     # ------------------------------------------------------------------ loop
     def _on_target(self, msg) -> None:
         if not self.controller_active:
@@ -146,6 +179,7 @@ class MockArmNode(TactexNode):
             self.reflexes += 1
         if not self.controller_active:
             return     # the state broadcaster is down with the hardware component
+        self.state_meter.tick()
         self.pose_pub.publish(adapter.array_to_pose(self.arm.position, self.quat, now,
                                                     self.scene.frame_id))
         w = WrenchStamped(header=Header(stamp=adapter.stamp(now), frame_id=self.scene.frame_id))

@@ -242,32 +242,39 @@ class MotionNode(TactexNode):
                                f"({col.request_file})")
 
     def _setup_diagnostics(self) -> None:
-        """/diagnostics: the arm (robot mode, state rate and age, last press) and the camera
-        link this node's presses need (images arriving on ``diag_camera_topic``)."""
+        """/diagnostics: the arm (robot mode by name, state rate and age, last press) and the
+        camera link this node's presses need (images arriving on ``diag_camera_topic``). Until
+        the first robot state and the first image, each is in its start-up state (WARN, ERROR
+        only after ``diag_startup_s``)."""
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import Image
 
-        from ..diagnostics import Diagnostics, RateMeter, link_check
+        from ..diagnostics import Diagnostics, RateMeter, link_check, startup_phase
         s = self.settings
         self.state_meter, self.camera_meter = RateMeter(), RateMeter()
         self.last_press: dict = {}
         self.diag = Diagnostics(self, s.diag_period_s)
+        self.arm_startup = startup_phase("robot state", s.diag_startup_s)
         self.diag.add("arm", f"{self.profile.name} ({self.profile.frame_id})", self._arm_health)
         if s.diag_camera_topic:
             # raw: only the arrival counts, the image is never deserialised here
             self.create_subscription(Image, s.diag_camera_topic,
                                      lambda _m: self.camera_meter.tick(),
                                      qos_profile_sensor_data, raw=True)
+            cam_startup = startup_phase("camera image", s.diag_startup_s)
             self.diag.add("camera link", s.diag_camera_topic,
                           lambda: link_check(self.camera_meter, "camera image",
-                                             s.diag_camera_warn_s, s.diag_camera_error_s))
+                                             s.diag_camera_warn_s, s.diag_camera_error_s,
+                                             phase=cam_startup))
 
     def _arm_health(self) -> tuple[int, str, dict]:
-        from ..diagnostics import ERROR, OK, WARN, grade, summary
+        from ..diagnostics import ERROR, OK, WARN, grade, robot_mode_name, summary
         s, now = self.settings, time.monotonic()
         age = None if self.pose_t < 0 else now - max(self.pose_t, 0.0)
         rate = self.state_meter.rate(now)
-        fault = checks.fault_mode(self.robot_mode)
+        mode = (self.robot_mode if self.profile.franka_state else
+                getattr(self, "topic_mode", None))
+        fault = checks.fault_mode(mode)
         parts = [(ERROR if fault else OK, f"robot {fault or 'not stopped'}"),
                  (grade(age, s.diag_state_warn_s,
                         min(s.diag_state_error_s, s.state_timeout_s)),
@@ -276,12 +283,21 @@ class MotionNode(TactexNode):
                   f"robot state at {rate:.0f} Hz")]
         level, msg = summary(parts)
         lp = self.last_press
-        return level, msg, {"robot mode": self.robot_mode, "state rate [Hz]": rate,
-                            "state age [s]": age, "force now [N]": self.force,
-                            "last press platform": lp.get("platform"),
-                            "last press force [N]": lp.get("force_n"),
-                            "last press time [s]": lp.get("duration_s"),
-                            "last press at": lp.get("at"), "busy": self.busy.locked()}
+        values = {"robot mode": robot_mode_name(mode) if (self.profile.franka_state or
+                                                           self.profile.mode_topic)
+                  else f"not reported (profile {self.profile.name}: pose + wrench state)",
+                  "state rate [Hz]": rate,
+                  "state age [s]": age, "force now [N]": self.force,
+                  "last press platform": lp.get("platform"),
+                  "last press force [N]": lp.get("force_n"),
+                  "last press time [s]": lp.get("duration_s"),
+                  "last press attempts": lp.get("attempts"),
+                  "last press at": lp.get("at"), "busy": self.busy.locked(),
+                  "capture service": ("ready" if self.capture.service_is_ready()
+                                      else "not available")}
+        if age is not None and self.arm_startup.active:
+            self.arm_startup.end(now)
+        return self.arm_startup.apply((level, msg, values), now)
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
@@ -415,6 +431,28 @@ class MotionNode(TactexNode):
     async def _execute_async(self, goal_handle):
         return await in_thread(self, self._execute, goal_handle)
 
+    def _camera_ready(self, goal_handle) -> str:
+        """Wait (up to ``capture_wait_s``) for the camera's capture service before the arm
+        moves: a press without a camera is a full press for nothing. Feedback (phase
+        ``waiting for the camera``) goes out meanwhile, so the explorer knows the press server
+        is alive. '' when the service is there, else the refusal."""
+        s = self.settings
+        if self.capture.service_is_ready():
+            return ""
+        self.get_logger().info(f"waiting for the capture service {s.capture_service!r} "
+                               f"(up to capture_wait_s, {s.capture_wait_s:g} s) before "
+                               "pressing")
+        end = time.monotonic() + s.capture_wait_s
+        fb = self._Press.Feedback(phase="waiting for the camera")
+        while time.monotonic() < end:
+            goal_handle.publish_feedback(fb)
+            if self.capture.wait_for_service(timeout_sec=0.2):
+                return ""
+            if self._abort.is_set() or goal_handle.is_cancel_requested:
+                return "the wait for the camera was cut short (deactivated or canceled)"
+        return (f"capture service {s.capture_service!r} not available within capture_wait_s "
+                f"({s.capture_wait_s:g} s): is the camera node running? (not pressed)")
+
     def _execute(self, goal_handle):
         Press = self._Press
         with self.busy:
@@ -422,6 +460,12 @@ class MotionNode(TactexNode):
             index = [p.id for p in self.scene.ordered].index(platform.id)
             result = Press.Result()
             reasons = []
+            refusal = self._camera_ready(goal_handle)
+            if refusal:
+                result.success, result.reason, result.attempts = False, refusal, 0
+                self.get_logger().error(f"press on {platform.id} refused: {refusal}")
+                goal_handle.abort()
+                return result
             t_press = time.monotonic()
             for attempt in range(1, self.scene.press.retries + 2):
                 result.attempts = attempt
@@ -441,10 +485,13 @@ class MotionNode(TactexNode):
                     self.get_logger().info("robot recovered; pressing again")
                     continue
                 if ok:
-                    result.success, result.reason, result.touch = True, "", touch
+                    # on success the reason lists the attempts that failed before ('' none)
+                    result.success, result.reason, result.touch = True, "; ".join(reasons), \
+                        touch
                     self.last_press = {"platform": platform.id,
                                        "force_n": float(touch.contact_force_n),
                                        "duration_s": time.monotonic() - t_press,
+                                       "attempts": attempt,
                                        "at": time.strftime("%H:%M:%S")}
                     goal_handle.succeed()
                     return result
