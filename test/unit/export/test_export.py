@@ -30,6 +30,7 @@ SCENE = config_dir() / "scene_sim.yaml"
 def _trial(root: Path, trial_id: str, scene_text: str, seed: int) -> Path:
     """A simulated trial written as the explorer writes it: each touch (contact image and
     no-contact frame) on disk before it is used, each decision after it is made."""
+    root.mkdir(parents=True, exist_ok=True)
     scene_file = root / f"{trial_id}.scene.yaml"
     scene_file.write_text(scene_text)
     scene = load_scene(scene_file)
@@ -107,8 +108,10 @@ def test_trial_record_round_trip(tmp_path):
 def test_session_round_trip(tmp_path):
     sess_file = tmp_path / "s.yaml"
     sess_file.write_text("name: s\ntrials:\n"
-                         "  - {id: a, reference: satin, comparisons: [satin, denim, polar_fleece, rib_2x2]}\n"
-                         "  - {id: b, reference: denim, comparisons: [satin, denim, polar_fleece, rib_2x2]}\n")
+                         "  - {id: a, reference: satin, comparisons: [satin, denim, polar_fleece, "
+                         "rib_2x2]}\n"
+                         "  - {id: b, reference: denim, comparisons: [satin, denim, polar_fleece, "
+                         "rib_2x2]}\n")
     ids = [p.id for p in load_scene(SCENE).ordered]
     session = load_session(sess_file, ids, seed=1)
     sd = tmp_path / "session"
