@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what the project needs into .venv (repository root) and builds the package into it.
-#   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels (requirements.txt)
+#   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels: requirements-lab.txt (the
+#                                 lab's), which includes requirements.txt (the product's)
 #   scripts/setup_env.sh browser - headless chromium + chromedriver via apt (root only; for the
 #                                 report's browser test), also run by `deps`
 #   scripts/setup_env.sh build  - colcon build of the ROS package `tactex` (interfaces, Python
@@ -16,7 +17,7 @@ deps() {
   if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
   fi
-  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements.txt
+  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements-lab.txt
   # The ROS wheels' exported CMake files name the wheel builder's include dirs; point them at ours.
   local py_inc np_inc
   py_inc=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
