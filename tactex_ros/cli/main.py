@@ -152,7 +152,7 @@ def cmd_prepare(args: argparse.Namespace) -> int:
 
 # the product's commands that plug-ins do not extend (``sim`` is a group a plug-in adds to,
 # ``command_group``): ``tactex trial ...`` reads no installed metadata and loads no plug-in
-CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot"})
+CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot", "export"})
 
 
 def build_parser(command: str | None = None, plugins: bool = True) -> argparse.ArgumentParser:
@@ -164,8 +164,9 @@ def build_parser(command: str | None = None, plugins: bool = True) -> argparse.A
     _trial_parser(sub, command)
     _prepare_parser(sub, command)
 
-    from . import graph_commands, report, robot, sim_commands
+    from . import export, graph_commands, report, robot, sim_commands
     sim_commands.add_commands(sub, command)
+    export.add_commands(sub, command)
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
     robot.add_commands(sub, command)

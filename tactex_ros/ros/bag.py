@@ -11,6 +11,7 @@ The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the
 
 from __future__ import annotations
 
+import copy
 import importlib
 import os
 import re
@@ -160,6 +161,12 @@ class BagWriter:
                                     publish_time=t_ns)
             self._guard(step)
 
+    def write_all(self, topic: str, msg: Any, t_ns: int) -> None:
+        """``write`` the message, then its ``standard_views`` at the same time."""
+        self.write(topic, msg, t_ns)
+        for view_topic, view in standard_views(topic, msg):
+            self.write(view_topic, view, t_ns)
+
     def close(self) -> None:
         """Write the summary and footer (a closed file is indexed for ``ros2 bag``). Never
         raises: a failure leaves the file as a crashed writer would (``failed`` says why)."""
@@ -240,3 +247,43 @@ def recover_bag(path: str | Path, out: str | Path) -> int:
                 n += 1
         w.finish()
     return n
+
+
+# ---------------------------------------------------------------------- standard views
+# Viewers (Foxglove's Image and Plot panels, rerun's MCAP loader) show standard message types
+# only; tactex/msg/Touch and ExplorationState are copied into these beside them.
+TOUCH_IMAGE_VIEW = "/tactex/touch_image"      # sensor_msgs/Image rgb8 of every touch: the
+#                                               explorer's touch_image_topic (its default)
+NO_CONTACT_VIEW = "/tactex/touch_no_contact_image"   # sensor_msgs/Image: the touch's
+#                                                      no-contact frame (when it has one)
+WRENCH_VIEW = "/tactex/touch_wrench"          # geometry_msgs/WrenchStamped: the press force
+BELIEF_VIEW = "/tactex/belief/"               # + platform id: std_msgs/Float64 per comparison
+
+
+def standard_views(topic: str, msg: Any) -> list[tuple[str, Any]]:
+    """The standard messages a viewer shows for one of tactex's own (``topic`` is where
+    ``msg`` goes): a touch (``TOUCH_TOPIC``, tactex/msg/Touch) gives its contact image and its
+    no-contact frame as ``sensor_msgs/Image`` (lossless rgb8, the camera's frame id) and its
+    force as ``geometry_msgs/WrenchStamped`` (``force.z`` = the tared normal force the sensor
+    presses with along its optical axis [N], in the camera's frame, stamped at capture); an
+    exploration state (tactex/msg/ExplorationState) gives the belief in each comparison as one
+    ``std_msgs/Float64`` on ``BELIEF_VIEW + platform id``. Any other message gives none."""
+    tn = type_name(msg)
+    if tn == "tactex/msg/Touch" and topic == TOUCH_TOPIC:
+        from geometry_msgs.msg import WrenchStamped
+        header = msg.image.header if msg.image.header.frame_id else msg.header
+        out: list[tuple[str, Any]] = [(TOUCH_IMAGE_VIEW, msg.image)]
+        if msg.no_contact_image.data:
+            nc = copy.copy(msg.no_contact_image)
+            if not nc.header.frame_id:
+                nc.header = header
+            out.append((NO_CONTACT_VIEW, nc))
+        w = WrenchStamped(header=header)
+        w.wrench.force.z = float(msg.contact_force_n)
+        out.append((WRENCH_VIEW, w))
+        return out
+    if tn == "tactex/msg/ExplorationState":
+        from std_msgs.msg import Float64
+        return [(BELIEF_VIEW + pid, Float64(data=float(b)))
+                for pid, b in zip(msg.platform_ids, msg.belief)]
+    return []

@@ -165,7 +165,7 @@ class ExplorerNode(TactexNode):
         if self.bag is None:         # a session between trials: no trial record open
             return
         try:
-            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+            self.bag.write_all(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
             if not getattr(self, "_bag_warned", False):
                 self._bag_warned = True
