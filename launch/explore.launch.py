@@ -3,7 +3,7 @@ sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
 [source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
-[auto_confirm:=true]
+[auto_confirm:=true] [learner.NAME:=VALUE] [trial.NAME:=VALUE]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -15,6 +15,10 @@ a bad value ends the launch with the argument or field named and no process star
 settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
 ranges, choices and descriptions come from the nodes' settings schema, as for
 ``tactex graph run``; '' (the default) leaves the node's own default.
+
+Any setting of the trial is also taken by its dotted name, e.g. ``learner.device:=cuda`` (a CNN
+preset's GPU: ``config:=seed_faithful learner.device:=cuda``) or ``trial.max_touches:=8``;
+checked by the explorer's schema like the options above.
 
 ``session:=FILE`` runs a study session: the explorer runs the trial file's trials in order in
 this one launch, tells the operator before each trial what to place on which platform (log,
@@ -101,6 +105,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
     from tactex_ros.core.errors import InputError
+    from tactex_ros.core.config import merge
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile
 
@@ -115,6 +120,9 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     try:
         given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
                                   if values.get(name, "") != ""})
+        dotted = trial_settings(values)
+        if dotted:
+            given["explorer"] = merge(given.get("explorer"), dotted)
         nodes = describe(sim, values.get("scene") or None, explorer=given.get("explorer"),
                          gelsight=None if sim else given.get("gelsight"),
                          mock_image=given.get("mock_image") if sim else None,
@@ -135,6 +143,16 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
         raise LaunchArgumentError(f"launch argument {exc}") from None
 
 
+def trial_settings(values: dict[str, str]) -> dict[str, Any]:
+    """The explorer's trial settings given by their dotted names (``learner.device:=cuda``,
+    ``trial.max_touches:=8``), typed and checked by the schema (nested; {} when none)."""
+    from tactex_ros.core.config import nest, parse_text
+    from tactex_ros.ros.settings import ExplorerSettings
+    dotted = {k: v for k, v in values.items() if k.startswith(("learner.", "trial."))}
+    return nest({k: parse_text(ExplorerSettings, k, v, f"{k}:={v!r}")
+                 for k, v in dotted.items()})
+
+
 def _nodes(context, *args, **kwargs):
     from launch.actions import LogInfo, RegisterEventHandler, Shutdown
     from launch.event_handlers import OnShutdown
@@ -142,7 +160,11 @@ def _nodes(context, *args, **kwargs):
     from launch_ros.actions import Node
 
     from tactex_ros.paths import config_dir
-    p = plan({name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()})
+    given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()}
+    # the trial's settings by dotted name, undeclared (they depend on learner.model)
+    given.update({k: v for k, v in context.launch_configurations.items()
+                  if k.startswith(("learner.", "trial."))})
+    p = plan(given)
     nodes, sim, rviz, frame = p["nodes"], p["sim"], p["rviz"], p["frame"]
     if p["bag"] and not _installed("rosbag2_storage_mcap"):
         raise LaunchArgumentError("launch argument bag:=true: rosbag2 with MCAP storage is not "
