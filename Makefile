@@ -1,11 +1,13 @@
 # The two commands of this project: `make demo` and `make test` (`make test-fast`: the product's
-# pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests).
-# Each first installs what is missing into .venv (pinned, see requirements.txt) and builds the
-# ROS 2 package with colcon into it; a second run finds the stamps and installs nothing.
+# pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests;
+# `make lint`: ruff, which `make test` and `make test-fast` run first).
+# Each first installs what is missing into .venv (pinned: requirements.txt, the product's;
+# requirements-lab.txt, the lab's) and builds the ROS 2 package with colcon into it; a second
+# run finds the stamps and installs nothing.
 SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
-# torch wheel: cpu (default, requirements.txt) or cuda (`make setup TORCH=cuda`: the CUDA build of
+# torch wheel: cpu (default, requirements-lab.txt) or cuda (`make setup TORCH=cuda`: the CUDA build of
 # the same version from TORCH_INDEX, docs/install.md); each choice has its own stamp
 TORCH ?= cpu
 export TORCH TORCH_INDEX
@@ -14,11 +16,11 @@ BUILD_STAMP := $(VENV)/.tactex-build.stamp
 BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.srv action/*.action) \
 	$(shell find tactex_ros tactex_lab launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)
 
-.PHONY: demo test test-fast test-lab setup clean
+.PHONY: demo test test-fast test-lab lint setup clean
 
 setup: $(BUILD_STAMP)
 
-$(DEPS_STAMP): requirements.txt scripts/setup_env.sh
+$(DEPS_STAMP): requirements.txt requirements-lab.txt scripts/setup_env.sh
 	bash scripts/setup_env.sh deps
 	touch $@
 
@@ -29,11 +31,14 @@ $(BUILD_STAMP): $(DEPS_STAMP) $(BUILD_INPUTS)
 demo: $(BUILD_STAMP)
 	bash scripts/demo.sh
 
-test: $(BUILD_STAMP)
+test: $(BUILD_STAMP) lint
 	$(PY) -m pytest -q -ra -n 2 --dist loadfile test
 
-test-fast: $(BUILD_STAMP)
+test-fast: $(BUILD_STAMP) lint
 	$(PY) -m pytest -q -ra -m "not slow and not ros and not lab" test/unit
+
+lint: $(DEPS_STAMP)
+	$(PY) -m ruff check .
 
 test-lab: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra test/lab

@@ -28,7 +28,8 @@ import numpy as np
 import torch
 
 from tactex_lab.cnn.learner import OnlineLearner
-from tactex_ros.core.config import CNN_MODELS, AutoSettings, CnnSettings, validate
+from tactex_ros.core.config import CNN_MODELS, AutoSettings, CnnSettings
+from tactex_ros.core.schema import validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.strategies import predictive_entropy

@@ -46,7 +46,8 @@ from tactex_lab.cnn.device import configure, resolve_device, rng_devices, to_cpu
 from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
-from tactex_ros.core.config import CnnSettings, validate
+from tactex_ros.core.config import CnnSettings
+from tactex_ros.core.schema import validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.touch import Touch, as_touch, validate_frame

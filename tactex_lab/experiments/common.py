@@ -51,10 +51,11 @@ def git_commit() -> str | None:
 def parse_set(items: list[str] | None, option: str = "--set",
               trial: tuple[str, ...] = ()) -> dict[str, Any]:
     """``learner.PATH=VALUE`` items (the product's one override syntax,
-    ``tactex_ros.core.config.overrides``) -> nested overrides ``{"learner": {...}}``, plus
+    ``tactex_ros.core.schema.overrides``) -> nested overrides ``{"learner": {...}}``, plus
     ``{"trial": {...}}`` for the trial settings named in ``trial`` (those the experiment
     uses). Another ``trial.*`` path is refused, naming ``option``."""
-    from tactex_ros.core.config import TrialSettings, overrides
+    from tactex_ros.core.config import TrialSettings
+    from tactex_ros.core.schema import overrides
     from tactex_ros.core.errors import InputError
     out = overrides(TrialSettings, items, option)
     extra = sorted(set(out) - {"learner", "trial"}) + sorted(

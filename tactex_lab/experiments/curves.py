@@ -25,7 +25,7 @@ from tactex_lab.experiments.runner import Backend, TrialJob, run_jobs
 def parse_setting(text: str) -> tuple[str, str, str | None, dict[str, Any]]:
     """``label=preset[:PATH=val,PATH=val]`` -> (label, preset, strategy or None, overrides).
 
-    Overrides are dotted schema paths (``tactex_ros.core.config.overrides``):
+    Overrides are dotted schema paths (``tactex_ros.core.schema.overrides``):
     ``learner.<field>`` and ``trial.strategy``."""
     from tactex_ros.core.config import PRESETS
     label, sep, rest = text.partition("=")

@@ -18,7 +18,7 @@ The accuracy at budget k is read from that record of the full run (``decision_at
 test suite checks it against a capped run.
 
 Outputs (``--out``, default ``results/explore``): ``config.json``, ``runs.json`` (one compact
-record per job), ``summary.json`` and figures (see ``docs/experiments.md``).
+record per job), ``summary.json`` and figures (see ``docs/research/experiments.md``).
 """
 
 from __future__ import annotations

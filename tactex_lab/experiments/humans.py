@@ -1,6 +1,6 @@
 """``tactex experiment humans``: human trials vs the robot (thesis 4.4.1, Fig 5.9, 5.10, Table 5.3).
 
-Input: a human trial file (format in ``config/humans/example.yaml`` and ``docs/experiments.md``):
+Input: a human trial file (format in ``config/humans/example.yaml`` and ``docs/research/experiments.md``):
 per participant and trial, the visits in order as ``[platform, seconds]`` (0 = reference,
 1..C = comparison platforms of the trial file) and the answer (1..C). Optionally the robot's runs
 of the same trial file (``--robot``: an ``explore`` results folder or its ``runs.json``).

@@ -33,7 +33,7 @@ from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 from tactex_lab.analysis.stats import wilcoxon_paired
 from tactex_lab.experiments import curves as real_curves
-from tactex_lab.experiments import protocol, unseen
+from tactex_lab.experiments import press_cache, protocol
 from tactex_lab.experiments.common import results_dir
 
 THRESHOLDS = (0.8, 0.9, 0.95, 1.01)
@@ -50,7 +50,7 @@ def default_settings(rep: str) -> list[str]:
 _FRAMES: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
 
 
-class FramedPresses(unseen.CachedPresses):
+class FramedPresses(press_cache.CachedPresses):
     """``experiment unseen``'s cached presses (each touch carries its cached descriptor), with
     ``frames`` also the real strongest-contact and no-contact frames (read from the press file
     once per process) instead of a placeholder."""
@@ -167,7 +167,7 @@ def run_ladder(args: argparse.Namespace) -> dict:
         raise InputError(f"--representation {args.representation}: no such file (make it with "
                          "`tactex prepare` on another library)")
     path = Path(args.cache_dir) / f"{Path(args.test).name}.npz"
-    cache = unseen.load_cache(path)
+    cache = press_cache.load_cache(path)
     classes = sorted(set(cache["cls"].tolist()))
     scenes = real_curves.draw_scenes(classes, args.scenes, args.comparisons, args.seed)
     thresholds = sorted(args.thresholds or THRESHOLDS)

@@ -203,7 +203,7 @@ def band_rows(curves: dict[str, list[dict]], budget: int
 
 #: Seconds per press for the time axis when no --press-s is given: the mock arm's press on the
 #: lab scene (config/scene.yaml's speeds), median of `tactex graph summary` over one simulated
-#: trial (docs/unseen_materials.md); the faster simulated scene takes about 4.4 s.
+#: trial (docs/research/unseen_materials.md); the faster simulated scene takes about 4.4 s.
 PRESS_S = 15.5
 
 

@@ -1,5 +1,5 @@
 """``tactex experiment unseen``: prepared representations on classes no part of the pipeline saw,
-class-disjoint in both directions (issue 23, docs/unseen_materials.md).
+class-disjoint in both directions (issue 23, docs/research/unseen_materials.md).
 
 Two libraries of recorded presses, A and B (``../shared``'s octopi-dev and octopi-objects). For
 each direction (test on A with B as the lab's library, and the reverse) every setting:
@@ -40,73 +40,14 @@ import numpy as np
 
 from tactex_ros.core import calibration as belief_calibration
 from tactex_ros.core import representation
-from tactex_ros.core.config import TrialConfig, preset
+from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.touch import Touch
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import curve
+from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
+                                                load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
-
-
-#: Per-press features: cache arrays -> (n, D') vectors.
-FEATURES = {
-    "frame": lambda c: c["f0"],
-    "frames4": lambda c: np.mean(np.concatenate([c["f0"][:, None], c["extra"]], axis=1), 1),
-    "growth": lambda c: np.concatenate([c["f0"], c["early"] - c["f0"]], axis=1),
-    "regions": lambda c: np.concatenate([c["reg"].mean(1), c["reg"].std(1)], axis=1),
-    "frame_regstd": lambda c: np.concatenate([c["f0"], c["reg"].std(1)], axis=1),
-}
-
-
-def build_cache(root: str | Path, out: str | Path) -> Path:
-    """Describe every press of the replay folder ``root`` once: the strongest frame (``f0``),
-    the 3 other in-contact frames of the touch (``extra``), the first frame with half the
-    strongest contact score (``early``), the 2 x 2 regions of the strongest frame's contact
-    difference (``reg``); with the class and file of each press. Written as ``out`` (.npz)."""
-    from tactex_ros.core import texture
-    from tactex_ros.core.contact import strongest_contact
-    from tactex_ros.sources.replay import ReplaySource, read_video
-    src = ReplaySource(root)
-    rows: dict[str, list] = {k: [] for k in ("cls", "path", "f0", "extra", "early", "reg")}
-    for cls in src.classes:
-        for path in src.presses(cls):
-            arr = read_video(path)
-            touch = src.touch(path)
-            nc = touch.no_contact
-            idx, scores = strongest_contact(arr)
-            f0 = texture.describe(touch.frame, nc)
-            ex = [texture.describe(x, nc) for x in (touch.extra if touch.extra is not None
-                                                    else [])]
-            ex += [f0] * (3 - len(ex))
-            rise = np.flatnonzero(scores[:idx + 1] >= 0.5 * scores[idx])
-            early = texture.describe(np.ascontiguousarray(arr[rise[0] if len(rise) else idx,
-                                                              ..., ::-1]), nc)
-            d = texture.contact_difference(touch.frame, nc)
-            h, w = d.shape[0] // 2, d.shape[1] // 2
-            reg = [texture.describe_difference(d[i * h:(i + 1) * h, j * w:(j + 1) * w])
-                   for i in range(2) for j in range(2)]
-            for k, v in (("cls", cls), ("path", str(path)), ("f0", f0),
-                         ("extra", np.stack(ex[:3])), ("early", early), ("reg", np.stack(reg))):
-                rows[k].append(v)
-    out = Path(out)
-    np.savez(out, **{k: np.array(v) for k, v in rows.items()})
-    return out
-
-
-def load_cache(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays ``build_cache`` wrote."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"feature cache not found: {p} (build it with --build-cache)")
-    with np.load(p, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
-
-
-def by_class(cache: dict[str, np.ndarray], feature: str) -> dict[str, np.ndarray]:
-    """{class: (n_c, D') feature vectors}."""
-    x = FEATURES[feature](cache)
-    return {c: x[cache["cls"] == c] for c in sorted(set(cache["cls"].tolist()))}
 
 
 @dataclass
@@ -149,30 +90,10 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
     if setting.calibration != "off":
         trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
         rep.temperature = belief_calibration.fit_temperature(
-            trajs, setting.calibration, *(((0.9,), 0.03) if setting.calibration == "target"
+            trajs, setting.calibration, *(((SHIPPED_STOP,), 0.03) if setting.calibration == "target"
                                           else ()))
         rep.calibration = belief_calibration.report(trajs, rep.temperature)
     return rep
-
-
-class CachedPresses:
-    """A ReplaySource look-alike whose touches carry their cached feature vector."""
-
-    one_session = False
-
-    def __init__(self, x: np.ndarray, cls: np.ndarray) -> None:
-        self.x = x
-        self.rows = {c: list(np.flatnonzero(cls == c)) for c in set(cls.tolist())}
-
-    def check_class(self, c: str) -> None:
-        if c not in self.rows:
-            raise InputError(f"class {c!r} not in the cache")
-
-    def presses(self, c: str) -> list[int]:
-        return self.rows[c]
-
-    def touch(self, row: int) -> Touch:
-        return Touch(belief_calibration.PLACEHOLDER_FRAME, None, None, self.x[row])
 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,

@@ -31,7 +31,7 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
                          f"({exc})") from None
-    from ..core.config import flatten
+    from ..core.schema import flatten
     was = flatten(ex)
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]

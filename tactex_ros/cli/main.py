@@ -31,7 +31,8 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights", "learner.
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
-    from ..core.config import TrialSettings, merge, overrides
+    from ..core.config import TrialSettings
+    from ..core.schema import merge, overrides
     from ..core.engine import TrialSpec, default_platform_ids, run_trial
     from ..sources import open_source, trial_scene
     given = merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
@@ -118,7 +119,7 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     from functools import partial
 
     from ..core import calibration, representation
-    from ..core.config import preset
+    from ..core.config import SHIPPED_STOP, preset
     t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
     for spec in args.library:
@@ -139,7 +140,8 @@ def cmd_prepare(args: argparse.Namespace) -> int:
                                budget=args.calibration_budget)
     path = representation.save(rep, args.out)
     cal = (f"; belief temperature {rep.temperature:.4g} calibrated on {rep.calibration['trials']} "
-           f"left-out trials (wrong stops at 0.9: {rep.calibration['wrong_stop']['0.9']:.3f}, "
+           f"left-out trials (wrong stops at {SHIPPED_STOP:g}: "
+           f"{rep.calibration['wrong_stop'][str(SHIPPED_STOP)]:.3f}, "
            f"ECE {rep.calibration['ece']:.3f})" if args.calibration != "off" else "")
     print(f"representation {rep.kind} ({rep.dims} dims) from {rep.classes} classes, "
           f"{rep.presses} presses ({', '.join(args.library)}){cal} -> {path} in "
@@ -203,6 +205,7 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                                         "library of presses of other materials")
     if not builds(command, "prepare"):
         return
+    from ..core.config import SHIPPED_STOP
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
     pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
@@ -213,7 +216,7 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                     help="ridge added to the within-class covariance (standardised units)")
     pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
                     help="the metric: whiten (within-class whitening; measured best, "
-                         "docs/unseen_materials.md), lda (Fisher directions of the library, "
+                         "docs/research/unseen_materials.md), lda (Fisher directions of the library, "
                          "--dims of them), none (descriptor as is; the file then only carries "
                          "the calibrated temperature)")
     pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
@@ -223,8 +226,8 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                          "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "
                          "--max-wrong at --stop-at), nll, off (default: the config's "
                          "temperature; the calibrated ones stopped wrong more often on unseen "
-                         "classes, docs/unseen_materials.md)")
-    pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=0.9,
+                         "classes, docs/research/unseen_materials.md)")
+    pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=SHIPPED_STOP,
                     help="the trials' stop threshold, for --calibration target")
     pr.add_argument("--max-wrong", type=bounded(float, 0.0, 0.5), default=0.03,
                     help="wrong-stop rate allowed at --stop-at, for --calibration target")

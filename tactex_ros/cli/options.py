@@ -31,7 +31,7 @@ def builds(command: str | None, name: str) -> bool:
 
 
 def add_setting_option(p: argparse.ArgumentParser, flag: str, spec: Any, help: str) -> None:
-    """An option for one schema field (``core.config.FieldSpec``): numbers out of the schema's
+    """An option for one schema field (``core.schema.FieldSpec``): numbers out of the schema's
     range are refused by the parser (exit status 2, the option named); a value not among the
     choices by the schema check (exit status 2, the field named); not given = None."""
     kw: dict = {"default": None, "help": help + (f" (one of {', '.join(spec.choices)})"
@@ -45,7 +45,7 @@ def add_setting_option(p: argparse.ArgumentParser, flag: str, spec: Any, help: s
 def add_schema_options(p: argparse.ArgumentParser, cls: type, names: tuple[str, ...]) -> None:
     """One option per dotted schema field of ``cls`` (``trial.stop_confidence`` ->
     ``--stop-confidence``), help from its description; not given = the preset's."""
-    from ..core.config import field_spec
+    from ..core.schema import field_spec
     for name in names:
         spec = field_spec(cls, name)
         add_setting_option(p, "--" + name.rsplit(".", 1)[-1].replace("_", "-"), spec,
@@ -55,7 +55,7 @@ def add_schema_options(p: argparse.ArgumentParser, cls: type, names: tuple[str, 
 
 def schema_values(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
     """The options of ``add_schema_options`` that were given, as nested settings."""
-    from ..core.config import nest
+    from ..core.schema import nest
     values = {n: getattr(args, n.rsplit(".", 1)[-1]) for n in names}
     return nest({n: v for n, v in values.items() if v is not None})
 

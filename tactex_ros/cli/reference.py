@@ -5,7 +5,7 @@ settings-file field, read from the code that declares them.
     python -m tactex_ros.cli.reference --check    # exit 1 when docs/reference.md is stale
 
 Sources (walked, never listed by hand): the node settings schemas of the graph description
-(``ros.graph.SETTINGS``, through ``core.config.fields``, which also declares the ROS
+(``ros.graph.SETTINGS``, through ``core.schema.fields``, which also declares the ROS
 parameters), the presets (``TrialSettings`` validated under each ``config``), the launch file's
 ``arguments()``, the argparse parser of ``tactex`` (``cli.main.build_parser``, every
 sub-command) and the pydantic models of the settings files (``FILES``).
@@ -104,11 +104,11 @@ def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
 
 def node_parameters() -> list[str]:
     """One table per node of the graph description, in its order."""
-    from ..core.config import fields, flatten
+    from ..core.schema import fields, flatten
     from ..ros.graph import SETTINGS
     out = ["## Node parameters", "",
            "Declared as ROS 2 parameters from the nodes' settings schemas "
-           "(`tactex_ros/ros/settings.py`, `core/config.py`); set them in a parameters file, "
+           "(`tactex_ros/ros/settings.py`, `core/schema.py`); set them in a parameters file, "
            "with `--ros-args -p name:=value`, or through the options below. A value of the "
            "wrong type or outside its range ends the node with exit status 2, the parameter "
            "named.", ""]
@@ -144,7 +144,8 @@ def node_parameters() -> list[str]:
 def presets() -> list[str]:
     """What each preset of ``TrialSettings.config`` changes against the default preset."""
     from ..core import plugins
-    from ..core.config import TrialSettings, fields, flatten
+    from ..core.config import TrialSettings
+    from ..core.schema import fields, flatten
     config = next((s for s in fields(TrialSettings) if s.name == "config"), None)
     if config is None or not config.choices:
         return []

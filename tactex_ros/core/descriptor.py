@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import DescriptorSettings, validate
+from .config import DescriptorSettings
+from .schema import validate
 from .errors import InputError
 from .match import MatchModel
 from .representation import Representation, load

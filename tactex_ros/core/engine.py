@@ -46,11 +46,12 @@ from typing import Callable
 
 import numpy as np
 
-from .config import (DescriptorSettings, LearnerSettings, TrialConfig,  # noqa: F401
-                     trial_preset, validate)
+from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_preset  # noqa: F401
+from .schema import validate
 from .errors import InputError, TrialError
 from .guards import ContactGuard
-from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
+from .build import make_learner
+from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
 
@@ -247,8 +248,7 @@ class TrialEngine:
         if len(self.platform_ids) != n_comparisons + 1:
             raise InputError(f"platform_ids needs {n_comparisons + 1} names, "
                              f"got {len(self.platform_ids)}")
-        if self.strategy.includes_reference and self.learner_cfg.model not in ("descriptor",
-                                                                                "auto"):
+        if self.strategy.includes_reference and not self.learner_cfg.scores_reference:
             raise InputError(f"strategy {self.trial_cfg.strategy!r} needs model 'descriptor' "
                              f"(got {self.learner_cfg.model!r}); with a CNN model choose "
                              "another strategy, e.g. variance")

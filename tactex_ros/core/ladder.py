@@ -9,7 +9,7 @@ scene is hard. Rungs, cheapest first, separated by commas (or ``+``):
   ``tactex prepare`` file). Without that file the rung is skipped (``Ladder.notes`` says so);
 - any other name: a preset of ``core/config.py`` whose model is a learner plug-in (``cnn``:
   the lab's small Inception at 48 px), optionally ``@px`` for its input side; built through
-  ``core/learners.make_learner`` (the product imports no plug-in: a rung whose plug-in is not
+  ``core/build.make_learner`` (the product imports no plug-in: a rung whose plug-in is not
   installed is skipped, the note says why).
 
 The evidence (``escalation_reason``, a pure function of the current rung's history) is checked
@@ -39,13 +39,15 @@ import re
 import struct
 import time
 from dataclasses import asdict, dataclass, replace
+from typing import Callable
 
 import numpy as np
 
 from .descriptor import raw_descriptor
-from .config import PRESETS, LadderSettings, learner_settings, preset, validate
+from .config import PRESETS, LadderSettings, LearnerSettings, learner_settings, preset
+from .schema import validate
 from .errors import InputError
-from .learners import Learner, TrainStats, can_checkpoint, make_learner, train_round
+from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .plugins import LEARNERS, available
 from .touch import Touch
 
@@ -146,7 +148,10 @@ class Ladder:
     """The learner of the current rung plus what escalation needs (raw touches, the rung's
     beliefs and held-back outcomes). A ``core.learners.Learner`` with ``train_round``."""
 
-    def __init__(self, num_classes: int, cfg: LadderSettings, seed: int = 0) -> None:
+    def __init__(self, num_classes: int, cfg: LadderSettings, seed: int = 0, *,
+                 make: Callable[[int, LearnerSettings, int], Learner]) -> None:
+        """``make``: builds a rung's learner from its settings (``core/build.make_learner``)."""
+        self.make = make
         self.base_cfg = validate(cfg)
         self.num_classes = num_classes
         self.seed = seed
@@ -202,7 +207,7 @@ class Ladder:
         return preset(name, **over)
 
     def _build(self, stage: int) -> Learner:
-        return make_learner(self.num_classes, self.rung_config(self.rungs[stage]), seed=self.seed)
+        return self.make(self.num_classes, self.rung_config(self.rungs[stage]), self.seed)
 
     @property
     def inner(self) -> Learner:

@@ -1,13 +1,7 @@
-"""What the trial engine asks of a learner, and how it gets one by name.
+"""What the trial engine asks of a learner (``core/build.make_learner`` builds one by name).
 
 A learner holds one trial's touches over C comparison platforms (classes 0..C-1) and gives the
-engine a (T, C) table of the reference and a (C,) belief over which comparison matches. The
-shipped learner, ``descriptor`` (``core/descriptor.py``), is built here; every other
-``learner.model`` (the thesis CNNs, ``cnn_auto``: ``CnnSettings``, ``AutoSettings``; ``auto``,
-the product's ladder ``core/ladder.py`` with ``LadderSettings``, which builds its rungs through
-this function) is a plug-in of group ``tactex.learners``
-(``core/plugins.py``), imported only when a trial asks for it. So the product loads torch only
-for a configuration that names a CNN.
+engine a (T, C) table of the reference and a (C,) belief over which comparison matches.
 """
 
 from __future__ import annotations
@@ -18,7 +12,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from .config import LearnerSettings
-from .plugins import LEARNERS, load
 from .touch import Touch
 
 
@@ -93,11 +86,3 @@ def train_round(learner: Learner) -> TrainStats | None:
     train = getattr(learner, "train_round", None)
     return None if train is None else train()
 
-
-def make_learner(num_classes: int, cfg: LearnerSettings, seed: int = 0) -> Learner:
-    """The learner ``cfg.model`` names: ``descriptor`` here, any other a ``tactex.learners``
-    plug-in (InputError when it is not installed)."""
-    if cfg.model == "descriptor":
-        from .descriptor import DescriptorLearner
-        return DescriptorLearner(num_classes, cfg, seed=seed)
-    return load(LEARNERS, cfg.model)(num_classes, cfg, seed)

@@ -16,7 +16,7 @@ touch, reference touches included:
   l_h = -D/2 log v_h - 1/2 sum_j (r_j - x_hj)^2 / (sigma_j^2 v_h),  v_h = 1/k + 1/n_h.
 - belief = softmax(``temperature`` * l): descriptor dimensions are correlated, so the raw
   likelihood is over-confident; the temperature is calibrated on real presses
-  (``tactex evaluate``, docs/real_presses.md).
+  (``tactex evaluate``, docs/research/real_presses.md).
 
 ``info_gain`` scores every platform (0 = the reference, 1..C) by the expected drop of the
 belief's entropy if it were touched once more (Monte Carlo over hypotheses and simulated

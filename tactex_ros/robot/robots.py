@@ -39,7 +39,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import StringConstraints, field_validator, model_validator
 
-from ..core.config import FieldError, Schema, param
+from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
 from ..paths import config_dir, config_file, read_yaml
 from .press import ControlLaw

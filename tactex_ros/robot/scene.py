@@ -27,7 +27,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from ..core.config import FieldError, Schema, param
+from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
 from ..paths import read_yaml
 

@@ -30,7 +30,7 @@ from typing import Annotated, Any, Literal, Optional
 
 from pydantic import Field, StringConstraints
 
-from ..core.config import Schema, param
+from ..core.schema import Schema, param
 from ..core.errors import InputError
 from ..paths import config_file, read_yaml
 

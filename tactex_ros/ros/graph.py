@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from ..core.config import FieldSpec, field_spec, flatten, merge, nest, parse_text, typed
+from ..core.schema import FieldSpec, field_spec, flatten, merge, nest, parse_text, typed
 from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)

@@ -14,7 +14,8 @@ from typing import Literal
 
 from pydantic import model_validator
 
-from ..core.config import FieldError, Schema, TrialSettings, param
+from ..core.config import TrialSettings
+from ..core.schema import FieldError, Schema, param
 
 IMAGE_TOPIC = "/tactex/gelsight/image_raw"
 CAPTURE_SERVICE = "/tactex/gelsight/capture"

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 from pydantic import create_model, model_validator
 
-from ..core.config import FieldError, Schema, param
+from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
 from ..paths import read_yaml
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-launch_testing = pytest.importorskip(
+pytest.importorskip(
     "launch_testing", reason="launch_testing is not installed (not on PyPI; ROS 2 system only)")
 import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402

@@ -15,7 +15,7 @@ PKG = Path(tactex_ros.__file__).resolve().parent
 LAB = Path(tactex_lab.__file__).resolve().parent
 EXPERIMENTS = LAB / "experiments"
 # shared helpers of the experiments; every other module there is one command
-SHARED = {"__init__", "common", "runner", "trials", "curves", "protocol"}
+SHARED = {"__init__", "common", "runner", "trials", "curves", "protocol", "press_cache"}
 
 
 def _module(path: Path) -> str:
@@ -40,7 +40,18 @@ def imports(path: Path) -> list[tuple[int, str, list[str]]]:
                 pkg = pkg[:len(pkg) - (node.level - 1)]
                 base = ".".join(pkg + ([base] if base else []))
             out.append((node.lineno, base, [a.name for a in node.names]))
+            # ``from package import module`` imports that module too: checked as such
+            out += [(node.lineno, f"{base}.{a.name}", []) for a in node.names
+                    if _is_module(f"{base}.{a.name}")]
     return out
+
+
+def _is_module(name: str) -> bool:
+    """Whether ``name`` (dotted) is a module or package of the product or the lab."""
+    if name.split(".")[0] not in ("tactex_ros", "tactex_lab"):
+        return False
+    path = PKG.parent.joinpath(*name.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
 
 
 def _files(folder: Path = PKG) -> list[Path]:
@@ -60,6 +71,9 @@ def test_the_import_reader_resolves_relative_imports():
     assert "tactex_ros.core.learners" in mods and "tactex_ros.core.touch" in mods
     got = imports(PKG / "cli" / "sim_commands.py")
     assert "tactex_ros.sources" in {m for _, m, _ in got}
+    # ``from package import module`` counts as importing the module
+    got = imports(LAB / "experiments" / "ladder.py")
+    assert "tactex_lab.experiments.protocol" in {m for _, m, _ in got}
     assert (PKG / "core" / "__init__.py").is_file() and (LAB / "__init__.py").is_file()
 
 

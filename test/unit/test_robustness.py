@@ -16,7 +16,7 @@ import pytest
 from tactex_ros.cli.main import main
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.outputs import check_dir, check_file, dumps, write_json
-from tactex_ros.trial.record import (TrialRecord, check_new_record, check_resumable, read_record)
+from tactex_ros.trial.record import TrialRecord, check_new_record, check_resumable
 
 
 def _file(tmp_path: Path) -> Path:

@@ -136,7 +136,7 @@ class ExplorerNode(SessionMode, TactexNode):
         """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
         from pathlib import Path
 
-        from ...trial.record import append_event, read_record
+        from ...trial.record import append_event
         from ...trial.resume import check_settings, load_replay, restore_engine
         d = Path(folder).resolve()
         self.record = TrialRecord(d.parent, d.name, resume=True)

@@ -33,7 +33,7 @@ from rclpy.publisher import Publisher
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from ...core.config import FieldSpec, fields, flatten, merge, nearest, nest
+from ...core.schema import FieldSpec, fields, flatten, merge, nearest, nest
 from ...core.errors import DeviceError, InputError
 
 

@@ -117,14 +117,31 @@ def test_humans_with_robot(explore_out, tmp_path):
     assert s["accuracy"]["overall"] == pytest.approx(7 / 11)
     assert np.array(s["confusion"]["matrix"]).sum() == 11
     js = s["js_distance"]
+    # the human-human distances recomputed from the human trial file (scipy, base 2): the mean
+    # over pairs of participants per trial, and over trials
+    from itertools import combinations
+
+    from scipy.spatial.distance import jensenshannon
+    recs = load_humans(config_dir() / "humans" / "example.yaml")["records"]
+    want = {}
+    for t in {r["trial"] for r in recs}:
+        rt = [np.asarray(r["time"], float) for r in recs if r["trial"] == t]
+        want[t] = np.mean([jensenshannon(a / a.sum(), b / b.sum(), base=2.0)
+                           for a, b in combinations(rt, 2)])
     assert set(js["human_human"]["per_trial"]) == {"1", "2", "3", "4"}
-    assert 0 <= js["human_human"]["mean"] <= 1
+    assert js["human_human"]["per_trial"] == pytest.approx(want)
+    assert js["human_human"]["mean"] == pytest.approx(np.mean(list(want.values())))
     for kind in ("human_robot_final", "human_robot_matched"):
         for st in ("variance", "random", "yoto"):
-            assert set(js[kind][st]["per_trial"]) == {"1", "2"}   # trials the robot ran
-            assert 0 <= js[kind][st]["mean"] <= 1
+            per = js[kind][st]["per_trial"]
+            assert set(per) == {"1", "2"}   # trials the robot ran
+            assert js[kind][st]["mean"] == pytest.approx(np.mean(list(per.values())))
     mt = s["most_touched_is_answer"]
-    assert 0 <= mt["humans"] <= 1 and mt["robot"]["yoto"] == pytest.approx(0.25)
+    # the answer is the uniquely most-touched platform in this share of human trials
+    hits = [float(np.argmax(r["time"]) == r["answer"] - 1
+                  and np.sum(np.isclose(r["time"], max(r["time"]))) == 1) for r in recs]
+    assert mt["humans"] == pytest.approx(np.mean(hits)) and mt["robot"]["yoto"] == \
+        pytest.approx(0.25)
     _pngs_ok(s["figures"])
 
 

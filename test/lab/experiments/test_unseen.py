@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.errors import InputError
-from tactex_lab.experiments import unseen
+from tactex_lab.experiments import press_cache, unseen
 from tactex_lab.experiments.curves import belief_curves, draw_scenes, parse_setting
 
 
@@ -21,7 +21,7 @@ def small_library(octopi_dir, tmp_path_factory):
 
 @pytest.mark.slow
 def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
-    cache = unseen.load_cache(unseen.build_cache(small_library, tmp_path / "c.npz"))
+    cache = press_cache.load_cache(press_cache.build_cache(small_library, tmp_path / "c.npz"))
     assert cache["f0"].shape == (15, 106) and cache["reg"].shape == (15, 4, 106)
     assert cache["extra"].shape == (15, 3, 106) and cache["early"].shape == (15, 106)
     scenes = draw_scenes(sorted(set(cache["cls"].tolist())), 3, 3, 7)
@@ -47,8 +47,8 @@ def test_region_and_frame_features_have_the_documented_sizes():
     rng = np.random.default_rng(0)
     cache = {"f0": rng.normal(size=(5, 106)), "extra": rng.normal(size=(5, 3, 106)),
              "early": rng.normal(size=(5, 106)), "reg": rng.normal(size=(5, 4, 106))}
-    sizes = {k: f(cache).shape for k, f in unseen.FEATURES.items()}
+    sizes = {k: f(cache).shape for k, f in press_cache.FEATURES.items()}
     assert sizes == {"frame": (5, 106), "frames4": (5, 106), "growth": (5, 212),
                      "regions": (5, 212), "frame_regstd": (5, 212)}
-    np.testing.assert_allclose(unseen.FEATURES["frames4"](cache)[0],
+    np.testing.assert_allclose(press_cache.FEATURES["frames4"](cache)[0],
                                np.mean([cache["f0"][0], *cache["extra"][0]], axis=0))

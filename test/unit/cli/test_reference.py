@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tactex_ros.cli import reference
-from tactex_ros.core.config import Schema, fields, param
+from tactex_ros.core.schema import Schema, fields, param
 
 ROOT = Path(__file__).resolve().parents[3]
 PAGE = ROOT / "docs" / "reference.md"

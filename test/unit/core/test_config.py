@@ -1,4 +1,4 @@
-"""The one schema system (core/config.py): presets keep their values, errors are located and name
+"""The one schema system (core/schema.py): presets keep their values, errors are located and name
 the field, the explorer's settings are composed from the core's, and ROS parameter descriptors,
 command-line options and launch arguments come from the same declarations."""
 
@@ -9,8 +9,9 @@ import re
 import pytest
 
 from tactex_ros.core.config import (PRESETS, SHIPPED_STOP, TRIAL_PRESETS, CnnSettings,
-                                    DescriptorSettings, TrialConfig, TrialSettings, field_spec, fields, merge,
-                                    preset, trial_preset, typed)
+                                    DescriptorSettings, TrialConfig, TrialSettings, preset,
+                                    trial_preset)
+from tactex_ros.core.schema import field_spec, fields, merge, typed
 from tactex_ros.core.errors import InputError
 from tactex_ros.ros.settings import ExplorerSettings, MockArmSettings, MotionSettings
 

@@ -1,10 +1,15 @@
 """Model 'auto' (core/ladder.py): the escalation rule on synthetic beliefs (exact values), the
 rung list, a skipped rung, and a trial on synthetic descriptors that climbs and says why."""
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from tactex_ros.core import representation as rp
+from tactex_ros.core.build import make_learner
 from tactex_ros.core.calibration import PLACEHOLDER_FRAME
 from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.engine import TrialSpec, run_trial
@@ -72,8 +77,8 @@ def _rep_file(tmp_path) -> str:
 
 
 def test_rung_without_its_file_is_skipped_with_a_note():
-    lad = Ladder(4, preset("default", model="auto", ladder="descriptor,representation"))
-    assert lad.rungs == ["descriptor"]
+    lad = make_learner(4, preset("default", model="auto", ladder="descriptor,representation"))
+    assert isinstance(lad, Ladder) and lad.rungs == ["descriptor"]
     assert len(lad.notes) == 1 and "representation" in lad.notes[0]
 
 
@@ -111,3 +116,20 @@ def test_trial_stays_on_the_descriptor_when_the_scene_is_easy(tmp_path):
     out = run_trial(spec, _scene_touches(twins=False), truth=1).to_dict()
     assert out["correct"] and out["escalations"] == []
     assert {r["model"] for r in out["rounds"] + [out["final"]]} == {"descriptor"}
+
+
+def test_the_products_learners_need_no_installed_metadata():
+    """From a checkout that is not installed (no entry points at all) ``descriptor`` and
+    ``auto`` are still built (in code); a CNN is refused by name, exit status 2."""
+    code = ("import importlib.metadata as m; m.entry_points = lambda **kw: []; "
+            "from tactex_ros.core.build import make_learner; "
+            "from tactex_ros.core.config import preset; "
+            "from tactex_ros.core.errors import InputError; "
+            "lad = make_learner(4, preset('default', model='auto')); "
+            "d = make_learner(4, preset('default')); "
+            "print(type(lad).__name__, lad.rungs, type(d).__name__); "
+            "make_learner(4, preset('cnn'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=Path(__file__).resolve().parents[3], timeout=600)
+    assert out.stdout.split("\n")[0] == "Ladder ['descriptor'] DescriptorLearner", out.stderr
+    assert "InputError" in out.stderr and "small_inception" in out.stderr

@@ -9,9 +9,10 @@ import re
 
 import pytest
 
-from tactex_ros.core.config import (AutoSettings, CnnSettings, DescriptorSettings,
-                                    LadderSettings, TrialSettings, fields, learner_class, learner_settings,
-                                    nearest, overrides, preset)
+from tactex_ros.core.config import (AutoSettings, CnnSettings, DescriptorSettings, LadderSettings,
+                                    TrialConfig, TrialSettings, learner_class, learner_settings,
+                                    preset)
+from tactex_ros.core.schema import fields, nearest, overrides
 from tactex_ros.core.engine import (RoundRecord, TrainingDetail, TrialOutcome, TrialSpec,
                                     training_of)
 from tactex_ros.core.errors import InputError
@@ -257,3 +258,17 @@ def test_round_record_with_a_training_detail_survives_its_checkpoint_form() -> N
     bad["detail"]["kind"] = "other"
     with pytest.raises(InputError, match="detail kind"):
         _round_record(bad)
+
+
+def test_a_reference_scoring_strategy_needs_a_learner_that_scores_the_reference():
+    """infogain scores the reference too: the learners whose settings say they can
+    (``scores_reference``: descriptor, auto) run it; a CNN's settings are refused before any
+    learner is built (no torch)."""
+    from tactex_ros.core.engine import TrialEngine
+    trial = TrialConfig(strategy="infogain")
+    assert [c.scores_reference for c in (DescriptorSettings, CnnSettings, AutoSettings,
+                                         LadderSettings)] == [True, False, False, True]
+    for model in ("small_inception", "cnn_auto"):
+        with pytest.raises(InputError, match="strategy 'infogain'"):
+            TrialEngine(4, preset("default", model=model), trial)
+    assert TrialEngine(4, preset("default", model="auto"), trial).learner.rungs[0] == "descriptor"

@@ -272,11 +272,12 @@ def test_step_response_matches_the_closed_form() -> None:
     w = sqrt(K/m) = 18.257 rad/s, z = D / (2 sqrt(K m)) = 1/sqrt(3); the mock (the force held
     over each 1 ms cycle) stays within 1 % of d of it, and settles at d."""
     k, m, d = 1000.0, 3.0, -0.02
-    arm = _free_arm(ControlLaw(stiffness=k), mass=m)
+    law = ControlLaw(stiffness=k)
+    arm = _free_arm(law, mass=m)
     z0 = arm.position[2]
     arm.target = arm.position + [0.0, 0.0, d]
     w = math.sqrt(k / m)
-    zeta = 2.0 * math.sqrt(k) / (2.0 * math.sqrt(k * m))
+    zeta = law.d / (2.0 * math.sqrt(k * m))          # the damping the controller computes
     assert zeta == pytest.approx(1.0 / math.sqrt(3.0))
     wd = w * math.sqrt(1.0 - zeta ** 2)
     worst, deepest = 0.0, 0.0
