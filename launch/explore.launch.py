@@ -105,7 +105,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
     from tactex_ros.core.errors import InputError
-    from tactex_ros.core.config import merge
+    from tactex_ros.core.schema import merge
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile
 
@@ -146,7 +146,7 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
 def trial_settings(values: dict[str, str]) -> dict[str, Any]:
     """The explorer's trial settings given by their dotted names (``learner.device:=cuda``,
     ``trial.max_touches:=8``), typed and checked by the schema (nested; {} when none)."""
-    from tactex_ros.core.config import nest, parse_text
+    from tactex_ros.core.schema import nest, parse_text
     from tactex_ros.ros.settings import ExplorerSettings
     dotted = {k: v for k, v in values.items() if k.startswith(("learner.", "trial."))}
     return nest({k: parse_text(ExplorerSettings, k, v, f"{k}:={v!r}")

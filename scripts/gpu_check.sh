@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The two done-when checks of the CNN learners on a GPU (docs/speed_stability.md, "On a GPU"),
+# The two done-when checks of the CNN learners on a GPU (docs/research/speed_stability.md, "On a GPU"),
 # about five minutes on one GPU with 16 CPU cores; prints the figures and PASS / FAIL per check.
 #
 #   scripts/gpu_check.sh [RECORDINGS_DIR] [DEVICE]

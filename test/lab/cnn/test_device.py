@@ -156,8 +156,8 @@ def test_cnn_auto_stage_learners_take_the_device(no_cuda):
 
 
 def test_ladder_cnn_rung_runs_with_the_ladder_device():
-    from tactex_ros.core.ladder import Ladder
-    lad = Ladder(4, LadderSettings(device="cuda:1", ladder="descriptor,cnn"), seed=0)
+    from tactex_ros.core.build import make_learner
+    lad = make_learner(4, LadderSettings(device="cuda:1", ladder="descriptor,cnn"), seed=0)
     assert lad.rung_config("cnn").device == "cuda:1"
     assert lad.rung_config("cnn@64").input_size == 64
 
