@@ -8,6 +8,15 @@ from tactex_ros.core.errors import InputError
 from tactex_ros.cli.options import bounded, builds, write_json
 
 
+def device_text(text: str) -> str:
+    """argparse type: a ``learner.device`` value (``core/config.DEVICE_PATTERN``)."""
+    import re
+    from tactex_ros.core.config import DEVICE_PATTERN
+    if not re.fullmatch(DEVICE_PATTERN, text):
+        raise argparse.ArgumentTypeError(f"{text!r}: choose cpu, cuda, cuda:N or auto")
+    return text
+
+
 def cmd_bench_latency(args: argparse.Namespace) -> int:
     from tactex_ros.core.config import PRESETS
     from tactex_lab.experiments.bench import latency
@@ -15,8 +24,10 @@ def cmd_bench_latency(args: argparse.Namespace) -> int:
     if unknown:
         raise InputError(f"--configs: unknown configuration(s) {unknown}; choose from "
                          f"{', '.join(PRESETS)}")
+    devices = ("cpu",) if args.device == "cpu" else ("cpu", args.device)
     out = latency.run(touch_counts=args.touches, repeats=args.repeats,
-                      seed_epochs=args.seed_epochs, configs=tuple(args.configs))
+                      seed_epochs=args.seed_epochs, configs=tuple(args.configs),
+                      devices=devices)
     write_json(args.json, out)
     return 0
 
@@ -69,7 +80,11 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                     help="stored touches at which a decision is timed, 1..1000 each")
     bl.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
     bl.add_argument("--seed-epochs", type=bounded(int, 1, 10), default=1,
-                    help="epochs actually timed for the seed-faithful config (scaled to 10)")
+                    help="epochs actually timed for the seed-faithful config on the CPU "
+                         "(scaled to 10; a GPU times all 10)")
+    bl.add_argument("--device", type=device_text, default="cpu",
+                    help="also time every CNN configuration on this torch device, side by side "
+                         "with the CPU: cuda, cuda:N or auto (an absent GPU is refused)")
     bl.add_argument("--configs", nargs="+", default=["seed_faithful", "cnn", "default"],
                     help="configurations to time (ratios are to the last one): a preset, or "
                          "label=preset:PATH=value,... e.g. "

@@ -26,7 +26,7 @@ MAX_COMPARISONS = 24
 
 
 # what `tactex trial` takes of a trial's settings (TrialSettings, core/config.py)
-TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
+TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights", "learner.device",
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
