@@ -3,7 +3,8 @@ sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
 [source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
-[auto_confirm:=true] [learner.NAME:=VALUE] [trial.NAME:=VALUE]
+[auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
+[learner.NAME:=VALUE] [trial.NAME:=VALUE]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -26,6 +27,16 @@ this one launch, tells the operator before each trial what to place on which pla
 std_srvs/srv/Trigger`` (``auto_confirm:=true``: scripted); in simulation it sets the mock
 camera's placement. A bad trial file ends the launch before anything starts, the row named.
 ``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md).
+
+``resume:=RECORD`` continues the interrupted trial recorded in folder RECORD (the explorer's
+``resume`` parameter; a resume with settings other than the record's is refused, the field
+named). Every explorer setting can be set at launch, as ``tactex graph run`` sets it:
+``settings:=FILE`` is a YAML of explorer parameters over ``config/explorer.yaml`` (``{name:
+value}`` or the ROS 2 ``explorer: {ros__parameters: ...}`` form) and ``explorer_set:=`` takes
+dotted ``PATH=VALUE`` items separated by spaces or ``;`` (e.g. ``explorer_set:="
+trial.stop_confidence=0.95 learner.model=descriptor"``), the same syntax as ``--set``; both
+are checked against the explorer's schema (an unknown path is refused with the nearest valid
+one) and passed as node parameters.
 
 Any tactex node that exits ends the launch (a dead camera or robot interface stops the trial;
 with ``exit_when_done:=true`` the explorer's exit after the trial ends it). A node that exits
@@ -88,7 +99,12 @@ def arguments() -> list[tuple[str, str, str]]:
                           "FR3, config/scene_panda.yaml for the Panda; sim: "
                           "config/scene_sim.yaml)"),
             ("bag", "false", "also record the trial's topics with `ros2 bag record` (MCAP) "
-                             "into record_dir/bag_<time> (needs rosbag2)")]
+                             "into record_dir/bag_<time> (needs rosbag2)"),
+            ("settings", "", "YAML of explorer parameters over config/explorer.yaml "
+                             "('' = config/explorer.yaml alone)"),
+            ("explorer_set", "", "explorer settings as dotted PATH=VALUE items separated by "
+                                 "spaces or ';' (e.g. trial.stop_confidence=0.95), over "
+                                 "settings and the arguments above")]
     for name, (node, path) in OPTIONS.items():
         spec = option_spec(name)
         args.append((name, "", f"{node} {path}: {spec.description}"
@@ -96,6 +112,18 @@ def arguments() -> list[tuple[str, str, str]]:
                                   if spec.choices else "")
                                + f" ('' = the node's default, {option_default(name)!r})"))
     return args
+
+
+def explorer_set(text: str) -> dict[str, Any]:
+    """The launch argument ``explorer_set``: dotted ``PATH=VALUE`` items of the explorer's
+    settings separated by spaces or ';' -> nested settings (``core.config.overrides``, the
+    syntax of ``--set``); InputError names the item and the nearest valid path."""
+    import re
+
+    from tactex_ros.core.schema import overrides
+    from tactex_ros.ros.settings import ExplorerSettings
+    items = [i for i in re.split(r"[;\s]+", text.strip()) if i]
+    return overrides(ExplorerSettings, items, "explorer_set:=") if items else {}
 
 
 def plan(values: dict[str, str]) -> dict[str, Any]:
@@ -120,10 +148,12 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     try:
         given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
                                   if values.get(name, "") != ""})
-        dotted = trial_settings(values)
-        if dotted:
-            given["explorer"] = merge(given.get("explorer"), dotted)
-        nodes = describe(sim, values.get("scene") or None, explorer=given.get("explorer"),
+        # the explorer's settings: the options above, then learner.NAME:= / trial.NAME:=
+        # arguments, then explorer_set:= items (each checked by the schema)
+        nodes = describe(sim, values.get("scene") or None,
+                         explorer=merge(given.get("explorer"), trial_settings(values),
+                                        explorer_set(values.get("explorer_set", ""))),
+                         explorer_file=values.get("settings") or None,
                          gelsight=None if sim else given.get("gelsight"),
                          mock_image=given.get("mock_image") if sim else None,
                          robot=values.get("robot") or None,

@@ -32,10 +32,11 @@ were skipped. A round's ``detail`` is its learner's: ``TrainingDetail`` for a le
 trains (and a ladder round that climbed or ran a CNN rung), None for the descriptor (nothing
 trained, nothing to report).
 
-Guards (``learner.guards``, see ``core/guards.py``): ``add_touch`` raises
-``TouchRejected`` (a InputError) for a blank or no-contact frame, which ``run`` records as a
-failed touch and repeats at once (``TrialConfig.touch_retries``); rounds whose strategy scores are all equal are flagged ``degenerate`` (the choice
-then falls to the least-touched platform, ``strategies.break_ties``).
+Guards (``learner.guards``, see ``core/guards.py``): ``add_touch`` raises ``TouchRejected`` (a
+run-time state, ``TrialError``) for a blank or no-contact frame; ``run`` records it as a failed
+touch and repeats it at once (``TrialConfig.touch_retries``), as it does a frame from
+``touch_fn`` that fails validation. Rounds whose strategy scores are all equal are flagged
+``degenerate`` (the choice then falls to the least-touched platform, ``strategies.break_ties``).
 """
 
 from __future__ import annotations
@@ -67,8 +68,10 @@ class TouchFailed(RuntimeError):
         self.retry = retry
 
 
-class TouchRejected(InputError):
-    """A touch frame was refused by the contact guard (blank or no contact); not stored."""
+class TouchRejected(TrialError):
+    """A touch frame was refused (the contact guard: blank or no contact; or, in ``run``, a
+    frame that fails validation); not stored. A run-time state of the sensor, not bad input:
+    ``run`` records it and touches again."""
 
 
 def confident(belief_max: float, stop_confidence: float) -> bool:
@@ -293,7 +296,7 @@ class TrialEngine:
 
         ``touch``: a ``Touch`` (contact frame, optional no-contact frame and more contact
         frames) or a bare (240, 320, 3) uint8 frame. Every reference touch counts for the
-        decision. Raises TouchRejected (a InputError) when the guard finds a blank or
+        decision. Raises TouchRejected (a TrialError) when the guard finds a blank or
         no-contact frame; nothing is stored then and the platform still counts as untouched.
         """
         if not 0 <= platform <= self.C:
@@ -461,7 +464,7 @@ class TrialEngine:
     # ------------------------------------------------------------------ loop
     def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
-            on_rejected: Callable[[int, InputError], None] | None = None) -> TrialOutcome:
+            on_rejected: Callable[[int, TouchRejected], None] | None = None) -> TrialOutcome:
         """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
         (240, 320, 3) uint8 frame.
 
@@ -493,7 +496,7 @@ class TrialEngine:
         return self.result(truth)
 
     def _touch(self, platform: int, touch_fn: Callable[[int], "Touch | np.ndarray"],
-               on_rejected: Callable[[int, InputError], None] | None) -> bool:
+               on_rejected: Callable[[int, TouchRejected], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""
         for _ in range(1 + self.trial_cfg.touch_retries):
@@ -505,12 +508,18 @@ class TrialEngine:
                     return False
                 continue
             try:
-                self.add_touch(platform, img)
-                return True
-            except InputError as exc:   # TouchRejected (guard) or a frame that fails validation
-                self.record_failure(platform, str(exc))
-                if on_rejected is not None:
-                    on_rejected(platform, exc)
+                validate_frame(as_touch(img).frame, f"touch of platform {platform}")
+            except InputError as exc:   # a frame the sensor spoiled: refused like the guard's
+                rejected = TouchRejected(str(exc))
+            else:
+                try:
+                    self.add_touch(platform, img)
+                    return True
+                except TouchRejected as exc:          # the contact guard
+                    rejected = exc
+            self.record_failure(platform, str(rejected))
+            if on_rejected is not None:
+                on_rejected(platform, rejected)
         return False
 
 
@@ -577,7 +586,7 @@ class TrialSpec:
 def run_trial(spec: TrialSpec, touch_fn: Callable[[int], "Touch | np.ndarray"],
               truth: int | None = None,
               on_round: Callable[[RoundRecord], None] | None = None,
-              on_rejected: Callable[[int, InputError], None] | None = None,
+              on_rejected: Callable[[int, TouchRejected], None] | None = None,
               engine: TrialEngine | None = None) -> TrialOutcome:
     """Run the trial ``spec`` describes with ``touch_fn(platform)`` (0 = reference, 1..C) until
     it ends (``TrialEngine.run``); ``truth`` (1..C) when known. ``engine``: the one

@@ -7,6 +7,11 @@ stopping, an answer did not come); the message says what failed; the command lin
 ``DeviceError`` (a ``TrialError``): a device named correctly is absent at run time (no camera
 by that name, a camera that gives no frames, a robot whose state topic is silent): the same
 command works once the device is there, so a node ends with exit status 1, not 2.
+``DeviceNotReady`` (a ``DeviceError``): the device is there but in a state that forbids the
+work (a robot not in move mode: idle, reflex, user stop); the same command works once the
+state is cleared: exit status 1.
+
+Each class is caught where it is handled: a run-time state is never caught as bad input.
 """
 
 from __future__ import annotations
@@ -22,3 +27,8 @@ class TrialError(RuntimeError):
 
 class DeviceError(TrialError):
     """A device (camera, robot) is absent or silent at run time (exit status 1)."""
+
+
+class DeviceNotReady(DeviceError):
+    """A device is there but in a state that forbids the work, e.g. a robot not in move mode
+    (exit status 1)."""

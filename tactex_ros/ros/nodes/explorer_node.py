@@ -1,27 +1,36 @@
-"""explorer_node: runs the core trial engine over the ROS graph.
+"""explorer_node: runs one trial (``trial/run.py``) or a study session over the ROS graph.
 
-press (action to the motion node) -> record the touch on disk -> validate -> learn -> choose.
-The trial runs in a worker thread, so the executor stays free for action feedback, results
-and publishing; every wait has a deadline. Publishes ``tactex/ExplorationState`` on
-``/tactex/state`` after each decision, rviz markers on ``/tactex/markers`` and the latest touch
-image on ``/tactex/touch_image``. The record (``record.TrialRecord``) receives each touch
-before it is used; a corrupt or wrongly sized image is recorded as rejected and never trained
-on; a failed press is recorded with its reason and the trial goes on.
+The node keeps what is ROS: the press (action to the motion node), the waits, publishing and
+the MCAP copy; the trial's life beside the engine (record, resume, replayed decisions,
+checkpoints, report, result) is ``trial.run.TrialRun``, a session's course
+``trial.session_run.SessionRun``. The trial runs in a worker thread, so the executor stays free
+for action feedback, results and publishing; every wait has a deadline. Publishes
+``tactex/ExplorationState`` on ``/tactex/state`` after each decision, rviz markers on
+``/tactex/markers`` and the latest touch image on ``/tactex/touch_image``. Every touch is on
+disk before it is used; a corrupt or wrongly sized image is recorded as rejected and never
+trained on; a failed press is recorded with its reason and the trial goes on.
 
 A press server that leaves the ROS graph, or sends no feedback for ``press_silence_s``, ends
 the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
 than waiting out ``press_timeout_s``. A press goal whose answer is lost (Fast DDS can drop a
 response sent before the server matched the client's reader) is re-sent after
-``goal_answer_s`` and the first one followed by its goal id (``ros/goal.py``). With ``resume`` (a record folder) the trial continues an
-interrupted one: the recorded touches are handed to the engine again in order
-(``resume.Replay``), then live presses take over.
+``goal_answer_s`` and the first one followed by its goal id (``ros/goal.py``). With ``resume``
+(a record folder) the trial continues an interrupted one (``trial/resume.py``).
+
+With ``session_file`` the node is the session's operator (``session_run.Operator``): the
+``~/confirm`` service (``std_srvs/srv/Trigger``), the latched prompt on ``prompt_topic``
+(``std_msgs/String``), and in simulation the mock camera's ``placement`` parameter set through
+its SetParameters service (``placement_service``).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import time
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from action_msgs.msg import GoalStatus
@@ -30,24 +39,25 @@ from sensor_msgs.msg import Image
 from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
-from ...core.engine import TouchFailed, TrialSpec, run_trial
+from ...core.engine import TouchFailed, TrialSpec
 from ...core.errors import InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
-from ...trial.record import TrialRecord
+from ...trial import session as sess
+from ...trial.run import TouchInterrupted, TrialRun
+from ...trial.session_run import SessionRun, trial_outcome
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
-from .session_mode import SessionMode, trial_outcome
 from ..goal import GoalRequest, Silence
 
 
-class PressServerLost(InputError):
+class PressServerLost(TouchInterrupted):
     """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
 
-class ExplorerNode(SessionMode, TactexNode):
+class ExplorerNode(TactexNode):
     settings_cls = ExplorerSettings
 
     def __init__(self, **kw) -> None:
@@ -62,14 +72,17 @@ class ExplorerNode(SessionMode, TactexNode):
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
-        self.session = None
-        self.record = self.bag = self.last_state = None
+        self.session: SessionRun | None = None
+        self.trial: TrialRun | None = None
+        self.bag = self.last_state = None
+        self._awaiting: str | None = None
         if s.session_file:
-            self.configure_session()    # checks the trial file, opens the session folder
-            TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=s.seed,
-                      platform_ids=tuple(self.ids)).engine()   # settings refused here
+            self._configure_session()    # checks the trial file, opens the session folder
+            self._spec(s.seed).engine()   # settings refused here
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
+        import uuid
+        self.run_id = s.run_id or uuid.uuid4().hex      # this graph's identity on every goal
         self.press = ActionClient(self, Press, s.press_action)
         latched = adapter.latched_qos()     # late joiners (rviz, foxglove) get the last one
         self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
@@ -87,33 +100,59 @@ class ExplorerNode(SessionMode, TactexNode):
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
 
+    def _log(self, level: int, text: str) -> None:
+        """``TrialRun`` / ``SessionRun`` log lines, on the node's logger."""
+        lg = self.get_logger()     # rclpy: one severity per call site, so three calls
+        if level >= logging.ERROR:
+            lg.error(text)
+        elif level >= logging.WARNING:
+            lg.warning(text)
+        else:
+            lg.info(text)
+
+    def _spec(self, seed: int) -> TrialSpec:
+        s = self.settings
+        return TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=seed,
+                         platform_ids=tuple(self.ids))
+
     def _open_trial(self, seed: int, resume: str | None, trial_id: str, record_dir: str,
                     placed_scene: str | None = None, extra: dict | None = None) -> None:
         """A fresh engine (belief and learner reset; nothing re-imported) and the trial's
-        record: new in ``record_dir/trial_id``, or the interrupted one in ``resume``.
-        ``placed_scene``: the scene text written into the record (a session's placement);
-        ``extra``: more inputs for config.json (a session trial's placement and truth)."""
+        record (``trial/run.py``): new in ``record_dir/trial_id``, or the interrupted one in
+        ``resume``. ``placed_scene``: the scene text written into the record (a session's
+        placement); ``extra``: more inputs for config.json (a session trial's placement and
+        truth)."""
         s = self.settings
-        self.spec = TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=seed,
-                              platform_ids=tuple(self.ids))
-        self.engine = self.spec.engine()       # settings refused here, at configure
-        explorer = s.model_dump(exclude={"learner", "trial"})
-        explorer["seed"] = seed
-        inputs = {"explorer": explorer, "learner": s.learner.model_dump(),
-                  "trial": s.trial.model_dump()}
+        inputs = s.record_inputs(seed)
+        from ...trial.report import changed_settings, run_info
+        base = type(s)(config=s.config).model_dump(exclude={"learner", "trial"})
+        inputs["run"] = dict(run_info(), non_default=changed_settings(inputs["explorer"], base,
+                                                                      "explorer."))
         if extra:
             inputs.update(extra)
-        self.replay = None
-        if resume:
-            self._open_resume(resume, inputs)
-        else:
-            self.trial_id = trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
-            self.record = TrialRecord(record_dir, self.trial_id)
-            self.record.save_inputs(s.scene_file, inputs)
-            if placed_scene is not None:
-                (self.record.dir / "scene.yaml").write_text(placed_scene)
+        self.trial = TrialRun(self._spec(seed), record_dir, trial_id, press=self._press,
+                              inputs=inputs, resume=resume, scene_file=s.scene_file,
+                              placed_scene=placed_scene, check_record=self._check_scene,
+                              log=self._log, min_free_mb=s.min_free_mb)
+        self.trial_id = self.trial.trial_id
         self.bag = self._open_bag()
         self.last_state = None
+
+    def _check_scene(self, d: Path) -> None:
+        """A record to resume was made on a scene with the same platforms."""
+        was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
+        if was is not None and [p.id for p in was.ordered] != self.ids:
+            raise InputError(f"resume: the scene's platforms {self.ids} are not the record's "
+                             f"{[p.id for p in was.ordered]}")
+
+    @property
+    def record(self):
+        """The open trial's record (None between a session's trials)."""
+        return self.trial.record if self.trial is not None else None
+
+    @property
+    def engine(self):
+        return self.trial.engine
 
     def _open_bag(self):
         """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
@@ -126,37 +165,17 @@ class ExplorerNode(SessionMode, TactexNode):
         if self.bag is None:         # a session between trials: no trial record open
             return
         try:
-            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+            self.bag.write_all(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
             if not getattr(self, "_bag_warned", False):
                 self._bag_warned = True
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
-
-    def _open_resume(self, folder: str, inputs: dict) -> None:
-        """Continue the interrupted trial recorded in ``folder`` (settings must match)."""
-        from pathlib import Path
-
-        from ...trial.record import append_event
-        from ...trial.resume import check_settings, load_replay, restore_engine
-        d = Path(folder).resolve()
-        self.record = TrialRecord(d.parent, d.name, resume=True)
-        self.trial_id = d.name
-        check_settings(d, inputs)
-        was = load_scene(d / "scene.yaml") if (d / "scene.yaml").is_file() else None
-        if was is not None and [p.id for p in was.ordered] != self.ids:
-            raise InputError(f"resume: the scene's platforms {self.ids} are not the record's "
-                             f"{[p.id for p in was.ordered]}")
-        self.replay, rec = load_replay(d, self._press, self.ids)
-        self.engine, after, how = restore_engine(self.spec, d, self.replay.recorded)
-        self.replay.recorded = [r for r in self.replay.recorded if r.seq > after]
-        self._replay_decisions = rec["decisions"]
-        self._decisions = len(self.engine.records)     # decisions restored, not re-made
-        self.get_logger().info(f"resume: {how}")
-        append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
-                         "touches_replayed": len(self.replay.recorded),
-                         "decisions_on_disk": len(rec["decisions"]),
-                         "checkpoint_round": len(self.engine.records), "how": how,
-                         "time": time.time()})
+                try:
+                    from ...trial.record import append_event
+                    append_event(self.record.dir, {"event": "mcap_failed", "reason": str(exc),
+                                                   "time": time.time()})
+                except TrialError:
+                    pass           # the disk is full: the next touch ends the trial
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -165,7 +184,7 @@ class ExplorerNode(SessionMode, TactexNode):
         if self.worker is None:
             target = self._trial
             if self.session is not None:
-                target = self.run_session
+                target = self._run_session
             self.worker = threading.Thread(target=target, name="trial", daemon=True)
             self.worker.start()
 
@@ -203,14 +222,15 @@ class ExplorerNode(SessionMode, TactexNode):
                         "stop reason": res.get("stop_reason", ""),
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
+        if self.result is None and not self.press.server_is_ready():
+            msg = "starting: waiting for the press server (motion node)"
+            values["state"] = "starting"
         if self.session is not None:
-            from ...trial import session as sess
-            done = sum(sess.trial_state(self.session_dir, t) == "done"
-                       for t in self.session.trials)
-            values.update(session=self.session.name, **{"trials done": done,
-                                                         "trials": len(self.session.trials)})
-            waiting = getattr(self, "_awaiting", None)
-            msg = (f"session {done}/{len(self.session.trials)} trials done"
+            done, n = self.session.done(), len(self.session.session.trials)
+            values.update(session=self.session.session.name, **{"trials done": done,
+                                                                 "trials": n})
+            waiting = self._awaiting
+            msg = (f"session {done}/{n} trials done"
                    + (f"; waiting for the operator to confirm trial {waiting}" if waiting
                       else ""))
         if "error" in res:
@@ -226,43 +246,19 @@ class ExplorerNode(SessionMode, TactexNode):
         self.marker_pub.publish(msg)
         self._bag_write(MARKER_TOPIC, msg)
 
-    def _publish_state(self, rec, done: bool, prediction: str) -> None:
+    def _publish_state(self, rec, line: dict) -> None:
+        """The decision ``line`` (already recorded by the trial) on ``state_topic``, the
+        markers and the bag."""
         msg = adapter.state_msg(rec, trial_id=self.trial_id, sure=bool(self.engine.sure),
                                 strategy=self.engine.trial_cfg.strategy,
                                 platform_ids=self.ids[1:], reference_id=self.ids[0],
-                                reference_touches=self.engine.reference_touches, done=done,
-                                prediction=prediction, t=self._now(),
-                                frame_id=self.scene.frame_id)
+                                reference_touches=self.engine.reference_touches,
+                                done=line["done"], prediction=line["prediction"],
+                                t=self._now(), frame_id=self.scene.frame_id)
         self.last_state = msg
         self.state_pub.publish(msg)
         self._bag_write(STATE_TOPIC, msg)
         self._publish_markers()
-        if self.replay is not None and self._replayed_decision(msg):
-            return                            # already on disk before the interruption
-        self.record.add_decision({"round": rec.round, "next": msg.next_platform,
-                                  "belief": list(msg.belief),
-                                  "uncertainty": list(msg.uncertainty),
-                                  "touches": list(msg.touches), "model": rec.model,
-                                  "decision_s": rec.decision_s, "done": done,
-                                  "prediction": prediction,
-                                  "sure": self.engine.sure if done else None})
-
-    def _replayed_decision(self, msg) -> bool:
-        """True for a decision a resumed trial re-made that the record already holds (a
-        recomputed belief that differs from the recorded one is noted in events.jsonl)."""
-        i, self._decisions = self._decisions, self._decisions + 1
-        if i >= len(self._replay_decisions):
-            return False
-        was = self._replay_decisions[i].get("belief") or []
-        diff = float(np.max(np.abs(np.subtract(was, list(msg.belief))))) \
-            if len(was) == len(msg.belief) else float("inf")
-        if diff > 1e-4:
-            from ...trial.record import append_event
-            append_event(self.record.dir, {"event": "replay_differs", "decision": i + 1,
-                                           "max_belief_diff": diff})
-            self.get_logger().warning(f"resume: decision {i + 1} differs from the record "
-                                      f"(belief by up to {diff:.3g})")
-        return True
 
     # ------------------------------------------------------------------ the trial
     def _wait(self, ready, deadline: float, watch: bool = False,
@@ -314,71 +310,63 @@ class ExplorerNode(SessionMode, TactexNode):
     def _on_feedback(self, _msg) -> None:
         self._silence.heard()
 
-    def _touch(self, platform: int) -> Touch:
-        """The engine's ``touch_fn`` of a resumed trial: recorded touches, then presses."""
-        touch = self.replay(platform)
-        if self.replay.current is not None and isinstance(touch, Touch):
-            self._set_guard_reference(touch.no_contact)
-        return touch
-
-    def _press(self, platform: int) -> Touch:
-        """The engine's ``touch_fn``: press ``platform`` (index), put the touch on disk, return
-        it (contact image and the sensor's no-contact frame). A failed press (already retried by the motion node) or an unreadable image is
-        recorded and raised as ``TouchFailed(retry=False)``."""
+    def _press(self, platform: int, meta: dict) -> Touch:
+        """The trial's live touch (``TrialRun``): press ``platform`` (index), return the touch
+        (contact image and the sensor's no-contact frame), ``meta`` filled for the record. A
+        failed press (already retried by the motion node) or an unreadable image raises
+        ``TouchFailed(retry=False)``; a press server that is gone, ``PressServerLost``."""
         from tactex.action import Press
         self._wait_running()
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
-        meta = {"platform_id": pid, "platform_index": platform, "requested": self._now()}
+        meta["requested"] = self._now()
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
-        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid, run_id=self.run_id),
                           answer_s=self.settings.goal_answer_s,
                           feedback_callback=self._on_feedback)
-        try:
-            if not self._wait(req.answered, deadline, watch=True):
-                self._failed(platform, meta, "press goal not answered before the deadline")
-            if req.refused:
-                self._failed(platform, meta, "press goal rejected by the motion node")
-            if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
-                req.cancel()
-                self._failed(platform, meta, f"press not finished within press_timeout_s "
-                                             f"({self.settings.press_timeout_s} s)")
-        except PressServerLost as exc:   # the press never ended: a resume makes it again
-            self.record.add_touch(None, dict(meta, accepted=False, reason=str(exc),
-                                             interrupted=True))
-            raise
+        if not self._wait(req.answered, deadline, watch=True):
+            self._failed(meta, "press goal not answered before the deadline")
+        if req.refused:
+            self._failed(meta, "press goal rejected by the motion node (busy, inactive, or "
+                               f"serving another run than {self.run_id}: its log names which)")
+        if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
+            req.cancel()
+            self._failed(meta, f"press not finished within press_timeout_s "
+                               f"({self.settings.press_timeout_s} s)")
         if req.resent:
             meta["goal_resent"] = req.resent
             self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
                                       "its answer was lost")
         if req.result.status == GoalStatus.STATUS_UNKNOWN:
-            self._failed(platform, meta, "press goal lost: the motion node never took it")
+            self._failed(meta, "press goal lost: the motion node never took it"
+                         + (f" (the explorer was stopped for {req.stalled_s:.1f} s while it "
+                            "waited)" if req.stalled_s else ""))
+        if req.stalled_s:
+            meta["explorer_stalled_s"] = round(req.stalled_s, 3)
         res = req.result.result
         if not res.success:
-            self._failed(platform, meta, res.reason or "press failed", res.attempts)
+            self._failed(meta, res.reason or "press failed", res.attempts)
         touch = res.touch
+        if res.reason:        # attempts that failed before this one (motion node)
+            meta["attempt_failures"] = res.reason
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
                     tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
                           "samples": int(touch.tare_samples)},
+                    surface={"z_m": touch.surface_z, "error_m": touch.surface_error_m,
+                             "warning": touch.warning},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
         except InputError as exc:
-            meta.update(accepted=False, reason=str(exc), encoding=touch.image.encoding,
-                        width=touch.image.width, height=touch.image.height)
-            self.record.add_touch(None, meta)
-            self.get_logger().warning(f"touch rejected: {exc}")
+            meta.update(encoding=touch.image.encoding, width=touch.image.width,
+                        height=touch.image.height)
             raise TouchFailed(str(exc), retry=False) from exc
-        no_contact = self._no_contact(touch)
-        self.record.add_touch(img, dict(meta, accepted=True),   # on disk before it is used
-                              no_contact=no_contact)
-        self._set_guard_reference(no_contact)
         self.image_pub.publish(touch.image)
         self._bag_write(TOUCH_TOPIC, touch)
-        return Touch(frame=img, no_contact=no_contact)
+        return Touch(frame=img, no_contact=self._no_contact(touch))
 
     def _no_contact(self, touch) -> np.ndarray | None:
         """The touch's no-contact frame as an array (None when absent or unusable)."""
@@ -390,27 +378,9 @@ class ExplorerNode(SessionMode, TactexNode):
             self.get_logger().warning(f"no-contact frame unusable: {exc}")
             return None
 
-    def _on_rejected(self, platform: int, exc: InputError) -> None:
-        """The engine refused the last recorded touch (e.g. the guard: a blank frame)."""
-        cur = self.replay.current if self.replay is not None else None
-        if cur is not None:              # a replayed touch: marked already, unless cut off
-            if not cur.rejected:
-                self.record.reject_touch(cur.seq, str(exc))
-            return
-        self.record.reject_touch(self.record.n_touches, str(exc))
-        self.get_logger().warning(f"touch rejected: {exc}")
-
-    def _set_guard_reference(self, no_contact: np.ndarray | None) -> None:
-        """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
-        guard = self.engine.guard
-        if guard is None or guard.has_reference or no_contact is None:
-            return
-        guard.set_reference(no_contact)
-
-    def _failed(self, platform: int, meta: dict, reason: str, attempts: int = 0) -> None:
-        self.record.add_touch(None, dict(meta, accepted=False, reason=reason,
-                                         attempts=attempts))
-        self.get_logger().warning(f"touch of {self.ids[platform]} failed: {reason}")
+    @staticmethod
+    def _failed(meta: dict, reason: str, attempts: int = 0) -> None:
+        meta["attempts"] = attempts
         raise TouchFailed(reason, retry=False)
 
     def _trial(self, finish_node: bool = True) -> None:
@@ -422,38 +392,12 @@ class ExplorerNode(SessionMode, TactexNode):
             if not self.context.ok() or self.record.closed:
                 return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
             self.get_logger().error(f"trial failed: {type(exc).__name__}: {exc}")
-            self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
-            self.record.finish(self.result)
+            self.result = self.trial.fail(exc)
             self.exit_code = 1
         finally:
-            self.bag.close()
+            self.bag.close()              # never raises (ros/bag.py)
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
-
-    def _checkpoint(self, eng) -> None:
-        """After a round that asked for a touch: the learner's state into the record, so a
-        resume continues from it instead of re-training (a learner without the hook, e.g. the
-        descriptor, writes none). A failure here never stops the trial: a resume re-trains."""
-        ck = eng.checkpoint()
-        if ck is None:
-            return
-        rp = self.replay
-        after = rp.recorded[rp.pos - 1].seq if rp is not None and rp.replaying and rp.pos \
-            else self.record.n_touches
-        try:
-            self.record.write_checkpoint(ck[0], ck[1], after)
-        except (OSError, TrialError) as exc:
-            if not getattr(self, "_ckpt_warned", False):
-                self._ckpt_warned = True
-                self.get_logger().warning(f"learner checkpoint not written: {exc}")
-
-    def _write_report(self) -> None:
-        """``report.html`` beside the result; a failure there never loses the trial."""
-        try:
-            from ...trial.report import write_trial_report
-            write_trial_report(self.record.dir)
-        except Exception as exc:  # noqa: BLE001 - the record is the ground truth
-            self.get_logger().warning(f"report.html not written: {exc}")
 
     def _run_trial(self) -> None:
         s = self.settings
@@ -462,36 +406,141 @@ class ExplorerNode(SessionMode, TactexNode):
                 not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
             raise InputError(f"press action {s.press_action!r} not available within "
                              f"server_timeout_s ({s.server_timeout_s} s)")
-        eng = self.engine
-
-        def on_round(rec) -> None:
-            pred = self.ids[int(np.argmax(rec.probs)) + 1] if eng.done else ""
-            self._publish_state(rec, eng.done, pred)
-            self._checkpoint(eng)
-
-        touch_fn = self._press if self.replay is None else self._touch
-        res = run_trial(self.spec, touch_fn, on_round=on_round, on_rejected=self._on_rejected,
-                        engine=eng)
-        out = res.to_dict()
-        out.update(trial_id=self.trial_id, record=str(self.record.dir),
-                   strategy=eng.trial_cfg.strategy, model=eng.learner.model_name,
-                   seed=self.spec.seed)
-        if self.replay is not None:
-            from ...trial.record import read_record
-            out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
-                              if e.get("event") == "resumed"]
-        if self._t_trial is not None:
-            out["elapsed_s"] = time.monotonic() - self._t_trial
-        if self.session_trial is not None:
-            out.update(trial_outcome(self.session_trial, out))
+        st = self.session_trial
+        out = self.trial.run(on_decision=self._publish_state, t0=self._t_trial,
+                             extra=None if st is None else lambda r: trial_outcome(st, r))
         self.result = out
-        path = self.record.finish(out)
-        self._write_report()
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
                                f"{out['prediction']} after {out['touches']} touches "
                                f"(stopped: {out['stop_reason']}"
                                f"{'' if out['sure'] is not False else ', NOT SURE: best guess'}"
-                               f", belief {out['confidence']:.2f}); record {path.parent}")
+                               f", belief {out['confidence']:.2f}); record {self.record.dir}")
+
+    # ------------------------------------------------------------------ the session
+    def _configure_session(self) -> None:
+        """Check the trial file against the scene (row named on error), open the session folder
+        (``trial/session_run.py``), make the confirm service, the prompt publisher and the
+        placement client."""
+        from rcl_interfaces.srv import SetParameters
+        from std_msgs.msg import String
+        from std_srvs.srv import Trigger
+        s = self.settings
+        session = sess.load_session(s.session_file, self.ids, seed=s.seed)
+        d = Path(s.session_dir or Path(s.record_dir) /
+                 f"{session.name}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
+        self.session = SessionRun(session, d, {
+            "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
+            "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
+            log=self._log)
+        self.session_dir = d
+        from tactex.srv import Confirm
+        self._confirmed = threading.Event()
+        self._confirmed_by: tuple[str, str] = ("", "")
+        self.confirm_srv = self.create_service(Trigger, "~/confirm",
+                                               lambda req, res: self._on_confirm(res))
+        self.confirm_by_srv = self.create_service(
+            Confirm, "~/confirm_by",
+            lambda req, res: self._on_confirm(res, req.by or "service", req.caller))
+        self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
+        self.placement_client = (self.create_client(SetParameters, s.placement_service)
+                                 if s.placement_service else None)
+        self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
+                               f"folder {d}{' (resumed)' if self.session.resumed else ''}")
+
+    def _on_confirm(self, res: Any, by: str = "service", caller: str = "") -> Any:
+        """``~/confirm`` (``std_srvs/Trigger``: recorded as by ``service``) / ``~/confirm_by``
+        (``tactex/srv/Confirm``: how and by whom, e.g. ``enter`` or ``yes_flag``): the operator
+        has placed the fabrics of the trial being prompted."""
+        if self._awaiting is None or self._confirmed.is_set():
+            res.success, res.message = False, "nothing to confirm: no placement is awaited now"
+            return res
+        res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
+        self._confirmed_by = (by, caller)
+        self._confirmed.set()
+        return res
+
+    # the session's operator (``session_run.Operator``): the confirm service, the prompt topic
+    def expect(self, trial_id: str) -> None:
+        self._confirmed.clear()
+        self._confirmed_by = ("", "")
+        self._awaiting = trial_id
+
+    def tell(self, text: str) -> None:
+        from std_msgs.msg import String
+        self.prompt_pub.publish(String(data=text))
+        if self.settings.auto_confirm:
+            self._confirmed_by = ("auto_confirm", "the explorer's auto_confirm parameter")
+            self._confirmed.set()
+
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for a confirmation up to ``confirm_timeout_s``: (how, by whom); the
+        confirmation is published on the prompt topic, so every place that shows the prompt
+        shows it. TrialError when stopping."""
+        from std_msgs.msg import String
+        deadline = time.monotonic() + self.settings.confirm_timeout_s
+        try:
+            while not self._confirmed.wait(timeout=0.1):
+                if self._stopping or not self.context.ok():
+                    raise TrialError("the explorer is stopping")
+                if time.monotonic() > deadline:
+                    return None
+            trial = self._awaiting
+        finally:
+            self._awaiting = None
+        by, caller = self._confirmed_by
+        said = f"trial {trial}: placement confirmed by {by}" + (f" ({caller})" if caller else "")
+        self.get_logger().info(said)
+        self.prompt_pub.publish(String(data=said))
+        return by, caller
+
+    def place(self, trial: sess.SessionTrial) -> None:
+        """Simulation: set the mock camera's ``placement`` (SetParameters), within
+        ``server_timeout_s``; TrialError with the camera's reason when it refuses."""
+        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+        from rcl_interfaces.srv import SetParameters
+        client, s = self.placement_client, self.settings
+        if client is None:
+            return
+        if not client.wait_for_service(timeout_sec=s.server_timeout_s):
+            raise TrialError(f"placement service {s.placement_service!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
+        value = ParameterValue(type=ParameterType.PARAMETER_STRING,
+                               string_value=sess.placement_text(trial.placement))
+        fut = client.call_async(SetParameters.Request(
+            parameters=[Parameter(name="placement", value=value)]))
+        deadline = time.monotonic() + s.server_timeout_s
+        while not fut.done():
+            if time.monotonic() > deadline:
+                raise TrialError(f"placement service {s.placement_service!r}: no answer within "
+                                  f"server_timeout_s ({s.server_timeout_s} s)")
+            if self._stopping:
+                raise TrialError("the explorer is stopping")
+            time.sleep(0.01)
+        r = fut.result().results[0]
+        if not r.successful:
+            raise TrialError(f"the mock camera refused the placement of trial {trial.id}: "
+                              f"{r.reason}")
+
+    def _session_trial(self, trial: sess.SessionTrial, resume: str | None) -> dict | None:
+        """One trial of the session, to its result (None: the node is being stopped)."""
+        self.session_trial, self.result = trial, None
+        self._open_trial(trial.seed, resume, trial.record_name, str(self.session.dir),
+                         **self.session.trial_inputs(trial, self.settings.scene_file))
+        self.session.trial_started(trial, resume is not None, self.record.n_touches)
+        self._trial(finish_node=False)
+        return self.result
+
+    def _run_session(self) -> None:
+        """The session's worker thread: every trial not yet done, in order; then the session's
+        result and report. Ends the node's work (``exit_when_done``) in every case."""
+        try:
+            code = self.session.run(self, self._session_trial,
+                                    lambda: self._stopping or not self.context.ok())
+            if code:
+                self.exit_code = code
+        finally:
+            if self.settings.exit_when_done:
+                self.finished.set()
 
 
 def main(args: list[str] | None = None) -> int:

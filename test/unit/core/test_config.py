@@ -188,6 +188,54 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
             launch.plan(values)
 
 
+def test_launch_resume_settings_file_and_dotted_settings_become_node_parameters(
+        tmp_path) -> None:
+    """resume:=RECORD, session_dir:=DIR, settings:=FILE and explorer_set:="PATH=VALUE ..."
+    reach the explorer as node parameters (the stop threshold set at launch); a bad item is
+    refused with the argument and the nearest valid path named."""
+    launch = _launch_module()
+    rec = tmp_path / "trial_x"
+    settings = tmp_path / "explorer.yaml"
+    settings.write_text("explorer:\n  ros__parameters:\n    trial: {rounds: 4}\n"
+                        "    press_timeout_s: 77.0\n")
+    p = launch.plan({"sim": "true", "resume": str(rec), "session_dir": str(tmp_path / "s"),
+                     "settings": str(settings),
+                     "explorer_set": "trial.stop_confidence=0.95; learner.model=descriptor "
+                                     "trial.rounds=5"})
+    ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
+    assert ex["resume"] == str(rec) and ex["session_dir"] == str(tmp_path / "s")
+    assert ex["trial"]["stop_confidence"] == 0.95 and ex["trial"]["rounds"] == 5
+    assert ex["press_timeout_s"] == 77.0 and ex["learner"]["model"] == "descriptor"
+    assert launch.plan({"sim": "true"})["nodes"][-1].parameters.get("trial", {}).get(
+        "stop_confidence") is None
+    with pytest.raises(launch.LaunchArgumentError,
+                       match=re.escape("explorer_set:= 'stop_confidence=0.9'") + ".*"
+                       + re.escape("'trial.stop_confidence'")):
+        launch.plan({"sim": "true", "explorer_set": "stop_confidence=0.9"})
+    with pytest.raises(launch.LaunchArgumentError, match="trial.stop_confidence"):
+        launch.plan({"sim": "true", "explorer_set": "trial.stop_confidence=2"})
+
+
+def test_both_entrances_give_the_explorer_the_same_parameters(tmp_path, capsys) -> None:
+    """``ros2 launch`` arguments and ``tactex graph describe`` options for the same run give
+    the explorer identical node parameters (resume, session folder, settings file, dotted
+    settings)."""
+    import json
+
+    from tactex_ros.cli.main import main
+    launch = _launch_module()
+    settings = tmp_path / "explorer.yaml"
+    settings.write_text("press_timeout_s: 70.0\n")
+    p = launch.plan({"sim": "true", "rounds": "3", "seed": "2", "settings": str(settings),
+                     "session_dir": str(tmp_path / "s"),
+                     "explorer_set": "trial.stop_confidence=0.95"})
+    assert main(["graph", "describe", "--sim", "--rounds", "3", "--seed", "2",
+                 "--settings", str(settings), "--session-dir", str(tmp_path / "s"),
+                 "--set", "trial.stop_confidence=0.95"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert [n["parameters"] for n in cli] == [n.parameters for n in p["nodes"]]
+
+
 def test_launch_help_defaults_exit_status_and_bag_command() -> None:
     """The help of options under the preset shows the preset's values (the run's), not the
     field's own default; a failed node raises (launch then returns 1); rosbag2's topic form

@@ -1,0 +1,165 @@
+"""A study session's course, without ROS: the trials of a trial file in order (``SessionRun``).
+
+Before each trial the operator is told what to place where (``Operator.tell``; written to
+``session_events.jsonl``) and confirms (``Operator.wait``); a placement not confirmed in time
+ends the session: recorded, resumable. Every trial gets a fresh engine with seed
+``seed + position``, its own record ``<session_dir>/trial_<id>`` and its correctness from the
+trial file's truth. A session folder that already holds the same session is continued:
+finished trials are skipped, an interrupted trial resumes at the touch where it stopped,
+pending ones run. The explorer node (``ros/nodes/explorer_node.py``) supplies the operator (a
+service, a latched prompt topic, the mock camera's placement) and runs each trial
+(``trial/run.py``).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any, Callable, Protocol
+
+from ..core.errors import TrialError
+from . import session as sess
+
+
+class Operator(Protocol):
+    """Who places the fabrics: told, then waited for."""
+
+    def expect(self, trial_id: str) -> None:
+        """A placement of ``trial_id`` is awaited from now on (a quick confirmation counts)."""
+
+    def tell(self, text: str) -> None:
+        """Say what to place where."""
+
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for the confirmation: (how: 'enter', 'yes_flag', 'service', 'auto_confirm';
+        by whom, '' when unknown), None when the deadline passed first. TrialError when the
+        process stops meanwhile."""
+
+    def place(self, trial: sess.SessionTrial) -> None:
+        """Put the trial's fabrics in place where a machine can (simulation); else nothing."""
+
+
+def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
+    """A session trial's result fields: its id, the true platforms, correctness."""
+    return {"session_trial": trial.id, "truth_platforms": list(trial.truth),
+            "correct": result.get("prediction") in trial.truth,
+            "placement": dict(trial.placement), "seed": trial.seed}
+
+
+class SessionRun:
+    """The session ``session`` in folder ``session_dir`` (opened, or continued when it holds the
+    same session; ``settings``: what ``session.json`` keeps). ``confirm_timeout_s``: for the
+    message of a placement not confirmed in time."""
+
+    def __init__(self, session: sess.Session, session_dir: str | Path,
+                 settings: dict[str, Any], confirm_timeout_s: float,
+                 log: Callable[[int, str], None] | None = None) -> None:
+        self.session = session
+        self.dir = Path(session_dir).resolve()
+        self.confirm_timeout_s = confirm_timeout_s
+        self.log = log or (lambda level, text: logging.getLogger("tactex.session").log(level,
+                                                                                       text))
+        self.resumed = sess.open_session(self.dir, session, settings)
+        sess.add_event(self.dir, {"event": "resumed" if self.resumed else "started",
+                                  "time": time.time(), "trials": len(session.trials)})
+        self.awaiting: str | None = None
+
+    def done(self) -> int:
+        """How many of the session's trials are done."""
+        return sum(sess.trial_state(self.dir, t) == "done" for t in self.session.trials)
+
+    def _prompt(self, operator: Operator, trial: sess.SessionTrial, k: int, n: int) -> bool:
+        text = (f"session {self.session.name}, trial {trial.id} ({k}/{n}): place "
+                + "; ".join(trial.instructions()) + " -- then confirm")
+        operator.expect(trial.id)       # before the prompt goes out: a quick confirm is taken
+        self.awaiting = trial.id
+        self.log(logging.INFO, text)
+        sess.add_event(self.dir, {"event": "awaiting_confirmation", "trial": trial.id,
+                                  "position": trial.position, "number": k, "of": n,
+                                  "placement": trial.placement, "text": text,
+                                  "time": time.time()})
+        try:
+            operator.tell(text)
+            got = operator.wait()
+        finally:
+            self.awaiting = None
+        if got is None:
+            return False
+        by, caller = got
+        sess.add_event(self.dir, {"event": "confirmed", "trial": trial.id, "by": by,
+                                  "caller": caller or None, "time": time.time()})
+        return True
+
+    def run(self, operator: Operator,
+            run_trial: Callable[[sess.SessionTrial, str | None], dict | None],
+            stopping: Callable[[], bool]) -> int:
+        """Every trial not yet done, in order; then the session's result and report.
+        ``run_trial(trial, resume)``: the trial's result (None: the process is being stopped,
+        the trial stays resumable); ``resume``: its record folder when it was started before.
+        Returns the exit status: 0, or 1 when the session ended without its result."""
+        d, trials = self.dir, self.session.trials
+        try:
+            for k, trial in enumerate(trials, 1):
+                state = sess.trial_state(d, trial)
+                if state == "done":
+                    continue
+                if not self._prompt(operator, trial, k, len(trials)):
+                    why = (f"placement of trial {trial.id} not confirmed within "
+                           f"confirm_timeout_s ({self.confirm_timeout_s:g} s)")
+                    self.log(logging.ERROR, f"session ended: {why}")
+                    sess.add_event(d, {"event": "session_ended", "reason": why,
+                                       "trial": trial.id, "time": time.time()})
+                    return 1
+                operator.place(trial)
+                res = run_trial(trial, str(d / trial.record_name) if state == "started"
+                                else None)
+                if res is None:          # the process is being stopped: the trial stays resumable
+                    return 0
+                if "error" in res:
+                    sess.add_event(d, {"event": "session_ended", "trial": trial.id,
+                                       "reason": f"trial {trial.id} failed: {res['error']}",
+                                       "time": time.time()})
+                    return 0
+                sess.add_event(d, {"event": "trial_done", "trial": trial.id,
+                                   "prediction": res.get("prediction"),
+                                   "correct": res.get("correct"), "touches": res.get("touches"),
+                                   "stop_reason": res.get("stop_reason"), "time": time.time()})
+            out = sess.summary(d)
+            sess.finish_session(d, out)
+            sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
+                               "time": time.time()})
+            self.log(logging.INFO, f"session {self.session.name}: {out['done']} trials, "
+                                   f"accuracy {out['accuracy']:.3f}; folder {d}")
+            return 0
+        except Exception as exc:  # the session must end in an explicit, recorded state
+            if stopping():
+                return 0
+            self.log(logging.ERROR, f"session failed: {type(exc).__name__}: {exc}")
+            try:
+                sess.add_event(d, {"event": "session_ended",
+                                   "reason": f"{type(exc).__name__}: {exc}", "time": time.time()})
+            except TrialError as why:   # a full disk may refuse the event too
+                self.log(logging.ERROR, f"session end not recorded: {why}")
+            return 1
+        finally:
+            if not stopping():
+                try:
+                    from .report import write_session_report
+                    write_session_report(d)
+                except Exception as exc:  # noqa: BLE001 - the records are the ground truth
+                    self.log(logging.WARNING, f"session report not written: {exc}")
+
+    def trial_started(self, trial: sess.SessionTrial, resumed: bool, after_touch: int) -> None:
+        """Note in the session's events that ``trial`` began (``after_touch``: its record's
+        touches so far)."""
+        sess.add_event(self.dir, {"event": "trial_started", "trial": trial.id,
+                                  "resumed": resumed, "after_touch": after_touch,
+                                  "time": time.time()})
+
+    def trial_inputs(self, trial: sess.SessionTrial, scene_file: str | Path) -> dict[str, Any]:
+        """What a session trial's record keeps beside the settings: its placed scene text and
+        the session's part of config.json."""
+        return {"placed_scene": sess.placed_scene(scene_file, trial.placement),
+                "extra": {"session": {"name": self.session.name, "trial": trial.id,
+                                      "placement": trial.placement, "truth": trial.truth}}}

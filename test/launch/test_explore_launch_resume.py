@@ -1,0 +1,102 @@
+"""launch_testing: ``ros2 launch tactex explore.launch.py sim:=true resume:=RECORD
+explorer_set:="trial.stop_confidence=..."`` continues an interrupted trial with the stop
+threshold set at launch.
+
+The interrupted record is made before the launch, without ROS (``trial.run.TrialRun`` with the
+simulator as press, cut off after 4 touches), with the settings the launch gives the explorer
+(``ExplorerSettings.record_inputs``), so the resume is accepted. Run with
+``launch_test test/launch/test_explore_launch_resume.py`` (see conftest.py).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import unittest
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip(
+    "launch_testing", reason="launch_testing is not installed (not on PyPI; ROS 2 system only)")
+import launch  # noqa: E402
+import launch_testing.actions  # noqa: E402
+import launch_testing.asserts  # noqa: E402
+from launch.actions import IncludeLaunchDescription  # noqa: E402
+from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+
+RECORD = Path(tempfile.mkdtemp(prefix="tactex_launch_resume_"))
+LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "explore.launch.py"
+ARGS = {"sim": "true", "rounds": "20", "seed": "0", "record_dir": str(RECORD),
+        "exit_when_done": "true", "explorer_set": "trial.stop_confidence=0.6"}
+CUT = 4
+
+
+def _interrupted_record() -> Path:
+    """A record of the launch's trial cut off after ``CUT`` touches (the process died)."""
+    import importlib.util
+
+    from tactex_ros.core.engine import TrialSpec
+    from tactex_ros.core.touch import Touch, as_touch
+    from tactex_ros.robot.scene import load_scene
+    from tactex_ros.ros.settings import ExplorerSettings
+    from tactex_ros.sources import open_source
+    from tactex_ros.trial.run import TrialRun
+    spec_ = importlib.util.spec_from_file_location("tactex_explore_launch", LAUNCH_FILE)
+    mod = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(mod)
+    ex = next(n for n in mod.plan(ARGS)["nodes"] if n.name == "explorer").parameters
+    s = ExplorerSettings.check(ex, "explorer")
+    ids = tuple(p.id for p in load_scene(s.scene_file).ordered)
+    src = open_source("sim")
+    comps = src.draw_scene(len(ids) - 1, 0)
+    fn = src.trial([comps[0]] + comps, 0)
+    n = [0]
+
+    class Died(Exception):
+        pass
+
+    def press(platform: int, meta: dict) -> Touch:
+        if n[0] >= CUT:
+            raise Died()
+        n[0] += 1
+        return as_touch(fn(platform))
+    run = TrialRun(TrialSpec(len(ids) - 1, s.learner, s.trial, seed=s.seed, platform_ids=ids),
+                   RECORD, "cut", press=press, inputs=s.record_inputs(s.seed),
+                   scene_file=s.scene_file)
+    try:
+        run.run()
+    except Died:
+        pass
+    return run.dir
+
+
+@pytest.mark.launch_test
+def generate_test_description():
+    folder = _interrupted_record()
+    include = IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(str(LAUNCH_FILE)),
+        launch_arguments=dict(ARGS, resume=str(folder)).items())
+    return launch.LaunchDescription([include, launch_testing.actions.ReadyToTest()])
+
+
+class TestResume(unittest.TestCase):
+    def test_launch_ends(self, proc_info):
+        proc_info.assertWaitForShutdown(process="explorer_node", timeout=300)
+
+
+@launch_testing.post_shutdown_test()
+class TestAfterShutdown(unittest.TestCase):
+    def test_exit_codes(self, proc_info):
+        launch_testing.asserts.assertExitCodes(proc_info)
+
+    def test_resumed_with_the_threshold_set_at_launch(self):
+        d = RECORD / "cut"
+        result = json.loads((d / "result.json").read_text())
+        config = json.loads((d / "config.json").read_text())
+        self.assertEqual(config["trial"]["stop_confidence"], 0.6)
+        self.assertEqual(len(result["resumed"]), 1)
+        touches = [json.loads(line) for line in (d / "touches.jsonl").read_text().splitlines()]
+        self.assertGreater(len(touches), CUT)        # the recorded ones, then live presses
+        self.assertTrue(result["stop_reason"] == "confident"
+                        or result["confidence"] < 0.6)
