@@ -39,7 +39,7 @@ def test_each_learner_has_its_own_fields_and_shipped_defaults() -> None:
     lad = LadderSettings()
     assert set(lad.model_dump()) - set(d.model_dump()) == {
         "ladder", "ladder_patience", "ladder_min_gain", "ladder_sure", "ladder_margin",
-        "ladder_window", "ladder_heldout_acc", "ladder_catchup", "threads"}
+        "ladder_window", "ladder_heldout_acc", "ladder_catchup", "threads", "device"}
     assert {k: v for k, v in lad.model_dump().items() if k in DescriptorSettings.model_fields} == \
         {**d.model_dump(), "model": "auto"}
     assert [learner_class(m).__name__ for m in ("descriptor", "inception_v3", "cnn_auto",
