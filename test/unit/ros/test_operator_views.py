@@ -308,7 +308,8 @@ def test_session_report_has_n_wilson_bands_duration_and_links_both_ways(tmp_path
                                      "c3": "felt", "c4": "linen"}})
     d.mkdir()
     (d / "session.json").write_text(json.dumps({"name": "s", "path": "s.yaml",
-                                                "trials": trials,
+                                                "session_id": "s-1", "trial_file_sha256":
+                                                "0" * 64, "trials": trials,
                                                 "settings": {"seed": 0}}))
     sess.add_event(d, {"event": "started", "time": 1_764_000_000.0})
     for k in (1, 2):
