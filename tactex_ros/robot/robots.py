@@ -195,7 +195,9 @@ class ControllerSpec(Schema):
                           target_filter=self.target_filter,
                           error_clip=self.error_clip or inf,
                           max_force_step=(self.max_delta_tau / self.torque_lever_m
-                                          if self.max_delta_tau else inf))
+                                          if self.max_delta_tau else inf),
+                          max_stiffness=self.max_stiffness, state_filter=self.joint_filter,
+                          output_filter=self.torque_filter)
 
 
 class TargetSpec(Schema):
