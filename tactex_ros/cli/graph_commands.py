@@ -342,8 +342,9 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")
             p.add_argument("--resume", metavar="RECORD_DIR",
-                           help="continue the interrupted trial recorded in RECORD_DIR (its "
-                                "settings, its record)")
+                           help="continue the interrupted trial recorded in RECORD_DIR with "
+                                "the options and settings it keeps (run.json, config.json); "
+                                "an option given with another value is refused")
             p.add_argument("--yes", action="store_true",
                            help="with --session: confirm every placement at once (scripted "
                                 "sessions, CI); without it a terminal asks for Enter")
