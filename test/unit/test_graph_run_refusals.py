@@ -148,3 +148,23 @@ def test_resume_takes_every_option_from_the_record(tmp_path: Path, capsys) -> No
                  str(logs)]) == 2
     err = capsys.readouterr().err
     assert "7" in err and "3" in err and not logs.exists()   # before any node or prompt
+
+
+def test_session_dir_alone_continues_the_session_with_its_options(tmp_path: Path) -> None:
+    """`--session-dir DIR` of a session folder holding run.json: the trial file, rounds, seed,
+    sim graph and --yes come back from it; another --rounds is refused, both values named."""
+    from tactex_ros.cli.graph_commands import _nodes, save_run_options
+    from tactex_ros.core.errors import InputError
+    short = Path(__file__).parents[1] / "data" / "session_short.yaml"
+    d = tmp_path / "sess"
+    first = _run_args(["--sim", "--session", str(short), "--session-dir", str(d),
+                       "--rounds", "3", "--seed", "0", "--yes"])
+    save_run_options(d, first, _nodes(first))
+    again = _run_args(["--session-dir", str(d)])
+    ex = next(n.parameters for n in _nodes(again) if n.name == "explorer")
+    assert (again.session, again.rounds, again.seed, again.sim, again.yes) == \
+        (str(short.resolve()), 3, 0, True, True)
+    assert ex["session_file"] == str(short.resolve()) and ex["trial"]["rounds"] == 3
+    with pytest.raises(InputError) as exc:
+        _nodes(_run_args(["--session-dir", str(d), "--rounds", "5"]))
+    assert "5 given" in str(exc.value) and "= 3" in str(exc.value)
