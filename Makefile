@@ -7,7 +7,11 @@
 SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
-DEPS_STAMP := $(VENV)/.tactex-deps.stamp
+# torch wheel: cpu (default, requirements-lab.txt) or cuda (`make setup TORCH=cuda`: the CUDA build of
+# the same version from TORCH_INDEX, docs/install.md); each choice has its own stamp
+TORCH ?= cpu
+export TORCH TORCH_INDEX
+DEPS_STAMP := $(VENV)/.tactex-deps$(if $(filter cuda,$(TORCH)),-cuda,).stamp
 BUILD_STAMP := $(VENV)/.tactex-build.stamp
 BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.srv action/*.action) \
 	$(shell find tactex_ros tactex_lab launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)

@@ -4,6 +4,7 @@ sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
 [source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
 [auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
+[learner.NAME:=VALUE] [trial.NAME:=VALUE]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
 config/robots/) names the impedance controller, topics, message types and recovery interface of
@@ -15,6 +16,10 @@ a bad value ends the launch with the argument or field named and no process star
 settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
 ranges, choices and descriptions come from the nodes' settings schema, as for
 ``tactex graph run``; '' (the default) leaves the node's own default.
+
+Any setting of the trial is also taken by its dotted name, e.g. ``learner.device:=cuda`` (a CNN
+preset's GPU: ``config:=seed_faithful learner.device:=cuda``) or ``trial.max_touches:=8``;
+checked by the explorer's schema like the options above.
 
 ``session:=FILE`` runs a study session: the explorer runs the trial file's trials in order in
 this one launch, tells the operator before each trial what to place on which platform (log,
@@ -127,8 +132,8 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``pose_topic``, ``wrench_topic`` and ``state_topic`` (the topics of its state), the
     ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
-    from tactex_ros.core.schema import merge
     from tactex_ros.core.errors import InputError
+    from tactex_ros.core.schema import merge
     from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
     from tactex_ros.robot.robots import load_profile
 
@@ -143,8 +148,10 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     try:
         given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
                                   if values.get(name, "") != ""})
+        # the explorer's settings: the options above, then learner.NAME:= / trial.NAME:=
+        # arguments, then explorer_set:= items (each checked by the schema)
         nodes = describe(sim, values.get("scene") or None,
-                         explorer=merge(given.get("explorer"),
+                         explorer=merge(given.get("explorer"), trial_settings(values),
                                         explorer_set(values.get("explorer_set", ""))),
                          explorer_file=values.get("settings") or None,
                          gelsight=None if sim else given.get("gelsight"),
@@ -166,6 +173,16 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
         raise LaunchArgumentError(f"launch argument {exc}") from None
 
 
+def trial_settings(values: dict[str, str]) -> dict[str, Any]:
+    """The explorer's trial settings given by their dotted names (``learner.device:=cuda``,
+    ``trial.max_touches:=8``), typed and checked by the schema (nested; {} when none)."""
+    from tactex_ros.core.schema import nest, parse_text
+    from tactex_ros.ros.settings import ExplorerSettings
+    dotted = {k: v for k, v in values.items() if k.startswith(("learner.", "trial."))}
+    return nest({k: parse_text(ExplorerSettings, k, v, f"{k}:={v!r}")
+                 for k, v in dotted.items()})
+
+
 def _nodes(context, *args, **kwargs):
     from launch.actions import LogInfo, RegisterEventHandler, Shutdown
     from launch.event_handlers import OnShutdown
@@ -173,7 +190,11 @@ def _nodes(context, *args, **kwargs):
     from launch_ros.actions import Node
 
     from tactex_ros.paths import config_dir
-    p = plan({name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()})
+    given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()}
+    # the trial's settings by dotted name, undeclared (they depend on learner.model)
+    given.update({k: v for k, v in context.launch_configurations.items()
+                  if k.startswith(("learner.", "trial."))})
+    p = plan(given)
     nodes, sim, rviz, frame = p["nodes"], p["sim"], p["rviz"], p["frame"]
     if p["bag"] and not _installed("rosbag2_storage_mcap"):
         raise LaunchArgumentError("launch argument bag:=true: rosbag2 with MCAP storage is not "

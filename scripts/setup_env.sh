@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs what the project needs into .venv (repository root) and builds the package into it.
 #   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels: requirements-lab.txt (the
-#                                 lab's), which includes requirements.txt (the product's)
+#                                 lab's), which includes requirements.txt (the product's);
+#                                 TORCH=cuda first installs the CUDA build of the pinned torch
+#                                 from TORCH_INDEX (default the PyTorch CUDA 12.8 index)
 #   scripts/setup_env.sh browser - headless chromium + chromedriver via apt (root only; for the
 #                                 report's browser test), also run by `deps`
 #   scripts/setup_env.sh build  - colcon build of the ROS package `tactex` (interfaces, Python
@@ -17,6 +19,17 @@ deps() {
   if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
   fi
+  case "${TORCH:-cpu}" in
+    cpu) ;;
+    cuda)
+      # the pinned version's CUDA build (e.g. 2.13.0+cu128); requirements-lab.txt's torch==2.13.0
+      # is then already satisfied (a local version label matches the plain pin)
+      local pin
+      pin=$(grep -E '^torch==' requirements-lab.txt)
+      "$VENV/bin/python" -m pip install --disable-pip-version-check -q "$pin" \
+        --index-url "${TORCH_INDEX:-https://download.pytorch.org/whl/cu128}" ;;
+    *) echo "setup_env: TORCH=${TORCH}: choose cpu or cuda" >&2; exit 2 ;;
+  esac
   "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements-lab.txt
   # The ROS wheels' exported CMake files name the wheel builder's include dirs; point them at ours.
   local py_inc np_inc

@@ -19,6 +19,16 @@ holds ``mc_passes`` posterior draws).
 Determinism: every random draw comes from generators seeded by ``seed`` (model init, view
 angles, minibatch order, dropout masks in training and scoring), never from global state that
 other code could have advanced.
+
+Device (``device``, ``cnn/device.py``): the model, the optimiser's state, the stored views and
+labels, the reference views, the class weights and the MC passes live on it; the model is
+initialised on the CPU (same weights on every device) and moved once. Every seeded draw that is
+not a dropout mask (view angles, minibatch order, batch-norm subsets) is made by the CPU
+generators as before and moved to the device once per round (one (steps, batch) index tensor),
+so the CPU path is bit for bit today's and a CUDA trial sees the same minibatches; dropout masks
+on a GPU come from its own generator, seeded from the same stream (equal in distribution, not
+bit for bit). Per step only the finiteness of loss and gradient norm is read back (the guards);
+the Laplace posterior is fitted and sampled on the CPU in float64 from the features.
 """
 
 from __future__ import annotations
@@ -32,6 +42,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from tactex_lab.cnn.device import configure, resolve_device, rng_devices, to_cpu
 from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
@@ -70,6 +81,8 @@ class OnlineLearner:
             raise InputError(f"model {name!r} is a wrapper of learners, not one learner")
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
+        self.device = resolve_device(cfg.device)
+        configure(self.device, cfg.deterministic)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             self.model, self.load_report = build_model(
@@ -90,7 +103,7 @@ class OnlineLearner:
                     f"model at most {LAPLACE_MAX_WEIGHTS // n_in} comparisons, or a model with "
                     f"a smaller last layer (small_inception), or uncertainty 'ensemble'")
         self._fmt = torch.channels_last if cfg.channels_last else torch.contiguous_format
-        self.model = self.model.to(memory_format=self._fmt)
+        self.model = self.model.to(device=self.device, memory_format=self._fmt)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=cfg.lr,
                                     weight_decay=cfg.weight_decay)
         self._rng = np.random.default_rng([self.seed, 1])
@@ -124,7 +137,7 @@ class OnlineLearner:
         img = self._colour_norm(validate_frame(as_touch(img).frame, f"touch of platform {label}"))
         views = augment(img, self.cfg.augment, self.cfg.input_size, self._rng,
                         native=self.cfg.sensor_crops)
-        x = to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
+        x = self._on_device(to_tensor(views, self.cfg.fourier))
         self._x_parts.append(x)
         self._y_parts.append(np.full(len(views), label, dtype=np.int64))
         self._x = self._y = None
@@ -151,16 +164,17 @@ class OnlineLearner:
 
     def uncertainty_probs(self, x: torch.Tensor) -> np.ndarray:
         """(T, C) float64 table for the views ``x`` (V, 3, S, S) from the configured source."""
+        x = x.to(self.device)
         kind = self.cfg.uncertainty
         if kind == "ensemble":
-            return ensemble_probs(self.model, x).double().numpy()
+            return ensemble_probs(self.model, x).double().cpu().numpy()
         if kind == "laplace":
             if self.laplace is None:
                 raise InputError("uncertainty 'laplace': no posterior before the first "
                                  "training round")
             with torch.no_grad():
                 self.model.eval()
-                feats = self.model.features(x)
+                feats = self.model.features(x).cpu()
             return self.laplace.sample_probs(feats, self.cfg.mc_passes, self._gen).numpy()
         return self.mc_probs(x)
 
@@ -178,14 +192,25 @@ class OnlineLearner:
             views = augment(img, self.cfg.test_views, self.cfg.input_size,
                             np.random.default_rng([self.seed, 3]), include_identity=True,
                             native=self.cfg.sensor_crops)
-        return to_tensor(views, self.cfg.fourier).contiguous(memory_format=self._fmt)
+        return self._on_device(to_tensor(views, self.cfg.fourier))
+
+    def _on_device(self, x: torch.Tensor) -> torch.Tensor:
+        """(V, 3, S, S) CPU views -> on the learner's device in its memory format (one copy)."""
+        if self.device.type == "cpu":
+            return x.contiguous(memory_format=self._fmt)
+        return x.to(device=self.device, memory_format=self._fmt)
+
+    def _fork_rng(self):
+        """A block whose global torch random state (CPU and, on a GPU, the device's) is
+        restored on exit: the seeded dropout masks never disturb other code's draws."""
+        return torch.random.fork_rng(devices=rng_devices(self.device))
 
     def _dataset(self) -> tuple[torch.Tensor, torch.Tensor]:
         if self._x is None:
             if not self._x_parts:
                 raise InputError("no touches stored: nothing to train on")
             self._x = torch.cat(self._x_parts).contiguous(memory_format=self._fmt)
-            self._y = torch.from_numpy(np.concatenate(self._y_parts))
+            self._y = torch.from_numpy(np.concatenate(self._y_parts)).to(self.device)
         return self._x, self._y  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ training
@@ -201,7 +226,7 @@ class OnlineLearner:
         t0 = time.perf_counter()
         x, y = self._dataset()
         n = x.shape[0]
-        weights = torch.from_numpy(class_weights(y.numpy(), self.num_classes)).float()
+        weights = torch.from_numpy(class_weights(self.labels(), self.num_classes)).float()
         bs = min(self.cfg.batch_size, n)
         if self.cfg.steps > 0:
             batches = [torch.randint(0, n, (bs,), generator=self._gen)
@@ -211,6 +236,9 @@ class OnlineLearner:
             for _ in range(self.cfg.epochs):
                 perm = torch.randperm(n, generator=self._gen)
                 batches += [perm[i:i + bs] for i in range(0, n, bs)]
+        if self.device.type != "cpu":       # drawn on the CPU as always, moved once per round
+            weights = weights.to(self.device)
+            batches = _to_device(batches, self.device)
         guards = self.cfg.guards
         clip = self.cfg.grad_clip if guards else 0.0
         snapshot = None
@@ -220,7 +248,7 @@ class OnlineLearner:
         params = [p for p in self.model.parameters() if p.requires_grad]
         self.model.train()
         losses, norms, skipped = [], [], 0
-        with torch.random.fork_rng(devices=[]):
+        with self._fork_rng():
             torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=self._gen)))
             for idx in batches:
                 if idx.numel() < 2:  # batch norm needs two samples in training mode
@@ -246,9 +274,11 @@ class OnlineLearner:
                         skipped += 1
                         self.opt.zero_grad(set_to_none=True)
                         continue
-                    norms.append(float(gn))
+                    norms.append(gn.detach())
                 self.opt.step()
-                losses.append(float(loss.detach()))
+                losses.append(loss.detach())
+        losses = torch.stack(losses).tolist() if losses else []
+        norms = torch.stack(norms).tolist() if norms else []
         restored = False
         if guards and snapshot is not None and batches and (
                 skipped > len(batches) // 2 or
@@ -281,16 +311,20 @@ class OnlineLearner:
 
     # ------------------------------------------------------------------ checkpoint
     def _identity(self) -> dict:
-        """What a saved state must match: model, classes, seed, every learner setting."""
+        """What a saved state must match: model, classes, seed, every learner setting but where
+        it runs (``device``, ``deterministic``: a state saved on a GPU continues on the CPU and
+        back)."""
+        cfg = self.cfg.model_dump(exclude={"device", "deterministic"})
         return {"model": self.model_name, "classes": self.num_classes, "seed": self.seed,
-                "cfg": json.dumps(self.cfg.model_dump(), sort_keys=True, default=str)}
+                "cfg": json.dumps(cfg, sort_keys=True, default=str)}
 
     def save_state(self) -> bytes:
         """The learner's state after a round (``StatefulLearner``): weights, optimiser
         (learning rate included), the generators of training and scoring, the Laplace
         posterior, and what checks the stored views on load (their count, the view-angle
         generator's state). The views themselves are not written: ``load_state`` expects the
-        same touches added again, which rebuilds them bit for bit."""
+        same touches added again, which rebuilds them bit for bit. Tensors are written on the
+        CPU whatever the device."""
         lap = self.laplace
         state = {"identity": self._identity(), "rounds_trained": self.rounds_trained,
                  "model": self.model.state_dict(), "opt": self.opt.state_dict(),
@@ -300,6 +334,8 @@ class OnlineLearner:
                  "laplace": None if lap is None else
                  {"theta": lap.theta, "precision": lap.precision,
                   "prior_precision": lap.prior_precision}}
+        if self.device.type != "cpu":       # written device-free: it loads on any machine
+            state = to_cpu(state)
         buf = io.BytesIO()
         torch.save(state, buf)
         return buf.getvalue()
@@ -324,13 +360,13 @@ class OnlineLearner:
         try:
             self.model.load_state_dict(st["model"])
             self.opt.load_state_dict(st["opt"])
-            self._gen.set_state(st["gen"])
+            self._gen.set_state(st["gen"].cpu())
         except (KeyError, RuntimeError, ValueError) as exc:
             raise InputError(f"learner state does not fit the model ({exc})") from None
         self.model.to(memory_format=self._fmt)
         lap = st.get("laplace")
         self.laplace = None if lap is None else LastLayerLaplace(
-            lap["theta"], lap["precision"], float(lap["prior_precision"]))
+            lap["theta"].cpu(), lap["precision"].cpu(), float(lap["prior_precision"]))
         self.rounds_trained = int(st["rounds_trained"])
 
     @torch.no_grad()
@@ -344,7 +380,8 @@ class OnlineLearner:
         stored view (eval mode)."""
         self.model.eval()
         feats = torch.cat([self.model.features(x[i:i + batch]) for i in range(0, len(x), batch)])
-        self.laplace = LastLayerLaplace.fit(self.model.fc.weight, self.model.fc.bias, feats, y,
+        fc = self.model.fc
+        self.laplace = LastLayerLaplace.fit(fc.weight.cpu(), fc.bias.cpu(), feats.cpu(), y.cpu(),
                                             self.cfg.laplace_prior_precision)
 
     @torch.no_grad()
@@ -357,7 +394,7 @@ class OnlineLearner:
         that at the cost of one forward pass, without touching the weights.
         """
         n = min(x.shape[0], self.cfg.bn_recalibrate)
-        idx = torch.randperm(x.shape[0], generator=self._gen)[:n]
+        idx = torch.randperm(x.shape[0], generator=self._gen)[:n].to(self.device)
         bns = [m for m in self.model.modules() if isinstance(m, torch.nn.BatchNorm2d)]
         saved = [m.momentum for m in bns]
         for m in bns:
@@ -375,12 +412,21 @@ class OnlineLearner:
     # ------------------------------------------------------------------ scoring
     def mc_probs(self, x_test: torch.Tensor, passes: int | None = None) -> np.ndarray:
         """(T, C) float64 softmax of the reference views over T stochastic passes."""
-        return mc_probs(self.model, x_test, passes or self.cfg.mc_passes,
-                        generator=self._gen).double().numpy()
+        return mc_probs(self.model, x_test.to(self.device), passes or self.cfg.mc_passes,
+                        generator=self._gen).double().cpu().numpy()
 
     @torch.inference_mode()
     def predict_proba(self, x: torch.Tensor, batch: int = 256) -> np.ndarray:
         """Deterministic (eval-mode) softmax for (N, 3, S, S) inputs -> (N, C)."""
         self.model.eval()
+        x = x.to(self.device)
         out = [torch.softmax(self.model(x[i:i + batch]), 1) for i in range(0, len(x), batch)]
-        return torch.cat(out).double().numpy()
+        return torch.cat(out).double().cpu().numpy()
+
+
+def _to_device(batches: list[torch.Tensor], device: torch.device) -> list[torch.Tensor]:
+    """A round's minibatch index tensors (drawn on the CPU) on ``device`` in one copy."""
+    if not batches:
+        return batches
+    sizes = [len(b) for b in batches]
+    return list(torch.cat(batches).to(device).split(sizes))

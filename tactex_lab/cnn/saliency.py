@@ -27,7 +27,7 @@ def _scale01(a: torch.Tensor) -> np.ndarray:
     flat = a.reshape(a.shape[0], -1)
     lo = flat.min(dim=1).values.view(-1, *([1] * (a.dim() - 1)))
     hi = flat.max(dim=1).values.view(-1, *([1] * (a.dim() - 1)))
-    return ((a - lo) / (hi - lo).clamp_min(1e-12)).numpy()
+    return ((a - lo) / (hi - lo).clamp_min(1e-12)).cpu().numpy()
 
 
 def target_layer(model: TactileInception) -> torch.nn.Module:
@@ -81,7 +81,7 @@ def _targets(target, n: int):
 
 def display_image(x: torch.Tensor, fourier: bool = False) -> np.ndarray:
     """(N, 3, S, S) model input -> (N, S, S, 3) uint8 for display."""
-    a = x.detach().float().contiguous().numpy().transpose(0, 2, 3, 1)
+    a = x.detach().float().contiguous().cpu().numpy().transpose(0, 2, 3, 1)
     if fourier:
         g = a.mean(axis=3)
         g = (g - g.min(axis=(1, 2), keepdims=True)) / (np.ptp(g, axis=(1, 2), keepdims=True)

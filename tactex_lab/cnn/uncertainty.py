@@ -33,6 +33,7 @@ from functools import cached_property
 import numpy as np
 import torch
 
+from tactex_lab.cnn.device import rng_devices
 from tactex_lab.cnn.models import TactileInception
 
 
@@ -45,7 +46,9 @@ def mc_probs(model: TactileInception, x: torch.Tensor, passes: int,
     ``x``: (V, 3, S, S) views of the reference (V >= 1; probabilities are averaged over views).
     Returns (T, C) float32. The deterministic prefix runs once in eval mode (batch norm uses its
     running statistics); the stochastic suffix runs once on a (T*V)-batch with dropout active.
-    ``generator`` seeds the dropout masks (the global torch RNG is used when None).
+    ``generator`` seeds the dropout masks (the global torch RNG is used when None); on a GPU
+    the masks come from its generator, seeded from ``generator`` (the same stream as on the
+    CPU, other masks).
     """
     if passes < 1:
         raise ValueError(f"passes must be >= 1, got {passes}")
@@ -56,7 +59,7 @@ def mc_probs(model: TactileInception, x: torch.Tensor, passes: int,
         hb = h.repeat((passes,) + (1,) * (h.dim() - 1))   # (T*V, ...), pass-major
         _enable_dropout(model)
         if generator is not None:
-            with torch.random.fork_rng(devices=[]):
+            with torch.random.fork_rng(devices=rng_devices(x.device)):
                 torch.manual_seed(int(torch.randint(0, 2**62, (1,), generator=generator)))
                 logits = model.suffix(hb)
         else:

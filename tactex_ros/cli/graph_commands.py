@@ -175,16 +175,37 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     return f"tactex graph run --resume {shlex.quote(str(run.record))}"
 
 
+def session_dir(args: argparse.Namespace, nodes: list) -> str:
+    """The session folder: ``--session-dir``, or ``record_dir/<trial file>_<time>``."""
+    if args.session_dir:
+        return args.session_dir
+    ex = next(n for n in nodes if n.name == "explorer")
+    if not getattr(args, "_session_dir", None):
+        args._session_dir = str(Path(ex.parameters.get("record_dir") or "runs/trials") /
+                                f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    return args._session_dir
+
+
+def default_logs(args: argparse.Namespace, nodes: list) -> Path:
+    """The nodes' logs beside the record they belong to: ``<session folder>/logs/<time>``
+    for a session, ``<record_dir>/logs/<trial id>_<time>`` for one trial."""
+    stamp = time.strftime("%Y%m%d_%H%M%S")
+    if args.session:
+        return Path(session_dir(args, nodes)) / "logs" / stamp
+    ex = next(n for n in nodes if n.name == "explorer").parameters
+    return (Path(ex.get("record_dir") or "runs/trials") / "logs" /
+            f"{ex.get('trial_id') or 'trial'}_{stamp}")
+
+
 def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     """``tactex graph run --session FILE``: the session's trials in one graph start."""
     from ..ros.session_runner import run_session
     if getattr(args, "resume", None):
         raise InputError("--resume continues one trial; a session continues with "
                           "--session-dir <its folder>")
-    ex = next(n for n in nodes if n.name == "explorer")
-    d = args.session_dir or str(Path(ex.parameters.get("record_dir") or "runs/trials") /
-                                f"{Path(args.session).stem}_{time.strftime('%Y%m%d_%H%M%S')}")
+    d = session_dir(args, nodes)
     save_run_options(d, args, nodes)
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
     run = run_session(nodes, logs, d, confirm=confirm,
                       timeout_s=args.timeout if args.timeout is not None else 86400.0,
@@ -192,12 +213,20 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     if run.result is None:
         print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
               file=sys.stderr)
+        from ..ros.launcher import node_reason
+        refused = [n for n, c in run.node_exit.items() if c == 2]
+        for n in refused:            # a refusal's reason on the console, not only in its log
+            print(f"tactex: {n}: {node_reason(Path(logs) / f'{n}.log')} (from "
+                  f"{Path(logs) / f'{n}.log'})", file=sys.stderr)
+        if refused:
+            return 2                 # a refusal: continuing the same way would fail again
         import shlex
         print(f"tactex: continue with: tactex graph run --session-dir "
               f"{shlex.quote(str(run.session_dir))}", file=sys.stderr)
         return 128 + run.signal if run.signal else 1
     r = run.result
-    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}")
+    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
+          f"{run.elapsed_s / 60:.1f} min in this run")
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
     return 0
 
@@ -205,11 +234,13 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..ros.launcher import exit_text, run_trial
     nodes = _nodes(args)
-    logs = Path(args.log_dir or f"runs/logs/{time.strftime('%Y%m%d_%H%M%S')}")
+    logs = Path(args.log_dir) if args.log_dir else default_logs(args, nodes)
     if args.session:
         from ..core.outputs import check_dir
+        from ..trial.session import check_session_dir
+        # a file, unwritable, torn or another session's: refused before anything is written
+        check_session_dir(session_dir(args, nodes), args.session)
         check_dir(logs, "--log-dir")
-        print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
         return cmd_session(args, nodes, logs)
     save_run_options(preflight(nodes, logs), args, nodes)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
@@ -242,9 +273,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             return 128 + run.signal
         return 2 if 2 in run.node_exit.values() else 1
     r = run.result
+    from ..trial.record import read_record
+    from ..trial.report import failed_attempts
+    lines = read_record(run.record, images=False)["touches"]
     print(f"reference matches {r['prediction']} after {r['touches']} touches "
           f"({len(r['rounds'])} rounds, strategy {r['strategy']}, model {r['model']}); "
-          f"failed touches {len(r['failed_touches'])}")
+          f"failed touches {len(r['failed_touches'])}, failed press attempts "
+          f"{failed_attempts(lines)}")
     print(f"trial record: {run.record}" + (f" (report: {run.record / 'report.html'})"
                                             if (run.record / "report.html").is_file() else ""))
     return 0
@@ -338,7 +373,9 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                                 "record and the explorer uses no CPU (a tenth of a core) for "
                                 "this long [s], 1..86400 (default 600: a slow method "
                                 "finishes as long as it works)")
-            p.add_argument("--log-dir")
+            p.add_argument("--log-dir", help="the nodes' logs (default: beside the record, "
+                                             "<session folder>/logs/<time> or "
+                                             "<record_dir>/logs/<trial id>_<time>)")
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")
             p.add_argument("--resume", metavar="RECORD_DIR",

@@ -26,7 +26,7 @@ MAX_COMPARISONS = 24
 
 
 # what `tactex trial` takes of a trial's settings (TrialSettings, core/config.py)
-TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights",
+TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights", "learner.device",
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
@@ -152,26 +152,28 @@ def cmd_prepare(args: argparse.Namespace) -> int:
 
 # the product's commands that plug-ins do not extend (``sim`` is a group a plug-in adds to,
 # ``command_group``): ``tactex trial ...`` reads no installed metadata and loads no plug-in
-CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot"})
+CLOSED_COMMANDS = frozenset({"trial", "prepare", "graph", "report", "robot", "export"})
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+def build_parser(command: str | None = None, plugins: bool = True) -> argparse.ArgumentParser:
     """The ``tactex`` parser; with ``command``, the options of that command only (``builds``).
-    Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``."""
+    Plug-ins of group ``tactex.commands`` are called as ``add_commands(subparsers, command)``
+    (``plugins=False``: the product's commands only)."""
     p = argparse.ArgumentParser(prog="tactex", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
     _trial_parser(sub, command)
     _prepare_parser(sub, command)
 
-    from . import graph_commands, report, robot, sim_commands
+    from . import export, graph_commands, report, robot, sim_commands
     sim_commands.add_commands(sub, command)
+    export.add_commands(sub, command)
     graph_commands.add_commands(sub, command)
     report.add_commands(sub, command)
     robot.add_commands(sub, command)
-    if command in CLOSED_COMMANDS:
+    if command in CLOSED_COMMANDS or not plugins:
         return p                          # no plug-in adds to them: none is looked up
-    from ..core import plugins
-    for name, ep in plugins.available(plugins.COMMANDS).items():
+    from ..core.plugins import COMMANDS, available
+    for name, ep in available(COMMANDS).items():
         try:
             ep.load()(sub, command)
         except ImportError as exc:        # a plug-in whose package is not installed
@@ -274,6 +276,10 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    import os
+    import shlex
+    # the command as typed, kept by every record this run writes (config.json "run")
+    os.environ["TACTEX_COMMAND"] = shlex.join(["tactex", *argv])
     command = argv[0] if argv and not argv[0].startswith("-") else ""
     args = build_parser(command).parse_args(argv)
     try:

@@ -1,8 +1,10 @@
 """docs/reference.md, generated: every node parameter, launch argument, command-line option and
-settings-file field, read from the code that declares them.
+settings-file field of the product, read from the code that declares them; and
+docs/reference_lab.md: the lab's commands and learners (the plug-ins ``setup.cfg`` declares).
+Neither page depends on what is installed.
 
-    python -m tactex_ros.cli.reference            # (re)write docs/reference.md
-    python -m tactex_ros.cli.reference --check    # exit 1 when docs/reference.md is stale
+    python -m tactex_ros.cli.reference            # (re)write both pages
+    python -m tactex_ros.cli.reference --check    # exit 1 when either page is stale
 
 Sources (walked, never listed by hand): the node settings schemas of the graph description
 (``ros.graph.SETTINGS``, through ``core.schema.fields``, which also declares the ROS
@@ -28,6 +30,7 @@ from pydantic import BaseModel
 
 REGENERATE = "python -m tactex_ros.cli.reference"
 DEFAULT_OUT = Path("docs/reference.md")
+LAB_OUT = "reference_lab.md"      # beside the product's page
 
 # settings files: (title, where the file lives, module, model) -- the fields are walked
 FILES: tuple[tuple[str, str, str, str], ...] = (
@@ -166,7 +169,8 @@ def presets() -> list[str]:
                  for k, v in values.items()
                  if k != "config" and v != base.get(k, own.get(k))]
     return (out + table(("preset", "setting", "value", f"`{config.default}`"), rows) + [""]
-            + plugin_lines(plugins.LEARNERS, "Learners added by plug-ins (`learner.model`)"))
+            + [f"The learners besides `descriptor` and `auto` are the lab's plug-ins (entry "
+               f"point group `{plugins.LEARNERS}`): [reference_lab.md]({LAB_OUT}).", ""])
 
 
 # --- launch arguments --------------------------------------------------------------------
@@ -240,26 +244,34 @@ def _option_row(a: argparse.Action) -> tuple[str, ...]:
     return name, kind, default, (a.help or "").replace("%(default)s", str(a.default))
 
 
-def plugin_lines(group: str, title: str) -> list[str]:
-    """One line naming the installed plug-ins of an entry point group (``core/plugins.py``)."""
-    from ..core import plugins
-    found = sorted((name, ep.value) for name, ep in plugins.available(group).items())
-    if not found:
-        return [f"{title}: none installed (entry point group `{group}`).", ""]
-    return [f"{title} (entry point group `{group}`, listed here as installed): "
-            + ", ".join(f"`{n}` (`{v}`)" for n, v in found) + ".", ""]
+def declared_plugins(group: str) -> list[tuple[str, str]]:
+    """(name, ``module:object``) of the plug-ins of an entry point group that the repository's
+    ``setup.cfg`` declares (the lab's), by name: read from the file, not the install."""
+    import configparser
+    cfg = configparser.ConfigParser()
+    cfg.read(Path(__file__).resolve().parents[2] / "setup.cfg")
+    text = cfg.get("options.entry_points", group, fallback="")
+    pairs = (line.split("=", 1) for line in text.splitlines() if "=" in line)
+    return sorted((n.strip(), v.strip()) for n, v in pairs)
 
 
-def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
-    """Every sub-command of ``tactex`` with its options, depth first, by name."""
+def lab_parser() -> argparse.ArgumentParser:
+    """The ``tactex`` parser with the product's commands and the lab's (``setup.cfg``)."""
     from .main import build_parser
-    parser = parser or build_parser()
-    out = ["## Command line", "",
-           "`tactex <command> ...` (`tactex_ros/cli/`). Exit status: 0 success, 1 a run-time "
-           "failure (a trial that could not finish, a failed check), 2 bad input (the option, "
-           "file or field named).", ""]
-    from ..core import plugins
-    out += plugin_lines(plugins.COMMANDS, "Commands added by plug-ins")
+    parser = build_parser(plugins=False)
+    sub = next(a for a in parser._actions   # noqa: SLF001
+               if isinstance(a, argparse._SubParsersAction))   # noqa: SLF001
+    from ..core.plugins import COMMANDS
+    for _, value in declared_plugins(COMMANDS):
+        module, _, name = value.partition(":")
+        getattr(importlib.import_module(module), name)(sub, None)
+    return parser
+
+
+def command_sections(parser: argparse.ArgumentParser) -> dict[str, list[str]]:
+    """{``tactex a b``: its section (heading, help, options table)} of every sub-command of
+    ``parser`` with options, depth first, by name."""
+    out: dict[str, list[str]] = {}
 
     def walk(p: argparse.ArgumentParser, path: str, help_text: str) -> None:
         subs = _subparsers(p)
@@ -267,12 +279,29 @@ def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
                 if not isinstance(a, (argparse._HelpAction,   # noqa: SLF001
                                       argparse._SubParsersAction))]   # noqa: SLF001
         if rows or not subs:
-            out.extend([f"### `{path}`", ""] + ([help_text, ""] if help_text else []))
-            out.extend(table(("option", "type", "default", "description"), rows) + [""])
+            out[path] = ([f"### `{path}`", ""] + ([help_text, ""] if help_text else [])
+                         + table(("option", "type", "default", "description"), rows) + [""])
         for name, sub_help, sp in subs:
             walk(sp, f"{path} {name}", sub_help)
 
     walk(parser, parser.prog, "")
+    return out
+
+
+EXIT_STATUS = ("Exit status: 0 success, 1 a run-time failure (a trial that could not finish, a "
+               "failed check), 2 bad input (the option, file or field named).")
+
+
+def command_line(parser: argparse.ArgumentParser | None = None) -> list[str]:
+    """Every sub-command of the product's ``tactex`` with its options, depth first, by name."""
+    from .main import build_parser
+    parser = parser or build_parser(plugins=False)
+    out = ["## Command line", "",
+           f"`tactex <command> ...` (`tactex_ros/cli/`). {EXIT_STATUS} The lab's commands "
+           f"(`tactex experiment`, `bench`, `weights`, `sim compare`): "
+           f"[reference_lab.md]({LAB_OUT}).", ""]
+    for section in command_sections(parser).values():
+        out += section
     return out
 
 
@@ -331,6 +360,29 @@ def settings_files() -> list[str]:
 
 # --- the page ------------------------------------------------------------------------------
 
+def render_lab() -> str:
+    """The whole of docs/reference_lab.md: the lab's learners and commands."""
+    from ..core.plugins import COMMANDS, LEARNERS
+    from .main import build_parser
+    product = set(command_sections(build_parser(plugins=False)))
+    lines = ["# Reference: the lab's commands and learners", "",
+             f"Generated from the code by `{REGENERATE}` (do not edit by hand); "
+             "`test/unit/cli/test_reference.py` fails when this page is stale. The thesis lab "
+             "(`tactex_lab`) adds these to the product ([reference.md](reference.md)) through "
+             "the entry points `setup.cfg` declares.", "",
+             f"## Learners (`learner.model`, entry point group `{LEARNERS}`)", ""]
+    lines += table(("model", "object"), [(f"`{n}`", f"`{v}`")
+                                         for n, v in declared_plugins(LEARNERS)]) + [""]
+    lines += [f"## Commands (entry point group `{COMMANDS}`)", "",
+              f"`tactex <command> ...` (`tactex_lab/cli/`). {EXIT_STATUS}", ""]
+    for path, section in command_sections(lab_parser()).items():
+        if path not in product:
+            lines += section
+    while lines and lines[-1] == "":
+        lines.pop()
+    return "\n".join(lines) + "\n"
+
+
 def render() -> str:
     """The whole of docs/reference.md."""
     lines = ["# Reference: parameters, launch arguments, command line, settings files", "",
@@ -348,22 +400,28 @@ def render() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog=REGENERATE, description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default=str(DEFAULT_OUT), help="page to write or check")
+    p.add_argument("--out", default=str(DEFAULT_OUT),
+                   help=f"product page to write or check ({LAB_OUT} is written beside it)")
     p.add_argument("--check", action="store_true",
                    help="write nothing; exit 1 with a diff when the page differs")
     args = p.parse_args(argv)
-    text, path = render(), Path(args.out)
+    out = Path(args.out)
+    pages = ((render(), out), (render_lab(), out.parent / LAB_OUT))
     if args.check:
-        old = path.read_text() if path.is_file() else ""
-        if old == text:
-            return 0
-        sys.stdout.writelines(difflib.unified_diff(old.splitlines(True), text.splitlines(True),
-                                                   str(path), "generated"))
-        print(f"{path} is stale: run `{REGENERATE}` from the repository root", file=sys.stderr)
-        return 1
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
-    print(f"wrote {path}")
+        stale = 0
+        for text, path in pages:
+            old = path.read_text() if path.is_file() else ""
+            if old != text:
+                sys.stdout.writelines(difflib.unified_diff(
+                    old.splitlines(True), text.splitlines(True), str(path), "generated"))
+                print(f"{path} is stale: run `{REGENERATE}` from the repository root",
+                      file=sys.stderr)
+                stale = 1
+        return stale
+    for text, path in pages:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        print(f"wrote {path}")
     return 0
 
 

@@ -1,4 +1,6 @@
-"""``tactex robot check-wrench``: the wrench sign of a robot profile, checked with a hand push.
+"""``tactex robot check-wrench``: the wrench sign of a robot profile, checked with a hand push;
+``tactex robot measure-scene``: the platforms' surfaces measured with light presses
+(``robot/measure.py``), written into a corrected scene file (docs/hardware_checks.md).
 
 With the robot's bring-up running and the arm held by its controller (or in guiding mode), the
 command reads the profile's external wrench (base frame) for ``--baseline-s`` with hands off,
@@ -22,16 +24,21 @@ def cmd_check_wrench(args: argparse.Namespace) -> int:
     from geometry_msgs.msg import WrenchStamped
 
     from ..robot.robots import import_interface, load_profile
+    from ..ros.adapter import qos_profile
     from ..ros.preflight import Probe, Stopped, watch_push
 
     prof = load_profile(args.robot)
+    # the subscription asks for the upstream publisher's QoS (franka's wrench: best effort,
+    # keep last 1; a reliable reader would never match it)
     if prof.franka_state:
         msg_type, topic = import_interface(prof.state_type), args.topic or prof.state_topic
+        qos = qos_profile(prof.state_qos)
 
         def fz_of(msg):
             return msg.o_f_ext_hat_k[2]
     else:
         msg_type, topic = WrenchStamped, args.topic or prof.wrench_topic
+        qos = qos_profile(prof.wrench_qos)
 
         def fz_of(msg):
             return msg.wrench.force.z
@@ -47,8 +54,9 @@ def cmd_check_wrench(args: argparse.Namespace) -> int:
         probe = Probe(rclpy.get_default_context(), "tactex_check_wrench")
         print(f"reading {topic} hands off for {args.baseline_s:g} s ...", file=sys.stderr,
               flush=True)
-        reading, n_base, n_push = watch_push(probe, msg_type, topic, fz_of, args.baseline_s,
-                                             args.deadline_s, args.push_n, args.hold_s, prompt)
+        reading, n_base, n_push = watch_push(probe, msg_type, topic, qos, fz_of,
+                                             args.baseline_s, args.deadline_s, args.push_n,
+                                             args.hold_s, prompt)
     except Stopped:
         return 130
     finally:
@@ -95,3 +103,129 @@ def add_commands(sub, command: str | None = None) -> None:
     c.add_argument("--hold-s", type=bounded(float, 0.0, 10.0), default=0.2,
                    help="the push must last this long [s] (0..10)")
     c.set_defaults(func=cmd_check_wrench)
+    add_measure_scene(rsub)
+
+
+def cmd_measure_scene(args: argparse.Namespace) -> int:
+    """Light presses on every platform (or ``--platforms``); writes the corrected scene."""
+    import time
+
+    import numpy as np
+    import rclpy
+    from dataclasses import replace
+    from geometry_msgs.msg import PoseStamped, WrenchStamped
+    from rclpy.qos import qos_profile_sensor_data
+
+    from ..core.errors import InputError
+    import yaml
+
+    from ..paths import read_yaml
+    from ..robot.measure import corrected_scene, light_press
+    from ..robot.press import PressController, check_press
+    from ..robot.robots import import_interface, load_profile
+    from ..robot.scene import load_scene
+    from ..ros import adapter
+    from ..ros.preflight import Probe, Stopped
+
+    prof = load_profile(args.robot)
+    if prof.franka_state:
+        raise InputError(f"robot profile {prof.name!r}: measure-scene reads PoseStamped + "
+                         "WrenchStamped state (pose_topic + wrench_topic profiles)")
+    scene = load_scene(args.scene)
+    scene = replace(scene, press=light_press(scene.press, args.force_n, args.search_m))
+    check_press(scene, prof.stiffness, f"scene {args.scene} (light press)",
+                prof.law.error_clip)
+    ids = [p.id for p in scene.platforms]
+    wanted = args.platforms.split(",") if args.platforms else ids
+    for pid in wanted:
+        scene.platform(pid)      # InputError names the unknown id and the scene's
+    state: dict = {}
+
+    def on_pose(msg) -> None:
+        state["xyz"], _ = adapter.pose_to_array(msg.pose)
+
+    def on_wrench(msg) -> None:
+        state["f"] = adapter.force_components(msg.wrench.force, prof.force_sign)
+
+    rclpy.init()
+    probe = None
+    found: dict[str, float] = {}
+    report: dict = {"robot": prof.name, "scene": str(args.scene), "force_n": args.force_n,
+                    "platforms": {}}
+    try:
+        probe = Probe(rclpy.get_default_context(), "tactex_measure_scene")
+        node = probe.node
+        node.create_subscription(PoseStamped, prof.pose_topic, on_pose,
+                                 qos_profile_sensor_data)
+        node.create_subscription(WrenchStamped, prof.wrench_topic, on_wrench,
+                                 qos_profile_sensor_data)
+        pub = node.create_publisher(import_interface(prof.target_type), prof.target_topic, 10)
+        end = time.monotonic() + args.state_deadline_s
+        while ("xyz" not in state or "f" not in state) and time.monotonic() < end:
+            probe._spin()
+        if "xyz" not in state or "f" not in state:
+            print(json.dumps({**report, "result": f"no robot state on {prof.pose_topic} and "
+                              f"{prof.wrench_topic} within {args.state_deadline_s} s"},
+                             indent=2))
+            return 1
+        quat = np.array(scene.tool_orientation)
+        period = 1.0 / args.rate_hz
+        for pid in wanted:
+            p = scene.platform(pid)
+            ctrl = PressController(scene, p, state["xyz"], time.monotonic(),
+                                   stiffness=prof.stiffness, capture=False)
+            while not ctrl.done:
+                tick = time.monotonic() + period
+                target = ctrl.step(time.monotonic(), state["xyz"], *state["f"])
+                pub.publish(adapter.target_msg(prof.target_type, target, quat,
+                                               node.get_clock().now().nanoseconds * 1e-9,
+                                               scene.frame_id))
+                while time.monotonic() < tick:
+                    probe._spin()
+            out = ctrl.outcome()
+            entry = {"scene_z": p.position[2], "success": out.success}
+            if out.success and out.surface_z is not None:
+                found[pid] = out.surface_z
+                entry.update(found_z=round(out.surface_z, 5),
+                             moved_mm=round((out.surface_z - p.position[2]) * 1000, 2),
+                             force_n=round(out.force_n, 2))
+            else:
+                entry["reason"] = out.reason or "the surface was not found"
+            report["platforms"][pid] = entry
+            print(f"{pid}: {json.dumps(entry)}", file=sys.stderr, flush=True)
+    except Stopped:
+        return 130
+    finally:
+        if probe is not None:
+            probe.close()
+        rclpy.try_shutdown()
+    if found:
+        with open(args.out, "w") as fh:
+            yaml.safe_dump(corrected_scene(read_yaml(args.scene, "scene file"), found), fh,
+                           sort_keys=False)
+        load_scene(args.out)      # what was written is a valid scene
+        report["written"] = str(args.out)
+    missing = [pid for pid in wanted if pid not in found]
+    report["result"] = ("every platform measured" if not missing else
+                        f"not measured (kept as they were): {missing}")
+    print(json.dumps(report, indent=2))
+    return 1 if missing else 0
+
+
+def add_measure_scene(rsub) -> None:
+    m = rsub.add_parser("measure-scene", help="measure the platforms' surfaces with light "
+                                              "presses and write the corrected scene")
+    m.add_argument("--scene", required=True, help="scene YAML to measure")
+    m.add_argument("--out", required=True, help="where the corrected scene YAML is written")
+    m.add_argument("--robot", default="fr3_crisp", help="robot profile (name or file)")
+    m.add_argument("--platforms", default="", help="comma-separated platform ids (default: "
+                                                   "all)")
+    m.add_argument("--force-n", type=bounded(float, 0.5, 10.0), default=2.0,
+                   help="the light press's force [N] (0.5..10)")
+    m.add_argument("--search-m", type=bounded(float, 0.0, 0.05), default=0.02,
+                   help="how far below the scene's surface to look for it [m] (0..0.05)")
+    m.add_argument("--rate-hz", type=bounded(float, 5.0, 500.0), default=50.0,
+                   help="control loop rate [Hz] (5..500)")
+    m.add_argument("--state-deadline-s", type=bounded(float, 0.5, 60.0), default=5.0,
+                   help="the robot state must arrive within this [s] (0.5..60)")
+    m.set_defaults(func=cmd_measure_scene)

@@ -98,6 +98,14 @@ class DescriptorSettings(LearnerBase):
     # were chosen in every one of 3 class folds of octopi-dev (docs/research/real_presses.md)
 
 
+#: ``learner.device``: its allowed forms (whether the device exists is checked by the lab,
+#: where torch is imported: tactex_lab/cnn/device.py).
+DEVICE_PATTERN = r"^(cpu|cuda|cuda:[0-9]+|auto)$"
+DEVICE_HELP = ("torch device of a CNN's model, optimiser, stored views and MC passes: 'cpu', "
+               "'cuda', 'cuda:N' (GPU N) or 'auto' (the first GPU torch sees, else the CPU); "
+               "an absent GPU is refused before the trial")
+
+
 class CnnSettings(LearnerBase):
     """A thesis CNN (a plug-in of group ``tactex.learners``, ``tactex_lab/cnn/learner.py``):
     trained between decisions, Monte-Carlo dropout or another uncertainty. The schema is
@@ -142,6 +150,11 @@ class CnnSettings(LearnerBase):
                                     "this many stored views (0 = keep running averages)",
                                 0, 100000)
     threads: int = param(0, "torch intra-op threads (0 = leave torch's default)", 0, 256)
+    device: str = param("cpu", DEVICE_HELP, pattern=DEVICE_PATTERN)
+    deterministic: bool = param(True, "on a CUDA device: torch's deterministic kernels where it "
+                                      "has them (tactex_lab/cnn/device.py), so a seeded trial "
+                                      "repeats; off = cuDNN picks the fastest (no effect on "
+                                      "the CPU)")
     channels_last: bool = param(True, "channels-last memory format for the model and stored "
                                       "views (same results, faster CPU convolutions)")
     # Guards against the failure modes of `tactex experiment stability` (core/guards.py).
@@ -211,6 +224,8 @@ class LadderSettings(DescriptorSettings):
                                 0, 100)
     threads: int = param(0, "model 'auto': torch intra-op threads of a CNN rung (0 = leave "
                             "torch's default)", 0, 256)
+    device: str = param("cpu", "model 'auto': " + DEVICE_HELP + " (its CNN rung)",
+                        pattern=DEVICE_PATTERN)
 
 
 #: The learners' settings: one class per family, told apart by ``model`` (a discriminated

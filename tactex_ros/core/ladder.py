@@ -193,14 +193,15 @@ class Ladder:
     def rung_config(self, rung: str):
         """The learner settings one rung runs with: a descriptor rung the ladder's descriptor
         settings (``DescriptorSettings``), a CNN rung its preset's (``CnnSettings``) with the
-        ladder's guards and threads."""
+        ladder's guards, threads and device."""
         name, _, px = rung.partition("@")
         if name in DESCRIPTOR_RUNGS:
             mine = self.base_cfg.as_model("descriptor").model_dump()
             if name == "descriptor":
                 mine["representation"] = ""
             return learner_settings(mine, f"ladder rung {name!r}")
-        over = {"guards": self.base_cfg.guards, "threads": self.base_cfg.threads}
+        over = {"guards": self.base_cfg.guards, "threads": self.base_cfg.threads,
+                "device": self.base_cfg.device}
         if px:
             over["input_size"] = int(px)
         return preset(name, **over)

@@ -11,14 +11,88 @@ same folder and ``os.replace``, so a reader never sees a torn file.
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
-from .errors import InputError
+from .errors import InputError, TrialError
+
+
+class WriteError(TrialError):
+    """A file could not be written whole (disk full, file-size limit, I/O error): a run-time
+    failure (exit status 1) naming the file and the reason; what was written before stays."""
+
+
+def _why(exc: OSError) -> str:
+    return exc.strerror or errno.errorcode.get(exc.errno or 0, "") or str(exc)
+
+
+def write_fd(fd: int, data: bytes, path: str | Path) -> None:
+    """Write all of ``data`` to ``fd``: a short ``os.write`` is continued, a write that makes
+    no progress (a file-size limit, a full disk) or fails (ENOSPC, EFBIG, EIO) raises
+    WriteError naming ``path``."""
+    view = memoryview(data)
+    while view:
+        try:
+            n = os.write(fd, view)
+        except OSError as exc:
+            raise WriteError(f"could not write {str(path)!r}: {_why(exc)} ({len(view)} of "
+                             f"{len(data)} bytes not written)") from None
+        if n <= 0:
+            raise WriteError(f"could not write {str(path)!r}: no progress ({len(view)} of "
+                             f"{len(data)} bytes not written; disk full or file-size limit)")
+        view = view[n:]
+
+
+def fsync_write(path: str | Path, data: bytes, append: bool) -> None:
+    """Write ``data`` whole to ``path`` (appended, or replacing its content) and fsync it.
+    On a failure the file is put back as it was (an appended tail is cut off, a new file
+    removed) where that is still possible, and WriteError names the path."""
+    p = Path(path)
+    try:
+        fd = os.open(p, os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC),
+                     0o644)
+    except OSError as exc:
+        raise WriteError(f"could not open {str(p)!r} for writing: {_why(exc)}") from None
+    try:
+        size = os.fstat(fd).st_size
+        try:
+            write_fd(fd, data, p)
+            os.fsync(fd)
+        except (WriteError, OSError) as exc:
+            try:
+                if append:
+                    os.ftruncate(fd, size)      # no torn line left behind
+                else:
+                    os.unlink(p)                # no torn file left behind
+            except OSError:
+                pass
+            if isinstance(exc, WriteError):
+                raise
+            raise WriteError(f"could not write {str(p)!r}: {_why(exc)}") from None
+    finally:
+        os.close(fd)
+
+
+def free_bytes(path: str | Path) -> int:
+    """Free space [bytes] for an unprivileged writer on the file system of ``path`` (or of
+    its nearest existing folder)."""
+    return shutil.disk_usage(_nearest_existing(Path(path).absolute())).free
+
+
+def check_free(path: str | Path, min_free_mb: float, what: str) -> None:
+    """WriteError when less than ``min_free_mb`` [MB] are free where ``path`` is written."""
+    if min_free_mb <= 0:
+        return
+    free = free_bytes(path)
+    if free < min_free_mb * 1e6:
+        raise WriteError(f"{what}: only {free / 1e6:.1f} MB free on the disk of {str(path)!r}, "
+                         f"below min_free_mb ({min_free_mb:g} MB): free space first")
 
 
 def jsonable(o: Any) -> Any:
@@ -95,23 +169,30 @@ def check_file(path: str | Path, what: str, suffixes: Iterable[str] = ()) -> Pat
 
 
 def write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` atomically (temporary file in the same folder, fsync, ``os.replace``);
-    folders are made. OSError names the path."""
+    """Write ``data`` whole and atomically (temporary file in the same folder, fsync,
+    ``os.replace``); folders are made. WriteError (a TrialError) names the path when the
+    data cannot be written whole; the previous file, if any, is left as it was."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    except OSError as exc:
+        raise WriteError(f"could not write {str(p)!r}: {_why(exc)}") from None
+    try:
+        try:
+            write_fd(fd, data, p)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.chmod(tmp, 0o644)
         os.replace(tmp, p)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError):
+            raise WriteError(f"could not write {str(p)!r}: {_why(exc)}") from None
         raise
     return p
 

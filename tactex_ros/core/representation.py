@@ -142,17 +142,32 @@ def load(path: str | Path) -> Representation:
     if str(d.get("format", "")) != FORMAT:
         raise InputError(f"representation file {p}: not a {FORMAT} file; make it with "
                          "`tactex prepare`")
+    def number(key: str, default: float) -> float:
+        """A numeric scalar field; InputError naming the file and the field otherwise."""
+        v = d.get(key)
+        if v is None:
+            return default
+        if v.shape != () or v.dtype.kind not in "biuf":
+            raise InputError(f"representation file {p}: field {key!r} must be a number, got "
+                             f"{v.dtype} of shape {v.shape}")
+        return float(v)
+
     try:
-        mean, std, w = (np.asarray(d[k], dtype=np.float64) for k in ("mean", "std", "whiten"))
+        arrays = [d[k] for k in ("mean", "std", "whiten")]
     except KeyError as exc:
         raise InputError(f"representation file {p}: missing {exc}") from None
+    for k, v in zip(("mean", "std", "whiten"), arrays):
+        if v.dtype.kind not in "biuf":
+            raise InputError(f"representation file {p}: field {k!r} must hold numbers, got "
+                             f"{v.dtype}")
+    mean, std, w = (np.asarray(v, dtype=np.float64) for v in arrays)
     if (mean.shape != (DIM,) or std.shape != (DIM,) or w.ndim != 2 or w.shape[1] != DIM
             or not 1 <= w.shape[0] <= DIM):
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
                           f"{w.shape} do not fit the descriptor of size {DIM}")
     if not (np.all(np.isfinite(w)) and np.all(std > 0) and np.all(np.isfinite(mean))):
         raise InputError(f"representation file {p}: non-finite map or mean, or std <= 0")
-    temp = float(d.get("temperature", np.nan))
+    temp = number("temperature", float("nan"))
     if np.isfinite(temp) and not temp > 0:
         raise InputError(f"representation file {p}: temperature {temp} must be > 0")
     kind = str(d.get("kind", "whiten"))
@@ -162,5 +177,8 @@ def load(path: str | Path) -> Representation:
         calib = json.loads(str(d.get("calibration", "{}")))
     except ValueError:
         raise InputError(f"representation file {p}: calibration is not JSON") from None
-    return Representation(mean, std, w, int(d.get("classes", 0)), int(d.get("presses", 0)),
-                          float(d.get("shrink", 0.0)), kind, temp, calib)
+    if not isinstance(calib, dict):
+        raise InputError(f"representation file {p}: field 'calibration' must be a JSON "
+                         f"object, got {type(calib).__name__}")
+    return Representation(mean, std, w, int(number("classes", 0)), int(number("presses", 0)),
+                          number("shrink", 0.0), kind, temp, calib)

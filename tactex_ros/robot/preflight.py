@@ -33,6 +33,15 @@ from ..core.errors import DeviceError, DeviceNotReady, InputError
 ROBOT_MODES = {0: "other", 1: "idle", 2: "move", 3: "guiding", 4: "reflex", 5: "user stopped",
                6: "automatic error recovery"}
 ROBOT_MODE_MOVE = 2
+#: robot modes in which the arm does not follow any command until recovered: reflex and user
+#: stopped (franka_ros2 v3.4.0 franka_msgs/msg/FrankaRobotState.msg:68-69; multipanda_ros2
+#: 8b6a92c franka_msgs/msg/FrankaState.msg:50-51)
+FAULT_MODES = {4: "reflex", 5: "user stopped"}
+
+
+def fault_mode(mode: int | None) -> str:
+    """The name of a fault mode (``FAULT_MODES``), '' for any other mode or None."""
+    return FAULT_MODES.get(mode, "") if mode is not None else ""
 
 
 @dataclass(frozen=True)
@@ -85,8 +94,10 @@ def state_problem(stamps: Sequence[float], min_rate_hz: float, window_s: float,
                 f"({window_s} s): is the robot's bring-up (state broadcaster) running?")
     r = rate_hz(stamps)
     if r < min_rate_hz:
-        return Problem("state_rate", f"{what} arrives at {r:.1f} Hz, below min_state_rate_hz "
-                f"{min_rate_hz} Hz ({len(stamps)} messages in {window_s} s)")
+        return Problem("state_rate", f"{what} arrives at {r:.1f} Hz, below the minimum "
+                f"{min_rate_hz} Hz (robot profile state.min_rate_hz, or min_state_rate_hz; "
+                f"{len(stamps)} messages in {window_s} s): set the state broadcaster's rate as "
+                "the shipped bring-up does (docs/hardware.md)")
     return None
 
 

@@ -1,28 +1,40 @@
-"""The press sequence as a pure state machine (no rclpy), ticked by the motion node, and the
-mock arm's physics.
+"""The press sequence as a pure state machine (no rclpy), ticked by the motion node. (The mock
+arm it presses in tests and in the simulated graph: ``robot/mock_world.py``.)
 
 The robot is under Cartesian impedance control: the motion node commands the controller's
 *equilibrium* pose, and the arm pushes with ``F = K (x - x_eq)`` (``K`` the controller's
-translational stiffness [N/m]). A press therefore commands the equilibrium *below* the surface:
+translational stiffness [N/m], known only roughly: CRISP 2.3 clamps it). A press therefore
+commands the equilibrium *below* the surface, and trusts neither the scene's surface height nor
+``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
 ``approach_height`` above its surface) -> ``tare`` (at the approach point and at rest, the
 normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
 window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
-above ``tare_max_offset_n``, refuses the press with that reason) -> ``descend`` (the equilibrium goes straight down at
-``descend_speed`` until the normal force reaches ``force_threshold``) -> ``settle`` (the
-equilibrium is held at ``position - force / K``, never deeper than it already was: the static
-force at the measured pose is then the force measured at the threshold, so the contact stays
-at the threshold during settle and capture) -> ``capture`` (the caller
-grabs a frame and calls ``captured``) -> ``retract`` (back to the approach point) -> ``done``.
+above ``tare_max_offset_n``, refuses the press with that reason; the arm's height above its
+target there, times ``K``, is the *lift*: a static force that holds it up) -> ``descend`` (a
+guarded descent: the equilibrium goes straight down at ``descend_speed``, on past the scene's
+surface, until the smoothed tared force reaches ``contact_force_n``: the surface is *found*
+there, with a warning when it lies more than ``surface_warn_m`` from the scene's; then on until
+``force_threshold``) -> ``settle`` (the hold: the force error moves the equilibrium with time
+constant ``HOLD_TAU_S`` until the force has stayed within ``force_tolerance_n`` of the
+threshold, at rest, for ``settle_s``; not within ``hold_deadline_s``: refused ``hold``) ->
+``capture`` (the caller grabs a frame and calls ``captured``; a light press without capture
+goes straight on) -> ``retract`` (back to the approach point) -> ``done``.
 
-The equilibrium never goes deeper than ``equilibrium_floor`` below the surface:
-``max(max_depth, (force_threshold + max_force) / 2 / K)``. For compliant controllers
-(``K * max_depth <= (force_threshold + max_force) / 2``) the static force at that floor is below
-the midpoint of threshold and limit whatever the platform's stiffness, because the contact spring
-only adds compliance in series; stiffer controllers rely on the threshold stop, checked every tick.
-No contact: the sensor is ``max_depth`` below the surface, or the equilibrium has reached its
-floor and the arm has settled there, and the force is still below the threshold.
+A goal is reached when the arm is within ``position_tolerance`` of it, or within
+``rest_tolerance`` and at rest (slower than ``rest_speed`` for ``rest_s``): a cable or a payload
+error that holds the arm off still lets it arrive.
+
+The spring's push at the measured pose, ``K (x - x_eq)``, is clipped every tick at ``cap``
+(``spring_cap``: the midpoint of threshold and limit plus the lift, never above ``max_force``).
+When the spring is at its cap, the arm at rest and the force below the threshold's band,
+something the lift missed holds the arm up: the cap grows by the spring's push minus the contact
+force, up to ``max_force``; there the press is refused ``stalled``. The equilibrium never goes
+below ``equilibrium_floor`` under the scene's surface (``surface_search + max_depth + max_force
+/ K``) nor below the workspace. No contact: the sensor ``surface_search`` below the scene's
+surface without contact (``no contact``), ``max_depth`` below the surface found without the
+threshold (``too soft``), or the equilibrium at its floor with the arm at rest.
 
 Enforced on every tick, whatever the phase: the commanded target stays inside the workspace
 box and moves at most ``max_speed`` (and the phase's own speed) per second; the force magnitude
@@ -36,7 +48,8 @@ lateral part of the magnitude is left as measured. Units: m, s, N.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace as _replace
+import math
+from dataclasses import dataclass
 from typing import Protocol, Sequence
 
 import numpy as np
@@ -93,20 +106,6 @@ def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
 
 
-def platform_under(platforms: Sequence[Platform], position: np.ndarray
-                   ) -> tuple[int | None, float]:
-    """Index of the first of ``platforms`` whose disc (``radius`` around its centre, in x-y)
-    holds the sensor at ``position`` (x, y, z) [m], and the sensor's depth below that
-    platform's surface [m] (0 when above it); (None, 0.0) when no platform is under it. The
-    mock arm (contact force) and the mock camera (which fabric to show) both ask this."""
-    pos = np.asarray(position, dtype=float)
-    for i, p in enumerate(platforms):
-        c = np.asarray(p.position, dtype=float)
-        if np.linalg.norm(pos[:2] - c[:2]) <= p.radius:
-            return i, max(0.0, float(c[2] - pos[2]))
-    return None, 0.0
-
-
 @dataclass
 class PressOutcome:
     success: bool
@@ -115,6 +114,8 @@ class PressOutcome:
     depth_m: float               # penetration below the surface at capture [m]
     max_force_n: float           # largest force magnitude seen during the press [N]
     tare: "TareResult | None" = None   # the tare before the descent (None: not reached)
+    surface_z: float | None = None     # z where the descent found the surface [m] (None: not)
+    warning: str = ""                  # e.g. the surface moved more than surface_warn_m
 
 
 @dataclass(frozen=True)
@@ -172,8 +173,22 @@ def tared(force_n: float, magnitude: float, offset_n: float) -> tuple[float, flo
 
 
 def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
-    """Deepest equilibrium below the surface [m] for controller stiffness ``stiffness`` [N/m]."""
-    return max(press.max_depth, 0.5 * (press.force_threshold + press.max_force) / stiffness)
+    """Deepest equilibrium below the scene's surface [m] for controller stiffness
+    ``stiffness`` [N/m]: the search past the scene's surface, the sensor's ``max_depth`` below
+    the surface found, and the spring's lead at ``max_force``."""
+    return press.surface_search + press.max_depth + press.max_force / stiffness
+
+
+def spring_cap(press: PressSettings, lift_n: float) -> float:
+    """Largest spring force ``K (x - x_eq)`` [N] the press ever commands, given the static
+    force ``lift_n`` [N] that holds the arm above its target at rest in free space (a cable, a
+    payload heavier or lighter than configured; ``K`` times the offset of the arm from its
+    target at the tare; a wrench bias does not move the arm): the midpoint of threshold and
+    limit plus that lift (the contact must overcome it too), kept between the midpoint of
+    threshold and that midpoint (a static force downward adds to the contact) and
+    ``max_force``."""
+    mid = 0.5 * (press.force_threshold + press.max_force)
+    return float(np.clip(mid + lift_n, 0.5 * (press.force_threshold + mid), press.max_force))
 
 
 def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
@@ -199,27 +214,36 @@ def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
                 f"below the surface (workspace.min z {scene.workspace_min[2]}), which at "
                 f"stiffness {stiffness:g} N/m gives less than 1.5 x force_threshold "
                 f"({s.force_threshold} N)")
-    need = (s.approach_height + deepest) / s.descend_speed + 1.0
+    reach = s.surface_search + s.max_depth + s.force_threshold / stiffness
+    need = (s.approach_height + reach) / s.descend_speed + 1.0
     if need > s.descend_deadline_s:
         raise InputError(
             f"{origin}: press.descend_deadline_s ({s.descend_deadline_s} s) is shorter than a "
             f"descent can take at controller stiffness {stiffness:g} N/m: {need:.1f} s "
-            f"(approach_height {s.approach_height} m + equilibrium floor {deepest:.4f} m at "
-            f"descend_speed {s.descend_speed} m/s, + 1 s)")
+            f"(approach_height {s.approach_height} m + surface_search {s.surface_search} m + "
+            f"max_depth {s.max_depth} m + force_threshold / stiffness at descend_speed "
+            f"{s.descend_speed} m/s, + 1 s)")
+
+
+FORCE_SMOOTH_S = 0.05   # time constant of the smoothed force the press decides on [s]
+HOLD_TAU_S = 0.25       # the hold closes the force error with this time constant [s]
 
 
 class PressController:
     """One press of one platform. Call ``step`` at a steady rate with fresh measurements.
 
     ``stiffness``: the impedance controller's translational stiffness along z [N/m] (a
-    position-controlled robot: a large value such as 1e5, the equilibrium is then the pose).
+    position-controlled robot: a large value such as 1e5, the equilibrium is then the pose);
+    the press needs it only roughly (the hold closes the loop on the force). ``capture``:
+    False for a light press that only finds the surface and the force (no frame).
     """
 
     def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
-                 stiffness: float = 1e5) -> None:
+                 stiffness: float = 1e5, capture: bool = True) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
         self.scene, self.platform, self.s, self.k = scene, platform, scene.press, stiffness
+        self.wants_capture = capture
         surface = np.asarray(platform.position, dtype=float)
         self.surface_z = surface[2]
         self.approach_point = surface + [0.0, 0.0, self.s.approach_height]
@@ -232,7 +256,9 @@ class PressController:
         self.phase = APPROACH
         self.phase_start = now
         self._last = now
+        self._now = now
         self.failure = ""
+        self.warning = ""
         self.capture_force = 0.0
         self.capture_depth = 0.0
         self.max_force = 0.0
@@ -241,6 +267,15 @@ class PressController:
                           self.s.tare_max_motion_m)
         self.tare: TareResult | None = None
         self.force_n = 0.0
+        self.force_avg = 0.0               # smoothed normal force [N]
+        self.lift_n = 0.0                   # static force holding the arm up at the tare [N]
+        self.cap = spring_cap(self.s, 0.0)  # largest commanded spring force [N]
+        self.surface_found: float | None = None   # z where the descent met the surface [m]
+        self._touch = (0.0, 0.0)           # (z [m], smoothed force [N]) when it met it
+        self._prev: np.ndarray | None = None
+        self.speed = 0.0                   # smoothed measured speed [m/s]
+        self._rest_since: float | None = None
+        self._band_since: float | None = None
 
     # ------------------------------------------------------------------ helpers
     def _enter(self, phase: str, now: float) -> None:
@@ -259,7 +294,7 @@ class PressController:
 
     def _deadline(self) -> float:
         return {APPROACH: self.s.approach_deadline_s, DESCEND: self.s.descend_deadline_s,
-                SETTLE: self.s.settle_s + self.s.capture_deadline_s,
+                SETTLE: self.s.settle_s + self.s.hold_deadline_s + 1.0,
                 CAPTURE: self.s.capture_deadline_s,
                 RETRACT: self.s.retract_deadline_s}.get(self.phase, float("inf"))
 
@@ -271,6 +306,26 @@ class PressController:
         self.target = goal.copy() if dist <= step else self.target + d * (step / dist)
         self.target = clamp(self.scene, self.target)
         return dist <= step
+
+    def _track(self, now: float, position: np.ndarray, force_n: float, dt: float) -> None:
+        """Smoothed force and speed; since when the arm has been at rest."""
+        if dt > 0:
+            w = min(1.0, dt / FORCE_SMOOTH_S)
+            self.force_avg += w * (force_n - self.force_avg)
+            if self._prev is not None:
+                v = math.dist(position, self._prev) / dt
+                self.speed += w * (v - self.speed)
+        else:
+            self.force_avg = force_n if self._prev is None else self.force_avg
+        self._prev = position.copy()
+        if self.speed <= self.s.rest_speed:
+            self._rest_since = now if self._rest_since is None else self._rest_since
+        else:
+            self._rest_since = None
+
+    def _at_rest(self, now: float) -> bool:
+        """The measured speed has stayed below ``rest_speed`` for ``rest_s``."""
+        return self._rest_since is not None and now - self._rest_since >= self.s.rest_s
 
     # ------------------------------------------------------------------ API
     @property
@@ -294,13 +349,14 @@ class PressController:
         Returns the equilibrium position to command (always inside the workspace).
         """
         dt = max(0.0, min(now - self._last, 0.2))  # a stalled loop must not jump the target
-        self._last = now
+        self._last = self._now = now
         position = np.asarray(position, dtype=float)
         mag = abs(force_n) if force_magnitude is None else float(force_magnitude)
         if self.tare is not None:
             force_n, mag = tared(force_n, mag, self.tare.offset_n)
         self.force_n = force_n     # the normal force the press acts on (tared once settled)
         self.max_force = max(self.max_force, mag)
+        self._track(now, position, force_n, dt)
         if self.phase == DONE:
             return self.target
         self._check_limits(now, force_n, mag)
@@ -309,9 +365,9 @@ class PressController:
         elif self.phase == TARE:
             self._tare_step(now, position, force_n)
         elif self.phase == DESCEND:
-            self._descend(now, position, force_n, dt)
+            self._descend(now, position, dt)
         elif self.phase == SETTLE:
-            self._settle(now, position, force_n)
+            self._settle(now, position, dt)
         elif self.phase == RETRACT:
             if self._arrive(self.approach_point, self.s.travel_speed, position, dt):
                 self._enter(DONE, now)
@@ -323,7 +379,8 @@ class PressController:
         s = self.s
         if mag > s.max_force and self.phase != RETRACT:
             self.abort(f"force limit: {mag:.1f} N > max_force {s.max_force} N", now)
-        elif force_n < -s.force_threshold and self.phase in (DESCEND, SETTLE, CAPTURE):
+        elif (self.force_avg < -s.force_threshold and force_n < -s.force_threshold
+              and self.phase in (DESCEND, SETTLE, CAPTURE)):
             self.abort(f"force sign: the normal force reads {force_n:.1f} N while pressing; "
                        "the wrench sign (force_sign) is wrong for this robot", now)
         if now - self.phase_start > self._deadline():
@@ -332,9 +389,13 @@ class PressController:
 
     def _arrive(self, goal: np.ndarray, speed: float, position: np.ndarray, dt: float) -> bool:
         """Move the target towards ``goal``; True once the target is there and the measured
-        position within ``position_tolerance`` of it."""
-        return (self._move_towards(goal, speed, dt)
-                and np.linalg.norm(position - goal) <= self.s.position_tolerance)
+        position within ``position_tolerance`` of it, or within ``rest_tolerance`` and at rest
+        (an arm held off by a static force, a cable or friction, still arrives)."""
+        if not self._move_towards(goal, speed, dt):
+            return False
+        off = float(np.linalg.norm(position - goal))
+        return off <= self.s.position_tolerance or (
+            off <= self.s.rest_tolerance and self._at_rest(self._now))
 
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
         """Through the waypoints (lift, travel, approach point); then tare."""
@@ -356,6 +417,9 @@ class PressController:
                            "model error; the press would act on a force that far off)", now)
                 return
             self.tare = got
+            self.lift_n = self.k * float(position[2] - self.target[2])
+            self.cap = spring_cap(s, self.lift_n)
+            self.force_avg = 0.0
             self._enter(DESCEND, now)
         elif now - self.phase_start > s.tare_deadline_s:
             last = self._tare.last
@@ -367,38 +431,137 @@ class PressController:
             self.abort(f"tare did not settle within tare_deadline_s {s.tare_deadline_s} s: "
                        f"{why}", now)
 
-    def _descend(self, now: float, position: np.ndarray, force_n: float, dt: float) -> None:
-        """Equilibrium down until the threshold force (then settle), or no contact."""
-        s = self.s
-        if force_n >= s.force_threshold:
-            # hold the equilibrium whose static force at the measured pose is the force
-            # measured now (>= threshold), never deeper than the one that reached it
-            hold = self.target.copy()
-            hold[2] = max(position[2] - force_n / self.k, self.target[2])
-            self.target = clamp(self.scene, hold)
-            self._enter(SETTLE, now)
-        elif self.surface_z - position[2] >= s.max_depth:
-            self.abort(f"no contact: {force_n:.2f} N < force_threshold "
-                       f"{s.force_threshold} N with the sensor max_depth {s.max_depth} m "
-                       "below the surface", now)
-        elif self._arrive(self.bottom, s.descend_speed, position, dt):
-            self.abort(f"no contact: {force_n:.2f} N < force_threshold "
-                       f"{s.force_threshold} N with the equilibrium at its floor "
-                       f"{self.surface_z - self.bottom[2]:.4f} m below the surface", now)
+    def _guard(self, position: np.ndarray) -> None:
+        """Keep the equilibrium where its spring pushes with at most ``cap`` at the measured
+        pose (``K (x - x_eq) <= cap``), no deeper than ``bottom``, no higher than the approach
+        point, inside the workspace."""
+        z = max(self.target[2], position[2] - self.cap / self.k, self.bottom[2])
+        self.target = clamp(self.scene, np.array([self.target[0], self.target[1],
+                                                  min(z, self.approach_point[2])]))
 
-    def _settle(self, now: float, position: np.ndarray, force_n: float) -> None:
-        """After ``settle_s``: ask for the capture, or abort if the contact was lost."""
+    def _found(self, position: np.ndarray) -> None:
+        """The smoothed force says contact: remember where, warn if the scene is off."""
         s = self.s
-        if now - self.phase_start < s.settle_s:
+        if self.surface_found is not None or self.force_avg < s.contact_force_n:
             return
-        if force_n < 0.5 * s.force_threshold:
-            self.abort(f"contact lost while settling: {force_n:.2f} N < half the "
-                       f"force_threshold {s.force_threshold} N", now)
+        self.surface_found = float(position[2])
+        self._touch = (self.surface_found, self.force_avg)
+        self._warn_moved()
+
+    def _warn_moved(self) -> None:
+        s = self.s
+        moved = self.surface_found - self.surface_z
+        if abs(moved) > s.surface_warn_m:
+            self.warning = (f"surface moved: {self.platform.id} found at z "
+                            f"{self.surface_found:.4f} m, {moved * 1000:+.1f} mm from the "
+                            f"scene's {self.surface_z:.4f} m (more than surface_warn_m "
+                            f"{s.surface_warn_m * 1000:g} mm); measure the scene again")
+
+    def _too_deep(self, position: np.ndarray, now: float) -> bool:
+        """Abort when the sensor is past the search below the scene's surface without contact,
+        or ``max_depth`` below the surface it found."""
+        s = self.s
+        if self.surface_found is None:
+            if self.surface_z - position[2] >= s.surface_search:
+                self.abort(f"no contact: {self.force_avg:.2f} N < contact_force_n "
+                           f"{s.contact_force_n} N with the sensor surface_search "
+                           f"{s.surface_search} m below the scene's surface", now)
+                return True
+        elif self.surface_found - position[2] >= s.max_depth:
+            self.abort(f"too soft: {self.force_avg:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the sensor max_depth {s.max_depth} m "
+                       "below the surface it found", now)
+            return True
+        return False
+
+    def _capped(self, position: np.ndarray) -> bool:
+        """The spring pushes with its cap at the measured pose (``_guard`` binds)."""
+        return bool(self.target[2] <= position[2] - self.cap / self.k + 1e-6)
+
+    def _stalled(self, now: float, position: np.ndarray) -> bool:
+        """The spring pushes with its cap, the arm is at rest and the force is below the
+        threshold's band (``force_tolerance_n``): something holds the arm up (an upward force,
+        friction) that the tare's lift underestimated. The spring's push minus the contact
+        force measures it: the cap grows by it, up to ``max_force``; at ``max_force`` the
+        press is refused (True)."""
+        s = self.s
+        if (not self._capped(position) or not self._at_rest(now)
+                or self.force_avg >= s.force_threshold - s.force_tolerance_n):
+            return False
+        if self.cap >= s.max_force - 1e-9:
+            self.abort(f"stalled: {self.force_avg:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the spring at max_force {s.max_force} N "
+                       "and the arm at rest: an unmodelled force or friction holds it up",
+                       now)
+            return True
+        self.lift_n = max(self.lift_n, self.cap - self.force_avg)
+        self.cap = spring_cap(s, self.lift_n)
+        self._rest_since = None          # judge again after the next rest
+        return False
+
+    def _descend(self, now: float, position: np.ndarray, dt: float) -> None:
+        """Guarded descent: the equilibrium goes down past the scene's surface until the
+        smoothed force says contact (the surface found) and then the threshold (hold)."""
+        s = self.s
+        self._found(position)
+        if self.force_avg >= s.force_threshold or (
+                self.force_avg >= s.force_threshold - s.force_tolerance_n
+                and self._capped(position) and self._at_rest(now)):   # the hold's work
+            self._band_since = None
+            self._enter(SETTLE, now)
+            return
+        if self._too_deep(position, now):
+            return
+        at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
+        self._guard(position)
+        if self._stalled(now, position):
+            return
+        if at_bottom and self._at_rest(now):
+            self.abort(f"no contact: {self.force_avg:.2f} N < force_threshold "
+                       f"{s.force_threshold} N with the equilibrium at its floor "
+                       f"{self.surface_z - self.target[2]:.4f} m below the scene's surface",
+                       now)
+
+    def _settle(self, now: float, position: np.ndarray, dt: float) -> None:
+        """The hold: the smoothed force error moves the equilibrium (``HOLD_TAU_S``, guarded
+        by ``cap``); once the force has stayed within ``force_tolerance_n`` of the threshold
+        with the arm at rest for ``settle_s``, ask for the capture."""
+        s = self.s
+        self._found(position)
+        if self._too_deep(position, now):
+            return
+        err = s.force_threshold - self.force_avg
+        self.target = self.target - [0.0, 0.0, err / (self.k * HOLD_TAU_S) * dt]
+        self._guard(position)
+        if self._stalled(now, position):
+            return
+        if abs(err) <= s.force_tolerance_n and self.speed <= s.rest_speed:
+            self._band_since = now if self._band_since is None else self._band_since
         else:
-            self.capture_force = force_n
-            self.capture_depth = max(0.0, self.surface_z - position[2])
+            self._band_since = None
+        if self._band_since is None or now - self._band_since < s.settle_s:
+            if now - self.phase_start > s.settle_s + s.hold_deadline_s - 1e-9:
+                self.abort(f"hold: the force stayed {self.force_avg:.2f} N, not within "
+                           f"force_tolerance_n {s.force_tolerance_n} N of force_threshold "
+                           f"{s.force_threshold} N at rest, for hold_deadline_s "
+                           f"{s.hold_deadline_s} s", now)
+            return
+        self.capture_force = self.force_avg
+        if self.surface_found is not None:
+            # the surface where the force would be zero: back along the line through the
+            # touch and the hold (a soft platform is already pressed in at contact_force_n)
+            z0, f0 = self._touch
+            if self.force_avg > f0 + 0.5 and z0 > position[2]:
+                self.surface_found = z0 + (z0 - position[2]) * f0 / (self.force_avg - f0)
+                self.warning = ""
+                self._warn_moved()
+        found = self.surface_z if self.surface_found is None else self.surface_found
+        self.capture_depth = max(0.0, found - position[2])
+        if self.wants_capture:
             self._need_capture = True
             self._enter(CAPTURE, now)
+        else:
+            self._enter(RETRACT, now)
 
     @property
     def done(self) -> bool:
@@ -407,156 +570,5 @@ class PressController:
     def outcome(self) -> PressOutcome:
         return PressOutcome(success=self.done and not self.failure, reason=self.failure,
                             force_n=self.capture_force, depth_m=self.capture_depth,
-                            max_force_n=self.max_force, tare=self.tare)
-
-
-# ---------------------------------------------------------------------- mock arm physics
-# (kept apart from the press state machine above: the mock arm's model of the controller)
-
-
-@dataclass(frozen=True)
-class ControlLaw:
-    """The translational law of the Cartesian impedance controller a robot profile names, as the
-    mock arm runs it: one control cycle every ``1 / rate_hz`` s, the force held in between.
-
-    Per cycle, per axis (x_t the commanded target, x_f the filtered target, x, v the arm):
-
-    1. target filter: ``x_f <- (1 - target_filter) x_t + target_filter x_f`` (an exponential
-       moving average; 0 = none; CRISP ``filter.target_pose``);
-    2. error: ``e = clip(x_f - x, -error_clip, error_clip)`` (CRISP ``task.error_clip`` with
-       ``limit_error``; inf = none);
-    3. force: ``F = K e - D v`` with ``D = damping`` if > 0, else ``2 sqrt(K)`` (CRISP
-       ``task.d_pos_*``, franka_ros2's and multipanda_ros2's examples);
-    4. rate limit: ``F <- F_prev + clip(F - F_prev, -max_force_step, max_force_step)`` (CRISP's
-       ``max_delta_tau`` per joint and cycle, seen at the end effector; inf = none).
-
-    Units: N/m, N s/m, Hz, m, N.
-    """
-
-    stiffness: float
-    damping: float = 0.0
-    rate_hz: float = 1000.0
-    target_filter: float = 0.0
-    error_clip: float = float("inf")
-    max_force_step: float = float("inf")
-
-    def __post_init__(self) -> None:
-        if not self.stiffness > 0 or not self.rate_hz > 0:
-            raise ValueError(f"stiffness ({self.stiffness}) and rate_hz ({self.rate_hz}) must "
-                             "be positive")
-        if not 0.0 <= self.target_filter < 1.0:
-            raise ValueError(f"target_filter must be in [0, 1), got {self.target_filter}")
-        if not self.error_clip > 0 or not self.max_force_step > 0:
-            raise ValueError("error_clip and max_force_step must be positive (inf = none)")
-
-    @property
-    def d(self) -> float:
-        """The damping the controller computes [N s/m]."""
-        return self.damping if self.damping > 0 else 2.0 * float(np.sqrt(self.stiffness))
-
-    @property
-    def max_static_force(self) -> float:
-        """Largest force the law pushes with at rest [N] (``K * error_clip``; inf if unclipped)."""
-        return self.stiffness * self.error_clip
-
-    def replace(self, **kw: float) -> "ControlLaw":
-        return _replace(self, **kw)
-
-
-class ArmModel:
-    """Mock arm under the Cartesian impedance ``law``: a point mass ``mass`` [kg], gravity
-    compensated, pushed by the controller's force (``ControlLaw``: target filter, error clip,
-    spring ``K``, damper ``D``, force rate limit), computed once per control cycle and held over
-    it (the plant integrated exactly for a constant force). Platforms push back with a spring
-    ``platform_stiffness`` [N/m] (gel, fabric and platform in series) and a damper
-    ``platform_damping`` [N s/m] when the sensor is below their surface within their radius.
-    Every control cycle is one sample. Positions in m, time in s, forces in N.
-    """
-
-    def __init__(self, scene: Workspace, start: np.ndarray, law: ControlLaw | None = None, *,
-                 mass: float = 3.0, platform_stiffness: float = 2e4,
-                 platform_damping: float = 50.0) -> None:
-        for name, v in (("mass", mass), ("platform_stiffness", platform_stiffness)):
-            if not v > 0:
-                raise ValueError(f"{name} must be positive, got {v}")
-        if platform_damping < 0:
-            raise ValueError("platform_damping must be >= 0")
-        self.scene, self.m = scene, float(mass)
-        self.law = law or ControlLaw(stiffness=1000.0)
-        self.k, self.d = self.law.stiffness, self.law.d
-        self.kp, self.dp = float(platform_stiffness), float(platform_damping)
-        self.h = 1.0 / self.law.rate_hz
-        self.position = np.asarray(start, dtype=float).copy()
-        self.velocity = np.zeros(3)
-        self.target = self.position.copy()
-        self.equilibrium = self.position.copy()   # the filtered target
-        self.command = np.zeros(3)     # the controller's force on the arm [N]
-        self.force = np.zeros(3)       # contact force on the sensor (base frame) [N]
-        self.peak_force = 0.0          # largest contact force over the cycles of the last step
-        self.frozen = False            # a reflex stopped the arm
-        self._due = 0.0                # time not yet simulated [s]
-
-    def contact(self, position: np.ndarray | None = None) -> tuple[Platform | None, float]:
-        """Platform under the sensor and the penetration below its surface [m] (0 if none)."""
-        i, pen = platform_under(self.scene.platforms,
-                                self.position if position is None else position)
-        return (None, 0.0) if i is None else (self.scene.platforms[i], pen)
-
-    def _contact_force(self) -> np.ndarray:
-        _, pen = self.contact()
-        if pen <= 0.0:
-            return np.zeros(3)
-        fz = max(0.0, self.kp * pen - self.dp * self.velocity[2])
-        return np.array([0.0, 0.0, fz])
-
-    def control(self) -> np.ndarray:
-        """One control cycle of the law: filter the target, clip the error, spring-damper,
-        rate limit; returns (and holds) the controller's force [N]."""
-        law = self.law
-        a = law.target_filter
-        self.equilibrium = (1.0 - a) * np.asarray(self.target, dtype=float) + a * self.equilibrium
-        err = np.clip(self.equilibrium - self.position, -law.error_clip, law.error_clip)
-        f = self.k * err - self.d * self.velocity
-        self.command = self.command + np.clip(f - self.command, -law.max_force_step,
-                                              law.max_force_step)
-        return self.command
-
-    def cycle(self) -> None:
-        """One control cycle of ``1 / rate_hz`` s (one sample)."""
-        h = self.h
-        self.force = self._contact_force()
-        if self.frozen:
-            self.command = np.zeros(3)
-        else:
-            acc = (self.control() + self.force) / self.m
-            self.position = self.position + self.velocity * h + 0.5 * acc * h * h
-            self.velocity = self.velocity + acc * h
-        self.force = self._contact_force()
-        self.peak_force = max(self.peak_force, float(np.linalg.norm(self.force)))
-
-    def step(self, dt: float) -> None:
-        """Advance ``dt`` [s] in whole control cycles (a remainder is carried to the next
-        step); ``peak_force`` = largest contact force among them."""
-        self._due += max(0.0, dt)
-        self.peak_force = float(np.linalg.norm(self.force))
-        n = int(np.floor(self._due / self.h + 1e-9))
-        self._due -= n * self.h
-        for _ in range(n):
-            self.cycle()
-
-    def freeze(self) -> None:
-        """A reflex: the arm stops where it is (brakes)."""
-        self.frozen = True
-        self.velocity = np.zeros(3)
-
-    def release(self) -> None:
-        """Control is back: the target restarts at the current pose (CRISP's ``on_activate``
-        sets it to the measured pose) and the held force at zero."""
-        self.frozen = False
-        self.target = self.position.copy()
-        self.equilibrium = self.position.copy()
-        self.command = np.zeros(3)
-
-    def normal_force(self) -> float:
-        """Normal force on the sensor [N] (>= 0)."""
-        return float(self.force[2])
+                            max_force_n=self.max_force, tare=self.tare,
+                            surface_z=self.surface_found, warning=self.warning)

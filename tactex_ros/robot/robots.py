@@ -11,7 +11,11 @@ Pure Python (no rclpy). A profile says:
   (<= 0: ``2 sqrt(stiffness)``), ``rate_hz``, ``target_filter`` (EMA weight kept of the
   filtered target per cycle), ``error_clip`` [m] (0 = none), ``max_delta_tau`` [N m per joint
   and cycle] (0 = none) over ``torque_lever_m`` [m]; ``parameters``: the controller's own
-  parameters (upstream names) as the shipped bring-up sets them;
+  parameters (upstream names) as the shipped bring-up sets them; ``max_stiffness`` [N/m]
+  (CRISP's translational stiffness clamp, ``variable_max_stiffness.translational``),
+  ``joint_filter`` and ``torque_filter`` (CRISP's EMA weights kept of the previous joint state
+  and output torque per cycle, ``filter.q``/``filter.dq`` and ``filter.output_torque``; 0 =
+  none): what the mock arm models besides the law;
 - ``target``: ``topic`` and ``type``: ``geometry_msgs/msg/PoseStamped`` or
   ``std_msgs/msg/Float64MultiArray`` (multipanda_ros2 layout: x y z, then the rotation matrix
   row by row);
@@ -19,8 +23,11 @@ Pure Python (no rclpy). A profile says:
   franka_robot_state_broadcaster publishes them) or ``topic`` + ``type`` of a franka state
   message with ``o_t_ee`` (16, column-major), ``o_f_ext_hat_k`` (6) and ``robot_mode``
   (multipanda_ros2's ``franka_msgs/msg/FrankaState``); optionally ``mode_topic`` + ``mode_type``:
-  a full state message whose ``robot_mode`` reports a reflex (franka_ros2's
-  ``franka_msgs/msg/FrankaRobotState``; read only where that type is installed);
+  a full state message whose ``robot_mode`` reports a reflex or a user stop (franka_ros2's
+  ``franka_msgs/msg/FrankaRobotState``; read only where that type is installed); each topic's
+  QoS (``pose_qos``, ``wrench_qos``, ``qos``, ``mode_qos``: ``reliability`` and ``depth``)
+  equal to its upstream publisher's, and ``min_rate_hz``: the pre-flight's lowest acceptable
+  rate of each state topic [Hz], set from the rate the shipped bring-up publishes at;
 - ``force_sign``: normal force = ``force_sign * f_z`` of the base-frame wrench;
 - ``scene``: the default scene file under ``config/`` (its ``frame_id`` is the profile's);
 - ``collision`` (optional): franka's collision-threshold service (``service``, ``type``) and
@@ -28,26 +35,41 @@ Pure Python (no rclpy). A profile says:
 - ``recovery``: ``kind`` (``action``, ``service`` or ``none``), ``name``, ``type``,
   ``ok_field`` (service: the response field that says it worked), and ``then``: the service
   calls that re-activate hardware and controllers after recovery, in order (``service``,
-  ``type``, ``request`` fields, ``ok_field``).
+  ``type``, ``request`` fields, ``ok_field``); ``before``: service calls made before the
+  recovery (franka_ros2 on Humble: deactivate the controllers, which stay active after a
+  fault there); ``hold_target``: publish a hold target at the measured position (never below
+  the platform's surface) before recovery, for stacks whose controller stays active and
+  resumes its last target when the recovery restarts the control loop (multipanda_ros2).
 """
 
 from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Sequence
 
 from pydantic import StringConstraints, field_validator, model_validator
 
 from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
 from ..paths import config_dir, config_file, read_yaml
-from .press import ControlLaw
+from .mock_world import ControlLaw
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 FLOAT64_MULTIARRAY = "std_msgs/msg/Float64MultiArray"
 TARGET_TYPES = (POSE_STAMPED, FLOAT64_MULTIARRAY)
 RECOVERY_KINDS = ("action", "service", "none")
+RELIABILITIES = ("reliable", "best_effort")
+
+
+@dataclass(frozen=True)
+class Qos:
+    """A topic's QoS as its upstream publisher creates it: ``reliability`` (reliable or
+    best_effort), history keep-last ``depth``, durability volatile. The default is rclcpp's
+    ``SystemDefaultsQoS()`` as the RMWs give it (reliable, keep last 10)."""
+
+    reliability: str = "reliable"
+    depth: int = 10
 
 
 @dataclass(frozen=True)
@@ -67,6 +89,8 @@ class Recovery:
     type: str = ""
     ok_field: str = ""                   # service response field (action: goal status)
     then: tuple[ServiceCall, ...] = ()
+    before: tuple[ServiceCall, ...] = ()     # calls before the recovery itself
+    hold_target: bool = False                # publish a hold target before the recovery
 
 
 @dataclass(frozen=True)
@@ -102,6 +126,14 @@ class RobotProfile:
     recovery: Recovery = field(default_factory=Recovery)
     scene: str = "scene.yaml"            # the default scene under config/ (in frame_id)
     notes: str = ""
+    min_state_rate_hz: float = 50.0      # the pre-flight's lowest state rate [Hz]
+    pose_qos: Qos = field(default_factory=Qos)
+    wrench_qos: Qos = field(default_factory=Qos)
+    state_qos: Qos = field(default_factory=Qos)
+    mode_qos: Qos = field(default_factory=Qos)
+    max_stiffness: float = float("inf")  # N/m, the controller's translational clamp
+    joint_filter: float = 0.0            # EMA weight kept of the previous q, dq per cycle
+    torque_filter: float = 0.0           # EMA weight kept of the previous output torque
 
     def __post_init__(self) -> None:
         if self.law is None:
@@ -139,6 +171,23 @@ class ControllerSpec(Schema):
                                        "max_delta_tau / torque_lever_m", 0.05, 2.0)
     parameters: dict[str, Any] = param({}, "the controller's parameters (upstream names) as "
                                            "the shipped bring-up sets them")
+    max_stiffness: float = param(1e6, "the controller clamps its translational stiffness to "
+                                      "this [N/m] (CRISP: variable_max_stiffness.translational)",
+                                 10.0, 1e6)
+    joint_filter: float = param(0.0, "EMA weight kept of the previous joint position and "
+                                     "velocity per cycle (CRISP: filter.q, filter.dq; 0 = none)",
+                                0.0, 0.999)
+    torque_filter: float = param(0.0, "EMA weight kept of the previous output torque per "
+                                      "cycle (CRISP: filter.output_torque; 0 = none)",
+                                 0.0, 0.999)
+
+    @model_validator(mode="after")
+    def _not_clamped(self) -> "ControllerSpec":
+        if self.stiffness > self.max_stiffness:
+            raise FieldError("stiffness", f"{self.stiffness:g} N/m is above max_stiffness "
+                                          f"{self.max_stiffness:g} N/m: the controller would "
+                                          "clamp it (raise its clamp in the bring-up and here)")
+        return self
 
     def law(self) -> ControlLaw:
         inf = float("inf")
@@ -156,9 +205,18 @@ class TargetSpec(Schema):
                                    "this are on the topic (0 = no such check)", 0, 100)
 
 
+class QosSpec(Schema):
+    reliability: Literal[RELIABILITIES] = param("reliable", "the upstream publisher's "
+                                                            "reliability")
+    depth: int = param(10, "its keep-last history depth", 1, 1000)
+
+    def qos(self) -> Qos:
+        return Qos(reliability=self.reliability, depth=self.depth)
+
+
 class StateSpec(Schema):
     """Either ``pose_topic`` + ``wrench_topic`` (optionally ``mode_topic`` + ``mode_type``) or
-    ``topic`` + ``type`` of a franka state message."""
+    ``topic`` + ``type`` of a franka state message; each with its upstream publisher's QoS."""
 
     pose_topic: str = param("", "PoseStamped state topic")
     wrench_topic: str = param("", "WrenchStamped state topic")
@@ -166,10 +224,17 @@ class StateSpec(Schema):
     type: _interface("msg") | Literal[""] = param("", "franka state message type")
     mode_topic: str = param("", "robot_mode of a full state message: topic")
     mode_type: _interface("msg") | Literal[""] = param("", "... and its type")
+    pose_qos: QosSpec = QosSpec()
+    wrench_qos: QosSpec = QosSpec()
+    qos: QosSpec = QosSpec()
+    mode_qos: QosSpec = QosSpec()
+    min_rate_hz: float = param(50.0, "the pre-flight refuses state topics slower than this "
+                                     "[Hz]", 0.0, 10000.0)
 
     @model_validator(mode="after")
     def _one_kind(self) -> "StateSpec":
-        given = self.model_fields_set
+        given = self.model_fields_set - {"pose_qos", "wrench_qos", "qos", "mode_qos",
+                                         "min_rate_hz"}
         if given & {"topic", "type"}:
             if given & {"pose_topic", "wrench_topic"}:
                 raise ValueError("give either topic + type (a franka state message) or "
@@ -197,6 +262,12 @@ class RecoverySpec(Schema):
     type: str = param("", "action or service type")
     ok_field: str = param("", "service: the response field that says it worked")
     then: list[ServiceCallSpec] = param([], "re-activation calls after recovery, in order")
+    before: list[ServiceCallSpec] = param([], "calls before the recovery, in order (e.g. "
+                                              "deactivate controllers that stay active after "
+                                              "a fault)")
+    hold_target: bool = param(False, "publish a hold target at the measured position (not "
+                                     "below the platform's surface) before the recovery: "
+                                     "the controller stays active through it")
 
     @model_validator(mode="after")
     def _complete(self) -> "RecoverySpec":
@@ -250,10 +321,13 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
              {"pose_topic": st.pose_topic, "wrench_topic": st.wrench_topic,
               "mode_topic": st.mode_topic, "mode_type": st.mode_type})
     rec = f.recovery
+
+    def calls(specs: list[ServiceCallSpec]) -> tuple[ServiceCall, ...]:
+        return tuple(ServiceCall(service=c.service, type=c.type, request=c.request,
+                                 ok_field=c.ok_field) for c in specs)
     recovery = Recovery() if rec.kind == "none" else Recovery(
         kind=rec.kind, name=rec.name, type=rec.type, ok_field=rec.ok_field,
-        then=tuple(ServiceCall(service=c.service, type=c.type, request=c.request,
-                               ok_field=c.ok_field) for c in rec.then))
+        then=calls(rec.then), before=calls(rec.before), hold_target=rec.hold_target)
     c = f.controller
     try:
         law = c.law()
@@ -265,7 +339,10 @@ def parse_profile(data: Any, origin: str = "robot profile") -> RobotProfile:
         target_topic=f.target.topic, target_type=f.target.type,
         max_publishers=f.target.max_publishers, force_sign=float(f.force_sign),
         collision=_collision(f.collision, origin), recovery=recovery, scene=f.scene,
-        notes=f.notes, **state)
+        notes=f.notes, min_state_rate_hz=float(st.min_rate_hz), pose_qos=st.pose_qos.qos(),
+        wrench_qos=st.wrench_qos.qos(), state_qos=st.qos.qos(), mode_qos=st.mode_qos.qos(),
+        max_stiffness=float(c.max_stiffness), joint_filter=float(c.joint_filter),
+        torque_filter=float(c.torque_filter), **state)
 
 
 def _collision(spec: CollisionSpec | None, origin: str) -> Collision | None:
@@ -287,6 +364,16 @@ def load_profile(name_or_path: str) -> RobotProfile:
     """Read and validate a robot profile by name (``config/robots/``) or path."""
     p = config_file(name_or_path, "robots", "robot profile")
     return parse_profile(read_yaml(p, "robot profile"), origin=f"robot profile {p.name}")
+
+
+def hold_target(position: Sequence[float], surface_z: float, ws_min: Sequence[float],
+                ws_max: Sequence[float]) -> tuple[float, float, float]:
+    """The target a recovery leaves the controller with (``recovery.hold_target``): the
+    measured ``position`` (x, y, z [m]), raised to the platform's ``surface_z`` where it is
+    below it, inside the workspace box: at rest it pushes nothing into the platform."""
+    x, y, z = (float(v) for v in position)
+    held = (x, y, max(z, float(surface_z)))
+    return tuple(min(max(v, float(lo)), float(hi)) for v, lo, hi in zip(held, ws_min, ws_max))
 
 
 def import_interface(name: str) -> type:

@@ -76,9 +76,36 @@ class PressSettings(Schema):
                                      0.1, 50.0)
     tare_deadline_s: float = param(3.0, "a tare that has not settled within this refuses the "
                                         "press [s]", 0.1, 60.0)
+    surface_search: float = param(0.01, "the descent looks for the surface this far below "
+                                         "the scene's surface (a surface lower than measured "
+                                         "is still found) [m]", 0.0, 0.05)
+    contact_force_n: float = param(1.0, "the smoothed tared normal force that says the sensor "
+                                        "touched the surface (where it is found) [N]",
+                                   0.05, 20.0)
+    surface_warn_m: float = param(0.002, "a surface found farther than this from the scene's "
+                                         "is reported (a warning in the touch) [m]",
+                                  0.0001, 0.05)
+    force_tolerance_n: float = param(0.5, "the hold captures once the smoothed force is this "
+                                          "close to force_threshold, at rest, for settle_s "
+                                          "[N]", 0.01, 10.0)
+    hold_deadline_s: float = param(5.0, "a hold that has not reached the force within this "
+                                        "(after settle_s) refuses the press [s]", 0.1, 60.0)
+    rest_speed: float = param(0.002, "the arm is at rest below this measured speed [m/s]",
+                              0.0001, 0.05)
+    rest_s: float = param(0.3, "... for this long: an arm at rest within rest_tolerance of "
+                               "its goal has arrived [s]", 0.0, 10.0)
+    rest_tolerance: float = param(0.015, "farthest from its goal an arm at rest arrives (a "
+                                         "static force, cable or friction holds it off) [m]",
+                                  0.0001, 0.05)
 
     @model_validator(mode="after")
     def _limits(self) -> "PressSettings":
+        if self.contact_force_n >= self.force_threshold:
+            raise FieldError("contact_force_n", f"{self.contact_force_n} N must be below "
+                                                f"force_threshold ({self.force_threshold} N)")
+        if self.rest_tolerance < self.position_tolerance:
+            raise FieldError("rest_tolerance", f"{self.rest_tolerance} m must be at least "
+                                               f"position_tolerance ({self.position_tolerance} m)")
         if self.force_threshold >= self.max_force:
             raise FieldError("force_threshold", f"{self.force_threshold} N must be below "
                                                 f"max_force ({self.max_force} N)")
@@ -192,9 +219,10 @@ class SceneFile(Schema):
                     raise FieldError(f"platforms.{i}.position",
                                      f"{list(p.position)} (approach height {high} m above) "
                                      f"lies outside the workspace {list(ws.min)}..{list(ws.max)}")
-            if p.position[2] - press.max_depth < ws.min[2]:
+            if p.position[2] - press.max_depth - press.surface_search < ws.min[2]:
                 raise FieldError(f"platforms.{i}.position",
-                                 f"the deepest press ({press.max_depth} m below z="
+                                 f"the deepest press (max_depth {press.max_depth} m + "
+                                 f"surface_search {press.surface_search} m below z="
                                  f"{p.position[2]}) lies below workspace.min z={ws.min[2]}")
         return self
 

@@ -243,6 +243,17 @@ def markers(scene: Scene, state, t: float) -> MarkerArray:
     return out
 
 
+def qos_profile(q):
+    """A robot profile's ``Qos`` (its upstream publisher's reliability and keep-last depth,
+    volatile) as an rclpy ``QoSProfile``: the subscription asks for exactly what the publisher
+    offers."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    rel = (ReliabilityPolicy.BEST_EFFORT if q.reliability == "best_effort"
+           else ReliabilityPolicy.RELIABLE)
+    return QoSProfile(depth=q.depth, history=HistoryPolicy.KEEP_LAST, reliability=rel,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
 def latched_qos():
     """Reliable, transient-local, depth 1: a subscriber that joins late (rviz, Foxglove,
     ``ros2 topic echo``) receives the last message at once. Subscribers must ask for

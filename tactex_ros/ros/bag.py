@@ -11,6 +11,7 @@ The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the
 
 from __future__ import annotations
 
+import copy
 import importlib
 import os
 import re
@@ -24,6 +25,7 @@ from mcap.records import Channel, Message, Schema
 from mcap.writer import CompressionType, Writer
 
 from ..core.errors import InputError
+from ..core.outputs import WriteError
 
 _PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
                "int32", "uint32", "int64", "uint64", "string", "wstring"}
@@ -93,49 +95,89 @@ def type_name(msg: Any) -> str:
 
 
 class BagWriter:
-    """MCAP writer of ROS 2 messages; thread-safe; every message flushed and fsync'ed."""
+    """MCAP writer of ROS 2 messages; thread-safe; every message flushed and fsync'ed.
+
+    A write that fails (disk full, file-size limit, I/O error) raises WriteError naming the
+    file once; the writer is then ``failed`` (the reason) and takes no more messages, and
+    ``close()`` never raises: the file keeps every whole message written before (``read_bag``
+    / ``recover_bag`` read it)."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self._f = open(self.path, "wb")
-        self._w = Writer(self._f, compression=CompressionType.NONE, use_chunking=False)
-        self._w.start(profile="ros2", library="tactex")
-        self._channels: dict[tuple[str, str], int] = {}
-        self._schemas: dict[str, int] = {}
         self._lock = threading.Lock()
         self.closed = False
-        self._sync()
+        self.failed: str | None = None
+        try:
+            self._f = open(self.path, "wb")
+        except OSError as exc:
+            raise WriteError(f"could not write {str(self.path)!r}: "
+                             f"{exc.strerror or exc}") from None
+        self._w = Writer(self._f, compression=CompressionType.NONE, use_chunking=False)
+        self._channels: dict[tuple[str, str], int] = {}
+        self._schemas: dict[str, int] = {}
+        with self._lock:
+            self._guard(lambda: self._w.start(profile="ros2", library="tactex"))
 
     def _sync(self) -> None:
         self._f.flush()
         os.fsync(self._f.fileno())
 
+    def _guard(self, step) -> None:
+        """Run a write step and sync; on an OSError the writer stops (``failed``) and the file
+        is closed without its summary (WriteError names it)."""
+        try:
+            step()
+            self._sync()
+        except OSError as exc:
+            self.failed = f"{exc.strerror or exc}"
+            self.closed = True
+            try:
+                self._f.close()
+            except OSError:
+                pass        # the buffered tail that could not be written
+            raise WriteError(f"could not write {str(self.path)!r}: {self.failed}; the "
+                             "MCAP copy stops here (whole messages before stay readable)") \
+                from None
+
     def write(self, topic: str, msg: Any, t_ns: int) -> None:
-        """Append ``msg`` on ``topic`` at ``t_ns`` [ns since the epoch]."""
+        """Append ``msg`` on ``topic`` at ``t_ns`` [ns since the epoch]; nothing once closed
+        or failed."""
         from rclpy.serialization import serialize_message
         tn = type_name(msg)
         data = serialize_message(msg)
         with self._lock:
             if self.closed:
                 return
-            if tn not in self._schemas:
-                self._schemas[tn] = self._w.register_schema(
-                    tn, "ros2msg", message_definition(tn).encode())
-            key = (topic, tn)
-            if key not in self._channels:
-                self._channels[key] = self._w.register_channel(topic, "cdr", self._schemas[tn])
-            self._w.add_message(self._channels[key], log_time=t_ns, data=data,
-                                publish_time=t_ns)
-            self._sync()
+
+            def step() -> None:
+                if tn not in self._schemas:
+                    self._schemas[tn] = self._w.register_schema(
+                        tn, "ros2msg", message_definition(tn).encode())
+                key = (topic, tn)
+                if key not in self._channels:
+                    self._channels[key] = self._w.register_channel(topic, "cdr",
+                                                                   self._schemas[tn])
+                self._w.add_message(self._channels[key], log_time=t_ns, data=data,
+                                    publish_time=t_ns)
+            self._guard(step)
+
+    def write_all(self, topic: str, msg: Any, t_ns: int) -> None:
+        """``write`` the message, then its ``standard_views`` at the same time."""
+        self.write(topic, msg, t_ns)
+        for view_topic, view in standard_views(topic, msg):
+            self.write(view_topic, view, t_ns)
 
     def close(self) -> None:
-        """Write the summary and footer (a closed file is indexed for ``ros2 bag``)."""
+        """Write the summary and footer (a closed file is indexed for ``ros2 bag``). Never
+        raises: a failure leaves the file as a crashed writer would (``failed`` says why)."""
         with self._lock:
             if self.closed:
                 return
+            try:
+                self._guard(self._w.finish)
+            except WriteError:
+                return
             self.closed = True
-            self._w.finish()
-            self._sync()
             self._f.close()
 
 
@@ -205,3 +247,43 @@ def recover_bag(path: str | Path, out: str | Path) -> int:
                 n += 1
         w.finish()
     return n
+
+
+# ---------------------------------------------------------------------- standard views
+# Viewers (Foxglove's Image and Plot panels, rerun's MCAP loader) show standard message types
+# only; tactex/msg/Touch and ExplorationState are copied into these beside them.
+TOUCH_IMAGE_VIEW = "/tactex/touch_image"      # sensor_msgs/Image rgb8 of every touch: the
+#                                               explorer's touch_image_topic (its default)
+NO_CONTACT_VIEW = "/tactex/touch_no_contact_image"   # sensor_msgs/Image: the touch's
+#                                                      no-contact frame (when it has one)
+WRENCH_VIEW = "/tactex/touch_wrench"          # geometry_msgs/WrenchStamped: the press force
+BELIEF_VIEW = "/tactex/belief/"               # + platform id: std_msgs/Float64 per comparison
+
+
+def standard_views(topic: str, msg: Any) -> list[tuple[str, Any]]:
+    """The standard messages a viewer shows for one of tactex's own (``topic`` is where
+    ``msg`` goes): a touch (``TOUCH_TOPIC``, tactex/msg/Touch) gives its contact image and its
+    no-contact frame as ``sensor_msgs/Image`` (lossless rgb8, the camera's frame id) and its
+    force as ``geometry_msgs/WrenchStamped`` (``force.z`` = the tared normal force the sensor
+    presses with along its optical axis [N], in the camera's frame, stamped at capture); an
+    exploration state (tactex/msg/ExplorationState) gives the belief in each comparison as one
+    ``std_msgs/Float64`` on ``BELIEF_VIEW + platform id``. Any other message gives none."""
+    tn = type_name(msg)
+    if tn == "tactex/msg/Touch" and topic == TOUCH_TOPIC:
+        from geometry_msgs.msg import WrenchStamped
+        header = msg.image.header if msg.image.header.frame_id else msg.header
+        out: list[tuple[str, Any]] = [(TOUCH_IMAGE_VIEW, msg.image)]
+        if msg.no_contact_image.data:
+            nc = copy.copy(msg.no_contact_image)
+            if not nc.header.frame_id:
+                nc.header = header
+            out.append((NO_CONTACT_VIEW, nc))
+        w = WrenchStamped(header=header)
+        w.wrench.force.z = float(msg.contact_force_n)
+        out.append((WRENCH_VIEW, w))
+        return out
+    if tn == "tactex/msg/ExplorationState":
+        from std_msgs.msg import Float64
+        return [(BELIEF_VIEW + pid, Float64(data=float(b)))
+                for pid, b in zip(msg.platform_ids, msg.belief)]
+    return []

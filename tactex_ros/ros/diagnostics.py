@@ -11,6 +11,11 @@ wheel), so this module builds the messages with ``diagnostic_msgs`` only.
 
 ``grade`` turns a measurement and its WARN / ERROR thresholds (node settings, ``diag_*``) into
 a level; ``RateMeter`` measures a message rate and the age of the newest message.
+
+ERROR means a fault. A pause the graph expects (a node starting, the mock camera preparing a new
+placement, the operator placing fabrics) is a ``Phase``: a named state with its own level (OK or
+WARN, with a message saying what is awaited and for how long already) and its own deadline;
+only past that deadline does it turn ERROR, naming the overrun.
 """
 
 from __future__ import annotations
@@ -24,6 +29,13 @@ OK, WARN, ERROR, STALE = 0, 1, 2, 3
 DIAGNOSTICS_TOPIC = "/diagnostics"
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
 
+def robot_mode_name(mode: int | None) -> str:
+    """franka's robot_mode as its name (``'reflex (4)'``); None: not reported."""
+    from ..robot.preflight import ROBOT_MODES
+    if mode is None:
+        return "not reported by this robot profile"
+    return f"{ROBOT_MODES.get(int(mode), 'unknown')} ({int(mode)})"
+
 # a task: () -> (level, message, {key: value})
 Task = Callable[[], "tuple[int, str, dict[str, object]]"]
 
@@ -35,6 +47,63 @@ def grade(value: float | None, warn: float, error: float, higher_is_worse: bool 
     if higher_is_worse:
         return ERROR if value >= error else WARN if value >= warn else OK
     return ERROR if value <= error else WARN if value <= warn else OK
+
+
+class Phase:
+    """An expected pause: a named state with its level and deadline (module doc).
+
+    ``begin(name, deadline_s)`` starts it, ``end()`` ends it; ``apply`` turns a task's own
+    result into the phase's while it lasts: the measurement's level capped at the phase's
+    ``level`` (a measurement that is fine stays OK), the message prefixed with the phase's name
+    and how long it has lasted; past ``deadline_s``: ERROR, ``"<name> overran its deadline"``.
+    For ``settle_s`` after the end, measurements over a window that still holds the pause are
+    capped at WARN ("settling after <name>"). Thread-safe."""
+
+    def __init__(self, settle_s: float = 2.5) -> None:
+        self.settle_s = settle_s
+        self._lock = threading.Lock()
+        self.name: str | None = None
+        self.level = WARN
+        self.since = 0.0
+        self.deadline_s = 0.0
+        self._ended: tuple[str, float] | None = None
+
+    def begin(self, name: str, deadline_s: float, level: int = WARN,
+              now: float | None = None) -> None:
+        with self._lock:
+            self.name, self.level, self.deadline_s = name, level, deadline_s
+            self.since = time.monotonic() if now is None else now
+
+    def end(self, now: float | None = None) -> None:
+        with self._lock:
+            if self.name is not None:
+                self._ended = (self.name, time.monotonic() if now is None else now)
+            self.name = None
+
+    @property
+    def active(self) -> bool:
+        return self.name is not None
+
+    def apply(self, result: "tuple[int, str, dict[str, object]]", now: float | None = None
+              ) -> "tuple[int, str, dict[str, object]]":
+        """``result`` (level, message, values) as the phase reports it (see the class doc)."""
+        now = time.monotonic() if now is None else now
+        level, msg, values = result
+        with self._lock:
+            name, ended = self.name, self._ended
+            since, deadline, cap = self.since, self.deadline_s, self.level
+        if name is not None:
+            lasted = now - since
+            values = dict(values, state=name, **{"state for [s]": lasted,
+                                                 "state deadline [s]": deadline})
+            if lasted > deadline:
+                return ERROR, f"{name} overran its deadline ({deadline:g} s): {msg}", values
+            text = f"{name} ({lasted:.0f} s of at most {deadline:g} s)"
+            return (min(level, cap), text if level == OK else f"{text}: {msg}", values)
+        values = dict(values, state="running")
+        if ended is not None and now - ended[1] < self.settle_s and level > WARN:
+            return WARN, f"settling after {ended[0]}: {msg}", values
+        return level, msg, values
 
 
 def worst(*levels: int) -> int:
@@ -137,6 +206,8 @@ class CameraHealth:
 
     def __init__(self, expected_hz: float, th, drift_window_s: float = 5.0) -> None:
         self.expected_hz = expected_hz
+        self.phase = Phase(settle_s=_settle_s(th))
+        self.phase.begin("starting: waiting for the first frame", th.diag_startup_s)
         self.th = th
         self.meter = RateMeter(2.0)
         self.reference = None
@@ -147,6 +218,8 @@ class CameraHealth:
     def observe(self, frame, now: float | None = None) -> None:
         import numpy as np
         now = time.monotonic() if now is None else now
+        if self.meter.count == 0:
+            self.phase.end(now)
         self.meter.tick(now)
         small = np.asarray(frame[::8, ::8], dtype=np.float32)
         if self.reference is None or self.reference.shape != small.shape:
@@ -174,19 +247,39 @@ class CameraHealth:
             parts.append((grade(drift, th.diag_drift_warn, th.diag_drift_error),
                           f"no-contact frame drifted {drift:.1f} grey levels"))
         level, message = summary(parts)
-        return level, message, {"frame rate [Hz]": rate, "expected rate [Hz]": self.expected_hz,
-                                "newest frame age [s]": age, "frames": self.meter.count,
-                                "no-contact drift [grey levels]": drift}
+        return self.phase.apply((level, message, {
+            "frame rate [Hz]": rate, "expected rate [Hz]": self.expected_hz,
+            "newest frame age [s]": age, "frames": self.meter.count,
+            "no-contact drift [grey levels]": drift}), now)
+
+
+def _settle_s(th) -> float:
+    """[s] after a pause, the rate window (2 s) still holds it: graded at most WARN meanwhile."""
+    return 2.0 + max(th.diag_age_error_s, 0.5)
 
 
 def link_check(meter: RateMeter, what: str, warn_s: float, error_s: float,
-               now: float | None = None) -> tuple[int, str, dict[str, object]]:
+               now: float | None = None, phase: Phase | None = None
+               ) -> tuple[int, str, dict[str, object]]:
     """A subscriber's view of a stream it needs: ERROR once its newest message is older than
-    ``error_s`` (or none came), WARN above ``warn_s``."""
+    ``error_s`` (or none came), WARN above ``warn_s``. ``phase``: the node's start-up (ended by
+    the first message: ``startup_phase``), during which no message yet is expected."""
     now = time.monotonic() if now is None else now
     age, rate = meter.age(now), meter.rate(now)
     level = grade(age, warn_s, error_s)
     msg = (f"no {what} received" if age is None else
            f"{what} {'stale: newest ' if level == ERROR else 'newest '}{age:.2f} s old, "
            f"{rate:.1f} Hz")
-    return level, msg, {"rate [Hz]": rate, "newest age [s]": age, "received": meter.count}
+    out = level, msg, {"rate [Hz]": rate, "newest age [s]": age, "received": meter.count}
+    if phase is not None:
+        if age is not None and phase.active:
+            phase.end(now)
+        return phase.apply(out, now)
+    return out
+
+
+def startup_phase(what: str, deadline_s: float) -> Phase:
+    """A phase begun now: ``"starting: waiting for the first <what>"`` with ``deadline_s``."""
+    ph = Phase()
+    ph.begin(f"starting: waiting for the first {what}", deadline_s)
+    return ph

@@ -67,6 +67,8 @@ class GoalRequest:
         self._result_fut: Any = None
         self.refused = False
         self.switched = False    # a probe showed that an unanswered goal ran: its result used
+        self.stalled_s = 0.0     # [s] time this process was not running while it followed
+        self._last_poll = clock()
         # an unanswered goal followed by its id: a STATUS_UNKNOWN probe is not final while its
         # goal response may still come (a loaded machine answers late, after the re-send)
         self._unanswered: _Sent | None = None
@@ -141,7 +143,20 @@ class GoalRequest:
     def _is(self, s: _Sent) -> bool:
         return self.handle is not None and bytes(s.gid.uuid) == bytes(self.handle.goal_id.uuid)
 
+    STALL_S = 0.5     # [s] a gap between polls longer than this: the caller was not running
+
     def _poll(self) -> None:
+        now = self.clock()
+        gap, self._last_poll = now - self._last_poll, now
+        if gap > self.STALL_S:
+            # this process was stopped (SIGSTOP, a starved machine): answers that came
+            # meanwhile are still queued for the executor, so the wait for an answer starts
+            # again now instead of counting the stall as the server's silence (a goal re-sent
+            # here would press a second time after a press made during the stall)
+            self.stalled_s += gap
+            for s in self.sent:
+                s.t += gap
+                s.probe_t += gap
         if self.refused:
             return
         self._settle_unanswered()

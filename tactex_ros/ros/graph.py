@@ -164,6 +164,9 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                     mock_image)
         nodes = [NodeSpec("mock_arm_node", "mock_arm", arm),
                  NodeSpec("mock_image_node", "mock_image", _checked("mock_image", img))] + nodes
+        if gelsight:       # no GelSight node in simulation, but a bad option is still refused
+            from ..robot.sensors import sensor_config
+            sensor_config(GelsightSettings(**_checked("gelsight", gelsight)), camera=False)
     else:
         from ..robot.sensors import sensor_config
         gs = _checked("gelsight", gelsight or {})

@@ -38,6 +38,24 @@ class Probe:
             raise Stopped()
         self.executor.spin_once(timeout_sec=SPIN_S)
 
+    def other_graph(self, topics: list[tuple[str, str]]) -> str | None:
+        """One graph per arm: each of ``topics`` ((what, topic)) must have at most one
+        publisher on this ROS domain (this graph's: the arm's target and the press action's
+        status are this motion node's, the robot state the robot's). A second one is another
+        tactex graph, or another program driving or playing the arm; the problem names the
+        topic and the publishing nodes, None when there is none. Called after the state was
+        sampled, so discovery has had that long."""
+        for what, topic in topics:
+            name = self.node.resolve_topic_name(topic)
+            pubs = self.node.get_publishers_info_by_topic(name)
+            if len(pubs) > 1:
+                nodes = sorted({f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in pubs})
+                return (f"{len(pubs)} publishers of {what} {name} on ROS_DOMAIN_ID "
+                        f"{self.context.get_domain_id()} (nodes {', '.join(nodes)}): another "
+                        "tactex graph or program drives this arm; stop it, or give each graph "
+                        "its own ROS_DOMAIN_ID (docs/hardware.md)")
+        return None
+
     def sample(self, msg_type: type, topic: str, qos: Any, window_s: float,
                deadline_s: float) -> tuple[list[float], Any]:
         """Arrival times [s, monotonic] of ``topic``'s messages over ``window_s`` after the
@@ -95,9 +113,11 @@ class Probe:
         self.node.destroy_node()
 
 
-def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s: float,
-               deadline_s: float, push_n: float, hold_s: float, prompt: Any) -> tuple:
-    """The wrench-sign check: the first message of ``topic`` within ``deadline_s`` [s], then
+def watch_push(probe: Probe, msg_type: type, topic: str, qos: Any, fz_of: Any,
+               baseline_s: float, deadline_s: float, push_n: float, hold_s: float,
+               prompt: Any) -> tuple:
+    """The wrench-sign check: the first message of ``topic`` (subscribed with ``qos``, its
+    upstream publisher's) within ``deadline_s`` [s], then
     ``baseline_s`` [s] of hands-off samples (raw f_z by ``fz_of(msg)``), then ``prompt()``, then
     samples until a push is seen (``push_sign``) or ``deadline_s``. Returns (PushReading,
     hands-off samples, push samples); TrialError when no message comes."""
@@ -108,7 +128,7 @@ def watch_push(probe: Probe, msg_type: type, topic: str, fz_of: Any, baseline_s:
     def got(msg: Any) -> None:
         times.append(time.monotonic())
         fz.append(float(fz_of(msg)))
-    sub = probe.node.create_subscription(msg_type, topic, got, 10)
+    sub = probe.node.create_subscription(msg_type, topic, got, qos)
     try:
         end = time.monotonic() + deadline_s
         while not fz and time.monotonic() < end:     # the first message (discovery)

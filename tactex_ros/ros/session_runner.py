@@ -4,9 +4,11 @@ The graph starts once; the explorer runs the session's trials (``trial/session_r
 This runner supervises the processes as ``launcher.run_trial`` does (a node that exits ends
 the run, named; SIGINT/SIGTERM/SIGHUP stop every node; the deadline), follows the session
 folder (``session_events.jsonl``) and, for every placement the explorer awaits, shows the
-operator what to place where and confirms through the explorer's ``~/confirm`` service
-(``std_srvs/srv/Trigger``): at once with ``confirm='yes'`` (scripted), after Enter on a terminal
-with ``confirm='key'``, or never (``'none'``: someone else calls the service).
+operator what to place where and confirms through the explorer's ``~/confirm_by`` service
+(``tactex/srv/Confirm``, saying how: ``yes_flag`` or ``enter``, and the caller): at once with
+``confirm='yes'`` (scripted), after Enter on a terminal with ``confirm='key'``, or never
+(``'none'``: someone else calls ``~/confirm``). A confirmation from elsewhere (Foxglove's
+button, ``ros2 service call``) is shown as such and the terminal stops asking for Enter.
 """
 
 from __future__ import annotations
@@ -37,11 +39,25 @@ class SessionRun:
     confirmations: int = 0           # placements this runner confirmed
 
 
+def caller_name() -> str:
+    """This runner as a confirmation's caller: ``tactex graph run (pid N, user@host)``."""
+    import getpass
+    import os
+    import socket
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = "?"
+    return f"tactex graph run (pid {os.getpid()}, {user}@{socket.gethostname()})"
+
+
 class Confirmer:
-    """Calls the explorer's ``~/confirm`` (Trigger) from the runner's own rclpy context."""
+    """Calls the explorer's ``~/confirm_by`` (``tactex/srv/Confirm``) from the runner's own
+    rclpy context."""
 
     def __init__(self, service: str, domain_id: int | None, timeout_s: float = 30.0) -> None:
         self.service, self.domain_id, self.timeout_s = service, domain_id, timeout_s
+        self.caller = caller_name()
         self._node = None
         self._lock = threading.Lock()
 
@@ -51,24 +67,25 @@ class Confirmer:
 
             import rclpy
             from rclpy.signals import SignalHandlerOptions
-            from std_srvs.srv import Trigger
+            from tactex.srv import Confirm
             os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
             self._ctx = rclpy.Context()
             kw = {} if self.domain_id is None else {"domain_id": self.domain_id}
             rclpy.init(context=self._ctx, signal_handler_options=SignalHandlerOptions.NO, **kw)
             self._node = rclpy.create_node("tactex_operator", context=self._ctx)
-            self._client = self._node.create_client(Trigger, self.service)
+            self._client = self._node.create_client(Confirm, self.service)
         return self._node
 
-    def confirm(self) -> tuple[bool, str]:
-        """(success, message) of one Trigger call; (False, why) on a deadline."""
+    def confirm(self, by: str) -> tuple[bool, str]:
+        """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter``); (False,
+        why) on a deadline."""
         from rclpy.executors import SingleThreadedExecutor
-        from std_srvs.srv import Trigger
+        from tactex.srv import Confirm
         with self._lock:
             node = self._ensure()
             if not self._client.wait_for_service(timeout_sec=self.timeout_s):
                 return False, f"service {self.service} not available within {self.timeout_s} s"
-            fut = self._client.call_async(Trigger.Request())
+            fut = self._client.call_async(Confirm.Request(by=by, caller=self.caller))
             ex = SingleThreadedExecutor(context=self._ctx)
             ex.add_node(node)
             try:
@@ -86,6 +103,15 @@ class Confirmer:
             self._node.destroy_node()
             self._ctx.try_shutdown()
             self._node = None
+
+
+def _stamp(p: Path) -> tuple[int, int] | None:
+    """(inode, mtime [ns]) of a file, None when absent: tells a rewritten file apart."""
+    try:
+        st = p.stat()
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns
 
 
 def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | Path, *,
@@ -106,22 +132,31 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     ex.parameters.update(exit_when_done=True, session_dir=str(d))
     out = out or console_printer()
     progress = Progress(out)
-    confirmer = Confirmer(f"/{ex.name}/confirm", domain_id)
+    confirmer = Confirmer(f"/{ex.name}/confirm_by", domain_id)
+    res_path = d / sess.RESULT_FILE      # a result from before this start is not this run's
+    stale = _stamp(res_path)
     events_path, offset = d / sess.EVENTS_FILE, 0
     if events_path.is_file():                    # a resumed session: only what is new
         offset = events_path.stat().st_size
     n_confirmed = 0
+    t_run = time.monotonic()
     waiting_key: threading.Thread | None = None
+    awaited: list[str] = []          # the trial whose placement is awaited now (0 or 1)
 
-    def on_key() -> None:
+    def on_key() -> None:    # one reader for the whole session: Enter confirms what is awaited
         nonlocal n_confirmed
-        try:
-            sys.stdin.readline()
-        except (OSError, ValueError):
-            return
-        ok, msg = confirmer.confirm()
-        n_confirmed += ok
-        out(msg if ok else f"not confirmed: {msg}", "info")
+        while True:
+            try:
+                if not sys.stdin.readline():
+                    return
+            except (OSError, ValueError):
+                return
+            if not awaited:
+                continue          # confirmed from elsewhere already: nothing to do
+            ok, msg = confirmer.confirm("enter")
+            n_confirmed += ok
+            if not ok:
+                out(f"not confirmed: {msg}", "info")
 
     def poll() -> None:        # the session's events since the last poll, on the console
         nonlocal offset, n_confirmed, waiting_key
@@ -132,23 +167,30 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
                 for pid, fab in e["placement"].items():
                     out(f"  platform {pid}: {fab}", "prompt")
+                awaited[:] = [str(e["trial"])]
                 if confirm == "yes":
                     for _ in range(10):     # refused: not awaited (yet); try again
-                        ok, msg = confirmer.confirm()
+                        ok, msg = confirmer.confirm("yes_flag")
                         if ok:
                             break
                         time.sleep(0.5)
                     n_confirmed += ok
                     if not ok:
                         out(f"not confirmed: {msg}", "info")
-                elif confirm == "key" and (waiting_key is None
-                                           or not waiting_key.is_alive()):
-                    out("press Enter once the fabrics are in place", "prompt")
-                    waiting_key = threading.Thread(target=on_key, daemon=True)
-                    waiting_key.start()
+                elif confirm == "key":
+                    out("press Enter once the fabrics are in place (or confirm in Foxglove / "
+                        f"ros2 service call /{ex.name}/confirm std_srvs/srv/Trigger)",
+                        "prompt")
+                    if waiting_key is None or not waiting_key.is_alive():
+                        waiting_key = threading.Thread(target=on_key, daemon=True)
+                        waiting_key.start()
                 else:
                     out(f"confirm with: ros2 service call /{ex.name}/confirm "
                         "std_srvs/srv/Trigger", "prompt")
+            elif kind == "confirmed":
+                awaited.clear()
+                out(f"trial {e['trial']}: placement confirmed by {e.get('by')}"
+                    + (f" ({e['caller']})" if e.get("caller") else ""), "info")
             elif kind == "trial_started":
                 progress.follow(d / sess.record_name(e["trial"]))
             elif kind == "trial_done":
@@ -156,17 +198,22 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 out(f"trial {e['trial']}: {e.get('prediction')} after "
                     f"{e.get('touches')} touches ({e.get('stop_reason')}); "
                     f"{'correct' if e.get('correct') else 'wrong'}", "info")
-            elif kind in ("session_ended", "session_done"):
-                out(f"session: {e.get('reason') or 'done, accuracy %.3f' % e['accuracy']}",
-                    "info")
+            elif kind == "session_ended":
+                out(f"session ended: {e.get('reason')}", "info")
+            elif kind == "session_done":
+                out(f"session: every trial done, {time.monotonic() - t_run:.0f} s in this "
+                    "run", "info")
         progress.poll()
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
-        if name == ex.name and (d / sess.RESULT_FILE).exists():
+        if name == ex.name and fresh_result():
             return None
         last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
         return (last[-1]["reason"] if last and name == ex.name else
                 f"node {name} ended ({exit_text(code)}) {elapsed:.1f} s into the session")
+
+    def fresh_result() -> bool:
+        return res_path.is_file() and _stamp(res_path) != stale
 
     def deadline(elapsed: float) -> str | None:
         return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
@@ -180,8 +227,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     if failure is not None and d.is_dir():
         sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": run.signal,
                            "node_exit": exits, "time": time.time()})
-    res_path = d / sess.RESULT_FILE
-    result = json.loads(res_path.read_text()) if res_path.exists() else None
+    result = json.loads(res_path.read_text()) if fresh_result() else None
     code = exits.get(ex.name)
     return SessionRun(exit_code=-1 if code is None else code, result=result, session_dir=d,
                       logs=run.graph.log_dir, failure=failure, signal=run.signal,

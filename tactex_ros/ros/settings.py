@@ -45,6 +45,12 @@ class CameraHealthSettings(Schema):
                                         "since the start [grey levels]", 0.0, 255.0)
     diag_drift_error: float = param(15.0, "ERROR above this no-contact drift [grey levels]",
                                     0.0, 255.0)
+    diag_startup_s: float = param(120.0, "start-up: no frame yet is WARN ('starting') until "
+                                         "this long after configuration, then ERROR [s]",
+                                  1.0, 3600.0)
+    diag_pause_s: float = param(60.0, "an expected pause of the frames (the mock camera "
+                                      "preparing a new placement) is WARN until this long, "
+                                      "then ERROR [s]", 1.0, 3600.0)
 
 
 class GelsightSettings(CameraHealthSettings):
@@ -126,6 +132,9 @@ class MotionSettings(Schema):
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
     press_action: str = param(PRESS_ACTION, "the press action this node serves")
+    run_id: str = param("", "serve only the press goals of this run (the explorer's run_id) "
+                            "('' = the run of the first goal taken; another run's are "
+                            "rejected)")
     recovery_name: str = param("", "error recovery action or service ('' = the profile's)")
     recovery_timeout_s: float = param(30.0, "deadline for error recovery and re-activation, "
                                             "each call [s]", 0.5, 600.0)
@@ -146,8 +155,9 @@ class MotionSettings(Schema):
                                            "its first message [s]", 0.1, 30.0)
     preflight_deadline_s: float = param(20.0, "deadline for the first robot state message and "
                                               "for franka's collision service [s]", 0.1, 120.0)
-    min_state_rate_hz: float = param(50.0, "robot state slower than this refuses the start "
-                                           "[Hz] (franka_robot_state_broadcaster: 1000)",
+    min_state_rate_hz: float = param(0.0, "robot state slower than this refuses the start "
+                                          "[Hz] (0 = the robot profile's state.min_rate_hz, "
+                                          "set from the rate its bring-up publishes at)",
                                      0.0, 10000.0)
     collision_set_by_hand: bool = param(False, "franka's collision thresholds (the robot "
                                                "profile's collision request) were set with "
@@ -169,6 +179,12 @@ class MotionSettings(Schema):
     diag_camera_error_s: float = param(0.5, "camera link: ERROR when the newest image is older "
                                             "than this [s] (a capture would find no fresh "
                                             "frame)", 0.01, 60.0)
+    diag_startup_s: float = param(120.0, "start-up: no robot state or camera image yet is "
+                                         "WARN ('starting') until this long after "
+                                         "configuration, then ERROR [s]", 1.0, 3600.0)
+    capture_wait_s: float = param(60.0, "a press waits this long for the camera's capture "
+                                         "service before it is refused (the arm does not "
+                                         "move without a camera) [s]", 0.1, 3600.0)
 
 
 class ExplorerSettings(TrialSettings):
@@ -177,10 +193,16 @@ class ExplorerSettings(TrialSettings):
     scene_file: str = param("", "scene YAML (platform ids and order)")
     seed: int = param(0, "seed of the learner and strategy", 0, 2**31 - 1)
     record_dir: str = param("runs/trials", "folder that receives the trial record")
+    min_free_mb: float = param(50.0, "free space [MB] the record's disk must keep: checked "
+                                     "before the trial and before each touch is written (a "
+                                     "fuller disk ends the trial, resumable; 0 = off)",
+                               0.0, 1e6)
     trial_id: str = param("", "record sub-folder ('' = time stamp)")
     resume: str = param("", "record folder of an interrupted trial to continue ('' = a new "
                             "trial); its settings must equal this node's")
     press_action: str = param(PRESS_ACTION, "press action served by the motion node")
+    run_id: str = param("", "this graph's identity, sent with every press goal (a motion node "
+                            "serves one run's explorer) ('' = a new one at configure)")
     state_topic: str = param(STATE_TOPIC, "where the exploration state is published after "
                                           "each decision")
     marker_topic: str = param(MARKER_TOPIC, "where the rviz markers are published")
@@ -266,6 +288,45 @@ class MockArmSettings(Schema):
     surface_offset: float = param(0.0, "platforms' true surface z minus the scene's [m] "
                                        "(fault injection: < 0 means lower, no contact)",
                                   -0.5, 0.5)
+    # the simulated world's faults (robot.mock_world.Faults; ranges and sources:
+    # docs/simulated_world.md)
+    wrench_offset_x: float = param(0.0, "wrench estimate bias, x [N]", -50.0, 50.0)
+    wrench_offset_y: float = param(0.0, "wrench estimate bias, y [N]", -50.0, 50.0)
+    wrench_offset_z: float = param(0.0, "wrench estimate bias, z [N]", -50.0, 50.0)
+    offset_gradient: float = param(0.0, "the bias changes by this per metre moved from the "
+                                        "start (configuration dependence) [N/m]", 0.0, 1000.0)
+    wrench_drift_x: float = param(0.0, "slow drift of the bias, x [N/s]", -1.0, 1.0)
+    wrench_drift_y: float = param(0.0, "slow drift of the bias, y [N/s]", -1.0, 1.0)
+    wrench_drift_z: float = param(0.0, "slow drift of the bias, z [N/s]", -1.0, 1.0)
+    wrench_noise: float = param(0.0, "wrench estimate noise, std per axis and sample [N]",
+                                0.0, 10.0)
+    static_force_x: float = param(0.0, "unmodelled static force on the arm (payload, cable), "
+                                       "x [N]", -50.0, 50.0)
+    static_force_y: float = param(0.0, "unmodelled static force on the arm, y [N]",
+                                  -50.0, 50.0)
+    static_force_z: float = param(0.0, "unmodelled static force on the arm, z, + up [N]",
+                                  -50.0, 50.0)
+    coulomb_friction: float = param(0.0, "Coulomb (stick-slip) friction per axis [N]",
+                                    0.0, 50.0)
+    viscous_friction: float = param(0.0, "viscous friction [N s/m]", 0.0, 1000.0)
+    world_seed: int = param(0, "seed of the noise and of the offset's direction of change",
+                            0, 2**31 - 1)
+    max_stiffness: float = param(0.0, "controller clamps the stiffness here, damping still "
+                                      "from the requested one (CRISP 2.3 "
+                                      "variable_max_stiffness.translational: 900) [N/m] "
+                                      "(0 = no clamp)", 0.0, 1e6)
+    state_filter: float = param(0.0, "controller's EMA weight on the measured position and "
+                                     "velocity (CRISP 2.3 filter.q / filter.dq: 0.5)",
+                                0.0, 0.999)
+    output_filter: float = param(0.0, "controller's EMA weight on its output force (CRISP "
+                                      "2.3 filter.output_torque: 0.5)", 0.0, 0.999)
+    activation_jump_x: float = param(0.0, "after each activation the controller's target is "
+                                          "off by this for activation_jump_s, x [m]",
+                                     -0.5, 0.5)
+    activation_jump_y: float = param(0.0, "activation transient, y [m]", -0.5, 0.5)
+    activation_jump_z: float = param(0.0, "activation transient, z [m]", -0.5, 0.5)
+    activation_jump_s: float = param(0.0, "how long the activation transient lasts [s]",
+                                     0.0, 1.0)
     reflex_force: float = param(0.0, "contact force above which the mock goes into a reflex: "
                                      "the arm stops and no state is published until recovered "
                                      "(0 = never) [N]", 0.0, 1000.0)
@@ -279,6 +340,7 @@ class MockArmSettings(Schema):
                                   "stand-in hardware re-activation service (SetBool)")
     controller_service: str = param("/tactex_test/activate_controller",
                                     "stand-in controller re-activation service (SetBool)")
+    diag_period_s: float = param(1.0, "period of the /diagnostics status [s]", 0.1, 60.0)
 
 
 class MockImageSettings(CameraHealthSettings):

@@ -2,10 +2,15 @@
 
 ``Progress`` follows a trial record folder (``touches.jsonl``, ``decisions.jsonl``,
 ``events.jsonl``: the files the explorer fsyncs as it goes) and prints each new line once: a
-press (platform, force [N], press time [s]), a decision (belief per platform, the next
-platform) and how a resume went (learner checkpoint restored, or re-training). While nothing
-new arrives (a thesis CNN's decision takes 27-98 s) it says so every ``WAITING_EVERY_S``. On a
-terminal it prints through ``rich`` (colour); in a log (not a terminal) plain lines.
+press (platform, force [N], press time [s], failed attempts), a decision (round k of the
+rounds cap N, belief per platform, the next platform, the time since the trial's first press
+and an estimate of the rest: the mean round so far times the rounds left, an upper bound as the
+trial may stop earlier) and how a resume went (learner checkpoint restored, or re-training).
+Touches and decisions a resumed trial had on disk before its interruption are marked
+"replayed": they were pressed before, not now. Until the record folder exists (the nodes are
+starting, 10-25 s) it says so every ``STARTING_EVERY_S``; while nothing new arrives (a thesis
+CNN's decision takes 27-98 s) every ``WAITING_EVERY_S``. On a terminal it prints through
+``rich`` (colour); in a log (not a terminal) plain lines.
 """
 
 from __future__ import annotations
@@ -19,27 +24,52 @@ from typing import Any, Callable
 
 #: [s] a decision still under way after this long (the thesis CNN: 27-98 s) is said so again
 WAITING_EVERY_S = 30.0
+#: [s] while the record folder does not exist yet (the nodes start), said every this often
+STARTING_EVERY_S = 5.0
 
 
-def press_line(t: dict[str, Any]) -> str:
-    """One press as text."""
+def press_line(t: dict[str, Any], replayed: bool = False) -> str:
+    """One press as text (``replayed``: pressed before an interruption, replayed now)."""
     dt = (t["stamp"] - t["requested"]) if t.get("stamp") and t.get("requested") else None
     text = f"press {t.get('seq')}: {t.get('platform_id')}"
     if t.get("force_n") is not None:
         text += f" {t['force_n']:.1f} N"
     if dt is not None:
         text += f" {dt:.1f} s"
+    att = int(t.get("attempts") or 0)
+    failed = att - 1 if t.get("accepted") else att
+    if failed > 0:
+        text += f" ({failed} failed attempt{'s' if failed > 1 else ''})"
     if not t.get("accepted"):
         text += f" (not used: {t.get('reason')})"
+    if replayed:
+        text += " [replayed: pressed before the interruption]"
     return text
 
 
-def decision_line(dec: dict[str, Any], platform_ids: list[str]) -> str:
-    """One decision as text: belief per comparison platform and the next platform."""
+def _clock(s: float) -> str:
+    s = int(round(max(0.0, s)))
+    return f"{s // 60}:{s % 60:02d}"
+
+
+def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | None = None,
+                  elapsed_s: float | None = None, rest_s: float | None = None,
+                  replayed: bool = False) -> str:
+    """One decision as text: round k of ``rounds``, belief per comparison platform, the next
+    platform; ``elapsed_s`` since the first press and ``rest_s`` (at most) where known."""
     b = dec.get("belief") or []
     belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b))
     nxt = dec.get("next") or ("done: " + str(dec.get("prediction")) if dec.get("done") else "-")
-    return f"decision {dec.get('round')}: belief {belief} -> next {nxt}"
+    k = f"{dec.get('round')}/{rounds}" if rounds else f"{dec.get('round')}"
+    text = f"decision {k}: belief {belief} -> next {nxt}"
+    if elapsed_s is not None:
+        text += f" [{_clock(elapsed_s)} elapsed"
+        if rest_s is not None and not dec.get("done"):
+            text += f", at most about {_clock(rest_s)} left"
+        text += "]"
+    if replayed:
+        text += " [replayed]"
+    return text
 
 
 def tail_jsonl(path: Path, offset: int) -> tuple[list[dict], int]:
@@ -76,35 +106,63 @@ class Progress:
         self._deciding: int | None = None    # the decision the explorer is making (round)
         self._since = 0.0                    # clock of the last line printed
         self._waited = 0.0                   # [s] since the last touch or decision
+        self._started = clock()              # for the start-up line
+        self._start_said = self._started
+        self._rounds: int | None = None      # the rounds cap (config.json)
+        self._replayed_touches = 0           # touches on disk before the last resume
+        self._replayed_decisions = 0
+        self._seen_decisions = 0
+        self._first: float | None = None     # epoch s of the first press request
 
     def follow(self, folder: str | Path | None) -> None:
         """Follow another record folder (the next trial of a session)."""
         folder = Path(folder) if folder else None
         if folder != self.folder:
             self.folder, self._offsets, self._ids = folder, {}, []
-            self._deciding = None
+            self._deciding, self._rounds, self._first = None, None, None
+            self._replayed_touches = self._replayed_decisions = self._seen_decisions = 0
 
     def _new_lines(self, name: str) -> list[dict]:
         lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
         return lines
 
     def poll(self) -> None:
+        now = self.clock()
         if self.folder is None or not self.folder.is_dir():
+            if now - self._start_said >= STARTING_EVERY_S:
+                self._start_said = now
+                self.out(f"starting the nodes: {now - self._started:.0f} s (the first press "
+                         "follows once every node is up)", "info")
             return
         if not self._ids:
             self._ids = _comparison_ids(self.folder)
-        now = self.clock()
+        if self._rounds is None:
+            self._rounds = _rounds_cap(self.folder)
         printed = False
         for e in self._new_lines("events.jsonl"):
-            if e.get("event") == "resumed" and e.get("how"):
-                self.out(f"resume: {e['how']}", "info")
-                printed = True
+            if e.get("event") == "resumed":
+                self._replayed_touches = int(e.get("after_touch") or 0)
+                self._replayed_decisions = int(e.get("decisions_on_disk") or 0)
+                if e.get("how"):
+                    self.out(f"resume: {e['how']}", "info")
+                    printed = True
         for t in self._new_lines("touches.jsonl"):
-            self.out(press_line(t), "press")
+            if self._first is None and t.get("requested"):
+                self._first = float(t["requested"])
+            self.out(press_line(t, int(t.get("seq") or 0) <= self._replayed_touches), "press")
             printed = True
         decisions = self._new_lines("decisions.jsonl")
         for d in decisions:
-            self.out(decision_line(d, self._ids), "decision")
+            self._seen_decisions += 1
+            replayed = self._seen_decisions <= self._replayed_decisions
+            elapsed = rest = None
+            if self._first is not None and d.get("time"):
+                elapsed = float(d["time"]) - self._first
+                r = int(d.get("round") or 0)
+                if self._rounds and r > 0:
+                    rest = elapsed / (r + 1) * max(0, self._rounds - r)
+            self.out(decision_line(d, self._ids, self._rounds, elapsed, rest, replayed),
+                     "decision")
         if decisions:
             last = decisions[-1]
             self._deciding = None if last.get("done") else int(last.get("round") or 0) + 1
@@ -117,6 +175,15 @@ class Progress:
             self.out(f"working: {self._waited:.0f} s without a new touch or decision "
                      f"(decisions on disk: {self._deciding - 1})", "info")
             self._since = now
+
+
+def _rounds_cap(folder: Path) -> int | None:
+    """The trial's rounds cap (``config.json`` ``trial.rounds``), None when unknown."""
+    try:
+        r = (json.loads((folder / "config.json").read_text()).get("trial") or {}).get("rounds")
+    except (OSError, json.JSONDecodeError):
+        return None
+    return int(r) if r else None
 
 
 def _comparison_ids(folder: Path) -> list[str]:

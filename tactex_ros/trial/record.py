@@ -24,7 +24,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
 import threading
 from pathlib import Path
 from typing import Any
@@ -33,17 +32,11 @@ import cv2
 import numpy as np
 
 from ..core.errors import InputError, TrialError
-from ..core.outputs import check_dir, dumps, write_bytes
+from ..core.outputs import check_dir, check_free, dumps, fsync_write, write_bytes
 
+_fsync_write = fsync_write     # every record file is written whole or not at all (WriteError)
 
-def _fsync_write(path: Path, data: bytes, append: bool) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC),
-                 0o644)
-    try:
-        os.write(fd, data)
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+MIN_FREE_MB = 50.0    # [MB] default free-space margin checked before a trial and each touch
 
 
 def append_event(folder: str | Path, event: dict[str, Any]) -> None:
@@ -138,15 +131,18 @@ class TrialRecord:
     continue an existing record that has no finished result; numbering goes on after the last
     touch on disk."""
 
-    def __init__(self, root: str | Path, trial_id: str, resume: bool = False) -> None:
+    def __init__(self, root: str | Path, trial_id: str, resume: bool = False,
+                 min_free_mb: float = MIN_FREE_MB) -> None:
         check_trial_id(trial_id)
         self.dir = Path(root) / trial_id
+        self.min_free_mb = float(min_free_mb)
         self.n_touches = 0
         self._no_contact: tuple[np.ndarray, str] | None = None
         self._lock = threading.Lock()      # a touch's image and line are written together
         self.closed = False
         if resume:
             res = check_resumable(self.dir)
+            self.check_space("resume")
             if res is not None:                 # a failed trial: its error goes to the events
                 append_event(self.dir, {"event": "failed", "result": res})
                 os.remove(self.dir / "result.json")
@@ -157,7 +153,13 @@ class TrialRecord:
             self.n_touches = _last_seq(self.dir)
             return
         check_new_record(root, trial_id)
+        self.check_space("new trial")
         self.dir.mkdir(parents=True, exist_ok=True)
+
+    def check_space(self, what: str) -> None:
+        """WriteError (a run-time failure, exit status 1) when the record's disk has less than
+        ``min_free_mb`` free: checked before a trial and before each touch is written."""
+        check_free(self.dir, self.min_free_mb, f"trial record {str(self.dir)!r} ({what})")
 
     def close(self, timeout_s: float = 5.0) -> None:
         """Wait (up to ``timeout_s``) for a write in progress, then refuse further writes:
@@ -171,10 +173,15 @@ class TrialRecord:
         if self.closed:
             raise TrialError(f"trial record {str(self.dir)!r} is closed (the node is stopping)")
 
-    def save_inputs(self, scene_file: str | Path | None, config: dict) -> None:
-        if scene_file:
-            shutil.copyfile(scene_file, self.dir / "scene.yaml")
-        _fsync_write(self.dir / "config.json", dumps(config).encode(), False)
+    def save_inputs(self, scene_file: str | Path | None, config: dict,
+                    scene_text: str | None = None) -> None:
+        """``scene.yaml`` (``scene_text``, else a copy of ``scene_file``) and ``config.json``,
+        each written whole (WriteError otherwise)."""
+        if scene_text is None and scene_file:
+            scene_text = Path(scene_file).read_text()
+        if scene_text is not None:
+            write_bytes(self.dir / "scene.yaml", scene_text.encode())
+        write_bytes(self.dir / "config.json", dumps(config).encode())
 
     def _png(self, path: Path, image: np.ndarray) -> None:
         ok, buf = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
@@ -191,27 +198,39 @@ class TrialRecord:
         Returns the image path. Called before the touch is used for anything."""
         with self._lock:
             self._open()
+            self.check_space(f"touch {self.n_touches + 1}")
             return self._add_touch(image, meta, no_contact)
 
     def _add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
                    no_contact: np.ndarray | None) -> Path | None:
-        self.n_touches += 1
+        seq = self.n_touches + 1
         img_path = None
-        if image is not None:
-            img_path = self.dir / f"touch_{self.n_touches:04d}_{meta.get('platform_id', 'x')}.png"
-            self._png(img_path, image)
-        nc_name = None
-        if no_contact is not None:
-            if self._no_contact is not None and np.array_equal(self._no_contact[0], no_contact):
-                nc_name = self._no_contact[1]
-            else:
-                nc_name = f"no_contact_{self.n_touches:04d}.png"
-                self._png(self.dir / nc_name, no_contact)
-                self._no_contact = (np.array(no_contact, copy=True), nc_name)
-        line = dict(meta, seq=self.n_touches, image=img_path.name if img_path else None)
-        if nc_name is not None:
-            line["no_contact"] = nc_name
-        _fsync_write(self.dir / "touches.jsonl", _line(line), True)
+        written: list[Path] = []
+        try:
+            if image is not None:
+                img_path = self.dir / f"touch_{seq:04d}_{meta.get('platform_id', 'x')}.png"
+                self._png(img_path, image)
+                written.append(img_path)
+            nc_name, nc_new = None, False
+            if no_contact is not None:
+                if self._no_contact is not None and np.array_equal(self._no_contact[0],
+                                                                   no_contact):
+                    nc_name = self._no_contact[1]
+                else:
+                    nc_name, nc_new = f"no_contact_{seq:04d}.png", True
+                    self._png(self.dir / nc_name, no_contact)
+                    written.append(self.dir / nc_name)
+            line = dict(meta, seq=seq, image=img_path.name if img_path else None)
+            if nc_name is not None:
+                line["no_contact"] = nc_name
+            _fsync_write(self.dir / "touches.jsonl", _line(line), True)
+        except BaseException:
+            for f in written:        # a touch is its line: no image without one is left
+                f.unlink(missing_ok=True)
+            raise
+        self.n_touches = seq
+        if nc_new:
+            self._no_contact = (np.array(no_contact, copy=True), nc_name)
         return img_path
 
     def reject_touch(self, seq: int, reason: str) -> None:
@@ -294,28 +313,93 @@ def read_checkpoint(folder: str | Path) -> tuple[dict, int, bytes] | None:
     return state, after, data
 
 
+NUM = (int, float)
+# the fields a reader relies on, per file: field -> allowed JSON types (None: null); a field
+# that is absent is fine, one of another type refuses the file (InputError, named)
+FIELDS: dict[str, dict[str, tuple]] = {
+    "touches.jsonl": {"seq": (int,), "image": (str, None), "no_contact": (str, None),
+                      "platform_id": (str, None), "platform_index": (int, None),
+                      "accepted": (bool, None), "interrupted": (bool, None),
+                      "reason": (str, None)},
+    "rejections.jsonl": {"seq": (int,), "reason": (str, None)},
+    "decisions.jsonl": {"round": (int, None), "belief": ([(*NUM, None)],), "touches": ([int],),
+                        "next": (str, None), "done": (bool, None), "prediction": (str, None)},
+    "events.jsonl": {"event": (str,)},
+    "session_events.jsonl": {"event": (str,)},
+    "result.json": {"prediction": (str, None), "touches": (int, None),
+                    "stop_reason": (str, None), "elapsed_s": (*NUM, None),
+                    "correct": (bool, None), "sure": (bool, None),
+                    "confidence": (*NUM, None), "error": (str,), "trial_id": (str, None)},
+}
+
+
+def _is(v: Any, t: Any) -> bool:
+    if t is None:
+        return v is None
+    if isinstance(t, list):        # [element types]: a list of them
+        return isinstance(v, list) and all(_is(x, t[0]) for x in v)
+    if isinstance(t, tuple):
+        return any(_is(v, u) for u in t)
+    if t in (int, float) and isinstance(v, bool):
+        return False               # JSON true is not a number
+    return isinstance(v, t)
+
+
+def _kind(t: Any) -> str:
+    if t is None:
+        return "null"
+    if isinstance(t, list):
+        return f"a list of {_kind(t[0])}"
+    if isinstance(t, tuple):
+        return " or ".join(_kind(u) for u in t)
+    return {int: "integer", float: "number", str: "string", bool: "true/false"}.get(
+        t, t.__name__)
+
+
+def check_fields(obj: Any, fields: dict[str, tuple], where: str) -> dict:
+    """``obj`` as a JSON object whose ``fields`` have their types; InputError naming
+    ``where`` and the field otherwise."""
+    if not isinstance(obj, dict):
+        raise InputError(f"{where}: expected a JSON object, got {type(obj).__name__}")
+    for k, types in fields.items():
+        if k in obj and not _is(obj[k], types):
+            raise InputError(f"{where}: field {k!r} is {json.dumps(obj[k])[:40]}, expected "
+                             f"{_kind(types)}")
+    return obj
+
+
 def _read_jsonl(path: Path) -> list[dict]:
+    """The lines of a JSONL file of a record (a torn line is skipped); InputError naming the
+    file, the line and the field when a line is not an object or a field has another type."""
     if not path.exists():
         return []
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} cannot be read ({exc})") from None
+    fields = FIELDS.get(path.name, {})
     out = []
-    for line in path.read_text().splitlines():
+    for i, line in enumerate(text.splitlines(), 1):
         try:
-            out.append(json.loads(line))
+            obj = json.loads(line)
         except json.JSONDecodeError:
             continue  # torn line of a crashed writer (ended by a resume's newline)
+        out.append(check_fields(obj, fields, f"{str(path)!r}, line {i}"))
     return out
 
 
 def read_result(folder: str | Path) -> dict | None:
-    """``result.json`` of a record, None when absent; a result that does not parse is an
-    error (it is written atomically, so it is never torn)."""
+    """``result.json`` of a record, None when absent; a result that does not parse or whose
+    fields have other types is an error naming the file and the field (it is written
+    atomically, so it is never torn)."""
     p = Path(folder) / "result.json"
     if not p.exists():
         return None
     try:
-        return json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
+        res = json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"{str(p)!r} is not valid JSON ({exc})") from None
+    return check_fields(res, FIELDS["result.json"], repr(str(p)))
 
 
 def _read_png(path: Path) -> np.ndarray | None:

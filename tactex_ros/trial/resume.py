@@ -128,7 +128,9 @@ def restore_engine(spec: TrialSpec, folder: str | Path,
             raise InputError(f"it covers touches up to {after}, the record holds "
                              f"{max((r.seq for r in recorded), default=0)}")
         eng.restore(state, stored, blob)
-    except InputError as exc:
+    except (InputError, KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        # a damaged state (wrong types, missing keys) can fail after the checks in restore():
+        # the half-restored engine is dropped, the touches on disk are re-trained on
         return spec.engine(), 0, f"checkpoint does not fit the record ({exc}); not used, {how}"
     for r in recorded:                  # the contact guard's no-contact frame, as it was
         if r.seq <= after and r.touch is not None and r.touch.no_contact is not None:

@@ -19,6 +19,7 @@ over. A resumed trial ends with the outcome of the uninterrupted one.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -28,7 +29,7 @@ import numpy as np
 from ..core.engine import RoundRecord, TouchFailed, TrialSpec, run_trial
 from ..core.errors import TrialError
 from ..core.touch import Touch
-from .record import TrialRecord, append_event, read_record
+from .record import MIN_FREE_MB, TrialRecord, append_event, read_record
 
 #: ``press(platform, meta)``: the live touch, ``meta`` filled in place for the record
 Press = Callable[[int, dict], Touch]
@@ -61,14 +62,17 @@ class TrialRun:
     other values where they change the trial); ``scene_file``: copied into a new record;
     ``placed_scene``: scene text written instead (a session trial's placement);
     ``check_record(folder)``: more checks of a record to resume (the scene's platforms);
-    ``log(level, text)``: where warnings and notes go (``logging`` levels)."""
+    ``log(level, text)``: where warnings and notes go (``logging`` levels);
+    ``min_free_mb``: the free disk the record keeps before the trial and each touch [MB]."""
 
     def __init__(self, spec: TrialSpec, record_dir: str | Path, trial_id: str = "", *,
                  press: Press, inputs: dict[str, Any], resume: str | Path | None = None,
                  scene_file: str | Path | None = None, placed_scene: str | None = None,
                  check_record: Callable[[Path], None] | None = None,
-                 log: Callable[[int, str], None] | None = None) -> None:
+                 log: Callable[[int, str], None] | None = None,
+                 min_free_mb: float = MIN_FREE_MB) -> None:
         self.spec = spec
+        self.min_free_mb = float(min_free_mb)
         self.ids = list(spec.platform_ids or ["reference"] + [f"c{i + 1}" for i in
                                                                range(spec.comparisons)])
         self.press = press
@@ -83,15 +87,13 @@ class TrialRun:
             self._open_resume(Path(resume).resolve(), inputs, check_record)
         else:
             self.trial_id = trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
-            self.record = TrialRecord(record_dir, self.trial_id)
-            self.record.save_inputs(scene_file, inputs)
-            if placed_scene is not None:
-                (self.record.dir / "scene.yaml").write_text(placed_scene)
+            self.record = TrialRecord(record_dir, self.trial_id, min_free_mb=self.min_free_mb)
+            self.record.save_inputs(scene_file, inputs, scene_text=placed_scene)
 
     def _open_resume(self, d: Path, inputs: dict,
                      check_record: Callable[[Path], None] | None) -> None:
         from .resume import check_settings, load_replay, restore_engine
-        self.record = TrialRecord(d.parent, d.name, resume=True)
+        self.record = TrialRecord(d.parent, d.name, resume=True, min_free_mb=self.min_free_mb)
         self.trial_id = d.name
         check_settings(d, inputs)
         if check_record is not None:
@@ -101,12 +103,13 @@ class TrialRun:
         self.replay.recorded = [r for r in self.replay.recorded if r.seq > after]
         self._replay_decisions = rec["decisions"]
         self._decisions = len(self.engine.records)     # decisions restored, not re-made
-        self.log(logging.INFO, f"resume: {how}")
+        # a damaged checkpoint is not used: the learner re-trains, and the console says so
+        self.log(logging.WARNING if "not used" in how else logging.INFO, f"resume: {how}")
         append_event(d, {"event": "resumed", "after_touch": self.record.n_touches,
                          "touches_replayed": len(self.replay.recorded),
                          "decisions_on_disk": len(rec["decisions"]),
                          "checkpoint_round": len(self.engine.records), "how": how,
-                         "time": time.time()})
+                         "time": time.time(), "command": os.environ.get("TACTEX_COMMAND", "")})
 
     @property
     def dir(self) -> Path:
@@ -172,7 +175,7 @@ class TrialRun:
         line = {"round": rec.round, "next": d["next"], "belief": d["belief"],
                 "uncertainty": d["uncertainty"], "touches": d["touches"], "model": rec.model,
                 "decision_s": rec.decision_s, "done": eng.done, "prediction": pred,
-                "sure": eng.sure if eng.done else None}
+                "sure": eng.sure if eng.done else None, "time": time.time()}
         if self.replay is None or not self._replayed_decision(d["belief"]):
             self.record.add_decision(line)
         self._checkpoint()
@@ -244,7 +247,10 @@ class TrialRun:
     def fail(self, exc: BaseException) -> dict:
         """The trial ended in ``exc``: the error is its recorded result."""
         self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}
-        self.record.finish(self.result)
+        try:
+            self.record.finish(self.result)
+        except TrialError as why:     # e.g. the disk is full: the record stays resumable
+            self.log(logging.ERROR, f"the failure could not be recorded: {why}")
         return self.result
 
     def _write_report(self) -> None:

@@ -9,7 +9,8 @@ error names the file and the row. Each trial gets what the operator must place w
 
 Session folder ``<session_dir>/``::
 
-    session.json           the session as it was started (file, trials, placements, seeds)
+    session.json           the session as it was started: its id, the trial file's SHA-256,
+                           trials, placements, seeds and the settings it is fixed to
     session_events.jsonl   prompts, confirmations, trials started / finished, timeouts, resumes
     trial_<id>/            one trial record per trial (``record.TrialRecord``)
     session_result.json    written once every trial has its result (atomic)
@@ -21,9 +22,11 @@ exists without a result: it is resumed at the touch where it stopped) and which 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
+import uuid
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -68,10 +71,29 @@ class Session:
     name: str
     path: str
     trials: list[SessionTrial] = field(default_factory=list)
+    sha256: str = ""                # of the trial file's bytes
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "path": self.path,
+        return {"name": self.name, "path": self.path, "trial_file_sha256": self.sha256,
                 "trials": [asdict(t) for t in self.trials]}
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def check_record_names(ids: list[str], where: str) -> None:
+    """Refuse trial ids whose record folders (``record_name``) are one and the same (``a b``
+    and ``a_b``; ``é`` and ``ü``): the second trial would find the first one's result."""
+    seen: dict[str, str] = {}
+    for tid in ids:
+        name = record_name(tid)
+        if name in seen:
+            raise InputError(f"{where}: trial ids {seen[name]!r} and {tid!r} both map to the "
+                             f"record folder {name!r} (characters other than A-Z a-z 0-9 _ . - "
+                             "become _): give them ids that differ in those characters")
+        seen[name] = tid
 
 
 def catalogue_names(path: str | Path | None = None) -> list[str]:
@@ -106,8 +128,9 @@ def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
     first). InputError names the file and the row of the first problem."""
     path = find_trial_file(str(spec))
     doc = load_trials(path)           # unique ids, reference among the comparisons
+    check_record_names([t["id"] for t in doc["trials"]], f"trial file {path}")
     names = catalogue_names(catalogue)
-    out = Session(name=doc["name"], path=str(Path(path).resolve()))
+    out = Session(name=doc["name"], path=str(Path(path).resolve()), sha256=file_sha256(path))
     for i, t in enumerate(doc["trials"]):
         where = f"trial file {path}, entry {i + 1} (id {t['id']})"
         fabrics = [t["reference"]] + list(t["comparisons"])
@@ -169,34 +192,116 @@ def add_event(session_dir: str | Path, event: dict[str, Any]) -> None:
     _fsync_write(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), True)
 
 
-def open_session(session_dir: str | Path, session: Session, settings: dict[str, Any]) -> bool:
-    """Create the session folder, or check that an existing one is the same session (same
-    trials, placements and seeds); True when an existing session is continued."""
-    from .record import _fsync_write
+def read_session_file(session_dir: str | Path) -> dict[str, Any] | None:
+    """``session.json`` of a folder checked to be a tactex session's (None when absent);
+    InputError naming the path when it is torn, not JSON or not a session's (no session id,
+    trial file hash, trials or settings)."""
+    p = Path(session_dir) / SESSION_FILE
+    if not p.exists():
+        return None
+    try:
+        was = json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"session {str(p)!r} is unreadable or torn ({exc}): it is not a "
+                         "session this folder can continue; choose another session folder") \
+            from None
+    keys = {"session_id": str, "trial_file_sha256": str, "trials": list, "settings": dict}
+    bad = [k for k, t in keys.items() if not isinstance(was, dict)
+           or not isinstance(was.get(k), t)]
+    if bad:
+        raise InputError(f"session {str(p)!r} is not a tactex session's (missing or wrong "
+                         f"type: {', '.join(bad)}); choose another session folder")
+    from .record import check_fields
+    for i, t in enumerate(was["trials"]):
+        where = f"session {str(p)!r}, trial {i + 1}"
+        check_fields(t, TRIAL_FIELDS, where)
+        missing = [k for k in TRIAL_FIELDS if k not in t]
+        if missing:
+            raise InputError(f"{where}: missing {', '.join(missing)}")
+        if not all(isinstance(v, str) for v in t["placement"].values()):
+            raise InputError(f"{where}: field 'placement' must map platform ids to fabric "
+                             "names (strings)")
+    return was
+
+
+TRIAL_FIELDS: dict[str, tuple] = {"id": (str,), "position": (int,), "seed": (int,),
+                                  "placement": (dict,), "truth": ([str],)}
+
+
+def check_session_dir(session_dir: str | Path, trial_file: str | Path | None = None) -> bool:
+    """Before a session starts (``graph run --session``) or its node opens the folder:
+    ``session_dir`` is a folder that can be written, and either holds nothing of another
+    session or is this trial file's session (its ``session.json`` parses and names the same
+    trial file bytes). True when a session is there to continue. InputError (exit status 2)
+    naming the path and the reason otherwise; nothing is written."""
+    from ..core.outputs import check_dir
     d = Path(session_dir)
-    p = d / SESSION_FILE
+    check_dir(d, "session_dir")
+    if d.is_dir() and not os.access(d, os.W_OK | os.X_OK):
+        raise InputError(f"session_dir {str(d)!r}: not writable")
+    was = read_session_file(d)
+    if was is None:
+        if d.is_dir():
+            left = sorted(f.name for f in d.iterdir() if f.name == RESULT_FILE or
+                          f.name == EVENTS_FILE or
+                          (f.name.startswith("trial_") and f.is_dir()))
+            if left:
+                raise InputError(f"session_dir {str(d)!r} holds session files without "
+                                 f"{SESSION_FILE} ({', '.join(left[:3])}): it is not a "
+                                 "session this can continue; choose another session folder")
+        return False
+    if trial_file is not None:
+        sha = file_sha256(find_trial_file(str(trial_file)))
+        if was["trial_file_sha256"] != sha:
+            raise InputError(f"session folder {str(d)!r} holds session {was['session_id']} "
+                             f"of trial file {was.get('path')!r} (SHA-256 "
+                             f"{was['trial_file_sha256'][:12]}), not of {str(trial_file)!r} "
+                             f"({sha[:12]}): choose another session folder")
+    return True
+
+
+def settings_problem(was: dict[str, Any], now: dict[str, Any]) -> str | None:
+    """The first setting a session was started with that a continuation changes, named with
+    both values; None when they agree."""
+    for k in sorted(set(was) | set(now)):
+        if was.get(k) != now.get(k):
+            return (f"setting {k!r} was {was.get(k)!r} when the session started and is "
+                    f"{now.get(k)!r} now")
+    return None
+
+
+def open_session(session_dir: str | Path, session: Session, settings: dict[str, Any]) -> bool:
+    """Create the session folder (``session.json`` with a new session id, the trial file's
+    hash, the trials and ``settings``), or check that an existing one is this session (same
+    trial file, trials, placements, seeds and settings: a session's settings are fixed in its
+    folder); True when an existing session is continued. InputError names the path and, for
+    a changed setting, both values."""
+    from ..core.outputs import write_bytes
+    d = Path(session_dir)
     now = session.to_dict()
-    if p.is_file():
-        try:
-            was = json.loads(p.read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"session {str(p)!r} is not valid JSON ({exc})") from None
-        if was.get("trials") != now["trials"]:
+    if check_session_dir(d, session.path):
+        was = read_session_file(d)
+        if was["trials"] != now["trials"]:
             raise InputError(f"session folder {str(d)!r} holds another session (its trials, "
                               "placements or seeds differ from this trial file's): choose "
                               "another session folder")
+        problem = settings_problem(was["settings"], settings)
+        if problem:
+            raise InputError(f"session folder {str(d)!r}: {problem}; a session continues "
+                             "with the settings it started with (or start a new session "
+                             "folder)")
         return True
-    d.mkdir(parents=True, exist_ok=True)
-    _fsync_write(p, json.dumps(dict(now, settings=settings), indent=2).encode(), False)
+    write_bytes(d / SESSION_FILE, json.dumps(dict(now, session_id=uuid.uuid4().hex,
+                                                  settings=settings), indent=2).encode())
     return False
 
 
 def load_started(session_dir: str | Path) -> dict[str, Any]:
     """``session.json`` of a session folder."""
-    p = Path(session_dir) / SESSION_FILE
-    if not p.is_file():
+    was = read_session_file(session_dir)
+    if was is None:
         raise InputError(f"{str(session_dir)!r} is not a session folder (no {SESSION_FILE})")
-    return json.loads(p.read_text())
+    return was
 
 
 def trial_state(session_dir: str | Path, trial: SessionTrial | dict) -> str:

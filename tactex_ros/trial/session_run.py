@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
+from ..core.errors import TrialError
 from . import session as sess
 
 
@@ -30,9 +31,10 @@ class Operator(Protocol):
     def tell(self, text: str) -> None:
         """Say what to place where."""
 
-    def wait(self) -> str | None:
-        """Wait for the confirmation: who confirmed ('auto', 'service'), None when the
-        deadline passed first. TrialError when the process stops meanwhile."""
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for the confirmation: (how: 'enter', 'yes_flag', 'service', 'auto_confirm';
+        by whom, '' when unknown), None when the deadline passed first. TrialError when the
+        process stops meanwhile."""
 
     def place(self, trial: sess.SessionTrial) -> None:
         """Put the trial's fabrics in place where a machine can (simulation); else nothing."""
@@ -85,13 +87,14 @@ class SessionRun:
                                   "time": time.time()})
         try:
             operator.tell(text)
-            by = operator.wait()
+            got = operator.wait()
         finally:
             self.awaiting = None
-        if by is None:
+        if got is None:
             return False
+        by, caller = got
         sess.add_event(self.dir, {"event": "confirmed", "trial": trial.id, "by": by,
-                                  "time": time.time()})
+                                  "caller": caller or None, "time": time.time()})
         return True
 
     def run(self, operator: Operator,
@@ -140,8 +143,11 @@ class SessionRun:
             if stopping():
                 return 0
             self.log(logging.ERROR, f"session failed: {type(exc).__name__}: {exc}")
-            sess.add_event(d, {"event": "session_ended", "reason": f"{type(exc).__name__}: {exc}",
-                               "time": time.time()})
+            try:
+                sess.add_event(d, {"event": "session_ended",
+                                   "reason": f"{type(exc).__name__}: {exc}", "time": time.time()})
+            except TrialError as why:   # a full disk may refuse the event too
+                self.log(logging.ERROR, f"session end not recorded: {why}")
             return 1
         finally:
             if not stopping():

@@ -75,12 +75,13 @@ def listener(domain_id):
 
 
 def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
-               answer_s: float = 2.0, client=None):
+               answer_s: float = 2.0, client=None, run_id: str = ""):
     """Send a Press goal to ``/tactex/press`` and return its result (``None``: rejected).
 
     Through ``tactex_ros.ros.goal.GoalRequest``, as the explorer does: a goal whose response
     is lost (right after discovery) is re-sent after ``answer_s`` and the first one followed by
-    its goal id. ``client``: an ActionClient to use (default: a new one on the listener).
+    its goal id. ``client``: an ActionClient to use (default: a new one on the listener);
+    ``run_id``: the graph identity the goal carries (an explorer's).
     Fails the test at ``timeout`` seconds.
     """
     import time
@@ -95,7 +96,8 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
     if not ac.wait_for_server(timeout_sec=30.0):
         pytest.fail("no /tactex/press server within 30 s")
     end = time.monotonic() + timeout
-    req = GoalRequest(ac, Press.Goal(platform_id=platform_id), answer_s=answer_s)
+    req = GoalRequest(ac, Press.Goal(platform_id=platform_id, run_id=run_id),
+                      answer_s=answer_s)
     while not req.finished() and time.monotonic() < end:
         time.sleep(0.02)
     if not req.answered():
@@ -113,3 +115,11 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
 def press(listener):
     """``press(platform_id, timeout=90.0)``: :func:`press_goal` through the test's listener."""
     return lambda platform_id, timeout=90.0: press_goal(listener, platform_id, timeout)
+
+
+@pytest.fixture
+def press_as(listener):
+    """``press_as(platform_id, run_id, timeout=90.0)``: :func:`press_goal` carrying an
+    explorer's ``run_id`` (its graph identity)."""
+    return lambda platform_id, run_id, timeout=90.0: press_goal(listener, platform_id, timeout,
+                                                                run_id=run_id)

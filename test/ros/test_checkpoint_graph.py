@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from tactex_ros.core.errors import InputError
 from tactex_ros.trial.record import read_checkpoint, read_record
 from tactex_ros.ros.launcher import ros_env
 
@@ -38,6 +39,15 @@ def _decisions(d: Path) -> int:
         return 0
 
 
+def _checkpoint_round(rec: Path) -> int:
+    """Round of the record's checkpoint (0: none yet, or being replaced)."""
+    try:
+        got = read_checkpoint(rec)
+    except InputError:
+        return 0
+    return int(got[0]["round"]) if got else 0
+
+
 def test_resume_restores_the_learner_checkpoint(tmp_path: Path, domain_id: int) -> None:
     rec = tmp_path / "rec" / "t"
     first = subprocess.Popen(_cmd(domain_id, [
@@ -45,9 +55,12 @@ def test_resume_restores_the_learner_checkpoint(tmp_path: Path, domain_id: int) 
         str(rec.parent), "--trial-id", "t", "--log-dir", str(tmp_path / "l1")]),
         env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 400
-    while _decisions(rec) < 2 and first.poll() is None and time.monotonic() < end:
+    # the checkpoint is written just after its round's decision: wait for it, not only for
+    # the decision (a loaded machine stopped it between the two, one round behind)
+    while (_decisions(rec) < 2 or _checkpoint_round(rec) < 2) and first.poll() is None \
+            and time.monotonic() < end:
         time.sleep(0.2)
-    assert _decisions(rec) >= 2, first.communicate(timeout=60)
+    assert _checkpoint_round(rec) >= 2, first.communicate(timeout=60)
     first.send_signal(signal.SIGINT)
     first.communicate(timeout=120)
     assert first.returncode != 0 and not (rec / "result.json").exists()

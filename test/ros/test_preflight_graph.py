@@ -187,25 +187,34 @@ def test_gelsight_refuses_a_start_in_contact(octopi_press, tmp_path: Path, liste
             assert _active(listener, "gelsight", 60.0)
 
 
-def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[int, str]:
-    """Run `tactex robot check-wrench` (sim profile, +1) against a wrench published at 200 Hz
-    by the test's node: 0.4 N until the command prompts, then ``push_fz`` (None: no push)."""
-    topic = "/check_wrench_test/wrench"
-    pub = listener.node.create_publisher(WrenchStamped, topic, 10)
+def _check_wrench(listener, push_fz: float | None, extra: list[str], robot: str = "sim",
+                  topic: str = "/check_wrench_test/wrench",
+                  rate_hz: float = 200.0) -> tuple[int, str]:
+    """Run `tactex robot check-wrench --robot <robot>` against a wrench the test's node
+    publishes on ``topic`` with the profile's wrench QoS (its upstream publisher's: franka's
+    QoS(1).best_effort()) at ``rate_hz``: 0.4 N until the command prompts, then ``push_fz``
+    (None: no push). A topic other than the profile's is passed with --topic."""
+    from tactex_ros.robot.robots import load_profile
+    from tactex_ros.ros.adapter import qos_profile
+    prof = load_profile(robot)
+    pub = listener.node.create_publisher(WrenchStamped, topic, qos_profile(prof.wrench_qos))
     value = [0.4]
     stop = threading.Event()
 
     def publish() -> None:
+        period, due = 1.0 / rate_hz, time.monotonic()
         while not stop.is_set():
             m = WrenchStamped()
             m.wrench.force.z = value[0]
             pub.publish(m)
-            time.sleep(0.005)
+            due += period
+            time.sleep(max(0.0, due - time.monotonic()))
     th = threading.Thread(target=publish, daemon=True)
     th.start()
+    where = [] if topic == prof.wrench_topic else ["--topic", topic]
     cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
-           "sys.exit(main())", "robot", "check-wrench", "--robot",
-           "sim", "--topic", topic, "--baseline-s", "1.0", "--deadline-s", "8.0"] + extra
+           "sys.exit(main())", "robot", "check-wrench", "--robot", robot, *where,
+           "--baseline-s", "1.0", "--deadline-s", "8.0"] + extra
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(listener.domain_id))
     seen = []
@@ -223,7 +232,26 @@ def _check_wrench(listener, push_fz: float | None, extra: list[str]) -> tuple[in
         th.join(timeout=2.0)
         if proc.poll() is None:
             proc.kill()
+        listener.node.destroy_publisher(pub)
     return proc.returncode, out
+
+
+def test_check_wrench_reads_frankas_wrench(listener) -> None:
+    """The FR3 profile's wrench topic as franka_robot_state_broadcaster publishes it: best
+    effort, keep last 1, 1 kHz (franka_ros2 v3.4.0 franka_robot_state_broadcaster.cpp:125,
+    140-142; convenience_publish_rate 1000). A reliable reader would get nothing (issue 28);
+    libfranka's counterforce reads an upward push as -z: force_sign -1 confirmed."""
+    import json
+
+    from tactex_ros.robot.robots import load_profile
+    prof = load_profile("fr3_crisp")
+    code, out = _check_wrench(listener, -7.6, [], robot="fr3_crisp", topic=prof.wrench_topic,
+                              rate_hz=1000.0)
+    res = json.loads(out)
+    assert code == 0, out
+    assert res["measured_force_sign"] == -1 and res["profile_force_sign"] == -1
+    assert res["push_delta_fz_n"] == pytest.approx(-8.0, abs=0.01)
+    assert res["samples"][0] >= 100          # the hands-off second, even at a fraction of 1 kHz
 
 
 def test_check_wrench_reports_the_sign(listener) -> None:
@@ -239,3 +267,44 @@ def test_check_wrench_reports_the_sign(listener) -> None:
     assert code == 0
     code, out = _check_wrench(listener, None, [])            # nobody pushed
     assert code == 1 and json.loads(out)["measured_force_sign"] == 0
+
+
+@pytest.mark.parametrize("rate_hz,ok", [(200.0, True), (30.0, False)])
+def test_panda_state_rate_through_the_probe(listener, rate_hz: float, ok: bool) -> None:
+    """The pre-flight's sampling of the Panda profile's state topic, read with the profile's
+    QoS, against a stand-in publishing with multipanda's QoS (SystemDefaultsQoS,
+    franka_robot_state_broadcaster.cpp:45-46) at the bring-up's effective rate (frequency 250
+    at a 1 kHz update: 200 Hz) and at multipanda's default 30 Hz. franka_msgs is not
+    installable here, so the stand-in publishes std_msgs/Header on that topic: the rate and
+    QoS are what is tested, not the message."""
+    from rclpy.qos import QoSProfile
+    from std_msgs.msg import Header
+
+    from tactex_ros.robot import preflight as pf
+    from tactex_ros.robot.robots import load_profile
+    from tactex_ros.ros.adapter import qos_profile
+    from tactex_ros.ros.preflight import Probe
+    prof = load_profile("panda_crisp")
+    pub = listener.node.create_publisher(Header, prof.state_topic, QoSProfile(depth=10))
+    stop = threading.Event()
+
+    def publish() -> None:
+        period, due = 1.0 / rate_hz, time.monotonic()
+        while not stop.is_set():
+            pub.publish(Header())
+            due += period
+            time.sleep(max(0.0, due - time.monotonic()))
+    th = threading.Thread(target=publish, daemon=True)
+    th.start()
+    probe = Probe(listener.ctx, "test_panda_probe")
+    try:
+        stamps, last = probe.sample(Header, prof.state_topic, qos_profile(prof.state_qos), 1.0,
+                                    30.0)
+    finally:
+        probe.close()
+        stop.set()
+        th.join(timeout=2.0)
+        listener.node.destroy_publisher(pub)
+    assert last is not None
+    problem = pf.state_problem(stamps, prof.min_state_rate_hz, 1.0, prof.state_topic)
+    assert (problem is None) == ok, (pf.rate_hz(stamps), problem)

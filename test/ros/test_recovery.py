@@ -47,13 +47,15 @@ def _graph(tmp_path: Path, kind: str, recovery: dict):
     return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
 
 
-@pytest.mark.parametrize("kind,rtype,ok_field", [
-    ("action", "tactex/action/Press", ""),
-    ("service", "std_srvs/srv/Trigger", "success"),
+@pytest.mark.parametrize("kind,rtype,ok_field,hold", [
+    ("action", "tactex/action/Press", "", False),
+    ("service", "std_srvs/srv/Trigger", "success", False),
+    ("service", "std_srvs/srv/Trigger", "success", True),     # the Panda's hold target first
 ])
 def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, press, kind, rtype,
-                                             ok_field) -> None:
-    rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL]}
+                                             ok_field, hold) -> None:
+    rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL],
+           "hold_target": hold}
     if ok_field:
         rec["ok_field"] = ok_field
     with Graph(_graph(tmp_path, kind, rec), tmp_path / "logs", listener.domain_id):
@@ -76,3 +78,18 @@ def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
     assert "robot stopped" in res.reason
     assert "not retried: recovery failed" in res.reason
     assert "/tactex_test/activate_controller" in res.reason
+
+
+def test_calls_before_the_recovery_come_first(tmp_path: Path, listener, press) -> None:
+    """The profile's `before` calls (franka_ros2 on Humble: deactivate the controllers) are
+    made before the recovery itself, and one that fails ends the goal with its service named:
+    here a service nobody offers, while the recovery action would have succeeded."""
+    missing = {"service": "/tactex_test/deactivate_first", "type": "std_srvs/srv/SetBool",
+               "request": {"data": False}, "ok_field": "success"}
+    rec = {"kind": "action", "name": "/tactex_test/error_recovery",
+           "type": "tactex/action/Press", "before": [missing], "then": [HW, CTL]}
+    with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
+        res = press("c1")
+    assert not res.success and 1 <= res.attempts <= 2
+    assert "not retried: recovery failed" in res.reason
+    assert "/tactex_test/deactivate_first not available" in res.reason

@@ -69,7 +69,8 @@ def test_scripted_session_runs_every_trial_with_its_truth(session_run) -> None:
     assert (d / "report.html").is_file()
     ev = sess.events(d)
     assert [e["trial"] for e in ev if e["event"] == "confirmed"] == ["1", "2"]
-    assert all(e["by"] == "service" for e in ev if e["event"] == "confirmed")
+    assert all(e["by"] == "yes_flag" and e["caller"].startswith("tactex graph run")
+               for e in ev if e["event"] == "confirmed")
     # progress: one line per press and per decision of every trial
     n_touch = sum(len(read_record(d / t.record_name, images=False)["touches"]) for t in trials)
     n_dec = sum(len(read_record(d / t.record_name, images=False)["decisions"]) for t in trials)

@@ -62,9 +62,31 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     assert all(t["array"].shape == (240, 320, 3) for t in accepted)
     # the impedance press holds the force measured at the threshold (dynamics: a few %)
     assert all(t["force_n"] >= 0.9 * scene.press.force_threshold for t in accepted)
+    # the surface found is in the record: the mock's surfaces are where the scene says
+    assert all(abs(t["surface"]["error_m"]) < 0.001 and not t["surface"]["warning"]
+               for t in accepted)
     assert rec["result"]["prediction"] == truth
     assert len(rec["decisions"]) == 3
     assert json.loads((run.record / "config.json").read_text())["trial"]["rounds"] == 2
+    # the MCAP beside it carries standard messages any viewer shows: one sensor_msgs/Image
+    # per accepted touch (pixels of its PNG, the camera's frame), its press force and the
+    # belief per decision; read with mcap's ROS 2 decoder, no ROS needed
+    from mcap_ros2.reader import read_ros2_messages
+    from tactex_ros.ros.bag import BELIEF_VIEW, TOUCH_IMAGE_VIEW, WRENCH_VIEW
+    msgs = list(read_ros2_messages(str(run.record / "topics.mcap")))
+    images = [m.ros_msg for m in msgs if m.channel.topic == TOUCH_IMAGE_VIEW]
+    assert {m.schema.name for m in msgs if m.channel.topic == TOUCH_IMAGE_VIEW} == \
+        {"sensor_msgs/msg/Image"}
+    assert len(images) == len(accepted)
+    for im, t in zip(images, accepted):
+        assert (im.encoding, im.height, im.width) == ("rgb8", 240, 320)
+        assert im.header.frame_id == "gelsight_optical_frame"
+        assert np.array_equal(np.frombuffer(bytes(im.data), np.uint8).reshape(240, 320, 3),
+                              t["array"])
+    forces = [m.ros_msg.wrench.force.z for m in msgs if m.channel.topic == WRENCH_VIEW]
+    assert forces == pytest.approx([t["force_n"] for t in accepted])
+    belief = [m.ros_msg.data for m in msgs if m.channel.topic == BELIEF_VIEW + truth]
+    assert belief == pytest.approx([s.belief[int(truth[1:]) - 1] for s in states], abs=1e-6)
 
 
 def test_press_faults(tmp_path: Path, listener, press) -> None:

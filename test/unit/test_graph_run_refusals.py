@@ -76,7 +76,11 @@ def _reused_trial_id(root: Path) -> tuple[list[str], str]:
     return ["--record-dir", str(root / "rec"), "--trial-id", "t"], "already exists"
 
 
-@pytest.mark.parametrize("case", [_missing_png, _empty_touches, _finished, _not_a_record,
+def _unknown_sensor(root: Path) -> tuple[list[str], str]:
+    return ["--sensor", "nope"], "'nope'"                 # validated in simulation too
+
+
+@pytest.mark.parametrize("case", [_unknown_sensor, _missing_png, _empty_touches, _finished, _not_a_record,
                                   _no_scene,
                                   _record_dir_under_a_file, _trial_id_with_a_path,
                                   _reused_trial_id])

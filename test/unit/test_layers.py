@@ -87,6 +87,8 @@ ALLOWED = {
     "paths": {"core", "paths"},
     "trial": {"core", "paths", "trial"},
     "ros": {"core", "robot", "sim", "sources", "paths", "trial", "ros"},
+    "export": {"core", "robot", "sources", "trial", "export"},   # tactex export (open data)
+    "env": {"core", "sources", "env"},          # the benchmark environment (Gymnasium)
 }
 PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
 

@@ -21,7 +21,8 @@ MODULES = ["tactex_ros.core.engine", "tactex_ros.ros.nodes.explorer_node",
            "tactex_ros.ros.nodes.motion_node", "tactex_ros.ros.nodes.mock_arm_node",
            "tactex_ros.ros.nodes.gelsight_node", "tactex_ros.ros.nodes.mock_image_node",
            "tactex_ros.ros.graph", "tactex_ros.robot.robots", "tactex_ros.ros.settings",
-           "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.scene",
+           "tactex_ros.ros.adapter", "tactex_ros.robot.press", "tactex_ros.robot.mock_world",
+           "tactex_ros.robot.scene",
            "tactex_ros.robot.frames", "tactex_ros.robot.sensors"]
 
 

@@ -81,6 +81,8 @@ class ExplorerNode(TactexNode):
             self._spec(s.seed).engine()   # settings refused here
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
+        import uuid
+        self.run_id = s.run_id or uuid.uuid4().hex      # this graph's identity on every goal
         self.press = ActionClient(self, Press, s.press_action)
         latched = adapter.latched_qos()     # late joiners (rviz, foxglove) get the last one
         self.state_pub = self.create_lifecycle_publisher(ExplorationState, s.state_topic,
@@ -122,12 +124,16 @@ class ExplorerNode(TactexNode):
         truth)."""
         s = self.settings
         inputs = s.record_inputs(seed)
+        from ...trial.report import changed_settings, run_info
+        base = type(s)(config=s.config).model_dump(exclude={"learner", "trial"})
+        inputs["run"] = dict(run_info(), non_default=changed_settings(inputs["explorer"], base,
+                                                                      "explorer."))
         if extra:
             inputs.update(extra)
         self.trial = TrialRun(self._spec(seed), record_dir, trial_id, press=self._press,
                               inputs=inputs, resume=resume, scene_file=s.scene_file,
                               placed_scene=placed_scene, check_record=self._check_scene,
-                              log=self._log)
+                              log=self._log, min_free_mb=s.min_free_mb)
         self.trial_id = self.trial.trial_id
         self.bag = self._open_bag()
         self.last_state = None
@@ -159,11 +165,17 @@ class ExplorerNode(TactexNode):
         if self.bag is None:         # a session between trials: no trial record open
             return
         try:
-            self.bag.write(topic, msg, self.get_clock().now().nanoseconds)
+            self.bag.write_all(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
             if not getattr(self, "_bag_warned", False):
                 self._bag_warned = True
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
+                try:
+                    from ...trial.record import append_event
+                    append_event(self.record.dir, {"event": "mcap_failed", "reason": str(exc),
+                                                   "time": time.time()})
+                except TrialError:
+                    pass           # the disk is full: the next touch ends the trial
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -210,6 +222,9 @@ class ExplorerNode(TactexNode):
                         "stop reason": res.get("stop_reason", ""),
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
+        if self.result is None and not self.press.server_is_ready():
+            msg = "starting: waiting for the press server (motion node)"
+            values["state"] = "starting"
         if self.session is not None:
             done, n = self.session.done(), len(self.session.session.trials)
             values.update(session=self.session.session.name, **{"trials done": done,
@@ -308,13 +323,14 @@ class ExplorerNode(TactexNode):
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
         # followed by its id when it runs (ros/goal.py): a lost response costs no touch
-        req = GoalRequest(self.press, Press.Goal(platform_id=pid),
+        req = GoalRequest(self.press, Press.Goal(platform_id=pid, run_id=self.run_id),
                           answer_s=self.settings.goal_answer_s,
                           feedback_callback=self._on_feedback)
         if not self._wait(req.answered, deadline, watch=True):
             self._failed(meta, "press goal not answered before the deadline")
         if req.refused:
-            self._failed(meta, "press goal rejected by the motion node")
+            self._failed(meta, "press goal rejected by the motion node (busy, inactive, or "
+                               f"serving another run than {self.run_id}: its log names which)")
         if not self._wait(req.finished, deadline, watch=True, on_stall=req.ask_again):
             req.cancel()
             self._failed(meta, f"press not finished within press_timeout_s "
@@ -324,15 +340,23 @@ class ExplorerNode(TactexNode):
             self.get_logger().warning(f"press goal for {pid} re-sent {req.resent} time(s): "
                                       "its answer was lost")
         if req.result.status == GoalStatus.STATUS_UNKNOWN:
-            self._failed(meta, "press goal lost: the motion node never took it")
+            self._failed(meta, "press goal lost: the motion node never took it"
+                         + (f" (the explorer was stopped for {req.stalled_s:.1f} s while it "
+                            "waited)" if req.stalled_s else ""))
+        if req.stalled_s:
+            meta["explorer_stalled_s"] = round(req.stalled_s, 3)
         res = req.result.result
         if not res.success:
             self._failed(meta, res.reason or "press failed", res.attempts)
         touch = res.touch
+        if res.reason:        # attempts that failed before this one (motion node)
+            meta["attempt_failures"] = res.reason
         meta.update(attempts=int(res.attempts), force_n=touch.contact_force_n,
                     depth_m=touch.depth_m, stamp=adapter.seconds(touch.header.stamp),
                     tare={"offset_n": touch.tare_offset_n, "spread_n": touch.tare_spread_n,
                           "samples": int(touch.tare_samples)},
+                    surface={"z_m": touch.surface_z, "error_m": touch.surface_error_m,
+                             "warning": touch.warning},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
@@ -371,7 +395,7 @@ class ExplorerNode(TactexNode):
             self.result = self.trial.fail(exc)
             self.exit_code = 1
         finally:
-            self.bag.close()
+            self.bag.close()              # never raises (ros/bag.py)
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
 
@@ -409,37 +433,50 @@ class ExplorerNode(TactexNode):
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
             log=self._log)
         self.session_dir = d
+        from tactex.srv import Confirm
         self._confirmed = threading.Event()
+        self._confirmed_by: tuple[str, str] = ("", "")
         self.confirm_srv = self.create_service(Trigger, "~/confirm",
                                                lambda req, res: self._on_confirm(res))
+        self.confirm_by_srv = self.create_service(
+            Confirm, "~/confirm_by",
+            lambda req, res: self._on_confirm(res, req.by or "service", req.caller))
         self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
         self.placement_client = (self.create_client(SetParameters, s.placement_service)
                                  if s.placement_service else None)
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
                                f"folder {d}{' (resumed)' if self.session.resumed else ''}")
 
-    def _on_confirm(self, res: Any) -> Any:
-        """``~/confirm``: the operator has placed the fabrics of the trial being prompted."""
-        if self._awaiting is None:
+    def _on_confirm(self, res: Any, by: str = "service", caller: str = "") -> Any:
+        """``~/confirm`` (``std_srvs/Trigger``: recorded as by ``service``) / ``~/confirm_by``
+        (``tactex/srv/Confirm``: how and by whom, e.g. ``enter`` or ``yes_flag``): the operator
+        has placed the fabrics of the trial being prompted."""
+        if self._awaiting is None or self._confirmed.is_set():
             res.success, res.message = False, "nothing to confirm: no placement is awaited now"
             return res
         res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
+        self._confirmed_by = (by, caller)
         self._confirmed.set()
         return res
 
     # the session's operator (``session_run.Operator``): the confirm service, the prompt topic
     def expect(self, trial_id: str) -> None:
         self._confirmed.clear()
+        self._confirmed_by = ("", "")
         self._awaiting = trial_id
 
     def tell(self, text: str) -> None:
         from std_msgs.msg import String
         self.prompt_pub.publish(String(data=text))
         if self.settings.auto_confirm:
+            self._confirmed_by = ("auto_confirm", "the explorer's auto_confirm parameter")
             self._confirmed.set()
 
-    def wait(self) -> str | None:
-        """Wait for ``~/confirm`` up to ``confirm_timeout_s``; TrialError when stopping."""
+    def wait(self) -> tuple[str, str] | None:
+        """Wait for a confirmation up to ``confirm_timeout_s``: (how, by whom); the
+        confirmation is published on the prompt topic, so every place that shows the prompt
+        shows it. TrialError when stopping."""
+        from std_msgs.msg import String
         deadline = time.monotonic() + self.settings.confirm_timeout_s
         try:
             while not self._confirmed.wait(timeout=0.1):
@@ -447,9 +484,14 @@ class ExplorerNode(TactexNode):
                     raise TrialError("the explorer is stopping")
                 if time.monotonic() > deadline:
                     return None
+            trial = self._awaiting
         finally:
             self._awaiting = None
-        return "auto" if self.settings.auto_confirm else "service"
+        by, caller = self._confirmed_by
+        said = f"trial {trial}: placement confirmed by {by}" + (f" ({caller})" if caller else "")
+        self.get_logger().info(said)
+        self.prompt_pub.publish(String(data=said))
+        return by, caller
 
     def place(self, trial: sess.SessionTrial) -> None:
         """Simulation: set the mock camera's ``placement`` (SetParameters), within

@@ -11,25 +11,33 @@ control cycle at the profile's ``rate_hz``) on an apparent mass against platform
 K (x_eq - x), not as a position follower. Like CRISP, it ignores targets while more publishers
 than the profile's ``target.max_publishers`` are on the target topic.
 
-Fault injection for tests: ``surface_offset`` (platforms lower or higher than the scene says);
-``reflex_force``: above that contact force the arm stops and the state stops (the hardware
+The world's faults (``robot.mock_world.Faults``, docs/simulated_world.md), one parameter each:
+``surface_offset`` (platforms lower or higher than the scene says), ``platform_stiffness``,
+the wrench estimate's ``wrench_offset_*``, ``offset_gradient``, ``wrench_drift_*`` and
+``wrench_noise``, the ``static_force_*`` of a payload or cable, ``coulomb_friction`` and
+``viscous_friction`` (``world_seed`` draws the noise); the controller's ``max_stiffness``
+clamp, ``state_filter`` and ``output_filter`` (CRISP 2.3.x) and ``activation_jump_*`` (the
+transient after each activation). The published wrench is what the robot would report:
+``wrench_sign`` x (contact + static force + bias + noise). Robot errors: ``reflex_force``:
+above that contact force the arm stops and the state stops (the hardware
 component and its controllers are down, as after a franka reflex) until a stand-in recovery
 (``recovery_standin``: an action or a service) clears the error and the stand-in re-activation
 services bring hardware, then controllers, back -- in that order, as franka_ros2 requires.
+
+/diagnostics ``mock_arm: arm``: the simulated state's publish rate, hardware and controller
+active, reflexes injected, targets ignored; ERROR while an injected reflex is not recovered (the
+stand-in of a robot fault), WARN while targets are ignored (too many publishers).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from geometry_msgs.msg import PoseStamped, Vector3, WrenchStamped
-from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Header
 
 from .. import adapter
 from ...core.errors import InputError
-from ...robot.press import ArmModel, ControlLaw
+from ...robot.mock_world import ArmModel, ControlLaw, Faults
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile
 from ...robot.scene import load_scene
@@ -50,23 +58,17 @@ class MockArmNode(TactexNode):
             raise InputError(f"robot profile {prof.name!r}: the mock arm publishes "
                              "PoseStamped + WrenchStamped state only")
         scene = load_scene(s.scene_file)
-        if s.surface_offset:
-            scene = replace(scene, platforms=tuple(
-                p.replace(position=(p.position[0], p.position[1],
-                                    p.position[2] + s.surface_offset))
-                for p in scene.platforms))
         self.scene = scene
         self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
-                            mock_law(prof.law, s), mass=s.mass,
-                            platform_stiffness=s.platform_stiffness,
-                            platform_damping=s.platform_damping)
+                            mock_law(prof.law, s), mass=s.mass, faults=mock_faults(s))
         self.max_publishers = prof.max_publishers
         self.sign = s.wrench_sign or prof.force_sign
         self.quat = np.array(scene.tool_orientation)
         self.pose_pub = self.create_lifecycle_publisher(
-            PoseStamped, s.pose_topic or prof.pose_topic, qos_profile_sensor_data)
+            PoseStamped, s.pose_topic or prof.pose_topic, adapter.qos_profile(prof.pose_qos))
         self.wrench_pub = self.create_lifecycle_publisher(
-            WrenchStamped, s.wrench_topic or prof.wrench_topic, qos_profile_sensor_data)
+            WrenchStamped, s.wrench_topic or prof.wrench_topic,
+            adapter.qos_profile(prof.wrench_qos))
         self.target_topic = s.target_topic or prof.target_topic
         # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
         self.create_subscription(import_interface(prof.target_type), self.target_topic,
@@ -78,6 +80,12 @@ class MockArmNode(TactexNode):
         self.reflexes = 0
         if s.recovery_standin != "none":
             self._serve_standins(s)
+        from ..diagnostics import Diagnostics, RateMeter
+        self.state_meter = RateMeter()
+        self._ignored_seen = (0, 0.0)     # (ignored targets, when that count was read)
+        self.diag = Diagnostics(self, s.diag_period_s)
+        self.diag.add("arm", f"mock arm, robot profile {prof.name} ({scene.frame_id})",
+                      self._health)
 
     def activate(self) -> None:
         self._last = self.get_clock().now().nanoseconds * 1e-9
@@ -120,6 +128,29 @@ class MockArmNode(TactexNode):
         self.create_service(SetBool, s.hardware_service, hardware)
         self.create_service(SetBool, s.controller_service, controller)
 
+    def _health(self) -> tuple[int, str, dict]:
+        from ..diagnostics import ERROR, OK, WARN
+        import time
+        rate = self.state_meter.rate()
+        ignored, _ = self._ignored_seen
+        newly = self.ignored_targets - ignored
+        self._ignored_seen = (self.ignored_targets, time.monotonic())
+        values = {"state rate [Hz]": rate, "nominal rate [Hz]": self.settings.rate_hz,
+                  "hardware active": self.hardware_active,
+                  "controller active": self.controller_active,
+                  "reflexes injected": self.reflexes, "targets ignored": self.ignored_targets,
+                  "contact force [N]": float(self.arm.normal_force()),
+                  "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position)}
+        if self.error or not self.controller_active:
+            return ERROR, ("reflex (injected): arm stopped, no state until recovered"
+                           if self.error else "controller inactive: no state"), values
+        if not self.active:
+            return OK, "configured, not active yet: no state published", values
+        if newly:
+            return WARN, (f"{newly} target(s) ignored since the last status: more than "
+                          f"{self.max_publishers} publisher(s) on {self.target_topic}"), values
+        return OK, f"simulating, state at {rate:.0f} Hz", values
+
     # ------------------------------------------------------------------ loop
     def _on_target(self, msg) -> None:
         if not self.controller_active:
@@ -148,24 +179,47 @@ class MockArmNode(TactexNode):
             self.reflexes += 1
         if not self.controller_active:
             return     # the state broadcaster is down with the hardware component
+        self.state_meter.tick()
         self.pose_pub.publish(adapter.array_to_pose(self.arm.position, self.quat, now,
                                                     self.scene.frame_id))
         w = WrenchStamped(header=Header(stamp=adapter.stamp(now), frame_id=self.scene.frame_id))
-        w.wrench.force = Vector3(x=0.0, y=0.0, z=float(self.sign * self.arm.normal_force()))
+        fx, fy, fz = (float(v) for v in self.sign * self.arm.wrench())
+        w.wrench.force = Vector3(x=fx, y=fy, z=fz)
         self.wrench_pub.publish(w)
 
 
 def mock_law(law: ControlLaw, s: MockArmSettings) -> ControlLaw:
     """The profile's control law with the mock's overrides (stiffness, damping, target filter;
-    a value < 0 or 0 keeps the profile's)."""
-    kw: dict[str, float] = {}
+    a value < 0 or 0 keeps the profile's) and the controller's behaviour the settings add
+    (stiffness clamp, state and output filters, activation transient; 0 = the profile's)."""
+    kw: dict = {}
     if s.stiffness:
         kw["stiffness"] = s.stiffness
     if s.damping >= 0:
         kw["damping"] = s.damping
     if s.target_filter >= 0:
         kw["target_filter"] = s.target_filter
+    if s.max_stiffness:
+        kw["max_stiffness"] = s.max_stiffness
+    for name in ("state_filter", "output_filter", "activation_jump_s"):
+        if getattr(s, name):
+            kw[name] = getattr(s, name)
+    jump = (s.activation_jump_x, s.activation_jump_y, s.activation_jump_z)
+    if any(jump):
+        kw["activation_jump"] = jump
     return law.replace(**kw) if kw else law
+
+
+def mock_faults(s: MockArmSettings) -> Faults:
+    """The simulated world's faults from the mock's settings."""
+    def vec(name: str) -> tuple[float, float, float]:
+        return tuple(float(getattr(s, f"{name}_{a}")) for a in "xyz")
+    return Faults(wrench_offset=vec("wrench_offset"), offset_gradient=s.offset_gradient,
+                  wrench_drift=vec("wrench_drift"), wrench_noise=s.wrench_noise,
+                  static_force=vec("static_force"), coulomb_friction=s.coulomb_friction,
+                  viscous_friction=s.viscous_friction, surface_offset=s.surface_offset,
+                  platform_stiffness=s.platform_stiffness,
+                  platform_damping=s.platform_damping, seed=s.world_seed)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -11,6 +11,9 @@ scene's ``sim_fabric``; it may be set while the node runs (``ros2 param set``, o
 study session before each trial through the standard SetParameters service). A new placement
 restarts the press numbering, so a session's trial sees the same rendered presses as the same
 trial run alone with the same seed. An unknown fabric or platform is refused with the reason.
+Preparing a new placement takes seconds (each fabric's height tile): it runs in a helper thread
+while the parameter callback keeps publishing frames and /diagnostics, and the camera's status
+is meanwhile in the named state "placement change" (WARN, ERROR only past ``diag_pause_s``).
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from sensor_msgs.msg import Image
 
 from .. import adapter
 from ...robot.frames import FrameRing
-from ...robot.press import platform_under
+from ...robot.mock_world import platform_under
 from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
@@ -126,7 +129,7 @@ class MockImageNode(TactexNode):
                 continue
             try:
                 fabrics = self._placed(str(p.value))
-                self._prepare(fabrics)
+                self._prepare_live(fabrics)
             except InputError as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
             with self.lock:
@@ -136,6 +139,37 @@ class MockImageNode(TactexNode):
             self.get_logger().info("placement: " + ", ".join(
                 f"{q.id}={f}" for q, f in zip(self.scene.ordered, fabrics)))
         return SetParametersResult(successful=True)
+
+    def _prepare_live(self, fabrics: list[str]) -> None:
+        """``_prepare`` in a helper thread while this thread (the executor's, blocked in the
+        parameter callback) keeps the frames and /diagnostics going; the camera's status says
+        "placement change" meanwhile (``diag_pause_s``)."""
+        import time
+        s = self.settings
+        failed: list[BaseException] = []
+
+        def work() -> None:
+            try:
+                self._prepare(fabrics)
+            except BaseException as exc:  # noqa: BLE001 - handed to the callback's thread
+                failed.append(exc)
+        self.health.phase.begin("placement change: preparing the fabrics' tiles",
+                                s.diag_pause_s)
+        worker = threading.Thread(target=work, name="placement", daemon=True)
+        worker.start()
+        next_diag = time.monotonic() + s.diag_period_s
+        try:
+            while worker.is_alive():
+                worker.join(1.0 / s.fps)
+                if self.active:
+                    self._tick()
+                if time.monotonic() >= next_diag:
+                    next_diag += s.diag_period_s
+                    self.diag.publish()
+        finally:
+            self.health.phase.end()
+        if failed:
+            raise failed[0]
 
     def activate(self) -> None:
         self.create_timer(1.0 / self.settings.fps, self._tick)

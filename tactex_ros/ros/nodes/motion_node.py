@@ -5,19 +5,24 @@ Serves the ``tactex/action/Press`` action (goal: platform id from the scene). Th
 equilibrium topic and type (PoseStamped, or multipanda_ros2's Float64MultiArray), the state
 (PoseStamped + WrenchStamped of franka_robot_state_broadcaster, or a franka state message), the
 controller stiffness, the wrench sign and the recovery interface. The press sequence is
-``robot.press.PressController``: approach, descend (the equilibrium goes below the surface until
-the force threshold), hold the force during settle and capture (GelSight capture service),
-retract. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
+``robot.press.PressController``: approach, descend (guarded: the equilibrium goes on past the
+scene's surface until the tared force finds it, then to the force threshold), hold the force by
+feedback during settle and capture (GelSight capture service), retract; where the surface was
+found, and a warning if it moved, go into the touch. Always enforced: workspace box, force magnitude limit, speed limit, a deadline for
 every phase. A failed attempt (no contact, no image, force limit) is retried up to
 ``press.retries`` times. A robot error (the state stops arriving during a press, or the franka
-state reports a reflex) ends the attempt at once; if fresh state does not come back by itself
-within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the profile's recovery
-(error recovery action or service, waits for its result, re-activates hardware and controllers
-by the profile's service calls, waits for fresh state) and retries, or ends the goal with the
-reason (also when recovery is off, e.g. franka_msgs is not installed).
+state reports a reflex or a user stop) ends the attempt at once; if fresh state does not come
+back by itself within ``state_timeout_s`` (a gap on a loaded machine does), the node runs the
+profile's recovery (a hold target where the controller stays active through it, the calls
+that must come first, e.g. deactivating controllers on Humble, the error recovery action or
+service and its result, then re-activation of hardware and controllers by the profile's
+service calls, then fresh state) and retries, or ends the goal with the reason (also when
+recovery is off, e.g. franka_msgs is not installed). Every state subscription asks for its
+upstream publisher's QoS (the profile's).
 
 Pre-flight (``preflight``, at the end of the configuration, before any target is published):
-the robot state arrives at ``min_state_rate_hz`` or faster, franka's ``robot_mode`` (where it is
+the robot state arrives at the profile's ``state.min_rate_hz`` (or ``min_state_rate_hz``) or
+faster, franka's ``robot_mode`` (where it is
 read) is move, and franka's collision thresholds are set to what the press needs through the
 profile's collision service (or the start is refused with the ``ros2 service call`` to run).
 Any failure refuses the configuration with the reason: exit status 2
@@ -26,6 +31,7 @@ Any failure refuses the configuration with the reason: exit status 2
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -33,7 +39,6 @@ import numpy as np
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
 from rclpy.subscription_content_filter_options import ContentFilterOptions
 
@@ -43,13 +48,12 @@ from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
 from ..preflight import Probe
 from ..settings import MotionSettings
-from ...robot.robots import fill_message, import_interface, load_profile
+from ...robot.robots import fill_message, hold_target, import_interface, load_profile
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode, in_thread, wait_for
 from .process import run
 
 
-MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 # only franka states not in move mode (libfranka RobotMode 2), where the middleware filters
 MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
                                    expression_parameters=["2"])
@@ -87,33 +91,35 @@ class MotionNode(TactexNode):
         self.robot_mode = 0
         self.busy = threading.Lock()
         self._setup_diagnostics()
+        # every state subscription asks for its upstream publisher's QoS (the profile's)
         if prof.franka_state:
             self.create_subscription(import_interface(prof.state_type),
                                      s.state_topic or prof.state_topic, self._on_state,
-                                     qos_profile_sensor_data)
+                                     adapter.qos_profile(prof.state_qos))
         else:
             self.create_subscription(PoseStamped, s.pose_topic or prof.pose_topic,
-                                     self._on_pose, qos_profile_sensor_data)
+                                     self._on_pose, adapter.qos_profile(prof.pose_qos))
             self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
-                                     self._on_wrench, qos_profile_sensor_data)
+                                     self._on_wrench, adapter.qos_profile(prof.wrench_qos))
         if prof.mode_topic:
             # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
             # franka_robot_state_broadcaster.cpp:149-150, reliable, depth 10) and only
             # robot_mode is wanted. Where the middleware filters content (Fast DDS), only
             # messages whose robot_mode is not move reach this process at all; otherwise they
-            # are taken raw (best effort, depth 1) and decoded at most mode_rate_hz times a
-            # second. A mode counts for MODE_HOLD_S after the last message.
+            # are taken raw and decoded at most mode_rate_hz times a second. A mode counts for
+            # MODE_HOLD_S after the last message.
             try:
                 self._mode_type = import_interface(prof.mode_type)
                 self._mode_next, self._mode_t, self.topic_mode = 0.0, float("-inf"), None
                 try:
                     sub = self.create_subscription(
                         self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
-                        MODE_QOS, raw=True, content_filter_options=MODE_FILTER)
+                        adapter.qos_profile(prof.mode_qos), raw=True,
+                        content_filter_options=MODE_FILTER)
                 except TypeError:           # an rclpy without content filters
                     sub = self.create_subscription(
                         self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
-                        MODE_QOS, raw=True)
+                        adapter.qos_profile(prof.mode_qos), raw=True)
                 cft = getattr(sub, "is_cft_enabled", False)   # a property or a method
                 self.get_logger().info(
                     "robot mode: " + ("only non-move states delivered (content filter)"
@@ -151,16 +157,24 @@ class MotionNode(TactexNode):
         probe = Probe(self.context, f"{self.get_name()}_preflight")
         try:
             if prof.franka_state:
-                topics = [(import_interface(prof.state_type), s.state_topic or prof.state_topic)]
+                topics = [(import_interface(prof.state_type), s.state_topic or prof.state_topic,
+                           prof.state_qos)]
             else:
-                topics = [(PoseStamped, s.pose_topic or prof.pose_topic),
-                          (WrenchStamped, s.wrench_topic or prof.wrench_topic)]
+                topics = [(PoseStamped, s.pose_topic or prof.pose_topic, prof.pose_qos),
+                          (WrenchStamped, s.wrench_topic or prof.wrench_topic, prof.wrench_qos)]
             mode = None
-            for mtype, topic in topics:
-                stamps, last = probe.sample(mtype, topic, qos_profile_sensor_data,
+            min_rate = s.min_state_rate_hz or prof.min_state_rate_hz
+            for mtype, topic, qos in topics:
+                stamps, last = probe.sample(mtype, topic, adapter.qos_profile(qos),
                                             s.preflight_window_s, s.preflight_deadline_s)
-                problem = checks.state_problem(stamps, s.min_state_rate_hz,
-                                               s.preflight_window_s, topic)
+                # one graph per arm, checked once the sampling gave discovery its time
+                problem = probe.other_graph(
+                    [("the arm's target", s.target_topic or prof.target_topic),
+                     ("the press action's status", f"{s.press_action}/_action/status")]
+                    + [("the robot state", t) for _, t, _ in topics])
+                if problem:
+                    raise InputError(f"pre-flight: {problem}")
+                problem = checks.state_problem(stamps, min_rate, s.preflight_window_s, topic)
                 if problem:
                     raise problem.error()       # silent robot: DeviceError (exit status 1)
                 self.get_logger().info(f"pre-flight: {topic} at "
@@ -189,7 +203,8 @@ class MotionNode(TactexNode):
             self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
             return None
         topic = s.mode_topic or prof.mode_topic
-        stamps, last = probe.sample(mtype, topic, 10, 0.0, s.preflight_deadline_s)
+        stamps, last = probe.sample(mtype, topic, adapter.qos_profile(prof.mode_qos), 0.0,
+                                    s.preflight_deadline_s)
         if last is None:
             raise InputError(str(checks.Problem(
                 "robot_mode", f"no message on {topic} within preflight_deadline_s "
@@ -227,33 +242,40 @@ class MotionNode(TactexNode):
                                f"({col.request_file})")
 
     def _setup_diagnostics(self) -> None:
-        """/diagnostics: the arm (robot mode, state rate and age, last press) and the camera
-        link this node's presses need (images arriving on ``diag_camera_topic``)."""
+        """/diagnostics: the arm (robot mode by name, state rate and age, last press) and the
+        camera link this node's presses need (images arriving on ``diag_camera_topic``). Until
+        the first robot state and the first image, each is in its start-up state (WARN, ERROR
+        only after ``diag_startup_s``)."""
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import Image
 
-        from ..diagnostics import Diagnostics, RateMeter, link_check
+        from ..diagnostics import Diagnostics, RateMeter, link_check, startup_phase
         s = self.settings
         self.state_meter, self.camera_meter = RateMeter(), RateMeter()
         self.last_press: dict = {}
         self.diag = Diagnostics(self, s.diag_period_s)
+        self.arm_startup = startup_phase("robot state", s.diag_startup_s)
         self.diag.add("arm", f"{self.profile.name} ({self.profile.frame_id})", self._arm_health)
         if s.diag_camera_topic:
             # raw: only the arrival counts, the image is never deserialised here
             self.create_subscription(Image, s.diag_camera_topic,
                                      lambda _m: self.camera_meter.tick(),
                                      qos_profile_sensor_data, raw=True)
+            cam_startup = startup_phase("camera image", s.diag_startup_s)
             self.diag.add("camera link", s.diag_camera_topic,
                           lambda: link_check(self.camera_meter, "camera image",
-                                             s.diag_camera_warn_s, s.diag_camera_error_s))
+                                             s.diag_camera_warn_s, s.diag_camera_error_s,
+                                             phase=cam_startup))
 
     def _arm_health(self) -> tuple[int, str, dict]:
-        from ..diagnostics import ERROR, OK, WARN, grade, summary
+        from ..diagnostics import ERROR, OK, WARN, grade, robot_mode_name, summary
         s, now = self.settings, time.monotonic()
         age = None if self.pose_t < 0 else now - max(self.pose_t, 0.0)
         rate = self.state_meter.rate(now)
-        reflex = self.robot_mode == adapter.FRANKA_MODE_REFLEX
-        parts = [(ERROR if reflex else OK, "robot in reflex mode"),
+        mode = (self.robot_mode if self.profile.franka_state else
+                getattr(self, "topic_mode", None))
+        fault = checks.fault_mode(mode)
+        parts = [(ERROR if fault else OK, f"robot {fault or 'not stopped'}"),
                  (grade(age, s.diag_state_warn_s,
                         min(s.diag_state_error_s, s.state_timeout_s)),
                   "no robot state" if age is None else f"robot state {age:.2f} s old"),
@@ -261,18 +283,28 @@ class MotionNode(TactexNode):
                   f"robot state at {rate:.0f} Hz")]
         level, msg = summary(parts)
         lp = self.last_press
-        return level, msg, {"robot mode": self.robot_mode, "state rate [Hz]": rate,
-                            "state age [s]": age, "force now [N]": self.force,
-                            "last press platform": lp.get("platform"),
-                            "last press force [N]": lp.get("force_n"),
-                            "last press time [s]": lp.get("duration_s"),
-                            "last press at": lp.get("at"), "busy": self.busy.locked()}
+        values = {"robot mode": robot_mode_name(mode) if (self.profile.franka_state or
+                                                           self.profile.mode_topic)
+                  else f"not reported (profile {self.profile.name}: pose + wrench state)",
+                  "state rate [Hz]": rate,
+                  "state age [s]": age, "force now [N]": self.force,
+                  "last press platform": lp.get("platform"),
+                  "last press force [N]": lp.get("force_n"),
+                  "last press time [s]": lp.get("duration_s"),
+                  "last press attempts": lp.get("attempts"),
+                  "last press at": lp.get("at"), "busy": self.busy.locked(),
+                  "capture service": ("ready" if self.capture.service_is_ready()
+                                      else "not available")}
+        if age is not None and self.arm_startup.active:
+            self.arm_startup.end(now)
+        return self.arm_startup.apply((level, msg, values), now)
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
         type is missing, recovery is off and ``recovery_off`` says why."""
         rec, s = self.profile.recovery, self.settings
         self.recovery_off, self.recovery_client, self.reactivate = "", None, []
+        self.prepare: list = []         # the profile's `before` calls, like `reactivate`
         if rec.kind == "none":
             self.recovery_off = f"robot profile {self.profile.name!r} has no recovery interface"
             return
@@ -282,13 +314,15 @@ class MotionNode(TactexNode):
             self.recovery_type = rtype
             self.recovery_client = (ActionClient(self, rtype, name) if rec.kind == "action"
                                     else self.create_client(rtype, name))
-            for call in rec.then:
-                ctype = import_interface(call.type)
-                fill_message(ctype.Request(), call.request, f"recovery.then {call.service}")
-                self.reactivate.append((call, ctype, self.create_client(ctype, call.service)))
+            for calls, out, where in ((rec.before, self.prepare, "recovery.before"),
+                                      (rec.then, self.reactivate, "recovery.then")):
+                for call in calls:
+                    ctype = import_interface(call.type)
+                    fill_message(ctype.Request(), call.request, f"{where} {call.service}")
+                    out.append((call, ctype, self.create_client(ctype, call.service)))
         except InputError as exc:
             self.recovery_off = f"recovery off: {exc}"
-            self.recovery_client, self.reactivate = None, []
+            self.recovery_client, self.reactivate, self.prepare = None, [], []
             self.get_logger().warning(self.recovery_off)
 
     def activate(self) -> None:
@@ -348,10 +382,11 @@ class MotionNode(TactexNode):
 
     def _robot_fault(self, now: float) -> str:
         """Why the robot cannot be commanded now ("" when it can)."""
-        if self.robot_mode == adapter.FRANKA_MODE_REFLEX or (
-                getattr(self, "topic_mode", None) == adapter.FRANKA_MODE_REFLEX and
-                now - self._mode_t <= MODE_HOLD_S):
-            return "robot in reflex mode (franka state robot_mode)"
+        fault = checks.fault_mode(self.robot_mode)
+        if not fault and now - getattr(self, "_mode_t", float("-inf")) <= MODE_HOLD_S:
+            fault = checks.fault_mode(self.topic_mode)
+        if fault:
+            return f"robot {fault} (franka state robot_mode)"
         if not self._fresh(now):
             return ("robot stopped: no robot state within state_timeout_s "
                     f"({self.settings.state_timeout_s} s): reflex or controllers down")
@@ -370,10 +405,53 @@ class MotionNode(TactexNode):
         if self.busy.locked():
             self.get_logger().warning("press goal rejected: a press is running")
             return GoalResponse.REJECT
+        why = self._serves(goal.run_id)
+        if why:
+            self.get_logger().error(f"press goal rejected: {why}")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
+
+    def _serves(self, run_id: str) -> str | None:
+        """One graph per arm: the first run whose goal is taken (or ``run_id`` set) is served;
+        a goal of another run (a second explorer on this ROS domain) is refused, the reason
+        returned."""
+        mine = getattr(self, "served_run", None) or self.settings.run_id
+        if not mine:
+            self.served_run = run_id
+            if run_id:
+                self.get_logger().info(f"serving the explorer of run {run_id}")
+            return None
+        if run_id != mine:
+            return (f"this motion node serves run {mine}; a goal of run {run_id or '(none)'} "
+                    "came from a second explorer on the ROS domain "
+                    f"{os.environ.get('ROS_DOMAIN_ID', '0')}: give each graph its own "
+                    "domain (docs/hardware.md)")
+        return None
 
     async def _execute_async(self, goal_handle):
         return await in_thread(self, self._execute, goal_handle)
+
+    def _camera_ready(self, goal_handle) -> str:
+        """Wait (up to ``capture_wait_s``) for the camera's capture service before the arm
+        moves: a press without a camera is a full press for nothing. Feedback (phase
+        ``waiting for the camera``) goes out meanwhile, so the explorer knows the press server
+        is alive. '' when the service is there, else the refusal."""
+        s = self.settings
+        if self.capture.service_is_ready():
+            return ""
+        self.get_logger().info(f"waiting for the capture service {s.capture_service!r} "
+                               f"(up to capture_wait_s, {s.capture_wait_s:g} s) before "
+                               "pressing")
+        end = time.monotonic() + s.capture_wait_s
+        fb = self._Press.Feedback(phase="waiting for the camera")
+        while time.monotonic() < end:
+            goal_handle.publish_feedback(fb)
+            if self.capture.wait_for_service(timeout_sec=0.2):
+                return ""
+            if self._abort.is_set() or goal_handle.is_cancel_requested:
+                return "the wait for the camera was cut short (deactivated or canceled)"
+        return (f"capture service {s.capture_service!r} not available within capture_wait_s "
+                f"({s.capture_wait_s:g} s): is the camera node running? (not pressed)")
 
     def _execute(self, goal_handle):
         Press = self._Press
@@ -382,6 +460,12 @@ class MotionNode(TactexNode):
             index = [p.id for p in self.scene.ordered].index(platform.id)
             result = Press.Result()
             reasons = []
+            refusal = self._camera_ready(goal_handle)
+            if refusal:
+                result.success, result.reason, result.attempts = False, refusal, 0
+                self.get_logger().error(f"press on {platform.id} refused: {refusal}")
+                goal_handle.abort()
+                return result
             t_press = time.monotonic()
             for attempt in range(1, self.scene.press.retries + 2):
                 result.attempts = attempt
@@ -394,17 +478,20 @@ class MotionNode(TactexNode):
                         self.get_logger().warning("robot state resumed without recovery (a "
                                                   "gap, not a reflex); pressing again")
                         continue
-                    recovered, why = self._recover()
+                    recovered, why = self._recover(platform)
                     if not recovered:
                         reasons.append(f"not retried: {why}")
                         break
                     self.get_logger().info("robot recovered; pressing again")
                     continue
                 if ok:
-                    result.success, result.reason, result.touch = True, "", touch
+                    # on success the reason lists the attempts that failed before ('' none)
+                    result.success, result.reason, result.touch = True, "; ".join(reasons), \
+                        touch
                     self.last_press = {"platform": platform.id,
                                        "force_n": float(touch.contact_force_n),
                                        "duration_s": time.monotonic() - t_press,
+                                       "attempts": attempt,
                                        "at": time.strftime("%H:%M:%S")}
                     goal_handle.succeed()
                     return result
@@ -462,7 +549,11 @@ class MotionNode(TactexNode):
                       image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
                       attempt=attempt, no_contact_image=cap.no_contact,
                       tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
-                      tare_samples=out.tare.samples)
+                      tare_samples=out.tare.samples, surface_z=out.surface_z,
+                      surface_error_m=out.surface_z - platform.position[2],
+                      warning=out.warning)
+        if out.warning:
+            self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
@@ -502,15 +593,21 @@ class MotionNode(TactexNode):
                               f"({deadline_s} s)")
         return fut.result()
 
-    def _recover(self) -> tuple[bool, str]:
-        """The profile's recovery after a robot error: the error recovery action (its result)
-        or service (its ``ok_field``), then the re-activation calls in order, then fresh state.
-        (recovered, reason if not)."""
+    def _recover(self, platform) -> tuple[bool, str]:
+        """The profile's recovery after a robot error on ``platform``: the hold target (where
+        the profile asks for it), the ``before`` calls in order, the error recovery action (its
+        result) or service (its ``ok_field``), then the re-activation calls in order, then
+        fresh state. (recovered, reason if not)."""
         if self.recovery_client is None:
             return False, self.recovery_off
         rec, lim = self.profile.recovery, self.settings.recovery_timeout_s
         name = self.settings.recovery_name or rec.name
         try:
+            if rec.hold_target and self.position is not None:
+                self._publish_hold(platform)
+            for call, ctype, client in self.prepare:
+                self._call(client, fill_message(ctype.Request(), call.request), call.ok_field,
+                           call.service, lim)
             if rec.kind == "action":
                 if not self.recovery_client.wait_for_server(timeout_sec=lim):
                     raise TrialError(f"error recovery action {name} not available")
@@ -537,6 +634,18 @@ class MotionNode(TactexNode):
             self.get_logger().error(f"recovery failed: {exc}")
             return False, f"recovery failed: {exc}"
         return True, ""
+
+    def _publish_hold(self, platform) -> None:
+        """Publish the hold target (``robots.hold_target``: the measured position, not below
+        the platform's surface) for a controller that stays active through the recovery and
+        resumes its last target when the control loop restarts."""
+        sc = self.scene
+        xyz = np.array(hold_target(self.position, platform.position[2], sc.workspace_min,
+                                   sc.workspace_max))
+        self.target_pub.publish(adapter.target_msg(
+            self.target_type, xyz, self.quat, self.get_clock().now().nanoseconds * 1e-9,
+            sc.frame_id))
+        self.get_logger().info(f"recovery: hold target {np.round(xyz, 4).tolist()} m published")
 
     def _call(self, client, request, ok_field: str, name: str, deadline_s: float) -> None:
         if not client.wait_for_service(timeout_sec=deadline_s):

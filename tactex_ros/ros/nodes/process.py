@@ -51,13 +51,18 @@ def run(node_factory: Callable[[], TactexNode], args: list[str] | None = None) -
     took a full core and left the motion node's robot state stale for over a second.
 
     SIGINT (any number of them, at any moment after this call starts) is a requested stop:
-    exit status 0, the node's hooks release files, devices and threads. A stop asked for
+    exit status 0, the node's hooks release files, devices and threads; SIGTERM likewise. A
+    stop while the node's modules still import ends the process quietly with 0
+    (``tactex_ros/__init__.py``). A stop asked for
     during start-up ends it at the next step (after ``rclpy.init``, node construction,
     configuration, activation); a step that failed because the stop shut the context down
     counts as stopped, not as an error.
     """
     stop = StopRequest()
-    signal.signal(signal.SIGINT, stop)   # before rclpy.init: rclpy's handler chains to it
+    # before rclpy.init: rclpy's handlers chain to these (SIGTERM's must not be the quiet exit
+    # of a stop during the imports, tactex_ros/__init__.py: it would cut the node's release)
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
     try:
         code = _spin(node_factory, args, stop)
     finally:

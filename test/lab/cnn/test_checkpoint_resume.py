@@ -200,8 +200,24 @@ def _other_learner(d: Path) -> None:
     (d / CHECKPOINT).write_text(json.dumps(head))
 
 
+def _state(**damage):
+    """A checkpoint whose engine state has a damaged field (wrong type or missing)."""
+    def spoil(d: Path) -> None:
+        head = json.loads((d / CHECKPOINT).read_text())
+        for k, v in damage.items():
+            if v is None:
+                del head["state"][k]
+            else:
+                head["state"][k] = v
+        (d / CHECKPOINT).write_text(json.dumps(head))
+    return spoil
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("spoil,why", [(_corrupt, "SHA-256"), (_torn, "unreadable"),
+                                       (_state(rng="x"), "does not fit"),
+                                       (_state(failed=None), "does not fit"),
+                                       (_state(records="abc"), "does not fit"),
                                        (_missing, "cannot be read"),
                                        (_other_touches, "does not fit"),
                                        (_other_learner, "another model, setting or seed"),

@@ -14,7 +14,8 @@ def test_bench_latency_json_shape(tmp_path, monkeypatch):
     assert main(["bench", "latency", "--touches", "5", "7", "--repeats", "2",
                  "--json", str(out)]) == 0
     d = json.loads(out.read_text())
-    assert set(d) == {"seed_faithful", "cnn", "default", "add_touch_median_s", "p99_s"}
+    assert set(d) == {"seed_faithful", "cnn", "default", "add_touch_median_s", "p99_s",
+                      "train_s", "score_s"}
     for name in ("seed_faithful", "cnn", "default"):
         assert set(d[name]) == {"5", "7"} and all(v > 0 for v in d[name].values())
         assert all(d["p99_s"][name][k] >= d[name][k] for k in ("5", "7"))

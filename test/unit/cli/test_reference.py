@@ -22,14 +22,28 @@ def fresh() -> str:
 
 def test_the_committed_reference_is_current(fresh: str) -> None:
     """Fails when a parameter, launch argument or option changed without regenerating."""
-    old = PAGE.read_text() if PAGE.is_file() else ""
-    assert old == fresh, (f"docs/reference.md is stale: run `make reference` (= "
-                          f"`{reference.REGENERATE}` from the repository root) and commit "
-                          "docs/reference.md")
+    for page, text in ((PAGE, fresh), (PAGE.parent / reference.LAB_OUT, reference.render_lab())):
+        old = page.read_text() if page.is_file() else ""
+        assert old == text, (f"{page.name} is stale: run `make reference` (= "
+                             f"`{reference.REGENERATE}` from the repository root) and commit "
+                             f"docs/{page.name}")
+
+
+def test_the_product_page_does_not_depend_on_what_is_installed(monkeypatch) -> None:
+    """No plug-in installed: the product's page is the same; the lab's page still lists the
+    lab's commands and learners (read from setup.cfg), none of them on the product's page."""
+    from tactex_ros.core import plugins
+    with_lab = reference.render()
+    monkeypatch.setattr(plugins, "available", lambda group: {})
+    assert reference.render() == with_lab
+    lab = reference.render_lab()
+    for name in ("`tactex experiment real`", "`tactex bench latency`", "`tactex sim compare`",
+                 "`cnn_auto`", "`small_inception`"):
+        assert name in lab and f"### {name}" not in with_lab, name
+    assert "### `tactex prepare`" in with_lab and "### `tactex prepare`" not in lab
 
 
 def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str) -> None:
-    from tactex_ros.cli.main import build_parser
     from tactex_ros.ros.graph import SETTINGS
     text = fresh
     for cls in SETTINGS.values():
@@ -46,7 +60,8 @@ def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str) -
                     yield from options(sp)
             else:
                 yield from a.option_strings
-    flags = set(options(build_parser())) - {"-h", "--help"}
+    text += reference.render_lab()
+    flags = set(options(reference.lab_parser())) - {"-h", "--help"}
     assert flags and all(f"`{f}`" in text for f in flags), \
         sorted(f for f in flags if f"`{f}`" not in text)
 

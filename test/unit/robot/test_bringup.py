@@ -72,7 +72,7 @@ def test_profile_law_is_crisps_law_of_those_parameters(name: str) -> None:
     """stiffness = task.k_pos_x/y/z, damping 2 sqrt(K) for d_pos_* = -1, target_filter =
     filter.target_pose, error_clip = task.error_clip.x/y/z (limit_error), force step from
     max_delta_tau (limit_torques); each inside CRISP's declared bounds
-    (src/cartesian_impedance_controller.yaml:21-50, 225-230)."""
+    (CRISP 2.1.0 src/cartesian_controller.yaml:27-63, 231-237)."""
     raw = _yaml(config_dir() / "robots" / f"{name}.yaml")["controller"]
     law, p = load_profile(name).law, _controller_params(name)
     for ax in "xyz":
@@ -122,3 +122,42 @@ def test_hand_guiding_controller_has_no_translational_stiffness(name: str) -> No
     assert min(g[f"task.k_rot_{a}"] for a in "xyz") > 0.0
     for key in ("joints", "end_effector_frame", "base_frame"):
         assert g[key] == c[key]
+
+
+def test_fr3_bringup_keeps_frankas_real_time_settings_and_rates() -> None:
+    """franka's controller_manager settings (franka_ros2 v3.4.0 franka_bringup/config/
+    controllers.yaml:9-13) and state rates at or above the profile's pre-flight minimum."""
+    prof = load_profile("fr3_crisp")
+    cm, nodes = _fr3_files()
+    assert cm["thread_priority"] == 98
+    assert cm["overruns"]["manage"] is False
+    assert nodes["franka_robot_state_broadcaster"]["convenience_publish_rate"] >= \
+        prof.min_state_rate_hz
+    assert nodes["crisp_pose_broadcaster"]["publish_frequency"] >= prof.min_state_rate_hz
+
+
+def test_panda_bringup_sets_the_state_broadcasters_rate() -> None:
+    """multipanda's broadcaster publishes at its `frequency` (default 30 Hz); the bring-up
+    sets it so that even one skipped cycle per publish (the gap is measured from the clock
+    after publishing) stays at or above the profile's minimum."""
+    prof = load_profile("panda_crisp")
+    b = _yaml(BRINGUP / "panda_crisp_controller.yaml")["franka_robot_state_broadcaster"][
+        "ros__parameters"]
+    assert b["type"] == "franka_robot_state_broadcaster/FrankaRobotStateBroadcaster"
+    assert b["arm_id"] == "panda" and isinstance(b["frequency"], int)
+    update_hz = prof.law.rate_hz
+    worst = update_hz / (update_hz / b["frequency"] + 1)
+    assert worst >= prof.min_state_rate_hz
+
+
+@pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
+def test_bringup_sets_crisps_filters_and_clamp(name: str) -> None:
+    """Releases after v1.0.0 filter joint state and output torque (default 0.5) and later ones
+    clamp the translational stiffness (default 900 N/m): the bring-up sets them explicitly, as
+    the profile (which the mock arm models) says, and the clamp never below the stiffness."""
+    prof, p = load_profile(name), _controller_params(name)
+    assert p["filter.q"] == p["filter.dq"] == prof.joint_filter
+    assert p["filter.output_torque"] == prof.torque_filter
+    assert p["variable_max_stiffness.translational"] == prof.max_stiffness >= prof.stiffness
+    for key in ("filter.q", "filter.dq", "filter.q_ref", "filter.output_torque"):
+        assert 0.0 <= p[key] <= 1.0            # CRISP 2.1.0 src/cartesian_controller.yaml:238-262

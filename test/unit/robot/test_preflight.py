@@ -67,6 +67,45 @@ def test_robot_mode() -> None:
     assert pf.mode_problem(None) is None and pf.mode_problem(pf.ROBOT_MODE_MOVE) is None
     for mode in (0, 1, 3, 4, 5, 6, 9):
         assert pf.mode_problem(mode).check == "robot_mode"
+    # a user stop is a fault like a reflex (the arm follows nothing until recovered)
+    assert (pf.fault_mode(4), pf.fault_mode(5)) == ("reflex", "user stopped")
+    assert [pf.fault_mode(m) for m in (None, 0, 1, 2, 3, 6)] == [""] * 6
+
+
+def _multipanda_stamps(frequency: int, seconds: float, update_hz: float = 1000.0,
+                       lag_s: float = 2e-5) -> list[float]:
+    """Publish times [s] of multipanda's state broadcaster (8b6a92c
+    franka_robot_state_broadcaster.cpp:88-104): at each update (``update_hz``) it publishes
+    when ``time - last_pub >= 1e9 / frequency`` ns, ``last_pub`` being the node's clock just
+    after publishing (``lag_s`` after the update's time)."""
+    out, last = [], -1.0
+    for i in range(int(seconds * update_hz)):
+        t = i / update_hz
+        if t - last < 1.0 / frequency:
+            continue
+        out.append(t)
+        last = t + lag_s
+    return out
+
+
+def test_panda_state_rate_of_the_bring_up_passes_the_profile() -> None:
+    """The Panda's state at the bring-up's `frequency` (config/bringup/
+    panda_crisp_controller.yaml) passes the profile's min_rate_hz; multipanda's default 30 Hz
+    is refused."""
+    import yaml
+
+    from tactex_ros.paths import config_dir
+    from tactex_ros.robot.robots import load_profile
+    prof = load_profile("panda_crisp")
+    bringup = yaml.safe_load((config_dir() / "bringup" / "panda_crisp_controller.yaml")
+                             .read_text())
+    freq = bringup["franka_robot_state_broadcaster"]["ros__parameters"]["frequency"]
+    stamps = _multipanda_stamps(freq, 1.0)
+    assert 195.0 <= pf.rate_hz(stamps) <= 250.0          # every 5th cycle: 200 Hz
+    assert pf.state_problem(stamps, prof.min_state_rate_hz, 1.0, prof.state_topic) is None
+    slow = pf.state_problem(_multipanda_stamps(30, 1.0), prof.min_state_rate_hz, 1.0,
+                            prof.state_topic)
+    assert slow.check == "state_rate"
 
 
 def test_collision_request_fits_the_press() -> None:

@@ -13,8 +13,8 @@ import pytest
 
 from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_dir, config_names
-from tactex_ros.robot.press import (DONE, SETTLE, ArmModel, ControlLaw, PressController,
-                                   check_press, equilibrium_floor, platform_under)
+from tactex_ros.robot.mock_world import ArmModel, ControlLaw, Faults, platform_under
+from tactex_ros.robot.press import DONE, SETTLE, PressController, check_press, equilibrium_floor
 from tactex_ros.robot.robots import load_profile
 from tactex_ros.robot.scene import load_scene
 
@@ -34,14 +34,11 @@ def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
 
     Returns (outcome, positions per tick, the mock's peak force per tick, targets, controller,
     normal force at each tick)."""
-    arm_scene = scene
-    if surface_offset:
-        arm_scene = replace(scene, platforms=tuple(
-            p.replace(position=(p.position[0], p.position[1], p.position[2] + surface_offset))
-            for p in scene.platforms))
     law = law or ControlLaw(stiffness=stiffness, target_filter=target_filter)
-    arm = ArmModel(arm_scene, np.array([0.5, 0.0, 0.3]), law, mass=mass,
-                   platform_stiffness=platform_stiffness, platform_damping=platform_damping)
+    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), law, mass=mass,
+                   faults=Faults(platform_stiffness=platform_stiffness,
+                                 platform_damping=platform_damping,
+                                 surface_offset=surface_offset))
     ctrl = PressController(scene, scene.platform(platform_id), arm.position, 0.0,
                            stiffness=law.stiffness)
     t, dt = 0.0, 1.0 / rate_hz
@@ -104,9 +101,11 @@ def test_contact_is_held_during_settle_and_capture() -> None:
 
 def test_equilibrium_floor_and_reachability() -> None:
     s = _scene().press
-    assert equilibrium_floor(s, 1e5) == s.max_depth
-    assert equilibrium_floor(s, 150.0) == pytest.approx(0.5 * (s.force_threshold + s.max_force)
-                                                        / 150.0)
+    # the search past the scene's surface, max_depth below the surface found, the spring's
+    # lead at max_force
+    for k in (1e5, 150.0):
+        assert equilibrium_floor(s, k) == pytest.approx(s.surface_search + s.max_depth
+                                                        + s.max_force / k)
     check_press(_scene(), 150.0)
     with pytest.raises(InputError, match="descend_deadline_s"):
         check_press(_scene(descend_deadline_s=3.0), 150.0)
@@ -309,7 +308,7 @@ def test_static_contact_force_is_the_law_at_rest() -> None:
              (ControlLaw(stiffness=1000.0, error_clip=0.01), 0.1, 10.0),
              (load_profile("fr3_crisp").law, 0.1, 10.0))
     for law, depth, force in cases:
-        arm = ArmModel(scene, surface.copy(), law, platform_stiffness=2e4)
+        arm = ArmModel(scene, surface.copy(), law, faults=Faults(platform_stiffness=2e4))
         arm.target = surface - [0.0, 0.0, depth]
         arm.step(6.0)
         assert arm.normal_force() == pytest.approx(force, abs=1e-4), (law, depth)

@@ -34,7 +34,23 @@ def test_shipped_profiles_load() -> None:
         assert p.collision.type == "franka_msgs/srv/SetForceTorqueCollisionBehavior"
         assert len(p.collision.request["upper_force_thresholds_nominal"]) == 6
     assert fr3.collision.service == "/service_server/set_force_torque_collision_behavior"
-    assert panda.collision.service == "/param_service_server/set_force_torque_collision_behavior"
+    # multipanda's FrankaMultiHardwareInterface prefixes its service nodes with the arm's ns
+    assert panda.collision.service == \
+        "/panda_param_service_server/set_force_torque_collision_behavior"
+    assert panda.recovery.name == "/panda_error_recovery_service_server/error_recovery"
+    assert panda.recovery.hold_target and not fr3.recovery.hold_target
+    # franka_ros2 on Humble keeps controllers active after a fault: deactivated first, best
+    # effort (a no-op on Jazzy), exactly those the re-activation activates again
+    (before,), switch = fr3.recovery.before, fr3.recovery.then[-1]
+    assert before.request["strictness"] == 1 and switch.request["strictness"] == 2
+    assert sorted(before.request["deactivate_controllers"]) == \
+        sorted(switch.request["activate_controllers"])
+    # QoS of the upstream publishers: CRISP's current_pose SystemDefaultsQoS, franka's wrench
+    # QoS(1).best_effort(), franka's and multipanda's full state SystemDefaultsQoS
+    assert (fr3.pose_qos.reliability, fr3.pose_qos.depth) == ("reliable", 10)
+    assert (fr3.wrench_qos.reliability, fr3.wrench_qos.depth) == ("best_effort", 1)
+    assert (fr3.mode_qos.reliability, panda.state_qos.reliability) == ("reliable", "reliable")
+    assert fr3.min_state_rate_hz == panda.min_state_rate_hz == 100.0
     assert (fr3.pose_topic, fr3.scene, panda.scene) == ("/current_pose", "scene.yaml",
                                                         "scene_panda.yaml")
     assert fr3.mode_type == "franka_msgs/msg/FrankaRobotState" and not fr3.franka_state
@@ -55,6 +71,12 @@ def test_shipped_profiles_load() -> None:
      r"recovery\.then\.0\.type"),
     (("state", "topic"), "/x", "state: give either"),
     (("state", "mode_type"), "FrankaRobotState", "state.mode_type"),
+    (("state", "wrench_qos", "reliability"), "fast", "state.wrench_qos.reliability"),
+    (("state", "pose_qos", "depth"), 0, "state.pose_qos.depth"),
+    (("state", "min_rate_hz"), -1.0, "state.min_rate_hz"),
+    (("controller", "max_stiffness"), 900.0, "controller.stiffness.*clamp"),
+    (("controller", "torque_filter"), 1.0, "controller.torque_filter"),
+    (("recovery", "before", 0, "type"), "SwitchController", r"recovery\.before\.0\.type"),
     (("bogus",), 1, "bogus: unknown name"),
 ])
 def test_profile_errors_name_the_field(path, value, field) -> None:
@@ -65,6 +87,25 @@ def test_profile_errors_name_the_field(path, value, field) -> None:
     target[path[-1]] = value
     with pytest.raises(InputError, match=field):
         parse_profile(d)
+
+
+def test_hold_target_never_below_the_surface() -> None:
+    """The target a recovery leaves an active controller with: the measured position, raised
+    to the platform's surface where a press left it below, inside the workspace."""
+    from tactex_ros.robot.robots import hold_target
+    lo, hi = (0.25, -0.45, 0.0), (0.75, 0.45, 0.5)
+    assert hold_target((0.5, 0.1, 0.097), 0.1, lo, hi) == pytest.approx((0.5, 0.1, 0.1))
+    assert hold_target((0.5, 0.1, 0.13), 0.1, lo, hi) == pytest.approx((0.5, 0.1, 0.13))
+    assert hold_target((0.9, -0.6, 0.2), 0.1, lo, hi) == pytest.approx((0.75, -0.45, 0.2))
+
+
+def test_qos_profile_is_the_publishers() -> None:
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    q = adapter.qos_profile(load_profile("fr3_crisp").wrench_qos)
+    assert (q.reliability, q.depth, q.history, q.durability) == (
+        ReliabilityPolicy.BEST_EFFORT, 1, HistoryPolicy.KEEP_LAST, DurabilityPolicy.VOLATILE)
+    q = adapter.qos_profile(load_profile("fr3_crisp").pose_qos)
+    assert (q.reliability, q.depth) == (ReliabilityPolicy.RELIABLE, 10)
 
 
 def test_missing_profile_and_interface() -> None:

@@ -80,3 +80,45 @@ def test_definition_includes_every_dependency_once() -> None:
     for d in ("std_msgs/Header", "sensor_msgs/Image", "geometry_msgs/Pose",
               "builtin_interfaces/Time", "geometry_msgs/Point", "geometry_msgs/Quaternion"):
         assert d in deps
+
+
+def test_standard_views_decode_without_ros(tmp_path: Path) -> None:
+    """Beside tactex's own messages the bag carries what any viewer shows: one
+    sensor_msgs/Image per touch (its pixels, the camera's frame), the press force as a
+    WrenchStamped and the belief per platform as std_msgs/Float64; mcap's ROS 2 decoder reads
+    them from the schemas in the file alone."""
+    reader = pytest.importorskip("mcap_ros2.reader")
+    from tactex_ros.ros.bag import BELIEF_VIEW, NO_CONTACT_VIEW, TOUCH_IMAGE_VIEW, WRENCH_VIEW
+    path = tmp_path / "topics.mcap"
+    bag = BagWriter(path)
+    for i in range(1, 4):
+        t = _touch(i)
+        if i == 2:
+            t.no_contact_image = adapter.array_to_image(_img(9), 0.0, "")
+        bag.write_all(TOUCH_TOPIC, t, i * 10**9)
+    s = _state(1, False)
+    s.platform_ids = ["c1", "c2"]
+    bag.write_all("/tactex/state", s, 4 * 10**9)
+    bag.close()
+    assert [m[0] for m in read_bag(path, decode=False)].count(TOUCH_TOPIC) == 3
+    msgs = list(reader.read_ros2_messages(str(path)))
+    by = {}
+    for m in msgs:
+        by.setdefault(m.channel.topic, []).append(m)
+    images = by[TOUCH_IMAGE_VIEW]
+    assert [m.schema.name for m in images] == ["sensor_msgs/msg/Image"] * 3
+    for i, m in enumerate(images, 1):
+        im = m.ros_msg
+        assert (im.encoding, im.height, im.width, im.header.frame_id) == ("rgb8", 240, 320,
+                                                                         "gelsight")
+        assert np.array_equal(np.frombuffer(bytes(im.data), np.uint8).reshape(240, 320, 3),
+                              _img(i))
+        assert m.log_time_ns == i * 10**9
+    nc = by[NO_CONTACT_VIEW]                       # only the touch that brought one
+    assert len(nc) == 1 and nc[0].ros_msg.header.frame_id == "gelsight"
+    assert np.array_equal(np.frombuffer(bytes(nc[0].ros_msg.data), np.uint8).reshape(
+        240, 320, 3), _img(9))
+    assert [m.schema.name for m in by[WRENCH_VIEW]] == ["geometry_msgs/msg/WrenchStamped"] * 3
+    assert [m.ros_msg.wrench.force.z for m in by[WRENCH_VIEW]] == [5.0, 6.0, 7.0]
+    assert [m.ros_msg.data for m in by[BELIEF_VIEW + "c1"]] == [0.5]
+    assert by[BELIEF_VIEW + "c2"][0].schema.name == "std_msgs/msg/Float64"

@@ -227,3 +227,34 @@ def test_result_dropped_during_a_stall_is_asked_for_again() -> None:
     s.tick(0.0)
     assert req.finished() and req.result.status == GoalStatus.STATUS_SUCCEEDED
     assert req.result.result == bytes(req.sent[0].gid.uuid) and len(s.goals) == 1
+
+
+def test_press_made_while_the_caller_stalled_is_used_once() -> None:
+    """The caller (the explorer) is stopped for 20 s right after sending a press goal; the
+    motion node takes it, presses and ends meanwhile; the goal's answer is still queued when
+    the caller wakes up. The goal is not sent again (no second press): its answer, then its
+    result, are used, and the stall is counted as the caller's."""
+    s = Server(duration=3.0)
+    held: list = []
+    client = Client(s)
+    send = client.send_goal_async
+
+    def queued(goal, feedback_callback=None, goal_uuid=None):    # answer delivered late
+        f = send(goal, feedback_callback=feedback_callback, goal_uuid=goal_uuid)
+        late = Fut()
+        held.append((f, late))
+        return late
+    client.send_goal_async = queued
+    req = GoalRequest(client, "c1", answer_s=2.0, clock=lambda: s.now)
+    assert not req.answered()
+    s.tick(20.0)                             # SIGSTOP 20 s: the press ran and ended
+    assert not req.answered()                # woken: the executor has not delivered yet
+    s.tick(0.05)
+    for f, late in held:                     # the queued answers arrive
+        late.set(f.result())
+    while not req.finished() and s.now < 60:
+        s.tick(0.1)
+    assert s.n_requests == 1 and len(s.goals) == 1          # one goal sent, one press
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[0].gid.uuid)
+    assert req.stalled_s == pytest.approx(20.0, abs=0.2)

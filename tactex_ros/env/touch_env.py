@@ -1,0 +1,169 @@
+"""``TouchEnv``: active texture matching as a Gymnasium environment, on a touch source.
+
+An episode is one trial: a scene of 1 reference + C comparison platforms drawn from the
+source's classes exactly as ``tactex experiment real`` draws the scene of seed ``s``
+(``sources.assign_platforms`` over the sorted classes; for a ``replay:DIR`` source the same
+scene as ``tactex trial --seed s``), and the presses of that trial's touch function
+(``source.trial(classes, s)``: recorded presses drawn without repetition, seeded).
+
+The interface follows ap_gym's active-perception environments (an action is a dict of the
+inner action and a prediction, ``info["prediction"]["target"]`` the class to predict), with
+what they lack: a STOP action.
+
+- ``reset(seed=s)`` presses the reference (platform 0) and returns its observation.
+- ``action = {"action": a, "prediction": logits}``: ``a`` in 0..C presses that platform
+  (0 = the reference again); ``a = C + 1`` is STOP. ``logits`` (C,) over the comparisons: at
+  STOP the predicted match is ``argmax(logits) + 1``.
+- Observation (dict): ``image`` the contact frame (240, 320, 3) uint8 RGB, ``no_contact``
+  its no-contact frame (``has_no_contact``), ``extra`` up to ``EXTRA`` more in-contact frames of
+  the same press (``extra_count`` of them valid), ``platform`` the platform pressed, ``ok`` 0
+  when the press gave no touch (a failed press; the frames are zeros), ``touches`` presses per
+  platform so far, ``budget_left`` presses left.
+- Budget: ``C + 1 + budget`` presses in all (the baseline, every platform once, then
+  ``budget`` more, as ``experiment real --budget``). Once spent, any action ends the episode
+  (``truncated``) scored on its prediction.
+- Reward: ``-touch_cost`` per press; at the end 1 for the right match, 0 otherwise.
+- At the end ``info``: ``correct``, ``presses``, ``touches_after_baseline`` (presses - (C+1),
+  the touches ``experiment real`` reports), ``truth`` (1..C), ``classes``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..core.engine import TouchFailed
+from ..core.errors import InputError
+from ..core.touch import as_touch
+
+H, W = 240, 320
+EXTRA = 3                    # in-contact frames per press besides the strongest (replay's)
+MAX_SEED = 2**31 - 1
+
+
+def scene_of(classes: list[str], comparisons: int, seed: int) -> tuple[list[str], int]:
+    """The scene of seed ``seed``: classes [reference, comparisons...] and the match (1..C),
+    ``experiment real``'s draw (``curves.draw_scenes``: ``assign_platforms`` over the sorted
+    classes)."""
+    from ..sources import assign_platforms
+    return assign_platforms(sorted(classes), comparisons, None, None, seed)
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``'0-9'`` or ``'0,3,7'`` (or a mix, ``'0-4,10'``) -> the seeds, in order."""
+    out: list[int] = []
+    for part in text.split(","):
+        a, sep, b = part.strip().partition("-")
+        try:
+            lo, hi = int(a), int(b) if sep else int(a)
+        except ValueError:
+            raise InputError(f"--seeds {text!r}: expected e.g. 0-9 or 0,3,7") from None
+        if not 0 <= lo <= hi <= MAX_SEED:
+            raise InputError(f"--seeds {text!r}: a range lo-hi with 0 <= lo <= hi <= {MAX_SEED}")
+        out += range(lo, hi + 1)
+    return out
+
+
+class TouchEnv(gym.Env):
+    """Active texture matching on a touch source (module docstring)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, source: str, comparisons: int = 4, budget: int = 15,
+                 touch_cost: float = 0.0) -> None:
+        from ..sources import open_source
+        if comparisons < 2:
+            raise InputError(f"comparisons must be >= 2, got {comparisons}")
+        if budget < 0:
+            raise InputError(f"budget must be >= 0, got {budget}")
+        self.source_spec = source
+        self.src = open_source(source)
+        if len(self.src.classes) < comparisons:
+            raise InputError(f"source {source!r} has {len(self.src.classes)} classes: too few "
+                             f"for {comparisons} comparisons")
+        self.C, self.budget, self.touch_cost = comparisons, budget, float(touch_cost)
+        self.STOP = comparisons + 1
+        frame = gym.spaces.Box(0, 255, (H, W, 3), np.uint8)
+        self.observation_space = gym.spaces.Dict({
+            "image": frame, "no_contact": frame, "has_no_contact": gym.spaces.Discrete(2),
+            "extra": gym.spaces.Box(0, 255, (EXTRA, H, W, 3), np.uint8),
+            "extra_count": gym.spaces.Discrete(EXTRA + 1),
+            "platform": gym.spaces.Discrete(comparisons + 1), "ok": gym.spaces.Discrete(2),
+            "touches": gym.spaces.Box(0, 10**6, (comparisons + 1,), np.int64),
+            "budget_left": gym.spaces.Box(0, 10**6, (1,), np.int64)})
+        self.action_space = gym.spaces.Dict({
+            "action": gym.spaces.Discrete(comparisons + 2),
+            "prediction": gym.spaces.Box(-np.inf, np.inf, (comparisons,), np.float64)})
+        self._fn = None
+        self._over = True
+
+    @property
+    def max_presses(self) -> int:
+        return self.C + 1 + self.budget
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[dict, dict]:
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, MAX_SEED))
+        self.seed_ = int(seed)
+        self.classes, self.truth = scene_of(self.src.classes, self.C, self.seed_)
+        self._fn = self.src.trial(self.classes, self.seed_)
+        self.touches = np.zeros(self.C + 1, dtype=np.int64)
+        self._over = False
+        return self._press(0), {"seed": self.seed_, "comparisons": self.C,
+                                "budget": self.budget}
+
+    def _press(self, platform: int) -> dict[str, Any]:
+        self.touches[platform] += 1
+        obs = self._blank(platform)
+        try:
+            t = as_touch(self._fn(platform))
+        except TouchFailed:
+            return obs
+        obs.update(image=t.frame, ok=1)
+        if t.no_contact is not None:
+            obs.update(no_contact=t.no_contact, has_no_contact=1)
+        if t.extra is not None and len(t.extra):
+            k = min(len(t.extra), EXTRA)
+            obs["extra"][:k] = t.extra[:k]
+            obs["extra_count"] = k
+        return obs
+
+    def step(self, action: dict) -> tuple[dict, float, bool, bool, dict]:
+        if self._over:
+            raise InputError("step() after the episode ended: call reset()")
+        a = int(action["action"])
+        if not 0 <= a <= self.STOP:
+            raise InputError(f"action {a}: 0..{self.C} presses a platform, {self.STOP} is STOP")
+        spent = int(self.touches.sum()) >= self.max_presses
+        if a == self.STOP or spent:
+            return self._end(np.asarray(action["prediction"], dtype=np.float64),
+                             truncated=a != self.STOP)
+        obs = self._press(a)
+        return obs, -self.touch_cost, False, False, {}
+
+    def _end(self, logits: np.ndarray, truncated: bool) -> tuple[dict, float, bool, bool, dict]:
+        if logits.shape != (self.C,):
+            raise InputError(f"prediction: {self.C} logits over the comparisons, got shape "
+                             f"{logits.shape}")
+        self._over = True
+        pred = int(np.argmax(logits)) + 1
+        presses = int(self.touches.sum())
+        info = {"correct": pred == self.truth, "prediction_index": pred, "truth": self.truth,
+                "presses": presses, "touches_after_baseline": presses - (self.C + 1),
+                "classes": list(self.classes), "seed": self.seed_,
+                "prediction": {"target": self.truth - 1}}
+        return self._blank(0), float(info["correct"]), not truncated, truncated, info
+
+    def _blank(self, platform: int) -> dict[str, Any]:
+        """An observation without a touch (zero frames, ``ok`` 0): a failed press's, and the
+        terminal one; the counts as they are."""
+        return {"image": np.zeros((H, W, 3), np.uint8),
+                "no_contact": np.zeros((H, W, 3), np.uint8), "has_no_contact": 0,
+                "extra": np.zeros((EXTRA, H, W, 3), np.uint8), "extra_count": 0,
+                "platform": platform, "ok": 0, "touches": self.touches.copy(),
+                "budget_left": np.array([max(self.max_presses - int(self.touches.sum()), 0)],
+                                        np.int64)}

@@ -1,0 +1,176 @@
+"""Foxglove layouts for the operator's console, one per robot profile, and their check.
+
+A layout (``configById`` + ``layout`` tree, as Foxglove's Layouts -> Import from file reads it)
+shows the graph as the operator needs it during a study: 3D (the explorer's markers and the
+profile's end-effector pose), the placement prompt, a button that confirms the placement (the
+explorer's ``~/confirm``, ``std_srvs/srv/Trigger``), the belief per comparison platform as a
+plot, the latest touch and the live camera image, the contact force and the diagnostics.
+
+``PANEL_KEYS`` lists, per panel type, the configuration keys Foxglove reads, from Foxglove's own
+config types (github.com/foxglove/studio, packages/studio-base/src/panels/):
+``ThreeDeeRender/IRenderer.ts`` ``RendererConfig`` (the 3D and Image panels: ``followTf``,
+``followMode``, ...), ``Plot/types.ts`` ``PlotConfig`` (+ ``Plot/internalTypes.ts``
+``PlotPath``), ``CallService/types.ts`` ``CallServiceConfig``, ``RawMessages`` and the
+diagnostics panels' configs. ``check_layout`` names every key Foxglove would ignore (e.g. the
+old ``followTfFrame``) and every panel that is configured but not placed, or placed but not
+configured.
+
+``tactex layout --robot PROFILE`` (or ``write_layouts``) writes ``config/layouts/
+tactex_<profile>.foxglove.json``; ``config/tactex.foxglove.json`` is the fr3_crisp one.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+from ..robot.robots import load_profile
+from .settings import (IMAGE_TOPIC, MARKER_TOPIC, PROMPT_TOPIC, STATE_TOPIC,
+                       TOUCH_IMAGE_TOPIC)
+
+#: the explorer's confirm service (``<explorer node>/confirm``; the graph's explorer is
+#: ``explorer``)
+CONFIRM_SERVICE = "/explorer/confirm"
+
+_RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "transforms",
+             "topics", "layers", "imageMode"}
+#: panel type -> configuration keys Foxglove reads (module doc for the sources)
+PANEL_KEYS: dict[str, set[str]] = {
+    "3D": _RENDERER,
+    "Image": _RENDERER,
+    "Plot": {"title", "paths", "minYValue", "maxYValue", "minXValue", "maxXValue",
+             "showLegend", "legendDisplay", "showPlotValuesInLegend", "showXAxisLabels",
+             "showYAxisLabels", "isSynced", "showTooltips", "xAxisVal", "xAxisPath",
+             "followingViewWidth", "sidebarDimension"},
+    "CallService": {"serviceName", "datatype", "requestPayload", "layout", "buttonText",
+                    "buttonTooltip", "buttonColor"},
+    "RawMessages": {"topicPath", "diffMethod", "diffTopicPath", "diffEnabled",
+                    "showFullMessageForDiff", "expansion", "fontSize"},
+    "DiagnosticSummary": {"topicToRender", "minLevel", "pinnedIds", "hardwareIdFilter",
+                          "sortByLevel"},
+    "DiagnosticStatusPanel": {"topicToRender", "selectedHardwareId", "selectedName",
+                              "splitFraction", "numericPrecision", "collapsedSections"},
+}
+#: keys of nested objects Foxglove reads (``PlotPath``, ``ImageModeConfig``)
+NESTED_KEYS = {("Plot", "paths"): {"value", "enabled", "color", "label", "timestampMethod",
+                                   "showLine", "lineSize"},
+               ("3D", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"},
+               ("Image", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"}}
+FOLLOW_MODES = {"follow-pose", "follow-position", "follow-none"}
+TOP_KEYS = {"configById", "globalVariables", "userNodes", "linkedGlobalVariables",
+            "playbackConfig", "layout"}
+
+
+def check_layout(layout: dict[str, Any]) -> list[str]:
+    """The problems Foxglove would silently ignore in ``layout`` ([] when none)."""
+    out = [f"unknown top-level key {k!r}" for k in layout if k not in TOP_KEYS]
+    configs = layout.get("configById") or {}
+    for pid, cfg in configs.items():
+        kind = pid.partition("!")[0]
+        keys = PANEL_KEYS.get(kind)
+        if keys is None:
+            out.append(f"panel {pid!r}: unknown panel type {kind!r} (known: "
+                       f"{sorted(PANEL_KEYS)})")
+            continue
+        out += [f"panel {pid!r}: unknown key {k!r} (Foxglove reads {sorted(keys)})"
+                for k in cfg if k not in keys]
+        if "followMode" in cfg and cfg["followMode"] not in FOLLOW_MODES:
+            out.append(f"panel {pid!r}: followMode {cfg['followMode']!r} (one of "
+                       f"{sorted(FOLLOW_MODES)})")
+        for (k_kind, key), allowed in NESTED_KEYS.items():
+            if k_kind != kind or key not in cfg:
+                continue
+            items = cfg[key] if isinstance(cfg[key], list) else [cfg[key]]
+            for item in items:
+                out += [f"panel {pid!r}: {key}: unknown key {k!r}" for k in item
+                        if k not in allowed]
+    placed = set(re.findall(r'"([A-Za-z0-9 ]+![A-Za-z0-9_-]+)"',
+                            json.dumps(layout.get("layout"))))
+    out += [f"panel {p!r} is placed but not configured" for p in sorted(placed - set(configs))]
+    out += [f"panel {p!r} is configured but not placed" for p in sorted(set(configs) - placed)]
+    return out
+
+
+def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
+                    ("c1", "c2", "c3", "c4")) -> dict[str, Any]:
+    """The operator's Foxglove layout for robot profile ``robot`` (a name or a path):
+    its base frame, pose topic and wrench (``WrenchStamped`` profiles) or full-state force
+    (franka state profiles) in the panels; ``comparisons``: the scene's comparison platform
+    ids, one belief line each (``/tactex/state.belief[k]``)."""
+    prof = load_profile(robot)
+    topics: dict[str, Any] = {MARKER_TOPIC: {"visible": True}}
+    if prof.pose_topic:
+        topics[prof.pose_topic] = {"visible": True}
+    if prof.franka_state:       # franka_msgs/FrankaState: O_F_ext_hat_K [Fx Fy Fz ...]
+        force = f"{prof.state_topic}.o_f_ext_hat_k[2]"
+    else:
+        force = f"{prof.wrench_topic}.wrench.force.z"
+    configs: dict[str, Any] = {
+        "3D!tactex": {"followTf": prof.frame_id, "followMode": "follow-pose",
+                      "topics": topics, "layers": {}},
+        "RawMessages!prompt": {"topicPath": f"{PROMPT_TOPIC}.data", "diffEnabled": False,
+                               "expansion": "all", "fontSize": 16},
+        "CallService!confirm": {"serviceName": CONFIRM_SERVICE,
+                                "datatype": "std_srvs/srv/Trigger", "requestPayload": "{}",
+                                "layout": "horizontal",
+                                "buttonText": "Fabrics placed: confirm",
+                                "buttonTooltip": "calls the explorer's ~/confirm "
+                                                 "(std_srvs/srv/Trigger); recorded as "
+                                                 "confirmed by service",
+                                "buttonColor": "#17803d"},
+        "Plot!belief": {"title": "belief per comparison platform", "paths": [
+            {"value": f"{STATE_TOPIC}.belief[{k}]", "enabled": True, "label": pid,
+             "timestampMethod": "receiveTime"} for k, pid in enumerate(comparisons)],
+            "minYValue": 0, "maxYValue": 1, "showLegend": True, "isSynced": True,
+            "xAxisVal": "timestamp"},
+        "Image!touch": {"imageMode": {"imageTopic": TOUCH_IMAGE_TOPIC}},
+        "Image!live": {"imageMode": {"imageTopic": IMAGE_TOPIC}},
+        "RawMessages!state": {"topicPath": STATE_TOPIC, "diffEnabled": False,
+                              "expansion": "all"},
+        "Plot!wrench": {"title": "contact force [N]", "paths": [
+            {"value": force, "enabled": True, "timestampMethod": "receiveTime"}],
+            "showLegend": True, "isSynced": True, "xAxisVal": "timestamp"},
+        "DiagnosticSummary!health": {"topicToRender": "/diagnostics", "minLevel": 0,
+                                     "pinnedIds": [], "hardwareIdFilter": ""},
+        "DiagnosticStatusPanel!detail": {"topicToRender": "/diagnostics"},
+    }
+    tree = {
+        "direction": "row", "splitPercentage": 50,
+        "first": {"direction": "column", "splitPercentage": 30,
+                  "first": {"direction": "row", "splitPercentage": 70,
+                            "first": "RawMessages!prompt", "second": "CallService!confirm"},
+                  "second": {"direction": "column", "splitPercentage": 55,
+                             "first": "3D!tactex",
+                             "second": {"direction": "row", "first": "Image!touch",
+                                        "second": "Image!live"}}},
+        "second": {"direction": "column", "splitPercentage": 35,
+                   "first": "Plot!belief",
+                   "second": {"direction": "column", "splitPercentage": 40,
+                              "first": {"direction": "row", "first": "RawMessages!state",
+                                        "second": "Plot!wrench"},
+                              "second": {"direction": "row",
+                                         "first": "DiagnosticSummary!health",
+                                         "second": "DiagnosticStatusPanel!detail"}}}}
+    return {"configById": configs, "globalVariables": {}, "userNodes": {},
+            "linkedGlobalVariables": [], "playbackConfig": {"speed": 1}, "layout": tree}
+
+
+def layout_text(robot: str = "fr3_crisp") -> str:
+    """The layout as the JSON text that is shipped (2-space indent, newline at the end)."""
+    return json.dumps(foxglove_layout(robot), indent=2) + "\n"
+
+
+def write_layouts(config: Path, robots: tuple[str, ...] = ("fr3_crisp", "panda_crisp", "sim")
+                  ) -> list[Path]:
+    """Write ``config/layouts/tactex_<robot>.foxglove.json`` for each robot profile and
+    ``config/tactex.foxglove.json`` (fr3_crisp's); their paths."""
+    out = []
+    (config / "layouts").mkdir(exist_ok=True)
+    for r in robots:
+        p = config / "layouts" / f"tactex_{r}.foxglove.json"
+        p.write_text(layout_text(r))
+        out.append(p)
+    (config / "tactex.foxglove.json").write_text(layout_text("fr3_crisp"))
+    return out + [config / "tactex.foxglove.json"]

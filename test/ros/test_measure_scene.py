@@ -1,0 +1,63 @@
+"""``tactex robot measure-scene`` against the mock arm node (real processes over DDS): the
+mock's surfaces lie 4 mm below the scene's, its wrench has a bias, a cable's lift and noise;
+the command finds each surface with a light press and writes the corrected scene."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tactex_ros.robot.scene import load_scene
+from tactex_ros.ros.graph import describe
+from tactex_ros.ros.launcher import Graph, ros_env
+
+pytestmark = pytest.mark.ros
+
+SHIFT = -0.004
+
+
+def test_measure_scene_finds_a_shifted_surface(tmp_path: Path, listener) -> None:
+    nodes = [n for n in describe(True, mock_arm={
+        "surface_offset": SHIFT, "wrench_offset_z": -2.0, "static_force_z": 1.5,
+        "wrench_noise": 0.05, "world_seed": 3}) if n.name == "mock_arm"]
+    scene_file = nodes[0].parameters["scene_file"]
+    scene = load_scene(scene_file)
+    out = tmp_path / "measured.yaml"
+    cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
+           "sys.exit(main())", "robot", "measure-scene", "--robot", "sim", "--scene",
+           str(scene_file), "--out", str(out), "--platforms", "reference,c3",
+           "--state-deadline-s", "30"]
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300,
+                              env=ros_env(listener.domain_id))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    report = json.loads(proc.stdout)
+    assert set(report["platforms"]) == {"reference", "c3"}
+    got = load_scene(out)
+    for p, q in zip(scene.platforms, got.platforms):
+        assert p.id == q.id and q.position[:2] == p.position[:2]
+        if p.id in ("reference", "c3"):
+            assert abs(q.position[2] - (p.position[2] + SHIFT)) < 0.0005, (p.id, q.position)
+            assert report["platforms"][p.id]["moved_mm"] == pytest.approx(SHIFT * 1000, abs=0.5)
+        else:
+            assert q.position == p.position        # not measured: kept
+    # everything else in the file is as it was
+    before, after = yaml.safe_load(Path(scene_file).read_text()), yaml.safe_load(out.read_text())
+    assert {k: v for k, v in before.items() if k != "platforms"} == \
+        {k: v for k, v in after.items() if k != "platforms"}
+
+
+def test_measure_scene_refuses_an_unknown_platform(tmp_path: Path) -> None:
+    from tactex_ros.paths import config_dir
+    cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
+           "sys.exit(main())", "robot", "measure-scene", "--robot", "sim", "--scene",
+           str(config_dir() / "scene_sim.yaml"), "--out", str(tmp_path / "o.yaml"),
+           "--platforms", "nope"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "nope" in proc.stderr
+    assert not (tmp_path / "o.yaml").exists()
