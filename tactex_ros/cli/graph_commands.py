@@ -15,6 +15,71 @@ from ..core.errors import InputError
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
                     "session", "session_dir")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
+# what a record keeps of the command line (``RUN_FILE``): a resume takes it from there
+RUN_FILE = "run.json"
+SETTING_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "session")
+RUN_OPTIONS = ("sim", "scene", "settings", "set", "yes") + DEVICE_OPTIONS
+_PATHS = ("scene", "settings", "session")
+
+
+def _given(args: argparse.Namespace, name: str):
+    """Option ``name`` as given on the command line; None when not given."""
+    v = getattr(args, name, None)
+    if v is None or v is False or v == []:
+        return None
+    return str(Path(v).resolve()) if name in _PATHS and Path(v).is_file() else v
+
+
+def run_options(args: argparse.Namespace, nodes: list) -> dict:
+    """What ``RUN_FILE`` keeps of a run: the graph options given (``RUN_OPTIONS``, paths
+    absolute) and the value every setting option (``SETTING_OPTIONS``) had, given or not."""
+    from ..core.schema import flatten
+    from ..ros.graph import OPTIONS, SETTINGS
+    ex = next(n for n in nodes if n.executable == "explorer_node")
+    eff = flatten(SETTINGS["explorer"].check(ex.parameters, "explorer").model_dump())
+    out = {k: v for k in RUN_OPTIONS if (v := _given(args, k)) is not None}
+    out.update({k: eff[OPTIONS[k][1]] for k in SETTING_OPTIONS})
+    if not out["session"]:
+        del out["session"]
+    return out
+
+
+def save_run_options(folder: str | Path, args: argparse.Namespace, nodes: list) -> None:
+    """``<folder>/run.json`` (the trial record or session folder) before any node starts,
+    unless the folder has one: a resume keeps the run's first one."""
+    from ..core.outputs import dumps
+    p = Path(folder) / RUN_FILE
+    if not p.is_file():
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(dumps(run_options(args, nodes)))
+
+
+def options_from_record(args: argparse.Namespace) -> Path | None:
+    """For ``--resume DIR`` or ``--session-dir DIR`` of a folder with ``RUN_FILE``: every
+    option the run was given (and every setting option's value) from it, into ``args``. An
+    option given now with another value is refused (InputError, exit 2) naming both values,
+    before anything starts. Returns the folder, or None when there is no record to follow."""
+    from ..ros.graph import OPTIONS
+    folder = getattr(args, "resume", None) or getattr(args, "session_dir", None)
+    if not folder or not (Path(folder) / RUN_FILE).is_file():
+        return None
+    p = Path(folder) / RUN_FILE
+    try:
+        was = json.loads(p.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{str(p)!r}: not readable ({exc})") from None
+    for k in RUN_OPTIONS + SETTING_OPTIONS:
+        if k == "scene" and getattr(args, "resume", None):
+            continue            # a trial's scene: its record's copy (``resume_settings``)
+        given, rec = _given(args, k), was.get(k)
+        if given is None:
+            setattr(args, k, rec if rec is not None or k not in ("sim", "yes") else False)
+        elif given != rec:
+            name = OPTIONS[k][1] if k in OPTIONS else k
+            raise InputError(f"--{k} {given!r} given but the record {str(folder)!r} has "
+                             f"{name} = {rec!r}; a resumed run keeps what it was given "
+                             "(leave the option out)")
+    return Path(folder)
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
@@ -36,8 +101,8 @@ def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
     for k in ("strategy", "model", "rounds", "seed", "config"):
         v, path = getattr(args, k, None), OPTIONS[k][1]
         if v is not None and v != was.get(path):
-            raise InputError(f"--{k} {v!r}: the trial in {str(d)!r} ran with "
-                             f"{was.get(path)!r}; a resumed trial keeps its settings")
+            raise InputError(f"--{k} {v!r} given but the record {str(d)!r} has "
+                             f"{path} = {was.get(path)!r}; a resumed trial keeps its settings")
     if args.record_dir is not None or args.trial_id is not None:
         raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
     ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
@@ -60,6 +125,7 @@ def _nodes(args: argparse.Namespace):
     from ..core.schema import merge, overrides
     from ..ros.graph import describe, option_overrides
     from ..ros.settings import ExplorerSettings
+    options_from_record(args)
     given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
@@ -97,9 +163,7 @@ def preflight(nodes: list, logs: Path) -> Path:
 def resume_hint(run, args: argparse.Namespace) -> str | None:
     """``tactex graph run --resume <record>`` when a resume of this run can work: the record
     exists and can be continued, and no node refused its input (exit status 2: the same
-    input would be refused again). The device options of this run (``--source``,
-    ``--sensor``, ``--device``: not in the record) are repeated, to be corrected when the
-    device was the failure."""
+    input would be refused again). Nothing else: the record keeps the run's options."""
     from ..trial.record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None
@@ -108,10 +172,7 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     except InputError:
         return None
     import shlex
-    devices = "".join(f" --{o} {shlex.quote(str(getattr(args, o)))}" for o in DEVICE_OPTIONS
-                      if getattr(args, o, None) is not None)
-    return (f"tactex graph run{' --sim' if args.sim else ''}{devices} "
-            f"--resume {shlex.quote(str(run.record))}")
+    return f"tactex graph run --resume {shlex.quote(str(run.record))}"
 
 
 def session_dir(args: argparse.Namespace, nodes: list) -> str:
@@ -143,6 +204,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
         raise InputError("--resume continues one trial; a session continues with "
                           "--session-dir <its folder>")
     d = session_dir(args, nodes)
+    save_run_options(d, args, nodes)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
     run = run_session(nodes, logs, d, confirm=confirm,
@@ -158,8 +220,9 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
                   f"{Path(logs) / f'{n}.log'})", file=sys.stderr)
         if refused:
             return 2                 # a refusal: continuing the same way would fail again
-        print(f"tactex: continue with: tactex graph run{' --sim' if args.sim else ''} "
-              f"--session {args.session} --session-dir {run.session_dir}", file=sys.stderr)
+        import shlex
+        print(f"tactex: continue with: tactex graph run --session-dir "
+              f"{shlex.quote(str(run.session_dir))}", file=sys.stderr)
         return 128 + run.signal if run.signal else 1
     r = run.result
     print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
@@ -179,7 +242,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         check_session_dir(session_dir(args, nodes), args.session)
         check_dir(logs, "--log-dir")
         return cmd_session(args, nodes, logs)
-    preflight(nodes, logs)
+    save_run_options(preflight(nodes, logs), args, nodes)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     from ..trial.progress import Progress
     progress = Progress()
@@ -316,8 +379,9 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
             p.add_argument("--domain-id", type=bounded(int, 0, 232),
                            help="ROS_DOMAIN_ID for the nodes (0..232)")
             p.add_argument("--resume", metavar="RECORD_DIR",
-                           help="continue the interrupted trial recorded in RECORD_DIR (its "
-                                "settings, its record)")
+                           help="continue the interrupted trial recorded in RECORD_DIR with "
+                                "the options and settings it keeps (run.json, config.json); "
+                                "an option given with another value is refused")
             p.add_argument("--yes", action="store_true",
                            help="with --session: confirm every placement at once (scripted "
                                 "sessions, CI); without it a terminal asks for Enter")

@@ -5,8 +5,8 @@ Before each trial the operator is told what to place where (``Operator.tell``; w
 ends the session: recorded, resumable. Every trial gets a fresh engine with seed
 ``seed + position``, its own record ``<session_dir>/trial_<id>`` and its correctness from the
 trial file's truth. A session folder that already holds the same session is continued:
-finished trials are skipped, an interrupted trial resumes at the touch where it stopped,
-pending ones run. The explorer node (``ros/nodes/explorer_node.py``) supplies the operator (a
+finished trials are skipped, an interrupted trial resumes at the touch where it stopped
+(its placement, confirmed before, is not asked again), pending ones run. The explorer node (``ros/nodes/explorer_node.py``) supplies the operator (a
 service, a latched prompt topic, the mock camera's placement) and runs each trial
 (``trial/run.py``).
 """
@@ -69,6 +69,12 @@ class SessionRun:
         """How many of the session's trials are done."""
         return sum(sess.trial_state(self.dir, t) == "done" for t in self.session.trials)
 
+    def confirmed(self, trial: sess.SessionTrial) -> bool:
+        """True when the session's events hold the confirmed placement of ``trial`` (a
+        resumed trial's fabrics are in place: not asked again)."""
+        return any(e.get("event") == "confirmed" and e.get("trial") == trial.id
+                   for e in sess.events(self.dir))
+
     def _prompt(self, operator: Operator, trial: sess.SessionTrial, k: int, n: int) -> bool:
         text = (f"session {self.session.name}, trial {trial.id} ({k}/{n}): place "
                 + "; ".join(trial.instructions()) + " -- then confirm")
@@ -104,7 +110,8 @@ class SessionRun:
                 state = sess.trial_state(d, trial)
                 if state == "done":
                     continue
-                if not self._prompt(operator, trial, k, len(trials)):
+                if not (state == "started" and self.confirmed(trial)) and \
+                        not self._prompt(operator, trial, k, len(trials)):
                     why = (f"placement of trial {trial.id} not confirmed within "
                            f"confirm_timeout_s ({self.confirm_timeout_s:g} s)")
                     self.log(logging.ERROR, f"session ended: {why}")

@@ -102,3 +102,40 @@ def test_shipped_replay_scene_runs_on_recorded_presses(tmp_path: Path, domain_id
     assert r.returncode == 0, r.stderr
     res = json.loads((tmp_path / "rec" / "t" / "result.json").read_text())
     assert res["prediction"] in ("c1", "c2", "c3", "c4") and res["touches"] >= 5
+
+
+def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int) -> None:
+    """Ctrl-C in `--rounds 3 --seed 0 --yes` after two touches: exit 130 and a hint that is
+    `--resume DIR` alone; run as printed (plus this test's DDS domain and log folder) the trial
+    goes on with the record's options (the sim graph, 3 rounds, seed 0) to its result, exit 0."""
+    import shlex
+    import signal
+    import time
+    rec = tmp_path / "rec" / "t"
+    script = Path(sys.executable).parent / "tactex"
+    entry = [str(script)] if script.is_file() else [sys.executable, "-P", "-m",
+                                                    "tactex_ros.cli.main"]
+    p = subprocess.Popen(entry + ["graph", "run", "--sim", "--rounds", "3", "--seed", "0",
+                                  "--yes", "--record-dir", str(rec.parent), "--trial-id", "t",
+                                  "--domain-id", str(domain_id), "--log-dir",
+                                  str(tmp_path / "l1")],
+                         env=ros_env(domain_id), stderr=subprocess.PIPE, text=True,
+                         stdout=subprocess.DEVNULL, cwd=tmp_path)
+    touches = rec / "touches.jsonl"
+    end = time.monotonic() + 240
+    while time.monotonic() < end and p.poll() is None and not (
+            touches.is_file() and len(touches.read_text().splitlines()) >= 2):
+        time.sleep(0.1)
+    assert p.poll() is None, p.communicate()[1]        # still running: the trial is longer
+    p.send_signal(signal.SIGINT)
+    err = p.communicate(timeout=120)[1]
+    assert p.returncode == 128 + signal.SIGINT, err
+    hint = err.split("continue with: ", 1)[1].splitlines()[0]
+    assert shlex.split(hint) == ["tactex", "graph", "run", "--resume", str(rec)]
+    r = _run(shlex.split(hint)[3:] + ["--log-dir", str(tmp_path / "l2")], domain_id,
+             tmp_path, sim=False)
+    assert r.returncode == 0, r.stderr
+    res = json.loads((rec / "result.json").read_text())
+    assert res["seed"] == 0 and len(res["rounds"]) <= 3 and res["resumed"]
+    params = yaml.safe_load((tmp_path / "l2" / "params.yaml").read_text())
+    assert "mock_arm" in params                         # the sim graph, from the record

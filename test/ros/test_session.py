@@ -172,6 +172,8 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path,
     # every accepted touch on disk went into the result: none lost, none pressed twice
     assert res["touches"] == sum(bool(t.get("accepted")) for t in rec["touches"])
     assert [e["event"] for e in sess.events(d)].count("resumed") == 1
+    asked = [e["trial"] for e in sess.events(d) if e["event"] == "awaiting_confirmation"]
+    assert asked.count("1") == 1            # its confirmed placement was not asked again
 
 
 def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_id) -> None:

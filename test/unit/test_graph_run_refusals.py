@@ -95,9 +95,10 @@ def test_graph_run_refuses_before_any_node(tmp_path: Path, capsys, case) -> None
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
 
 
-def test_resume_hint_repeats_this_runs_device_options(tmp_path: Path) -> None:
-    """After a run-time failure the hint continues the record with the device options given
-    (not kept in the record); after a node's refusal (exit 2) or a finished record, no hint."""
+def test_resume_hint_is_the_record_alone(tmp_path: Path) -> None:
+    """After a run-time failure the hint continues the record with nothing but ``--resume``
+    (the record keeps the run's options); after a node's refusal (exit 2) or a finished
+    record, no hint."""
     from argparse import Namespace
     from types import SimpleNamespace
 
@@ -105,8 +106,69 @@ def test_resume_hint_repeats_this_runs_device_options(tmp_path: Path) -> None:
     d = _record(tmp_path)
     args = Namespace(sim=False, source=None, sensor="gelsight_mini", device="/dev/video 2")
     run = SimpleNamespace(record=d, node_exit={"gelsight": 1, "explorer": 0})
-    assert resume_hint(run, args) == (f"tactex graph run --sensor gelsight_mini "
-                                      f"--device '/dev/video 2' --resume {d}")
+    assert resume_hint(run, args) == f"tactex graph run --resume {d}"
     assert resume_hint(SimpleNamespace(record=d, node_exit={"gelsight": 2}), args) is None
     (d / "result.json").write_text(json.dumps({"prediction": "c1", "touches": 2}))
     assert resume_hint(run, args) is None
+
+
+def _run_args(argv: list[str]):
+    from tactex_ros.cli.main import build_parser
+    return build_parser("graph").parse_args(["graph", "run"] + argv)
+
+
+def test_resume_takes_every_option_from_the_record(tmp_path: Path, capsys) -> None:
+    """A run's options (settings, seed, sim, mock camera source, --yes) go into the record's
+    run.json; ``--resume DIR`` alone gets them back; an option given again with another value
+    is refused before anything starts (exit 2, both values named); the same value is fine."""
+    from tactex_ros.cli.graph_commands import _nodes, save_run_options
+    from tactex_ros.core.errors import InputError
+    first = _run_args(["--sim", "--rounds", "3", "--seed", "4", "--source", "sim", "--yes",
+                       "--set", "trial.stop_confidence=0.95"])
+    d = _record(tmp_path)
+    cfg = json.loads((d / "config.json").read_text())
+    cfg["explorer"]["seed"], cfg["trial"]["rounds"] = 4, 3
+    cfg["trial"]["stop_confidence"] = 0.95
+    (d / "config.json").write_text(json.dumps(cfg))
+    save_run_options(d, first, _nodes(first))
+
+    again = _run_args(["--resume", str(d)])
+    nodes = {n.name: n.parameters for n in _nodes(again)}
+    assert (again.sim, again.rounds, again.seed, again.source, again.yes) == \
+        (True, 3, 4, "sim", True)
+    assert again.set == ["trial.stop_confidence=0.95"]
+    assert nodes["explorer"]["trial"]["rounds"] == 3 and nodes["explorer"]["seed"] == 4
+    assert nodes["explorer"]["resume"] == str(d.resolve())
+    assert nodes["mock_image"]["source"] == "sim"            # the sim graph, from the record
+    _nodes(_run_args(["--resume", str(d), "--rounds", "3", "--sim"]))     # same values: fine
+
+    for argv, given, recorded in ((["--rounds", "7"], "7", "3"), (["--seed", "9"], "9", "4"),
+                                  (["--source", "replay"], "'replay'", "'sim'")):
+        with pytest.raises(InputError) as exc:
+            _nodes(_run_args(["--resume", str(d)] + argv))
+        assert f"{given} given" in str(exc.value) and f"= {recorded}" in str(exc.value)
+    logs = tmp_path / "logs"
+    assert main(["graph", "run", "--resume", str(d), "--rounds", "7", "--log-dir",
+                 str(logs)]) == 2
+    err = capsys.readouterr().err
+    assert "7" in err and "3" in err and not logs.exists()   # before any node or prompt
+
+
+def test_session_dir_alone_continues_the_session_with_its_options(tmp_path: Path) -> None:
+    """`--session-dir DIR` of a session folder holding run.json: the trial file, rounds, seed,
+    sim graph and --yes come back from it; another --rounds is refused, both values named."""
+    from tactex_ros.cli.graph_commands import _nodes, save_run_options
+    from tactex_ros.core.errors import InputError
+    short = Path(__file__).parents[1] / "data" / "session_short.yaml"
+    d = tmp_path / "sess"
+    first = _run_args(["--sim", "--session", str(short), "--session-dir", str(d),
+                       "--rounds", "3", "--seed", "0", "--yes"])
+    save_run_options(d, first, _nodes(first))
+    again = _run_args(["--session-dir", str(d)])
+    ex = next(n.parameters for n in _nodes(again) if n.name == "explorer")
+    assert (again.session, again.rounds, again.seed, again.sim, again.yes) == \
+        (str(short.resolve()), 3, 0, True, True)
+    assert ex["session_file"] == str(short.resolve()) and ex["trial"]["rounds"] == 3
+    with pytest.raises(InputError) as exc:
+        _nodes(_run_args(["--session-dir", str(d), "--rounds", "5"]))
+    assert "5 given" in str(exc.value) and "= 3" in str(exc.value)
