@@ -125,7 +125,16 @@ def _nodes(args: argparse.Namespace):
     from ..core.schema import merge, overrides
     from ..ros.graph import describe, option_overrides
     from ..ros.settings import ExplorerSettings
-    options_from_record(args)
+    folder = options_from_record(args)
+    if folder is not None and getattr(args, "resume", None) and \
+            not (folder / "config.json").is_file():
+        # the run stopped before its trial recorded anything (e.g. no camera): the resume
+        # starts the trial in that folder with the options the run was given (run.json)
+        if args.record_dir is not None or args.trial_id is not None:
+            raise InputError("--resume names the record; --record-dir and --trial-id do not "
+                             "apply")
+        d = folder.resolve()
+        args.resume, args.record_dir, args.trial_id = None, str(d.parent), d.name
     given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
@@ -167,10 +176,14 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     from ..trial.record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None
-    try:
-        check_resumable(run.record)
-    except InputError:
-        return None
+    d = Path(run.record)
+    if (d / RUN_FILE).is_file() and not (d / "config.json").is_file():
+        pass                  # nothing recorded yet: the resume starts the trial (``_nodes``)
+    else:
+        try:
+            check_resumable(d)
+        except InputError:
+            return None
     import shlex
     return f"tactex graph run --resume {shlex.quote(str(run.record))}"
 

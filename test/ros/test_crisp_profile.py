@@ -18,7 +18,7 @@ from tactex_ros.ros.launcher import Graph
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
-def _nodes(tmp_path: Path, **press):
+def _nodes(tmp_path: Path, motion: dict | None = None, **press):
     scene = None
     if press:
         data = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
@@ -26,7 +26,8 @@ def _nodes(tmp_path: Path, **press):
         scene = tmp_path / "scene.yaml"
         scene.write_text(yaml.safe_dump(data))
     # the mock arm offers no franka collision service: the lab's by-hand path (docs/hardware.md)
-    nodes = describe(True, scene, robot="fr3_crisp", motion={"collision_set_by_hand": True})
+    nodes = describe(True, scene, robot="fr3_crisp",
+                     motion={"collision_set_by_hand": True, **(motion or {})})
     return [n for n in nodes if n.name in ("mock_arm", "mock_image", "motion")]
 
 
@@ -57,7 +58,10 @@ def test_press_through_the_crisp_profile(tmp_path: Path, listener, press) -> Non
 def test_second_target_publisher_stops_the_arm(tmp_path: Path, listener, press) -> None:
     from geometry_msgs.msg import PoseStamped
     listener.node.create_publisher(PoseStamped, "/target_pose", 1)   # never publishes
-    with Graph(_nodes(tmp_path, approach_deadline_s=4.0), tmp_path / "logs",
-               listener.domain_id):
+    # the motion node's pre-flight refuses another graph (test_two_graphs.py): off here,
+    # so this is the controller's own answer (the mock's CRISP law stops the arm)
+    with Graph(_nodes(tmp_path, {"preflight": False}, approach_deadline_s=4.0),
+               tmp_path / "logs", listener.domain_id):
         res = press("c1", timeout=60.0)
     assert not res.success and "deadline: phase approach" in res.reason, res.reason
+

@@ -174,7 +174,8 @@ def test_motion_lifecycle(bench) -> None:
 
     from tactex_ros.ros.nodes.motion_node import MotionNode
     b = bench(MotionNode, {"scene_file": SCENE, "robot": "sim", "state_timeout_s": 0.05,
-                           "preflight": False})                    # no robot state here
+                           "preflight": False,                     # no robot state here
+                           "capture_wait_s": 1.0})                 # and no camera
     got: list = []
     b.manager.create_subscription(PoseStamped,
                                   "/cartesian_impedance_controller/equilibrium_pose",

@@ -72,7 +72,7 @@ def _outcome(res: dict) -> str:
 
 
 def _decisions(folder: Path) -> list[dict]:
-    return [{k: v for k, v in d.items() if k != "decision_s"}
+    return [{k: v for k, v in d.items() if k not in ("decision_s", "time")}   # wall-clock
             for d in read_record(folder, images=False)["decisions"]]
 
 
