@@ -157,6 +157,7 @@ class MockImageNode(TactexNode):
                                 s.diag_pause_s)
         worker = threading.Thread(target=work, name="placement", daemon=True)
         worker.start()
+        self.diag.publish()          # the state change goes out now, not at the next period
         next_diag = time.monotonic() + s.diag_period_s
         try:
             while worker.is_alive():
@@ -168,6 +169,7 @@ class MockImageNode(TactexNode):
                     self.diag.publish()
         finally:
             self.health.phase.end()
+            self.diag.publish()
         if failed:
             raise failed[0]
 
