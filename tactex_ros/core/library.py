@@ -17,13 +17,16 @@ xbar_p of k_p touches then has the density
 tempered by the match belief's ``temperature`` (descriptor dimensions are correlated, as in
 ``core/match.py``), giving each platform's posterior q_p over {1..F, new}.
 
-Hypothesis h (the reference holds comparison h's fabric) against its alternatives: the data's
-likelihood ratio to "every platform independent" is
-    R_h = sum_f q_0(f) q_h(f) / P(f)  +  q_0(new) q_h(new) rho_h / P(new),
-the first term the known fabrics (marginalised), the second the unknown-fabric component whose
-match evidence rho_h = C * b_h is today's scene-only belief b (``MatchModel.belief``) scaled so
-that a uniform b means "no evidence" (rho = 1). The belief is R normalised. With an empty library,
-or when every platform is classified new, it is today's belief exactly.
+Hypothesis h (the reference holds comparison h's fabric): the library's evidence for it is how
+much more likely the two share a fabric given their classifications than a priori,
+    K_h = P(z_0 = z_h | x) / P(z_0 = z_h) = sum_f q_0(f) q_h(f) / P(f) + q_0(new) q_h(new) / P(new),
+the known fabrics marginalised, plus the unknown-fabric component. The scene's own evidence
+(today's belief b, ``MatchModel.belief``: how close the reference's touches lie to comparison
+h's) holds whether the shared fabric is known or not, so the belief is b_h K_h normalised. A
+library that tells nothing (q = the prior: K = 1), an empty library and platforms all classified
+new (K_h = 1 / P(new) for every h) give today's belief exactly; a reference classified as a
+known fabric moves the belief toward the comparison classified as the same one, and away from
+comparisons classified as other fabrics.
 
 The file: a numpy ``.npz`` (read with ``allow_pickle=False``) of the raw descriptors (N, D)
 before any representation (lossless: a representation is applied when a trial uses it), the
@@ -199,8 +202,7 @@ class LibraryBelief:
         lq = self._log_posteriors(means, counts)                               # (C+1, F+1)
         terms = lq[0][None, :] + lq[1:] - self.log_prior[None, :]              # (C, F+1)
         with np.errstate(divide="ignore"):
-            terms[:, -1] += np.log(len(scene) * scene)
-        return softmax(_logsumexp(terms, axis=1))
+            return softmax(np.log(scene) + _logsumexp(terms, axis=1))
 
 
 def _logsumexp(a: np.ndarray, axis: int) -> np.ndarray:
