@@ -27,14 +27,17 @@ import numpy as np
 
 from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.library import FabricLibrary
+from tactex_ros.core.library import EVIDENCE_WEIGHT, FabricLibrary
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import at_stop, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache,
                                                 load_cache)
 
-ARMS = ("off", "on")
+def arm_names(weights: list[float]) -> list[str]:
+    """'off' (today's belief) and one learning arm per evidence weight: 'on' for the shipped
+    weight, 'on_w<weight>' for another."""
+    return ["off"] + ["on" if w == EVIDENCE_WEIGHT else f"on_w{w:g}" for w in weights]
 
 
 def study_scenes(classes: list[str], trials: int, comparisons: int, seed: int
@@ -50,7 +53,8 @@ def study_scenes(classes: list[str], trials: int, comparisons: int, seed: int
 
 
 def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, budget: int,
-                  library: FabricLibrary | None) -> tuple[dict, list[tuple[int, str]]]:
+                  library: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT
+                  ) -> tuple[dict, list[tuple[int, str]]]:
     """One trial on the cached presses (no stop rule, ``budget`` touches after the baseline):
     its belief curve and the (platform, press row) it touched. With ``library`` the belief asks
     it, less the videos touched so far."""
@@ -69,7 +73,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
         video = replay.log[-1][1]
         if library is not None and video not in touched:
             touched.add(video)
-            eng.learner.use_library(library.without(touched))
+            eng.learner.use_library(library.without(touched), weight)
         return t
 
     truth = scene[1:].index(scene[0]) + 1
@@ -79,7 +83,8 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
 
 def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namespace,
                 log: Callable[[str], None] = print) -> list[dict]:
-    """One replayed session of ``args.trials`` trials, learning off and on (paired)."""
+    """One replayed session of ``args.trials`` trials, learning off and on with each of
+    ``args.weights`` (paired: the same touches)."""
     classes = sorted(set(cls.tolist()))
     lib = FabricLibrary()
     rows = []
@@ -90,32 +95,33 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
                "platforms_known": sum(c in known for c in scene[1:]),
                "library": lib.state()}
         logs = {}
-        for arm in ARMS:
+        for arm, w in zip(arm_names(args.weights), [None] + list(args.weights)):
             c, logs[arm] = run_trial_arm(x, cls, scene, seed * 1000 + t, args.budget,
-                                         lib if arm == "on" else None)
+                                         None if w is None else lib, w or EVIDENCE_WEIGHT)
             ok, extra, sure = at_stop(c, args.stop)
             row[arm] = {"correct": bool(ok), "touches_after_baseline": int(extra),
                         "stopped": bool(sure), "wrong_stop": bool(sure and not ok),
                         "final_correct": bool(c["correct"][-1])}
-        if logs["on"] != logs["off"]:
-            raise RuntimeError(f"trial {t + 1}: the two arms touched different presses")
+        if any(v != logs["off"] for v in logs.values()):
+            raise RuntimeError(f"trial {t + 1}: the arms touched different presses")
         for platform, video in logs["off"]:
             lib = lib.add(scene[platform], x[int(video)], [video])
         rows.append(row)
         log(f"seed {seed} trial {t + 1:2d} ref known {row['reference_known']!s:5} "
-            f"off {row['off']['correct']!s:5} {row['off']['touches_after_baseline']:2d}  "
-            f"on {row['on']['correct']!s:5} {row['on']['touches_after_baseline']:2d}  "
+            + "  ".join(f"{a} {row[a]['correct']!s:5} {row[a]['touches_after_baseline']:2d}"
+                        for a in logs) + "  "
             f"library {lib.presses} presses / {len(lib.fabrics)} fabrics")
     return rows
 
 
-def summarise(rows: list[dict], blocks: int) -> dict:
+def summarise(rows: list[dict], blocks: int, arms: list[str]) -> dict:
     """Per arm and subset (all, reference new, reference seen before): accuracy (Wilson 95 %),
     mean touches after the baseline, wrong stops; paired McNemar (correct) and Wilcoxon
-    (touches), on vs off; and the learning curve over blocks of trial positions."""
+    (touches) of every learning arm against off; and the learning curve over blocks of trial
+    positions."""
     def stats(sub: list[dict]) -> dict:
         out: dict = {"n": len(sub)}
-        for arm in ARMS:
+        for arm in arms:
             k = sum(r[arm]["correct"] for r in sub)
             w = sum(r[arm]["wrong_stop"] for r in sub)
             out[arm] = {"accuracy": k / len(sub) if sub else float("nan"),
@@ -124,11 +130,11 @@ def summarise(rows: list[dict], blocks: int) -> dict:
                                                        for r in sub])) if sub else float("nan"),
                         "wrong_stops": w, "wrong_stop_rate": w / len(sub) if sub else
                         float("nan"), "wrong_stop_ci95": wilson(w, len(sub))}
-        if sub:
-            out["mcnemar_on_vs_off"] = mcnemar_exact([r["on"]["correct"] for r in sub],
-                                                     [r["off"]["correct"] for r in sub])
-            out["wilcoxon_touches_on_vs_off"] = wilcoxon_paired(
-                [r["on"]["touches_after_baseline"] for r in sub],
+        for arm in arms[1:] if sub else []:
+            out[arm]["mcnemar_vs_off"] = mcnemar_exact([r[arm]["correct"] for r in sub],
+                                                       [r["off"]["correct"] for r in sub])
+            out[arm]["wilcoxon_touches_vs_off"] = wilcoxon_paired(
+                [r[arm]["touches_after_baseline"] for r in sub],
                 [r["off"]["touches_after_baseline"] for r in sub])
         return out
 
@@ -161,7 +167,7 @@ def chart(out: Path, results: dict) -> Path:
     for j, name in enumerate(names):
         cur = results[name]["summary"]["curve"]
         xs = [np.mean(c["trials"]) for c in cur]
-        for arm, style in (("off", "o--"), ("on", "s-")):
+        for arm, style in zip(results[name]["arms"], ("o--", "s-", "^-", "v-", "d-", "x-")):
             acc = [c["all"][arm]["accuracy"] for c in cur]
             lo = [a - c["all"][arm]["accuracy_ci95"][0] for a, c in zip(acc, cur)]
             hi = [c["all"][arm]["accuracy_ci95"][1] - a for a, c in zip(acc, cur)]
@@ -198,9 +204,12 @@ def run(args: argparse.Namespace) -> dict:
         rows = []
         for s in range(args.sessions):
             rows += run_session(x, cls, args.seed + s, args)
+        arms = arm_names(args.weights)
         results[Path(root).name] = {"sessions": args.sessions, "classes": len(set(cls.tolist())),
-                                    "presses": int(len(cls)),
-                                    "summary": summarise(rows, args.blocks), "trials": rows}
+                                    "presses": int(len(cls)), "arms": arms,
+                                    "weights": list(args.weights),
+                                    "summary": summarise(rows, args.blocks, arms),
+                                    "trials": rows}
     write_json(out / "fabric_library.json", {k: {kk: vv for kk, vv in v.items()}
                                              for k, v in results.items()})
     print(f"chart: {chart(out, results)}")
@@ -209,9 +218,10 @@ def run(args: argparse.Namespace) -> dict:
             s = r["summary"][sub]
             print(f"{name} {sub:16s} n {s['n']:3d}  " + "  ".join(
                 f"{arm}: acc {s[arm]['accuracy']:.3f} touches {s[arm]['touches_mean']:.2f} "
-                f"wrong stops {s[arm]['wrong_stops']}" for arm in ARMS)
-                + (f"  McNemar p {s['mcnemar_on_vs_off']['p']:.3g} Wilcoxon p "
-                   f"{s['wilcoxon_touches_on_vs_off']['p']:.3g}" if s["n"] else ""))
+                f"wrong stops {s[arm]['wrong_stops']}" + (
+                    f" (McNemar p {s[arm]['mcnemar_vs_off']['p']:.3g}, Wilcoxon p "
+                    f"{s[arm]['wilcoxon_touches_vs_off']['p']:.3g})"
+                    if "mcnemar_vs_off" in s[arm] else "") for arm in r["arms"]))
     return results
 
 
@@ -230,6 +240,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
     p.add_argument("--stop", type=float, default=SHIPPED_STOP,
                    help="stop threshold applied to the belief after every decision")
+    p.add_argument("--weights", type=float, nargs="+", default=[EVIDENCE_WEIGHT],
+                   help="evidence weights of the library (core/library.py EVIDENCE_WEIGHT), "
+                        "one learning arm each")
     p.add_argument("--blocks", type=int, default=4, help="blocks of trial positions (curve)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first session")
     p.add_argument("--out")
@@ -239,6 +252,8 @@ def register(esub: argparse._SubParsersAction) -> None:
                           ("blocks", 1)):
             if getattr(args, name) < low:
                 raise InputError(f"--{name} must be >= {low}, got {getattr(args, name)}")
+        if not all(w > 0 for w in args.weights) or len(set(args.weights)) < len(args.weights):
+            raise InputError(f"--weights must be distinct and > 0, got {args.weights}")
         if not 0 < args.stop <= 1:
             raise InputError(f"--stop must be in (0, 1], got {args.stop}")
         Path(args.cache_dir).mkdir(parents=True, exist_ok=True)

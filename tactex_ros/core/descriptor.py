@@ -15,7 +15,7 @@ import numpy as np
 from .config import DescriptorSettings
 from .schema import validate
 from .errors import InputError
-from .library import FabricLibrary, LibraryBelief, library_belief
+from .library import EVIDENCE_WEIGHT, FabricLibrary, LibraryBelief, library_belief
 from .match import MatchModel
 from .representation import Representation, load
 from .texture import describe_touch
@@ -65,14 +65,15 @@ class DescriptorLearner:
         self.library: LibraryBelief | None = None
         self.library_state: dict = {"used": False}
 
-    def use_library(self, lib: FabricLibrary | None) -> None:
+    def use_library(self, lib: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT) -> None:
         """Let the belief ask the fabric library ``lib`` too (``core/library.py``; None: the
-        scene-only belief); ``library_state`` says what the trial saw."""
+        scene-only belief; ``weight``: of its evidence); ``library_state`` says what the trial
+        saw."""
         if lib is None:
             self.library, self.library_state = None, {"used": False}
             return
         apply = self.representation.apply if self.representation is not None else None
-        self.library = library_belief(lib, apply, self.match.beta)
+        self.library = library_belief(lib, apply, self.match.beta, weight)
         self.library_state = {"used": True, **lib.state()}
 
     def _describe(self, touch: Touch) -> np.ndarray:

@@ -22,7 +22,8 @@ much more likely the two share a fabric given their classifications than a prior
     K_h = P(z_0 = z_h | x) / P(z_0 = z_h) = sum_f q_0(f) q_h(f) / P(f) + q_0(new) q_h(new) / P(new),
 the known fabrics marginalised, plus the unknown-fabric component. The scene's own evidence
 (today's belief b, ``MatchModel.belief``: how close the reference's touches lie to comparison
-h's) holds whether the shared fabric is known or not, so the belief is b_h K_h normalised. A
+h's) holds whether the shared fabric is known or not, so the belief is b_h K_h^w normalised
+(w = ``EVIDENCE_WEIGHT``: both classify the same touches, so their evidence overlaps). A
 library that tells nothing (q = the prior: K = 1), an empty library and platforms all classified
 new (K_h = 1 / P(new) for every h) give today's belief exactly; a reference classified as a
 known fabric moves the belief toward the comparison classified as the same one, and away from
@@ -150,18 +151,26 @@ def load(path: str | Path, missing_ok: bool = False) -> FabricLibrary:
                          [str(s) for s in sources])
 
 
+#: The weight of the library's evidence, as the exponent of K (log K times it): the library
+#: classifies the very touches the scene belief compares, so the two overlap and their product
+#: at full weight stopped wrongly more often (docs/research/fabric_library.md, where it is chosen).
+EVIDENCE_WEIGHT = 1.0
+
+
 class LibraryBelief:
     """The library's part of the match belief (module docstring): fitted on ``x`` (N, k), the
     library's descriptors in the trial's units (after its representation), with ``names``."""
 
     def __init__(self, x: np.ndarray, names: list[str], temperature: float,
-                 new_weight: float = 1.0, prior_strength: float = 4.0) -> None:
+                 new_weight: float = 1.0, prior_strength: float = 4.0,
+                 weight: float = EVIDENCE_WEIGHT) -> None:
         for key, v in (("temperature", temperature), ("new_weight", new_weight),
-                       ("prior_strength", prior_strength)):
+                       ("prior_strength", prior_strength), ("weight", weight)):
             if not v > 0:
                 raise InputError(f"LibraryBelief.{key} must be > 0, got {v}")
         x = np.asarray(x, dtype=np.float64)
         self.beta = float(temperature)
+        self.weight = float(weight)
         self.fabric_names = sorted(set(names))
         F = len(self.fabric_names)
         self.F = F
@@ -202,7 +211,7 @@ class LibraryBelief:
         lq = self._log_posteriors(means, counts)                               # (C+1, F+1)
         terms = lq[0][None, :] + lq[1:] - self.log_prior[None, :]              # (C, F+1)
         with np.errstate(divide="ignore"):
-            return softmax(np.log(scene) + _logsumexp(terms, axis=1))
+            return softmax(np.log(scene) + self.weight * _logsumexp(terms, axis=1))
 
 
 def _logsumexp(a: np.ndarray, axis: int) -> np.ndarray:
@@ -218,7 +227,7 @@ def _log_normal(x: np.ndarray, mu: np.ndarray, var: np.ndarray) -> np.ndarray:
 
 
 def library_belief(lib: FabricLibrary, apply: Callable[[np.ndarray], np.ndarray] | None,
-                   temperature: float) -> LibraryBelief:
+                   temperature: float, weight: float = EVIDENCE_WEIGHT) -> LibraryBelief:
     """The ``LibraryBelief`` of ``lib`` in a trial's units (``apply``: its representation)."""
     x = lib.descriptors if apply is None or not lib.presses else apply(lib.descriptors)
-    return LibraryBelief(x, lib.names, temperature)
+    return LibraryBelief(x, lib.names, temperature, weight=weight)
