@@ -137,6 +137,7 @@ class SessionRun:
                                    "prediction": res.get("prediction"),
                                    "correct": res.get("correct"), "touches": res.get("touches"),
                                    "stop_reason": res.get("stop_reason"), "time": time.time()})
+            self.current_library()            # the last trial's presses are filed first
             out = sess.summary(d)
             sess.finish_session(d, out)
             sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
