@@ -40,8 +40,9 @@ def _brute_force(lb: flib.LibraryBelief, means: np.ndarray, counts: np.ndarray,
         sd = np.sqrt(lb.B + lb.s2 / counts[p])
         dens[p, F] = np.exp(lb.beta * norm.logpdf(xb[p], lb.g, sd).sum())
     marg = dens @ prior
-    r = np.array([(prior * dens[0] * dens[h]).sum() * scene[h - 1]
+    k = np.array([(prior * dens[0] * dens[h]).sum()
                   for h in range(1, len(scene) + 1)]) / (marg[0] * marg[1:])
+    r = k ** lb.weight * scene
     return r / r.sum()
 
 
@@ -57,6 +58,11 @@ def test_known_fabric_placed_again_moves_the_belief_to_its_comparison():
     np.testing.assert_allclose(b, [0.29662204, 0.48967955, 0.08045648, 0.13324193], rtol=1e-6)
     q = lb.posteriors(means, counts)
     assert q.shape == (5, 4) and np.argmax(q[0]) == 1      # the reference is felt
+    # half the library's evidence: half as far from the scene belief (in log odds)
+    half = flib.library_belief(_lib(), None, temperature=0.5, weight=0.5)
+    bh = half.belief(means, counts, scene)
+    np.testing.assert_allclose(bh, _brute_force(half, means, counts, scene), rtol=1e-10)
+    assert scene[1] < bh[1] < b[1]
 
 
 def test_an_unknown_fabric_gives_todays_belief_exactly():
