@@ -28,6 +28,7 @@ import numpy as np
 from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.library import EVIDENCE_WEIGHT, FabricLibrary
+from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import at_stop, curve
@@ -156,40 +157,6 @@ def summarise(rows: list[dict], blocks: int, arms: list[str]) -> dict:
             "curve": curve_rows}
 
 
-def chart(out: Path, results: dict) -> Path:
-    """learning_curve.png: accuracy and touches after the baseline per block of trials, off
-    vs on, one column per replay library."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    names = list(results)
-    fig, axes = plt.subplots(2, len(names), figsize=(5.5 * len(names), 7), squeeze=False)
-    for j, name in enumerate(names):
-        cur = results[name]["summary"]["curve"]
-        xs = [np.mean(c["trials"]) for c in cur]
-        for arm, style in zip(results[name]["arms"], ("o--", "s-", "^-", "v-", "d-", "x-")):
-            acc = [c["all"][arm]["accuracy"] for c in cur]
-            lo = [a - c["all"][arm]["accuracy_ci95"][0] for a, c in zip(acc, cur)]
-            hi = [c["all"][arm]["accuracy_ci95"][1] - a for a, c in zip(acc, cur)]
-            axes[0, j].errorbar(xs, acc, yerr=[lo, hi], fmt=style, capsize=3,
-                                label=f"learning {arm}")
-            axes[1, j].plot(xs, [c["all"][arm]["touches_mean"] for c in cur], style,
-                            label=f"learning {arm}")
-        axes[0, j].plot(xs, [c["reference_known_share"] for c in cur], ":", color="grey",
-                        label="reference fabric seen before")
-        axes[0, j].set_title(f"{name} ({results[name]['sessions']} sessions)")
-        axes[0, j].set_ylabel("right at stop (Wilson 95 %)")
-        axes[0, j].set_ylim(0, 1.05)
-        axes[1, j].set_ylabel("touches after the baseline")
-        axes[1, j].set_xlabel("trial of the session")
-        axes[0, j].legend(loc="lower right", fontsize=8)
-    fig.tight_layout()
-    path = out / "learning_curve.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def run(args: argparse.Namespace) -> dict:
     out = results_dir(args.out, "fabric_library",
                       {k: v for k, v in vars(args).items() if k != "func"})
@@ -212,7 +179,7 @@ def run(args: argparse.Namespace) -> dict:
                                     "trials": rows}
     write_json(out / "fabric_library.json", {k: {kk: vv for kk, vv in v.items()}
                                              for k, v in results.items()})
-    print(f"chart: {chart(out, results)}")
+    print(f"chart: {charts.library_curve(out / 'learning_curve.png', results)}")
     for name, r in results.items():
         for sub in ("all", "reference_new", "reference_known"):
             s = r["summary"][sub]
