@@ -47,7 +47,7 @@ def _brute_force(lb: flib.LibraryBelief, means: np.ndarray, counts: np.ndarray,
 
 
 def test_known_fabric_placed_again_moves_the_belief_to_its_comparison():
-    lb = flib.library_belief(_lib(), None, temperature=0.5)
+    lb = flib.library_belief(_lib(), None, temperature=0.5, weight=1.0)
     # reference felt; comparisons denim, felt, silk and an unknown fabric at (0, -4)
     means = np.array([[0.2, 3.8], [4.1, 0.2], [-0.1, 4.2], [-3.9, -4.1], [0.0, -4.0]])
     counts = np.array([1.0, 1.0, 1.0, 1.0, 1.0])
