@@ -47,7 +47,7 @@ import numpy as np
 
 from .errors import InputError
 from .match import softmax
-from .outputs import write_bytes
+from .outputs import read_npz, write_bytes
 
 FORMAT = "tactex-fabric-library-1"
 #: The library's file name in the lab's records folder (``record_dir``).
@@ -125,18 +125,9 @@ def load(path: str | Path, missing_ok: bool = False) -> FabricLibrary:
     """Read a library file; an empty library when it is absent and ``missing_ok``. InputError
     naming the file and what is wrong (torn, foreign, inconsistent)."""
     p = Path(path)
-    if not p.is_file():
-        if missing_ok:
-            return FabricLibrary()
-        raise InputError(f"fabric library file not found: {p}")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
-    except Exception as exc:  # numpy raises several types for a torn or foreign file
-        raise InputError(f"fabric library file {p} is not loadable ({exc}): move it away to "
-                         "start an empty library") from None
-    if str(d.get("format", "")) != FORMAT:
-        raise InputError(f"fabric library file {p}: not a {FORMAT} file")
+    if missing_ok and not p.exists():
+        return FabricLibrary()
+    d = read_npz(p, "fabric library file", FORMAT, "move it away to start an empty library")
     try:
         x, names, sources = d["descriptors"], d["names"], d["sources"]
     except KeyError as exc:
