@@ -83,7 +83,8 @@ class LibraryKeeper:
             self.last_update = {"trial": tag, "added": added, **lib.state(),
                                 "seconds": time.monotonic() - t0}
             self.log(logging.INFO, f"fabric library {self.path}: +{added} presses of trial "
-                                   f"{tag}: {lib.presses} presses of {len(lib.fabrics)} fabrics")
+                                   f"{tag} in {self.last_update['seconds']:.1f} s: "
+                                   f"{lib.presses} presses of {len(lib.fabrics)} fabrics")
         except Exception as exc:  # noqa: BLE001 - the trial's record is the ground truth
             self.last_update = {"trial": tag, "error": f"{type(exc).__name__}: {exc}"}
             self.log(logging.WARNING, f"fabric library not updated from trial {tag}: {exc}")
