@@ -45,18 +45,19 @@ class FrameRing:
     def best(self, window_s: float, now: float) -> tuple[np.ndarray, float]:
         """Strongest-contact frame in the window and its score; ValueError if none/no reference."""
         frames, score = self.burst(window_s, now, 1)
-        return frames[0], score
+        return frames[0][1], score
 
     def burst(self, window_s: float, now: float,
-              count: int) -> tuple[list[np.ndarray], float]:
-        """Up to ``count`` consecutive frames of the window: the strongest-contact frame first,
-        then its in-contact neighbours in time order (``core.contact.burst_indices``), and the
-        strongest's contact score [grey levels]; ValueError if no frame / no reference."""
+              count: int) -> tuple[list[tuple[float, np.ndarray]], float]:
+        """Up to ``count`` consecutive (stamp [s], frame) of the window: the strongest-contact
+        frame first, then its in-contact neighbours in time order
+        (``core.contact.burst_indices``), and the strongest's contact score [grey levels];
+        ValueError if no frame / no reference."""
         if self._ref_blur is None:
             raise ValueError("no no-contact reference frame yet")
-        frames = [f for t, f in self._frames if window_s <= 0 or t >= now - window_s]
+        frames = [(t, f) for t, f in self._frames if window_s <= 0 or t >= now - window_s]
         if not frames:
             raise ValueError(f"no frame in the last {window_s:.2f} s")
-        scores = [contact_score(f, self._ref_blur) for f in frames]
+        scores = [contact_score(f, self._ref_blur) for _, f in frames]
         pick = burst_indices(np.array(scores), count)
         return [frames[i] for i in pick], float(scores[pick[0]])

@@ -68,10 +68,11 @@ def test_frame_ring_burst_returns_consecutive_in_contact_frames() -> None:
         f[60:180, 80:240] += np.uint8(v)
         ring.push(float(k), f)
     frames, score = ring.burst(0.0, 11.0, 4)
-    got = [int(f[120, 160, 0]) - int(base[120, 160, 0]) for f in frames]
+    got = [int(f[120, 160, 0]) - int(base[120, 160, 0]) for _, f in frames]
     assert got == [40, 30, 36, 32]        # strongest first, then frames 4, 6, 7 in time order
+    assert [t for t, _ in frames] == [5.0, 4.0, 6.0, 7.0]
     best, s1 = ring.best(0.0, 11.0)
-    assert s1 == score and np.array_equal(best, frames[0])
+    assert s1 == score and np.array_equal(best, frames[0][1])
     # the window holds only the last 3 s (stamps 8..11): frame 8 is the strongest there
     frames, _ = ring.burst(3.0, 11.0, 4)
-    assert [int(f[120, 160, 0]) - int(base[120, 160, 0]) for f in frames] == [28]
+    assert [int(f[120, 160, 0]) - int(base[120, 160, 0]) for _, f in frames] == [28]
