@@ -13,7 +13,7 @@ import pytest
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialSpec, trial_preset
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.touch import Touch, as_touch
+from tactex_ros.core.touch import Touch
 from tactex_ros.sources import open_source
 from tactex_ros.trial.record import TrialRecord, check_resumable, read_record
 from tactex_ros.trial.resume import recorded_touches
