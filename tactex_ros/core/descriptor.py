@@ -94,6 +94,10 @@ class DescriptorLearner:
         """(C,) the exact belief (the draws only serve the uncertainty strategies)."""
         return self.match.belief()
 
+    def separation(self) -> float:
+        """The two best comparisons' separation (``MatchModel.separation``)."""
+        return self.match.separation()
+
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, 0 = reference (``MatchModel``)."""
         return self.match.info_gain(rng)
