@@ -172,7 +172,16 @@ def ece(trajs: list[Trajectory], beta: float, bins: int = 10) -> float:
     """Expected calibration error of the top belief over every decision (equal-width bins)."""
     ev, y = _decisions(trajs)
     b = softmax(beta * ev)
-    conf, ok = b.max(axis=1), (b.argmax(axis=1) == y).astype(np.float64)
+    return ece_of(b.max(axis=1), b.argmax(axis=1) == y, bins)
+
+
+def ece_of(conf: np.ndarray, correct: np.ndarray, bins: int = 10) -> float:
+    """Expected calibration error of (n,) confidences against (n,) right/wrong (equal-width
+    bins; nan for n = 0)."""
+    conf = np.asarray(conf, dtype=np.float64)
+    ok = np.asarray(correct, dtype=np.float64)
+    if conf.size == 0:
+        return float("nan")
     idx = np.minimum((conf * bins).astype(int), bins - 1)
     return float(sum(abs(conf[idx == i].mean() - ok[idx == i].mean()) * np.sum(idx == i)
                      for i in range(bins) if np.any(idx == i)) / len(conf))
