@@ -24,10 +24,16 @@ def test_offline_stop_equals_the_engine_with_the_rule(tmp_path):
     assert len(trajs) == 12 and len(list(tmp_path.glob("trials_x_*.npz"))) == 1
     again = fam.run_family("x", presses, [0], args, 0.05)          # from the cache
     np.testing.assert_array_equal(again[3].evidence, trajs[3].evidence)
-    # the same trials run by the engine with the stop 0.9 and the rule s0 = 1: the same end
+    # the same trials run by the engine with the stop 0.9 and the rule off, s0 = 2 (every stop
+    # later) and s0 = 3 (5 of 12 end not sure): the same ends
     groups = cal.class_split(sorted(presses), 2, 0)
-    for s0 in (0.0, 1.0):
+    base = fam.outcome(trajs, 0.05, 0.9)
+    assert base["sure"].all()
+    for s0, sure in ((0.0, 12), (2.0, 12), (3.0, 7)):
         off = fam.outcome(trajs, 0.05, 0.9, s0)
+        assert np.sum(off["sure"]) == sure
+        if s0:
+            assert np.all(off["extra"] > base["extra"])
         k = 0
         for g, held in enumerate(groups):
             rng = np.random.default_rng([0, 53, g])
