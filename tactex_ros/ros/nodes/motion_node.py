@@ -536,7 +536,8 @@ class MotionNode(TactexNode):
                 self.scene.frame_id))
             if ctrl.capture_requested:
                 ok, reason, cap = self._capture(ctrl.s.capture_window_s,
-                                                  ctrl.s.capture_deadline_s)
+                                                  ctrl.s.capture_deadline_s,
+                                                  ctrl.s.capture_frames)
                 pose_xyz = self.position.copy()
                 ctrl.captured(ok, reason, time.monotonic())
             fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
@@ -552,17 +553,20 @@ class MotionNode(TactexNode):
                       tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
                       tare_samples=out.tare.samples, surface_z=out.surface_z,
                       surface_error_m=out.surface_z - platform.position[2],
-                      warning=out.warning)
+                      warning=out.warning, extra_images=list(cap.extra_images))
         if out.warning:
             self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
-    def _capture(self, window_s: float, deadline_s: float):
+    def _capture(self, window_s: float, deadline_s: float, frames: int):
+        """Ask the camera for the strongest-contact frame of the last ``window_s`` [s] and a
+        burst of ``frames`` in-contact frames in all (the scene's ``press.capture_frames``);
+        (ok, reason, the Capture response)."""
         from tactex.srv import Capture
         if not self.capture.wait_for_service(timeout_sec=deadline_s):
             return False, "capture service not available", None
-        fut = self.capture.call_async(Capture.Request(window_s=window_s))
+        fut = self.capture.call_async(Capture.Request(window_s=window_s, frames=frames))
         if not wait_for(fut, deadline_s):
             self.capture.remove_pending_request(fut)
             return False, f"no image within capture_deadline_s ({deadline_s} s)", None
