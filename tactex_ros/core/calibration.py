@@ -44,10 +44,13 @@ PLACEHOLDER_FRAME = np.random.default_rng(0).integers(0, 256, (240, 320, 3), dty
 @dataclass
 class Trajectory:
     """One left-out trial: (steps, C) untempered log evidence after every decision, the true
-    match (0..C-1), and the touches after the baseline at every decision (steps,)."""
+    match (0..C-1), the touches after the baseline at every decision (steps,), and the two best
+    comparisons' separation at every decision (steps,; ``MatchModel.separation``, the stop's
+    "not sure" rule)."""
     evidence: np.ndarray
     truth: int
     extra: np.ndarray
+    separation: np.ndarray | None = None
 
 
 def class_split(classes: list[str], folds: int, seed: int) -> list[list[str]]:
@@ -85,14 +88,16 @@ def _scene(classes: list[str], presses: dict[str, np.ndarray], comparisons: int,
     return plat, truth + 1, touch
 
 
-def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Representation],
+def trajectories(presses: dict[str, np.ndarray],
+                 fit_rep: Callable[[dict], Representation] | None,
                  cfg: DescriptorSettings, folds: int = 3, scenes: int = 40, comparisons: int = 4,
                  budget: int = 10, temperature0: float | None = None,
                  seed: int = 0) -> list[Trajectory]:
     """Left-out trials on the library ``{class: (n, D) descriptors}`` (see the module
     docstring). ``temperature0``: the temperature the trials run with (default: the
     representation's, else ``cfg.match_temperature`` scaled by D / k: the log evidence sums
-    over the k dimensions)."""
+    over the k dimensions). ``fit_rep`` None: the descriptors as given, no representation (the
+    shipped default; its temperature ``cfg.match_temperature``)."""
     from .engine import TrialSpec, run_trial
     classes = sorted(c for c, x in presses.items() if len(x) >= 2)
     if folds < 2:
@@ -106,8 +111,10 @@ def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Repre
     tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
     out: list[Trajectory] = []
     for k, held in enumerate(groups):
-        rep = fit_rep({c: presses[c] for c in classes if c not in held})
-        beta = temperature0 or (rep.temperature if np.isfinite(rep.temperature)
+        rep = None if fit_rep is None else fit_rep({c: presses[c] for c in classes
+                                                    if c not in held})
+        beta = temperature0 or (cfg.match_temperature if rep is None
+                                else rep.temperature if np.isfinite(rep.temperature)
                                 else cfg.match_temperature * rep.mean.size / rep.dims)
         rng = np.random.default_rng([seed, 53, k])
         for s in range(scenes):
@@ -116,14 +123,15 @@ def trajectories(presses: dict[str, np.ndarray], fit_rep: Callable[[dict], Repre
             eng = spec.engine()
             eng.learner.representation = rep
             eng.learner.match.beta = float(beta)
-            ev, extra = [], []
+            ev, extra, sep = [], [], []
 
             def keep(rec, eng=eng) -> None:
                 ev.append(eng.learner.match.log_evidence())
                 extra.append(eng.total_touches - (comparisons + 1))
+                sep.append(eng.learner.match.separation())
 
             run_trial(spec, touch, truth=truth, on_round=keep, engine=eng)
-            out.append(Trajectory(np.stack(ev), truth - 1, np.array(extra)))
+            out.append(Trajectory(np.stack(ev), truth - 1, np.array(extra), np.array(sep)))
     return out
 
 
@@ -164,7 +172,16 @@ def ece(trajs: list[Trajectory], beta: float, bins: int = 10) -> float:
     """Expected calibration error of the top belief over every decision (equal-width bins)."""
     ev, y = _decisions(trajs)
     b = softmax(beta * ev)
-    conf, ok = b.max(axis=1), (b.argmax(axis=1) == y).astype(np.float64)
+    return ece_of(b.max(axis=1), b.argmax(axis=1) == y, bins)
+
+
+def ece_of(conf: np.ndarray, correct: np.ndarray, bins: int = 10) -> float:
+    """Expected calibration error of (n,) confidences against (n,) right/wrong (equal-width
+    bins; nan for n = 0)."""
+    conf = np.asarray(conf, dtype=np.float64)
+    ok = np.asarray(correct, dtype=np.float64)
+    if conf.size == 0:
+        return float("nan")
     idx = np.minimum((conf * bins).astype(int), bins - 1)
     return float(sum(abs(conf[idx == i].mean() - ok[idx == i].mean()) * np.sum(idx == i)
                      for i in range(bins) if np.any(idx == i)) / len(conf))
@@ -199,6 +216,19 @@ def fit_temperature(trajs: list[Trajectory], method: str = "stop",
                               f"1 - theta for thetas {thetas}")
         return float(best)
     raise InputError(f"calibration method {method!r}: one of nll, stop, target")
+
+
+def fit_temperature_families(families: list[list[Trajectory]], method: str = "stop",
+                             thetas: tuple[float, ...] = (0.8, 0.9, 0.95),
+                             max_wrong: float | None = None) -> float:
+    """The largest beta that meets ``fit_temperature``'s criterion on *every* family's
+    left-out trajectories separately (the worst family decides), not on their pool: the
+    smallest of the per-family temperatures (the grid walk stops at the first violation, so
+    this is the walk over all families at once). ``nll``: not a per-family criterion."""
+    if method == "nll" or not families:
+        raise InputError(f"per-family calibration: method stop or target and >= 1 family, got "
+                          f"{method!r} and {len(families)}")
+    return min(fit_temperature(t, method, thetas, max_wrong) for t in families)
 
 
 def report(trajs: list[Trajectory], beta: float,

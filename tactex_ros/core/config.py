@@ -274,6 +274,11 @@ class TrialConfig(Schema):
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(SHIPPED_STOP, "stop once the belief in one comparison "
                                                  "reaches this (0 = never: all rounds)", 0.0, 1.0)
+    stop_separation: float = param(
+        0.0, "not sure while the two best comparisons are alike: the stop also needs their "
+             "means' separation (core/match.py: squared distance over its sampling spread per "
+             "dimension, 1 = as alike as repeated touches of one platform) above this; a trial "
+             "whose budget ends below it ends not sure (0 = off; descriptor models)", 0.0, 1e6)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)

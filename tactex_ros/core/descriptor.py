@@ -113,6 +113,10 @@ class DescriptorLearner:
         means = np.stack([np.mean(s, axis=0) for s in self.match.samples_by_platform])
         return self.library.belief(means, self.match.counts, scene)
 
+    def separation(self) -> float:
+        """The two best comparisons' separation (``MatchModel.separation``)."""
+        return self.match.separation()
+
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, 0 = reference (``MatchModel``)."""
         return self.match.info_gain(rng)

@@ -21,7 +21,10 @@ A round (``decide``): train one round (CNN), the (T, C) table of the reference a
 the strategy's per-platform scores, the choice of the next platform (or none). At most
 ``rounds`` decisions that request a touch, then a final decision whose belief gives the
 prediction; the stop rule ends earlier when the belief in one platform reaches
-``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``).
+``stop_confidence`` (``stop_reason``: ``confident``, ``rounds`` or ``max_touches``), unless the
+two best comparisons are still as alike as repeated touches of one platform
+(``stop_separation``, ``separated``): then it touches on and, if the budget ends so, ends not
+sure.
 
 Model ``auto`` (``LadderSettings``, ``core/ladder.py``) climbs a ladder (descriptor, the
 prepared representation, a CNN plug-in) on evidence from the trial itself; ``cnn_auto``
@@ -82,13 +85,19 @@ def confident(belief_max: float, stop_confidence: float) -> bool:
     return stop_confidence > 0 and belief_max >= stop_confidence
 
 
+def separated(separation: float | None, stop_separation: float) -> bool:
+    """The "not sure" rule: the two best comparisons are told apart (their ``separation``,
+    ``core/match.py``, exceeds ``stop_separation``; 0 = off; None: a learner without it)."""
+    return bool(stop_separation <= 0 or separation is None or separation > stop_separation)
+
+
 def stop_reason(belief_max: float, stop_confidence: float, decisions: int, rounds: int,
-                budget_left: bool = True) -> str | None:
+                budget_left: bool = True, sure_allowed: bool = True) -> str | None:
     """Why a trial ends at a decision after ``decisions`` earlier ones: 'confident' (the stop
-    rule), 'rounds' (all ``rounds`` used), 'max_touches' (no budget left), or None to go on.
-    The offline evaluation of recorded belief curves applies the same rule
-    (``tactex_lab/experiments/curves.py``, ``at_stop``)."""
-    if confident(belief_max, stop_confidence):
+    rule, only where ``sure_allowed``: ``separated``), 'rounds' (all ``rounds`` used),
+    'max_touches' (no budget left), or None to go on. The offline evaluation of recorded
+    belief curves applies the same rule (``tactex_lab/experiments/curves.py``, ``at_stop``)."""
+    if sure_allowed and confident(belief_max, stop_confidence):
         return "confident"
     if decisions >= rounds:
         return "rounds"
@@ -272,6 +281,7 @@ class TrialEngine:
                                    getattr(g, "contact_region_min", 0.0))   # descriptor only
                       if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
+        self._separated = True           # the last decision's "not sure" rule (separated)
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
@@ -342,6 +352,10 @@ class TrialEngine:
         probs = self.learner.reference_probs()
         pbar = self.learner.belief(probs)
         t1 = time.perf_counter()
+        sep = getattr(self.learner, "separation", None)
+        self._separated = separated(sep() if sep is not None and
+                                    self.trial_cfg.stop_separation > 0 else None,
+                                    self.trial_cfg.stop_separation)
         stop = self._stop_reason(pbar)
         final = stop is not None
         choice, scores = (None, None) if final else self.strategy.choose(
@@ -375,7 +389,8 @@ class TrialEngine:
     def _stop_reason(self, belief: np.ndarray) -> str | None:
         """Why the trial ends at this decision, or None to go on."""
         return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
-                           len(self.records), self.trial_cfg.rounds, self._budget_left())
+                           len(self.records), self.trial_cfg.rounds, self._budget_left(),
+                           self._separated)
 
     @property
     def sure(self) -> bool | None:
@@ -385,7 +400,7 @@ class TrialEngine:
         th = self.trial_cfg.stop_confidence
         if self.final is None or th <= 0:
             return None
-        return confident(float(max(self.final.probs)), th)
+        return self._separated and confident(float(max(self.final.probs)), th)
 
     def result(self, truth: int | None = None) -> TrialOutcome:
         if self.final is None:

@@ -18,6 +18,12 @@ touch, reference touches included:
   likelihood is over-confident; the temperature is calibrated on real presses
   (``tactex evaluate``, docs/research/real_presses.md).
 
+``separation`` (the "not sure" rule of the stop, ``core/engine.py``): how far apart the two
+best comparisons' means are against what repeated touches of one platform give, t =
+sum_j (x_a - x_b)_j^2 / (sigma_j^2 (1/n_a + 1/n_b)) / D; about 1 when a and b hold the same
+material (the sampling spread of two means of n_a and n_b touches), growing with the touches
+when they differ.
+
 ``info_gain`` scores every platform (0 = the reference, 1..C) by the expected drop of the
 belief's entropy if it were touched once more (Monte Carlo over hypotheses and simulated
 descriptors). ``samples`` gives (T, C) beliefs under posterior draws of the platform means, the
@@ -45,6 +51,16 @@ def softmax(logits: np.ndarray) -> np.ndarray:
     z = z - z.max(axis=-1, keepdims=True)
     e = np.exp(z)
     return e / e.sum(axis=-1, keepdims=True)
+
+
+def separation(means: np.ndarray, counts: np.ndarray, sigma2: np.ndarray, a: int,
+               b: int) -> float:
+    """Distance of platform ``a``'s and ``b``'s means per dimension in units of its sampling
+    spread (module docstring): ``means`` (P, D) and ``sigma2`` (D,) in one set of units,
+    ``counts`` (P,) touches per platform. 1 = as far apart as two means of one material."""
+    v = 1.0 / counts[a] + 1.0 / counts[b]
+    d2 = float((((means[a] - means[b]) ** 2) / sigma2).sum())
+    return d2 / (v * means.shape[1])
 
 
 class MatchModel:
@@ -136,6 +152,12 @@ class MatchModel:
         """(C,) untempered log evidence l of every hypothesis (belief = softmax(beta l))."""
         means, counts, sigma2 = self.stats()
         return self._logits(means, counts, sigma2) / self.beta
+
+    def separation(self) -> float:
+        """``separation`` of the two comparisons with the largest log evidence."""
+        means, counts, sigma2 = self.stats()
+        b, a = np.argsort(self._logits(means, counts, sigma2))[-2:] + 1
+        return separation(means, counts, sigma2, int(a), int(b))
 
     def belief(self) -> np.ndarray:
         """(C,) probability that comparison c (index c-1) matches the reference."""

@@ -49,6 +49,21 @@ def test_stop_rule_temperature_keeps_wrong_stops_within_one_minus_theta():
         cal.fit_temperature(trajs, "target", (0.9,), None)
 
 
+def test_per_family_temperature_is_set_by_the_worst_family():
+    # two families whose evidence is sharp to a different degree: pooled, the sharper family's
+    # decisions dilute the other's wrong stops; per family, the cooler one decides
+    sharp = _known_temperature(0.6, n=600, seed=2)
+    cool = _known_temperature(0.15, n=600, seed=3)
+    thetas = (0.8, 0.9, 0.95)
+    per = [cal.fit_temperature(f, "stop", thetas) for f in (sharp, cool)]
+    worst = cal.fit_temperature_families([sharp, cool], "stop", thetas)
+    assert worst == min(per) == per[1] < per[0]
+    assert all(cal.wrong_stop_rate(f, worst, th) <= 1 - th for f in (sharp, cool) for th in thetas)
+    assert cal.fit_temperature(sharp + cool, "stop", thetas) > worst
+    with pytest.raises(InputError, match="per-family"):
+        cal.fit_temperature_families([sharp], "nll")
+
+
 def test_wrong_stop_rate_counts_the_first_confident_decision():
     ev = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 9.0]])    # belief crosses 0.9 at step 1
     t = cal.Trajectory(ev, truth=1, extra=np.arange(3))
