@@ -3,7 +3,7 @@ sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
 [source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
-[auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
+[trials:=ID,...] [auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
 [learner.NAME:=VALUE] [trial.NAME:=VALUE]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
@@ -26,7 +26,9 @@ this one launch, tells the operator before each trial what to place on which pla
 ``/tactex/operator/prompt``) and waits for ``ros2 service call /explorer/confirm
 std_srvs/srv/Trigger`` (``auto_confirm:=true``: scripted); in simulation it sets the mock
 camera's placement. A bad trial file ends the launch before anything starts, the row named.
-``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md).
+``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md);
+``trials:=ID,...`` runs only those trials of the session (an unknown id is refused with the
+session's ids); a later launch with the same ``session_dir:=`` continues with the others.
 
 ``resume:=RECORD`` continues the interrupted trial recorded in folder RECORD (the explorer's
 ``resume`` parameter; a resume with settings other than the record's is refused, the field

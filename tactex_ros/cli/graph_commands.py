@@ -13,7 +13,7 @@ from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
-                    "session", "session_dir")
+                    "session", "session_dir", "trials")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 # what a record keeps of the command line (``RUN_FILE``): a resume takes it from there
 RUN_FILE = "run.json"
@@ -238,6 +238,12 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
               f"{shlex.quote(str(run.session_dir))}", file=sys.stderr)
         return 128 + run.signal if run.signal else 1
     r = run.result
+    if r["done"] < r["total"]:          # --trials: a part of the session
+        import shlex
+        print(f"session {r['name']}: {r['done']} of {r['total']} trials done; "
+              f"{run.elapsed_s / 60:.1f} min in this run; the rest with: tactex graph run "
+              f"--session-dir {shlex.quote(str(run.session_dir))}")
+        return 0
     print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
           f"{run.elapsed_s / 60:.1f} min in this run")
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")

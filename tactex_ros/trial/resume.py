@@ -154,7 +154,7 @@ _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nic
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
                       "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
                       "goal_answer_s",
-                      "scene_file", "session_file", "session_dir", "auto_confirm",
+                      "scene_file", "session_file", "session_dir", "trials", "auto_confirm",
                       "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s"},
          "learner": {"threads"}, "trial": set()}
 

@@ -431,7 +431,7 @@ class ExplorerNode(TactexNode):
         self.session = SessionRun(session, d, {
             "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
-            log=self._log)
+            log=self._log, only=sess.select_trials(session, s.trials))
         self.session_dir = d
         from tactex.srv import Confirm
         self._confirmed = threading.Event()

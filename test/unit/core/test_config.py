@@ -188,6 +188,19 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
             launch.plan(values)
 
 
+def test_launch_argument_trials_reaches_the_explorer_and_is_checked() -> None:
+    """trials:=ID,... (part of a session) reaches the explorer; an unknown id is refused
+    with the session's ids."""
+    from pathlib import Path
+    three = str(Path(__file__).parents[2] / "data" / "session_three.yaml")
+    launch = _launch_module()
+    assert "trials" in {n for n, _, _ in launch.arguments()}
+    p = launch.plan({"sim": "true", "session": three, "trials": "2"})
+    assert next(n for n in p["nodes"] if n.name == "explorer").parameters["trials"] == "2"
+    with pytest.raises(launch.LaunchArgumentError, match=re.escape("(its ids: 1, 2, 3)")):
+        launch.plan({"sim": "true", "session": three, "trials": "4"})
+
+
 def test_launch_resume_settings_file_and_dotted_settings_become_node_parameters(
         tmp_path) -> None:
     """resume:=RECORD, session_dir:=DIR, settings:=FILE and explorer_set:="PATH=VALUE ..."
