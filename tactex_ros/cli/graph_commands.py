@@ -83,38 +83,21 @@ def options_from_record(args: argparse.Namespace) -> Path | None:
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
-    """Explorer parameters that continue the trial recorded in ``folder``: its settings from
-    ``config.json`` (preset, seed, every learner and trial setting); an option that contradicts
-    them is refused (named)."""
-    from ..ros.graph import OPTIONS
-    d = Path(folder).resolve()
-    try:
-        rec = json.loads((d / "config.json").read_text())
-        cfg = rec["explorer"]
-        ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
-              "trial": rec["trial"]}
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
-                         f"({exc})") from None
-    from ..core.schema import flatten
-    was = flatten(ex)
-    for k in ("strategy", "model", "rounds", "seed", "config"):
-        v, path = getattr(args, k, None), OPTIONS[k][1]
-        if v is not None and v != was.get(path):
-            raise InputError(f"--{k} {v!r} given but the record {str(d)!r} has "
-                             f"{path} = {was.get(path)!r}; a resumed trial keeps its settings")
+    """Explorer parameters that continue the trial recorded in ``folder``: its settings
+    (``trial.resume.settings_from_record``, as the explorer node takes them itself); an option
+    or ``--set`` that contradicts them is refused (both values named); the scene is the
+    record's (``record_scene``) unless ``--scene`` is given."""
+    from ..core.schema import flatten, merge, nest, overrides
+    from ..ros.graph import option_overrides
+    from ..ros.settings import ExplorerSettings
+    from ..trial.resume import record_scene, settings_from_record
     if args.record_dir is not None or args.trial_id is not None:
         raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
-    ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
+    given = merge(option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS})
+                  .get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    ex = nest(settings_from_record(folder, flatten(given)))
     if args.scene is None:
-        orig = Path(cfg.get("scene_file") or "")
-        copy = d / "scene.yaml"
-        if not copy.is_file() and not orig.is_file():
-            raise InputError(f"--resume {str(folder)!r}: the record has no scene.yaml and "
-                             f"its scene_file {str(cfg.get('scene_file') or '')!r} is not a "
-                             "file; give the scene with --scene")
-        same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
-        args.scene = str(orig if same or not copy.is_file() else copy)
+        args.scene = record_scene(folder)
     return ex
 
 
