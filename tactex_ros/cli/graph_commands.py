@@ -18,8 +18,8 @@ DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 # what a record keeps of the command line (``RUN_FILE``): a resume takes it from there
 RUN_FILE = "run.json"
 SETTING_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "session")
-RUN_OPTIONS = ("sim", "scene", "settings", "set", "yes") + DEVICE_OPTIONS
-_PATHS = ("scene", "settings", "session")
+RUN_OPTIONS = ("sim", "scene", "settings", "node_params", "set", "yes") + DEVICE_OPTIONS
+_PATHS = ("scene", "settings", "node_params", "session")
 
 
 def _given(args: argparse.Namespace, name: str):
@@ -106,7 +106,7 @@ def _nodes(args: argparse.Namespace):
     arguments: the options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
     ``explorer_set:=``) over config/explorer.yaml."""
     from ..core.schema import merge, overrides
-    from ..ros.graph import describe, option_overrides
+    from ..ros.graph import describe, node_params_file, option_overrides
     from ..ros.settings import ExplorerSettings
     folder = options_from_record(args)
     if folder is not None and getattr(args, "resume", None) and \
@@ -122,8 +122,11 @@ def _nodes(args: argparse.Namespace):
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
     explorer = merge(given.get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    more = node_params_file(args.node_params) if getattr(args, "node_params", None) else {}
     return describe(args.sim, args.scene, explorer=explorer, explorer_file=args.settings,
-                    mock_image=given.get("mock_image"), gelsight=given.get("gelsight"))
+                    mock_image=merge(more.get("mock_image"), given.get("mock_image")),
+                    gelsight=merge(more.get("gelsight"), given.get("gelsight")),
+                    motion=more.get("motion"), mock_arm=more.get("mock_arm"))
 
 
 def cmd_describe(args: argparse.Namespace) -> int:
@@ -363,6 +366,10 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
         p.add_argument("--settings", metavar="FILE",
                        help="YAML of explorer parameters over config/explorer.yaml (the "
                             "launch argument settings:=)")
+        p.add_argument("--node-params", metavar="FILE",
+                       help="ROS 2 parameters YAML (<node>: {ros__parameters: ...}) for "
+                            "motion, mock_arm, mock_image or gelsight (e.g. /diagnostics "
+                            "thresholds); checked against each node's settings")
         p.add_argument("--set", action="append", metavar="PATH=VALUE",
                        help="an explorer setting, dotted (e.g. trial.stop_confidence=0.95); "
                             "repeatable (the launch argument explorer_set:=)")

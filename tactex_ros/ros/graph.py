@@ -110,6 +110,25 @@ def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
     return data
 
 
+NODE_PARAMS = ("motion", "mock_arm", "mock_image", "gelsight")
+
+
+def node_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """``{node: parameters}`` from a ROS 2 parameters YAML (``<node>: {ros__parameters:
+    {...}}``) for the nodes of ``NODE_PARAMS`` (the explorer's settings: ``settings``);
+    InputError names an unknown node (each node's values are checked by ``describe``)."""
+    p = Path(path)
+    data = read_yaml(p, "node parameters file") if p.is_file() else None
+    if not isinstance(data, dict):
+        raise InputError(f"node parameters file {str(p)!r}: expected a mapping of node names "
+                         f"({', '.join(NODE_PARAMS)}) to {{ros__parameters: ...}}")
+    bad = sorted(set(data) - set(NODE_PARAMS))
+    if bad:
+        raise InputError(f"node parameters file {str(p)!r}: unknown node(s) {', '.join(bad)} "
+                         f"(one of {', '.join(NODE_PARAMS)}; the explorer's: --settings)")
+    return {node: params_from_file(p, node) for node in data}
+
+
 def describe(sim: bool, scene_file: str | Path | None = None, *,
              explorer: dict[str, Any] | None = None, explorer_file: str | Path | None = None,
              gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,

@@ -274,3 +274,24 @@ def test_the_schema_names_every_strategy():
     from tactex_ros.core.config import STRATEGY_NAMES
     from tactex_ros.core.strategies import STRATEGIES
     assert set(STRATEGY_NAMES) == set(STRATEGIES)
+
+
+def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, capsys) -> None:
+    """``--node-params FILE`` (ROS 2 form): each node's values checked by its schema; an
+    unknown node or value refused, named."""
+    import json
+
+    from tactex_ros.cli.main import main
+    f = tmp_path / "nodes.yaml"
+    f.write_text("motion: {ros__parameters: {diag_camera_error_s: 1.5}}\n"
+                 "mock_image: {ros__parameters: {diag_rate_error: 0.2}}\n")
+    assert main(["graph", "describe", "--sim", "--node-params", str(f)]) == 0
+    nodes = {n["name"]: n["parameters"] for n in json.loads(capsys.readouterr().out)}
+    assert nodes["motion"]["diag_camera_error_s"] == 1.5
+    assert nodes["mock_image"]["diag_rate_error"] == 0.2
+    for text, named in (("explorer: {ros__parameters: {seed: 1}}\n", "explorer"),
+                        ("motion: {ros__parameters: {diag_camera_error_s: -1}}\n",
+                         "diag_camera_error_s")):
+        f.write_text(text)
+        assert main(["graph", "describe", "--sim", "--node-params", str(f)]) == 2
+        assert named in capsys.readouterr().err
