@@ -34,15 +34,10 @@ def _tactex(*args: str) -> list[str]:
 
 def _explorer_pid(tag: str) -> int | None:
     """The explorer process whose command line holds ``tag`` (this test's log folder)."""
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode()
-            except OSError:
-                continue
-            if tag in cmd and "explorer_node" in cmd:
-                return int(d.name)
-    return None
+    import re
+    found = subprocess.run(["pgrep", "-f", f"explorer_node.*{re.escape(tag)}"],
+                           capture_output=True, text=True).stdout.split()
+    return int(found[0]) if found else None
 
 
 def _lines(p: Path) -> int:
