@@ -118,7 +118,9 @@ def node_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
     {...}}``) for the nodes of ``NODE_PARAMS`` (the explorer's settings: ``settings``);
     InputError names an unknown node (each node's values are checked by ``describe``)."""
     p = Path(path)
-    data = read_yaml(p, "node parameters file") if p.is_file() else None
+    if not p.is_file():
+        raise InputError(f"node parameters file {str(p)!r} not found")
+    data = read_yaml(p, "node parameters file")
     if not isinstance(data, dict):
         raise InputError(f"node parameters file {str(p)!r}: expected a mapping of node names "
                          f"({', '.join(NODE_PARAMS)}) to {{ros__parameters: ...}}")

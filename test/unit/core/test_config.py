@@ -295,3 +295,5 @@ def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, c
         f.write_text(text)
         assert main(["graph", "describe", "--sim", "--node-params", str(f)]) == 2
         assert named in capsys.readouterr().err
+    assert main(["graph", "describe", "--sim", "--node-params", str(tmp_path / "no")]) == 2
+    assert str(tmp_path / "no") in capsys.readouterr().err
