@@ -3,7 +3,7 @@ sim|FILE] [motion_params:=FILE] [scene:=FILE] [bag:=true] [config:=P] [strategy:
 [rounds:=N] [seed:=N] [record_dir:=DIR] [trial_id:=NAME] [exit_when_done:=true]
 [sensor:=gelsight_mini|digit|FILE] [device:=/dev/videoN|'GelSight Mini'|SERIAL|DIR]
 [source:=sim|replay:DIR] [session:=config/trials/NAME.yaml|NAME] [session_dir:=DIR]
-[auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
+[trials:=ID,...] [auto_confirm:=true] [resume:=RECORD] [settings:=FILE] [explorer_set:="PATH=VALUE ..."]
 [learner.NAME:=VALUE] [trial.NAME:=VALUE]
 
 Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``robot``,
@@ -26,11 +26,14 @@ this one launch, tells the operator before each trial what to place on which pla
 ``/tactex/operator/prompt``) and waits for ``ros2 service call /explorer/confirm
 std_srvs/srv/Trigger`` (``auto_confirm:=true``: scripted); in simulation it sets the mock
 camera's placement. A bad trial file ends the launch before anything starts, the row named.
-``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md).
+``session_dir:=`` an existing folder of the same session continues it (see docs/operator.md);
+``trials:=ID,...`` runs only those trials of the session (an unknown id is refused with the
+session's ids); a later launch with the same ``session_dir:=`` continues with the others.
 
-``resume:=RECORD`` continues the interrupted trial recorded in folder RECORD (the explorer's
-``resume`` parameter; a resume with settings other than the record's is refused, the field
-named). Every explorer setting can be set at launch, as ``tactex graph run`` sets it:
+``resume:=RECORD`` continues the interrupted trial recorded in folder RECORD and needs no other
+argument: the explorer takes the record's settings (preset, seed, every learner and trial
+setting; ``trial.resume.settings_from_record``) and the launch its scene; an argument given with
+another value than the record's is refused, the setting and both values named. Every explorer setting can be set at launch, as ``tactex graph run`` sets it:
 ``settings:=FILE`` is a YAML of explorer parameters over ``config/explorer.yaml`` (``{name:
 value}`` or the ROS 2 ``explorer: {ros__parameters: ...}`` form) and ``explorer_set:=`` takes
 dotted ``PATH=VALUE`` items separated by spaces or ``;`` (e.g. ``explorer_set:="
@@ -150,7 +153,14 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                                   if values.get(name, "") != ""})
         # the explorer's settings: the options above, then learner.NAME:= / trial.NAME:=
         # arguments, then explorer_set:= items (each checked by the schema)
-        nodes = describe(sim, values.get("scene") or None,
+        scene = values.get("scene") or None
+        if values.get("resume") and scene is None:      # the record's scene (its copy)
+            from pathlib import Path
+
+            from tactex_ros.trial.resume import record_scene
+            if (Path(values["resume"]) / "config.json").is_file():
+                scene = record_scene(values["resume"])
+        nodes = describe(sim, scene,
                          explorer=merge(given.get("explorer"), trial_settings(values),
                                         explorer_set(values.get("explorer_set", ""))),
                          explorer_file=values.get("settings") or None,

@@ -13,13 +13,13 @@ from ..core.errors import InputError
 
 # the explorer settings that are `tactex graph` options (graph.OPTIONS)
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
-                    "session", "session_dir")
+                    "session", "session_dir", "trials")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 # what a record keeps of the command line (``RUN_FILE``): a resume takes it from there
 RUN_FILE = "run.json"
 SETTING_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "session")
-RUN_OPTIONS = ("sim", "scene", "settings", "set", "yes") + DEVICE_OPTIONS
-_PATHS = ("scene", "settings", "session")
+RUN_OPTIONS = ("sim", "scene", "settings", "node_params", "set", "yes") + DEVICE_OPTIONS
+_PATHS = ("scene", "settings", "node_params", "session")
 
 
 def _given(args: argparse.Namespace, name: str):
@@ -83,38 +83,21 @@ def options_from_record(args: argparse.Namespace) -> Path | None:
 
 
 def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
-    """Explorer parameters that continue the trial recorded in ``folder``: its settings from
-    ``config.json`` (preset, seed, every learner and trial setting); an option that contradicts
-    them is refused (named)."""
-    from ..ros.graph import OPTIONS
-    d = Path(folder).resolve()
-    try:
-        rec = json.loads((d / "config.json").read_text())
-        cfg = rec["explorer"]
-        ex = {"config": cfg["config"], "seed": cfg["seed"], "learner": rec["learner"],
-              "trial": rec["trial"]}
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"--resume {str(folder)!r}: not a trial record with a config.json "
-                         f"({exc})") from None
-    from ..core.schema import flatten
-    was = flatten(ex)
-    for k in ("strategy", "model", "rounds", "seed", "config"):
-        v, path = getattr(args, k, None), OPTIONS[k][1]
-        if v is not None and v != was.get(path):
-            raise InputError(f"--{k} {v!r} given but the record {str(d)!r} has "
-                             f"{path} = {was.get(path)!r}; a resumed trial keeps its settings")
+    """Explorer parameters that continue the trial recorded in ``folder``: its settings
+    (``trial.resume.settings_from_record``, as the explorer node takes them itself); an option
+    or ``--set`` that contradicts them is refused (both values named); the scene is the
+    record's (``record_scene``) unless ``--scene`` is given."""
+    from ..core.schema import flatten, merge, nest, overrides
+    from ..ros.graph import option_overrides
+    from ..ros.settings import ExplorerSettings
+    from ..trial.resume import record_scene, settings_from_record
     if args.record_dir is not None or args.trial_id is not None:
         raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
-    ex.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
+    given = merge(option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS})
+                  .get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    ex = nest(settings_from_record(folder, flatten(given)))
     if args.scene is None:
-        orig = Path(cfg.get("scene_file") or "")
-        copy = d / "scene.yaml"
-        if not copy.is_file() and not orig.is_file():
-            raise InputError(f"--resume {str(folder)!r}: the record has no scene.yaml and "
-                             f"its scene_file {str(cfg.get('scene_file') or '')!r} is not a "
-                             "file; give the scene with --scene")
-        same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
-        args.scene = str(orig if same or not copy.is_file() else copy)
+        args.scene = record_scene(folder)
     return ex
 
 
@@ -123,7 +106,7 @@ def _nodes(args: argparse.Namespace):
     arguments: the options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
     ``explorer_set:=``) over config/explorer.yaml."""
     from ..core.schema import merge, overrides
-    from ..ros.graph import describe, option_overrides
+    from ..ros.graph import describe, node_params_file, option_overrides
     from ..ros.settings import ExplorerSettings
     folder = options_from_record(args)
     if folder is not None and getattr(args, "resume", None) and \
@@ -139,8 +122,11 @@ def _nodes(args: argparse.Namespace):
     if getattr(args, "resume", None):
         given["explorer"] = resume_settings(args.resume, args)
     explorer = merge(given.get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    more = node_params_file(args.node_params) if getattr(args, "node_params", None) else {}
     return describe(args.sim, args.scene, explorer=explorer, explorer_file=args.settings,
-                    mock_image=given.get("mock_image"), gelsight=given.get("gelsight"))
+                    mock_image=merge(more.get("mock_image"), given.get("mock_image")),
+                    gelsight=merge(more.get("gelsight"), given.get("gelsight")),
+                    motion=more.get("motion"), mock_arm=more.get("mock_arm"))
 
 
 def cmd_describe(args: argparse.Namespace) -> int:
@@ -238,6 +224,12 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
               f"{shlex.quote(str(run.session_dir))}", file=sys.stderr)
         return 128 + run.signal if run.signal else 1
     r = run.result
+    if r["done"] < r["total"]:          # --trials: a part of the session
+        import shlex
+        print(f"session {r['name']}: {r['done']} of {r['total']} trials done; "
+              f"{run.elapsed_s / 60:.1f} min in this run; the rest with: tactex graph run "
+              f"--session-dir {shlex.quote(str(run.session_dir))}")
+        return 0
     print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
           f"{run.elapsed_s / 60:.1f} min in this run")
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
@@ -374,6 +366,10 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
         p.add_argument("--settings", metavar="FILE",
                        help="YAML of explorer parameters over config/explorer.yaml (the "
                             "launch argument settings:=)")
+        p.add_argument("--node-params", metavar="FILE",
+                       help="ROS 2 parameters YAML (<node>: {ros__parameters: ...}) for "
+                            "motion, mock_arm, mock_image or gelsight (e.g. /diagnostics "
+                            "thresholds); checked against each node's settings")
         p.add_argument("--set", action="append", metavar="PATH=VALUE",
                        help="an explorer setting, dotted (e.g. trial.stop_confidence=0.95); "
                             "repeatable (the launch argument explorer_set:=)")

@@ -46,6 +46,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "seed": ("explorer", "seed"), "record_dir": ("explorer", "record_dir"),
     "trial_id": ("explorer", "trial_id"), "exit_when_done": ("explorer", "exit_when_done"),
     "session": ("explorer", "session_file"), "session_dir": ("explorer", "session_dir"),
+    "trials": ("explorer", "trials"),
     "auto_confirm": ("explorer", "auto_confirm"), "resume": ("explorer", "resume"),
     "sensor": ("gelsight", "sensor"), "device": ("gelsight", "device"),
     "source": ("mock_image", "source")}
@@ -109,6 +110,27 @@ def params_from_file(path: str | Path, node: str) -> dict[str, Any]:
     return data
 
 
+NODE_PARAMS = ("motion", "mock_arm", "mock_image", "gelsight")
+
+
+def node_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """``{node: parameters}`` from a ROS 2 parameters YAML (``<node>: {ros__parameters:
+    {...}}``) for the nodes of ``NODE_PARAMS`` (the explorer's settings: ``settings``);
+    InputError names an unknown node (each node's values are checked by ``describe``)."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"node parameters file {str(p)!r} not found")
+    data = read_yaml(p, "node parameters file")
+    if not isinstance(data, dict):
+        raise InputError(f"node parameters file {str(p)!r}: expected a mapping of node names "
+                         f"({', '.join(NODE_PARAMS)}) to {{ros__parameters: ...}}")
+    bad = sorted(set(data) - set(NODE_PARAMS))
+    if bad:
+        raise InputError(f"node parameters file {str(p)!r}: unknown node(s) {', '.join(bad)} "
+                         f"(one of {', '.join(NODE_PARAMS)}; the explorer's: --settings)")
+    return {node: params_from_file(p, node) for node in data}
+
+
 def describe(sim: bool, scene_file: str | Path | None = None, *,
              explorer: dict[str, Any] | None = None, explorer_file: str | Path | None = None,
              gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,
@@ -149,6 +171,9 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     ex = _checked("explorer", ex)
     if ex.get("session_file"):
         check_session(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
+    elif ex.get("trials"):
+        raise InputError(f"trials {ex['trials']!r}: picks trials of a session; give the "
+                          "session (session / --session, or --session-dir of a session)")
     nodes = [NodeSpec("motion_node", "motion", mo), NodeSpec("explorer_node", "explorer", ex)]
     if sim:
         start = scene.reference.position
@@ -178,9 +203,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
 def check_session(explorer: dict[str, Any], scene, sim: bool, source: str) -> None:
     """A study session's trial file checked against the scene before anything starts (the
     row named); in simulation the explorer drives the mock camera's placement."""
-    from ..trial.session import load_session
-    load_session(explorer["session_file"], [p.id for p in scene.ordered],
-                 seed=int(explorer.get("seed", 0)))
+    from ..trial.session import load_session, select_trials
+    session = load_session(explorer["session_file"], [p.id for p in scene.ordered],
+                           seed=int(explorer.get("seed", 0)))
+    select_trials(session, explorer.get("trials", ""))
     if sim:
         if not source.startswith("sim"):
             raise InputError(f"session {explorer['session_file']!r}: a simulated session "

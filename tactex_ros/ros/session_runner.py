@@ -29,7 +29,8 @@ from .launcher import Graph, exit_text, supervise
 @dataclass
 class SessionRun:
     exit_code: int                   # the explorer's exit status (-1: still running)
-    result: dict | None              # session_result.json, once every trial is done
+    result: dict | None              # session_result.json, once every trial is done; with
+    #                                  ``trials`` the session's summary once those are done
     session_dir: Path
     logs: Path
     failure: str | None = None       # why the session ended without its result
@@ -138,6 +139,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     events_path, offset = d / sess.EVENTS_FILE, 0
     if events_path.is_file():                    # a resumed session: only what is new
         offset = events_path.stat().st_size
+    start_offset = offset
     n_confirmed = 0
     t_run = time.monotonic()
     waiting_key: threading.Thread | None = None
@@ -200,13 +202,16 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                     f"{'correct' if e.get('correct') else 'wrong'}", "info")
             elif kind == "session_ended":
                 out(f"session ended: {e.get('reason')}", "info")
+            elif kind == "part_done":
+                out(f"trials {', '.join(e.get('trials_asked') or [])} done; "
+                    f"{e.get('done')} of {e.get('of')} trials of the session done", "info")
             elif kind == "session_done":
                 out(f"session: every trial done, {time.monotonic() - t_run:.0f} s in this "
                     "run", "info")
         progress.poll()
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
-        if name == ex.name and fresh_result():
+        if name == ex.name and (fresh_result() or (code == 0 and part_done())):
             return None
         last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
         return (last[-1]["reason"] if last and name == ex.name else
@@ -214,6 +219,11 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
 
     def fresh_result() -> bool:
         return res_path.is_file() and _stamp(res_path) != stale
+
+    def part_done() -> bool:
+        """The trials asked for (``trials``) are done in this run, the session is not."""
+        evs, _ = tail_jsonl(events_path, start_offset)
+        return any(e.get("event") == "part_done" for e in evs)
 
     def deadline(elapsed: float) -> str | None:
         return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
@@ -227,7 +237,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     if failure is not None and d.is_dir():
         sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": run.signal,
                            "node_exit": exits, "time": time.time()})
-    result = json.loads(res_path.read_text()) if fresh_result() else None
+    result = (json.loads(res_path.read_text()) if fresh_result() else
+              sess.summary(d) if failure is None and part_done() else None)
     code = exits.get(ex.name)
     return SessionRun(exit_code=-1 if code is None else code, result=result, session_dir=d,
                       logs=run.graph.log_dir, failure=failure, signal=run.signal,

@@ -229,6 +229,9 @@ class ExplorerSettings(TrialSettings):
                                   "node, the operator confirms each placement")
     session_dir: str = param("", "session folder ('' = record_dir/<session name>_<time>); an "
                                  "existing one of the same session is resumed where it stopped")
+    trials: str = param("", "the session's trials to run now, their ids separated by commas "
+                            "('' = every trial not yet done); the others stay as they are, a "
+                            "later run of the session folder continues with them")
     auto_confirm: bool = param(False, "confirm each placement at once (scripted sessions, CI) "
                                       "instead of waiting for the confirm service")
     confirm_timeout_s: float = param(1800.0, "a placement not confirmed within this ends the "

@@ -161,8 +161,8 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
 _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nice",
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
                       "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
-                      "goal_answer_s",
-                      "scene_file", "session_file", "session_dir", "auto_confirm",
+                      "goal_answer_s", "min_free_mb", "run_id",
+                      "scene_file", "session_file", "session_dir", "trials", "auto_confirm",
                       "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s"},
          "learner": {"threads"}, "trial": set()}
 
@@ -187,3 +187,62 @@ def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
                 raise InputError(f"resume: {section}.{k} is {b.get(k)!r} now but "
                                  f"{a.get(k)!r} in the record {str(folder)!r}; a resumed "
                                  "trial runs with the settings it started with")
+
+
+def record_settings(folder: str | Path) -> dict:
+    """The settings a trial record was started with, flat (``config``, ``seed``, ...,
+    ``learner.*``, ``trial.*``; from its ``config.json``), those a resume may change
+    (``_FREE``) left out. InputError naming the folder when it has no readable config.json."""
+    import json
+    from ..core.schema import flatten
+    p = Path(folder) / "config.json"
+    try:
+        rec = json.loads(p.read_text())
+        out = {k: v for k, v in rec["explorer"].items() if k not in _FREE["explorer"]}
+        out.update(flatten({"learner": rec["learner"], "trial": rec["trial"]}))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise InputError(f"resume {str(folder)!r}: not a trial record with a config.json "
+                         f"({type(exc).__name__}: {exc})") from None
+    return {k: v for k, v in out.items() if k.partition(".")[2] not in _FREE["learner"]
+            or not k.startswith("learner.")}
+
+
+def settings_from_record(folder: str | Path, now: dict, unset: list[dict] = ()) -> dict:
+    """The settings that continue the trial recorded in ``folder``: ``now`` (flat; what the
+    resume was given) with every setting of the record (``record_settings``) put in, so a
+    resume needs no option but the record. A value of ``now`` counts as given when it is
+    none of the ``unset`` ones (flat settings with nothing given, e.g. the node's defaults
+    under the default preset and under the record's); a given value other than the record's
+    is refused (InputError, exit status 2) naming the setting and both values. The
+    explorer node (``resume`` parameter) and ``tactex graph run --resume`` both call this."""
+    rec = record_settings(folder)
+    for k in sorted(rec):
+        if k in now and now[k] != rec[k] and all(u.get(k) != now[k] for u in unset):
+            raise InputError(f"resume: {k} = {now[k]!r} given but the record {str(folder)!r} "
+                             f"has {k} = {rec[k]!r}; a resumed trial keeps the settings it "
+                             "started with (leave it out)")
+    out = {k: v for k, v in now.items() if not k.startswith(("learner.", "trial."))
+           or k.partition(".")[2] in _FREE[k.partition(".")[0]]}
+    out.update(rec)
+    d = Path(folder).resolve()
+    out.update(resume=str(d), record_dir=str(d.parent), trial_id=d.name)
+    return out
+
+
+def record_scene(folder: str | Path) -> str:
+    """The scene file a resume of the record in ``folder`` runs on: the one it names when its
+    bytes are the record's copy (``scene.yaml``), else the copy. InputError when neither is
+    there."""
+    import json
+    d = Path(folder)
+    try:
+        orig = Path(json.loads((d / "config.json").read_text())["explorer"].get("scene_file")
+                    or "")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        orig = Path("")
+    copy = d / "scene.yaml"
+    if not copy.is_file() and not orig.is_file():
+        raise InputError(f"resume {str(folder)!r}: the record has no scene.yaml and its "
+                         f"scene_file {str(orig)!r} is not a file; give the scene")
+    same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
+    return str(orig if same or not copy.is_file() else copy)

@@ -147,6 +147,21 @@ def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
     return out
 
 
+def select_trials(session: Session, text: str) -> list[str] | None:
+    """The trial ids ``text`` asks for (``ID[,ID...]``, the explorer's ``trials``; spaces
+    around an id are ignored), in the session's order; None for '' (every trial). InputError
+    names an unknown id and the session's ids."""
+    asked = [t.strip() for t in str(text or "").split(",")]
+    if not any(asked):
+        return None
+    ids = [t.id for t in session.trials]
+    for t in asked:
+        if t not in ids:
+            raise InputError(f"trials {text!r}: {t!r} is not a trial of session "
+                             f"{session.name} (its ids: {', '.join(ids)})")
+    return [i for i in ids if i in asked]
+
+
 def placement_text(placement: dict[str, str]) -> str:
     """``platform=fabric,...``: the mock camera's ``placement`` parameter."""
     return ",".join(f"{k}={v}" for k, v in placement.items())

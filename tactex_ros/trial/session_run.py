@@ -51,21 +51,26 @@ def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
 class SessionRun:
     """The session ``session`` in folder ``session_dir`` (opened, or continued when it holds the
     same session; ``settings``: what ``session.json`` keeps). ``confirm_timeout_s``: for the
-    message of a placement not confirmed in time."""
+    message of a placement not confirmed in time. ``only``: the ids of the trials this run
+    is asked for (``session.select_trials``; None: every trial), recorded in the start event;
+    the others are left as they are, and the session's result waits for all of them."""
 
     def __init__(self, session: sess.Session, session_dir: str | Path,
                  settings: dict[str, Any], confirm_timeout_s: float,
                  log: Callable[[int, str], None] | None = None,
-                 library: LibraryKeeper | None = None) -> None:
+                 library: LibraryKeeper | None = None,
+                 only: list[str] | None = None) -> None:
         self.session = session
         self.library = library
         self.dir = Path(session_dir).resolve()
         self.confirm_timeout_s = confirm_timeout_s
+        self.only = only
         self.log = log or (lambda level, text: logging.getLogger("tactex.session").log(level,
                                                                                        text))
         self.resumed = sess.open_session(self.dir, session, settings)
         sess.add_event(self.dir, {"event": "resumed" if self.resumed else "started",
-                                  "time": time.time(), "trials": len(session.trials)})
+                                  "time": time.time(), "trials": len(session.trials),
+                                  "trials_asked": only})
         self.awaiting: str | None = None
 
     def done(self) -> int:
@@ -114,6 +119,8 @@ class SessionRun:
                 if state == "done":
                     self._learn(trial)        # idempotent: a press is filed once
                     continue
+                if self.only is not None and trial.id not in self.only:
+                    continue
                 if not (state == "started" and self.confirmed(trial)) and \
                         not self._prompt(operator, trial, k, len(trials)):
                     why = (f"placement of trial {trial.id} not confirmed within "
@@ -139,6 +146,14 @@ class SessionRun:
                                    "stop_reason": res.get("stop_reason"), "time": time.time()})
             self.current_library()            # the last trial's presses are filed first
             out = sess.summary(d)
+            if out["done"] < out["total"]:     # a part (``only``): the rest is for a later run
+                sess.add_event(d, {"event": "part_done", "trials_asked": self.only,
+                                   "done": out["done"], "of": out["total"],
+                                   "time": time.time()})
+                self.log(logging.INFO, f"session {self.session.name}: trials "
+                                       f"{', '.join(self.only or [])} done; {out['done']} of "
+                                       f"{out['total']} trials done; folder {d}")
+                return 0
             sess.finish_session(d, out)
             sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
                                "time": time.time()})

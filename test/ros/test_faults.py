@@ -54,25 +54,57 @@ def _touches_on_disk(record: Path) -> int:
         return 0
 
 
-class Fault:
-    """Injects ``action(graph)`` once the record holds ``after`` touch lines (own deadline)."""
+class Presses:
+    """The press goals the motion node executes, from the action's status topic
+    (``/tactex/press/_action/status``, rclpy's action status QoS): each goal id with the wall
+    time it was first seen executing."""
 
-    def __init__(self, record: Path, after: int, action) -> None:
-        self.record, self.after, self.action = record, after, action
+    def __init__(self, listener) -> None:
+        from action_msgs.msg import GoalStatusArray
+        from rclpy.qos import qos_profile_action_status_default
+        self.seen: dict[bytes, float] = {}
+        listener.node.create_subscription(GoalStatusArray, "/tactex/press/_action/status",
+                                          self._on, qos_profile_action_status_default)
+
+    def _on(self, msg) -> None:
+        from action_msgs.msg import GoalStatus
+        for st in msg.status_list:
+            if st.status == GoalStatus.STATUS_EXECUTING:
+                self.seen.setdefault(bytes(st.goal_info.goal_id.uuid), time.time())
+
+    def started_after(self, wall_t: float) -> bool:
+        """A goal began executing after wall time ``wall_t``."""
+        return any(t > wall_t for t in list(self.seen.values()))
+
+
+def next_press(record: Path, after: int, presses: Presses, graph, deadline_s: float) -> bool:
+    """Wait until the record holds ``after`` touch lines and the press after the last of
+    them is executing (a goal first seen after the touch file was written); False at the
+    deadline or when a node of ``graph`` exited."""
+    end = time.monotonic() + deadline_s
+    while time.monotonic() < end:
+        if any(p.poll() is not None for p in graph.procs.values()):
+            return False
+        if _touches_on_disk(record) >= after and \
+                presses.started_after((record / "touches.jsonl").stat().st_mtime):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+class Fault:
+    """Injects ``action(graph)`` during the press after the record's ``after``-th touch line
+    (``next_press``; own deadline)."""
+
+    def __init__(self, record: Path, after: int, action, presses: Presses) -> None:
+        self.record, self.after, self.action, self.presses = record, after, action, presses
         self.t: float | None = None
 
     def __call__(self, graph) -> None:
         def watch() -> None:
-            end = time.monotonic() + DEADLINE_S
-            while time.monotonic() < end:
-                if _touches_on_disk(self.record) >= self.after:
-                    time.sleep(0.3)              # the next press is under way
-                    self.t = time.monotonic()
-                    self.action(graph)
-                    return
-                if any(p.poll() is not None for p in graph.procs.values()):
-                    return
-                time.sleep(0.05)
+            if next_press(self.record, self.after, self.presses, graph, DEADLINE_S):
+                self.t = time.monotonic()
+                self.action(graph)
         threading.Thread(target=watch, daemon=True).start()
 
 
@@ -146,17 +178,22 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
     scene = load_scene(describe(True)[0].parameters["scene_file"])
     truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
     wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
+    presses = Presses(listener)
     record = tmp_path / "trial"
 
-    # 1. the mock arm frozen 5 s mid-press (stale state), then kill -9 of the motion node
+    # 1. the mock arm frozen 5 s mid-press (stale state), then, once it publishes again,
+    # kill -9 of the motion node
     def freeze_then_kill(g) -> None:
         freeze("mock_arm", 5.0)(g)
-        time.sleep(1.0)
+        n, end = len(wrenches), time.monotonic() + 30.0
+        while len(wrenches) == n and time.monotonic() < end:
+            time.sleep(0.02)
+        f.t = time.monotonic()
         kill("motion")(g)
-    f = Fault(record, 2, freeze_then_kill)
+    f = Fault(record, 2, freeze_then_kill, presses)
     run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f)
     assert run.failed_node == "motion" and run.node_exit["motion"] == -signal.SIGKILL
-    assert run.result is None and clear is not None and clear - 1.0 < CLEAR_S
+    assert run.result is None and clear is not None and clear < CLEAR_S
     assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
     n = len(rec["touches"])
 
@@ -164,7 +201,7 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
              ("kill_mock_arm", "mock_arm", kill("mock_arm")),
              ("sigint_explorer", "explorer", kill("explorer", signal.SIGINT))]
     for name, node, act in steps:
-        f = Fault(record, n + 1, act)
+        f = Fault(record, n + 1, act, presses)
         run, rec, clear = _run(tmp_path, listener, name, f, resume=record)
         if run.result is not None:            # the trial ended before the fault could land
             break
@@ -244,11 +281,9 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
                                      "record_dir": str(tmp_path), "trial_id": "gone",
                                      "exit_when_done": True, "press_silence_s": 3.0})
     record = tmp_path / "gone"
+    presses = Presses(listener)
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
-        end = time.monotonic() + 90
-        while _touches_on_disk(record) < 2 and time.monotonic() < end:
-            time.sleep(0.05)
-        time.sleep(0.3)                                 # the next press is under way
+        assert next_press(record, 2, presses, g, 90.0), "no third press within 90 s"
         t0 = time.monotonic()
         os.kill(g.procs["motion"].pid, signal.SIGKILL)
         code = g.wait("explorer", 30.0)
@@ -269,7 +304,7 @@ def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener)
     press whose result arrived during the stall is used, none is marked interrupted."""
     # 22 s: longer than press_silence_s (10 s) and than Fast DDS's default participant lease
     # (20 s), after which the other nodes forget the stalled one until it announces itself again
-    f = Fault(tmp_path / "trial", 3, freeze("explorer", 22.0))
+    f = Fault(tmp_path / "trial", 3, freeze("explorer", 22.0), Presses(listener))
     run, rec, _ = _run(tmp_path, listener, "stall_explorer", f)
     assert f.t is not None                                 # the stall happened
     assert run.result is not None and "error" not in run.result, run.failure

@@ -75,6 +75,17 @@ class Bench:
         rclpy.shutdown(context=self.ctx)
 
 
+def _quiet(got: list, quiet_s: float = 0.5, deadline_s: float = 10.0) -> None:
+    """Wait until nothing has arrived in ``got`` for ``quiet_s`` (what was sent before a
+    deactivation reaches a loaded machine late), up to ``deadline_s``."""
+    end = time.monotonic() + deadline_s
+    n, since = len(got), time.monotonic()
+    while time.monotonic() < end and time.monotonic() - since < quiet_s:
+        time.sleep(0.02)
+        if len(got) != n:
+            n, since = len(got), time.monotonic()
+
+
 def _cycle(bench: Bench, got: list, active_s: float = 1.5, on_active=None) -> None:
     """The transition sequence; ``got`` receives the node's messages: none while inactive,
     some while active. ``on_active(bench, round)`` runs in each active phase."""
@@ -96,9 +107,9 @@ def _cycle(bench: Bench, got: list, active_s: float = 1.5, on_active=None) -> No
         time.sleep(active_s)
         assert len(got) > n0, f"nothing published while active (round {rnd})"
         bench.transition(Transition.TRANSITION_DEACTIVATE)
-        time.sleep(0.3)                            # messages already on the wire
+        _quiet(got)                                # messages already on the wire arrive
         n1 = len(got)
-        time.sleep(1.0)
+        time.sleep(1.0)                            # a window in which nothing may arrive
         assert len(got) == n1, f"published while inactive (round {rnd})"
     bench.transition(Transition.TRANSITION_CLEANUP)
     assert bench.state() == State.PRIMARY_STATE_UNCONFIGURED

@@ -68,6 +68,8 @@ class ExplorerNode(TactexNode):
         from tactex.action import Press
         from tactex.msg import ExplorationState
         s = self.settings
+        if s.resume and not s.session_file:
+            s = self.settings = self._from_record(s)
         if s.nice:
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
@@ -99,6 +101,25 @@ class ExplorerNode(TactexNode):
         self._stopping = False
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
+
+    @staticmethod
+    def _from_record(s: ExplorerSettings) -> ExplorerSettings:
+        """With ``resume``: the settings of the record (``trial.resume.settings_from_record``:
+        preset, seed, every learner and trial setting, record folder), so the node needs no
+        other parameter; one set to another value than the record's is refused (InputError,
+        exit status 2, both values named). Not set: the value config/explorer.yaml gives
+        under the default preset or under the record's."""
+        from ...core.schema import flatten, merge, nest
+        from ...trial.resume import record_settings, settings_from_record
+        from ..graph import explorer_defaults
+        rec = record_settings(s.resume)
+        base = explorer_defaults()
+        unset = [flatten(type(s).check(merge(base, extra), "explorer defaults").model_dump())
+                 for extra in ({"scene_file": s.scene_file},
+                               {"scene_file": s.scene_file, "config": rec["config"],
+                                "learner": {"model": rec["learner.model"]}})]
+        flat = settings_from_record(s.resume, flatten(s.model_dump()), unset)
+        return type(s).check(nest(flat), "explorer parameters (resume)")
 
     def _log(self, level: int, text: str) -> None:
         """``TrialRun`` / ``SessionRun`` log lines, on the node's logger."""
@@ -442,7 +463,7 @@ class ExplorerNode(TactexNode):
         self.session = SessionRun(session, d, {
             "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
-            log=self._log, library=keeper)
+            log=self._log, library=keeper, only=sess.select_trials(session, s.trials))
         self.session_dir = d
         from tactex.srv import Confirm
         self._confirmed = threading.Event()

@@ -188,6 +188,19 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
             launch.plan(values)
 
 
+def test_launch_argument_trials_reaches_the_explorer_and_is_checked() -> None:
+    """trials:=ID,... (part of a session) reaches the explorer; an unknown id is refused
+    with the session's ids."""
+    from pathlib import Path
+    three = str(Path(__file__).parents[2] / "data" / "session_three.yaml")
+    launch = _launch_module()
+    assert "trials" in {n for n, _, _ in launch.arguments()}
+    p = launch.plan({"sim": "true", "session": three, "trials": "2"})
+    assert next(n for n in p["nodes"] if n.name == "explorer").parameters["trials"] == "2"
+    with pytest.raises(launch.LaunchArgumentError, match=re.escape("(its ids: 1, 2, 3)")):
+        launch.plan({"sim": "true", "session": three, "trials": "4"})
+
+
 def test_launch_resume_settings_file_and_dotted_settings_become_node_parameters(
         tmp_path) -> None:
     """resume:=RECORD, session_dir:=DIR, settings:=FILE and explorer_set:="PATH=VALUE ..."
@@ -261,3 +274,26 @@ def test_the_schema_names_every_strategy():
     from tactex_ros.core.config import STRATEGY_NAMES
     from tactex_ros.core.strategies import STRATEGIES
     assert set(STRATEGY_NAMES) == set(STRATEGIES)
+
+
+def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, capsys) -> None:
+    """``--node-params FILE`` (ROS 2 form): each node's values checked by its schema; an
+    unknown node or value refused, named."""
+    import json
+
+    from tactex_ros.cli.main import main
+    f = tmp_path / "nodes.yaml"
+    f.write_text("motion: {ros__parameters: {diag_camera_error_s: 1.5}}\n"
+                 "mock_image: {ros__parameters: {diag_rate_error: 0.2}}\n")
+    assert main(["graph", "describe", "--sim", "--node-params", str(f)]) == 0
+    nodes = {n["name"]: n["parameters"] for n in json.loads(capsys.readouterr().out)}
+    assert nodes["motion"]["diag_camera_error_s"] == 1.5
+    assert nodes["mock_image"]["diag_rate_error"] == 0.2
+    for text, named in (("explorer: {ros__parameters: {seed: 1}}\n", "explorer"),
+                        ("motion: {ros__parameters: {diag_camera_error_s: -1}}\n",
+                         "diag_camera_error_s")):
+        f.write_text(text)
+        assert main(["graph", "describe", "--sim", "--node-params", str(f)]) == 2
+        assert named in capsys.readouterr().err
+    assert main(["graph", "describe", "--sim", "--node-params", str(tmp_path / "no")]) == 2
+    assert str(tmp_path / "no") in capsys.readouterr().err
