@@ -1,11 +1,14 @@
 """Issue 29's done-when through the operator's entrance: ``tactex graph run --sim --session
 ... --session-dir D --yes`` interrupted with Ctrl-C (SIGINT to the command) in trial 2, then
 ``tactex graph run --session-dir D --yes`` with no other option finishes the session: 3 trials
-done, no ERROR on /diagnostics outside the interruption, every press attempt on record. And
+done, no ERROR on /diagnostics outside the interruption (start-up and placement changes are
+named states), every press attempt on record, the reports written and shown in headless
+Chromium (screenshots kept in test-artifacts/). And
 ``--trials`` runs part of a session; the same folder continues with the rest."""
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -116,6 +119,20 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
                                if x.get("accepted")), t
     resumed = [e for e in sess.events(d) if e["event"] == "trial_started" and e["resumed"]]
     assert [e["trial"] for e in resumed] == ["2"]
+    # start-up and placement changes are named states, not errors
+    states = {kv.value for _, m in got for s in m.status for kv in s.values if kv.key == "state"}
+    assert any(v.startswith("placement change") for v in states), states
+    for t in ("1", "2", "3"):
+        assert (d / sess.record_name(t) / "report.html").is_file()
+    assert (d / "report.html").is_file()
+    assert {e["by"] for e in sess.events(d) if e["event"] == "confirmed"} == {"yes_flag"}
+    art = Path(__file__).parents[2] / "test-artifacts"
+    art.mkdir(exist_ok=True)
+    _screenshots(d, art, tmp_path)
+    (art / "session_diagnostics.json").write_text(json.dumps(
+        {"statuses": len(got), "names": sorted(seen), "states": sorted(states),
+         "errors_outside_the_interruption": errors(0.0, cut["t"]) +
+         errors(t_restart, done["t"])}, indent=1) + "\n")
 
 
 def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
@@ -146,3 +163,35 @@ def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
     asked = [e["trials_asked"] for e in sess.events(d) if e["event"] in ("started",
                                                                          "resumed")]
     assert asked == [["3"], ["1", "3"]]
+
+
+def _screenshots(d: Path, art: Path, tmp: Path) -> None:
+    """The resumed trial's report and the session report in headless Chromium: the context
+    table, the marked outcome, both belief charts; screenshots kept in test-artifacts/."""
+    import shutil
+    wd = pytest.importorskip("selenium.webdriver")
+    chrome, driver = shutil.which("chromium"), shutil.which("chromedriver")
+    if not chrome or not driver:
+        return
+    from selenium.webdriver.chrome.service import Service
+    opts = wd.ChromeOptions()
+    opts.binary_location = chrome
+    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+              "--disable-background-networking", "--window-size=1200,3000",
+              f"--user-data-dir={tmp / 'chrome-profile'}"):
+        opts.add_argument(a)
+    drv = wd.Chrome(service=Service(driver), options=opts)
+    try:
+        drv.get((d / "trial_2" / "report.html").as_uri())
+        assert drv.find_element("id", "context").is_displayed()
+        assert drv.find_element("id", "verdict").text in ("correct", "wrong")
+        assert drv.find_elements("css selector", ".platform.chosen, .platform.wrong")
+        for chart in ("belief-chart", "belief-time-chart"):
+            assert len(drv.find_elements("css selector", f"#{chart} polyline.series")) == 4
+        assert "resumed after touch" in drv.find_element("id", "timeline").text
+        drv.save_screenshot(str(art / "session_trial_2_report.png"))
+        drv.get((d / "report.html").as_uri())
+        assert len(drv.find_elements("css selector", "table.trials tr")) == 1 + 3
+        drv.save_screenshot(str(art / "session_report.png"))
+    finally:
+        drv.quit()
