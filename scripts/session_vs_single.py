@@ -20,7 +20,7 @@ def main(argv: list[str] | None = None) -> int:
     from tactex_ros.trial import session as sess
     from tactex_ros.trial.record import read_result
     from tactex_ros.ros.graph import describe
-    from tactex_ros.ros.launcher import run_trial
+    from tactex_ros.ros.launcher import run_graph
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("session_dir")
@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
                 "config": cfg["explorer"]["config"], "seed": cfg["explorer"]["seed"],
                 "learner": cfg["learner"], "trial": cfg["trial"], "record_dir": str(out),
                 "trial_id": r["record"]})
-            run = run_trial(nodes, out / "logs" / r["record"], timeout_s=args.timeout,
+            run = run_graph(nodes, out / "logs" / r["record"], timeout_s=args.timeout,
                             domain_id=args.domain_id)
             single = run.result or {"error": run.failure}
         pred = single.get("prediction")

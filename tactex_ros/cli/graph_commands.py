@@ -237,7 +237,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from ..ros.launcher import exit_text, run_trial
+    from ..ros.launcher import exit_text, run_graph
     nodes = _nodes(args)
     logs = Path(args.log_dir) if args.log_dir else default_logs(args, nodes)
     if args.session:
@@ -255,7 +255,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     def follow(graph) -> None:
         ex = next(n for n in nodes if n.name == "explorer")
         progress.follow(Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"])
-    run = run_trial(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
+    run = run_graph(nodes, logs, timeout_s=args.timeout, domain_id=args.domain_id,
                     on_start=follow, on_poll=progress.poll, idle_s=args.idle_timeout)
     progress.poll()
     if run.left_running:

@@ -5,7 +5,7 @@ the same code as the installed executable) with ``--ros-args -r __node:=<name>
 --params-file <file>``; logs go to ``<log_dir>/<name>.log``. The explorer runs with
 ``exit_when_done``.
 
-Supervision (``run_trial``): every process is polled every ``poll_s`` (0.1 s) while the trial
+Supervision (``run_graph``): every process is polled every ``poll_s`` (0.1 s) while the trial
 runs. The trial ends at the first of: the explorer exits (done, or failed); any other node
 exits or crashes (the result names the node and its exit status); SIGINT, SIGTERM or SIGHUP
 reaches the runner; the deadline. Then every remaining node gets SIGINT (rclpy's clean
@@ -368,7 +368,7 @@ def process_cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
+def run_graph(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,
               domain_id: int | None = None, poll_s: float = 0.1,
               on_start=None, on_poll=None, idle_s: float | None = None) -> GraphRun:
     """Run the graph until the explorer finishes its trial, a node exits, a signal arrives,
@@ -377,7 +377,7 @@ def run_trial(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     processes are started (tests use it to inject faults); ``on_poll()`` at every poll
     (progress lines)."""
     if timeout_s is None and idle_s is None:
-        raise InputError("run_trial needs a deadline: timeout_s or idle_s")
+        raise InputError("run_graph needs a deadline: timeout_s or idle_s")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
     if ex is None:
         raise InputError("the graph has no explorer_node")

@@ -1,7 +1,7 @@
 """Run a study session on the graph without ``launch`` (``tactex graph run --session``).
 
 The graph starts once; the explorer runs the session's trials (``trial/session_run.py``).
-This runner supervises the processes as ``launcher.run_trial`` does (a node that exits ends
+This runner supervises the processes as ``launcher.run_graph`` does (a node that exits ends
 the run, named; SIGINT/SIGTERM/SIGHUP stop every node; the deadline), follows the session
 folder (``session_events.jsonl``) and, for every placement the explorer awaits, shows the
 operator what to place where and confirms through the explorer's ``~/confirm_by`` service

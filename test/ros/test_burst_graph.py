@@ -16,7 +16,7 @@ import pytest
 from tactex_ros.core.config import TrialConfig, learner_class
 from tactex_ros.core.engine import TrialSpec
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import run_trial
+from tactex_ros.ros.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
 from tactex_ros.trial.record import read_record
 from tactex_ros.trial.resume import Replay, recorded_touches
@@ -58,7 +58,7 @@ def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener) ->
                                      "record_dir": str(tmp_path), "trial_id": "live"})
     scene = load_scene(nodes[0].parameters["scene_file"])
     assert scene.press.capture_frames == FRAMES        # the default burst: 4 frames
-    run = run_trial(nodes, tmp_path / "logs", timeout_s=300, domain_id=listener.domain_id)
+    run = run_graph(nodes, tmp_path / "logs", timeout_s=300, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0, (tmp_path / "logs" / "explorer.log")
     live = run.result
     rec = read_record(run.record)

@@ -26,7 +26,7 @@ from tactex_ros.cli.graph_commands import summarise_bag
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
 from tactex_ros.trial.record import read_record, read_result
-from tactex_ros.ros.launcher import ros_env, run_trial
+from tactex_ros.ros.launcher import ros_env, run_graph
 from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
@@ -155,7 +155,7 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     nodes = describe(True, explorer=ex)
     used = listener.collect(Image, TOUCH_IMAGE_TOPIC)
     t0 = time.monotonic()
-    run = run_trial(nodes, tmp / f"logs_{name}", timeout_s=DEADLINE_S,
+    run = run_graph(nodes, tmp / f"logs_{name}", timeout_s=DEADLINE_S,
                     domain_id=listener.domain_id, on_start=fault)
     t_end = time.monotonic()
     assert not run.timed_out, run.failure

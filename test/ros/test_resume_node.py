@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import run_trial
+from tactex_ros.ros.launcher import run_graph
 from tactex_ros.trial.record import read_record
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]      # about 80 s
@@ -47,7 +47,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
     first = describe(True, explorer={"trial": {"rounds": 2, "strategy": "random",
                                                "stop_confidence": 0.0},
                                      "seed": 5, "record_dir": str(tmp_path), "trial_id": "t"})
-    run = run_trial(first, tmp_path / "logs1", timeout_s=DEADLINE_S, domain_id=domain_id,
+    run = run_graph(first, tmp_path / "logs1", timeout_s=DEADLINE_S, domain_id=domain_id,
                     on_start=kill_after_3_touches)
     assert run.result is None and run.failed_node == "explorer", run.failure
     n = len(read_record(rec, images=False)["touches"])
@@ -56,7 +56,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
 
     # a parameter that contradicts the record: refused at configure, exit status 2
     bad = describe(True, explorer={"resume": str(rec), "seed": 6})
-    run = run_trial(bad, tmp_path / "logs2", timeout_s=DEADLINE_S, domain_id=domain_id)
+    run = run_graph(bad, tmp_path / "logs2", timeout_s=DEADLINE_S, domain_id=domain_id)
     assert run.result is None and run.node_exit["explorer"] == 2, run.failure
     assert "seed = 6" in (run.reason or "") and "seed = 5" in (run.reason or ""), run.reason
     assert len(read_record(rec, images=False)["touches"]) == n      # nothing pressed
@@ -65,7 +65,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
     only = describe(True, explorer={"resume": str(rec)})
     ex = next(x for x in only if x.name == "explorer").parameters
     assert ex["seed"] == 0 and ex["trial"]["rounds"] == 20      # the node's defaults given
-    run = run_trial(only, tmp_path / "logs3", timeout_s=DEADLINE_S, domain_id=domain_id)
+    run = run_graph(only, tmp_path / "logs3", timeout_s=DEADLINE_S, domain_id=domain_id)
     res = run.result
     assert res is not None and "error" not in res, (run.failure, run.reason)
     assert res["strategy"] == "random" and res["stop_reason"] == "rounds"

@@ -14,7 +14,7 @@ from visualization_msgs.msg import MarkerArray
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC
 from tactex_ros.trial.record import read_record
-from tactex_ros.ros.launcher import run_trial
+from tactex_ros.ros.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
@@ -31,7 +31,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
     wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
 
-    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+    run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
 
     assert not run.timed_out and run.exit_code == 0, (tmp_path / "logs" / "explorer.log")
     res = run.result
@@ -121,7 +121,7 @@ def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> No
                                      "record_dir": str(tmp_path),
                                      "trial_id": "blank"},
                      mock_image={"fault_blank": 0.2, "seed": 3})
-    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+    run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
     rec = read_record(run.record)
     accepted = [t for t in rec["touches"] if t["accepted"]]
@@ -140,7 +140,7 @@ def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None
                                      "trial_id": "guard"},
                      mock_image={"fault_blank": 0.3, "seed": 3},
                      motion={"min_contact_score": 0.0})
-    run = run_trial(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
+    run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
     rec = read_record(run.record)
     touches = rec["touches"]
