@@ -204,6 +204,11 @@ def run_unseen(args: argparse.Namespace) -> dict:
         rows = screen(caches["a"], caches["b"])
         write_json(out / "screen.json", rows)
         return {"screen": rows}
+    if args.screen_features:
+        rows = metric_screen.feature_screen(caches["a"], caches["b"],
+                                            {f: FEATURES[f] for f in args.features})
+        write_json(out / "feature_screen.json", rows)
+        return {"feature_screen": rows}
     if args.screen_mlp:
         grid = tuple(itertools.product(args.mlp_losses, args.mlp_hidden, args.mlp_decays))
         rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
@@ -240,6 +245,12 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--screen-mlp", action="store_true",
                    help="only the screening of a small numpy MLP metric (analysis/mlp_metric) "
                         "against the whitening, both directions; writes metric_screen.json")
+    p.add_argument("--screen-features", action="store_true",
+                   help="only the screening proxy of per-press features (--features), with no "
+                        "metric and whitened, both directions, exact McNemar against the frame "
+                        "and the whitened frame on the same scenes; writes feature_screen.json")
+    p.add_argument("--features", nargs="+", default=list(metric_screen.CANDIDATES),
+                   choices=list(FEATURES), help="per-press features (--screen-features)")
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
                    help="MLP training seeds (--screen-mlp)")
