@@ -105,8 +105,8 @@ def _line(r: dict) -> str:
 
 #: Issue 33's candidate features (``press_cache.FEATURES``) screened by ``feature_screen``,
 #: after today's ``frame`` and ``frames4``.
-CANDIDATES = ("frame", "frames4", "burst", "fb", "fb4", "hm", "hm4", "frame_fb", "frame_hm",
-              "frame_grow", "frames4_fb4", "frames4_hm4", "frames4_grow", "frames4_all")
+CANDIDATES = ("frame", "frames4", "fb", "hm", "fb_hm", "frame_fb", "frame_hm", "frame_grow",
+              "frames4_fb", "frames4_hm", "frames4_grow", "frames4_all")
 
 
 def feature_screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
