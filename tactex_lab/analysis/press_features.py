@@ -197,27 +197,23 @@ def growth(frames_rgb: np.ndarray, no_contact: np.ndarray, scores: np.ndarray,
     return np.asarray(out)
 
 
-def touch_costs(root: str, presses: int = 12, repeats: int = 3) -> dict[str, dict]:
+def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dict]:
     """Per-touch cost [ms] of today's descriptor and of each candidate, timed side by side
     (interleaved, the same presses) on the first ``presses`` presses of the replay folder
     ``root``: median and quartiles over presses x ``repeats``. ``growth`` includes the contact
-    differences of its 4 frames; ``burst`` is the descriptor of up to 8 frames (uncached)."""
+    differences of its 4 frames."""
     import time
     from tactex_ros.core.contact import strongest_contact
-    from tactex_ros.sources.replay import EXTRA_MIN, ReplaySource, read_video
+    from tactex_ros.sources.replay import ReplaySource, read_video
     src = ReplaySource(root)
     paths = [p for c in src.classes for p in src.presses(c)][:presses]
     times: dict[str, list[float]] = {k: [] for k in ("descriptor", "filter_bank_1st",
-                                                     "filter_bank", "height_map", "growth",
-                                                     "burst8")}
+                                                     "filter_bank", "height_map", "growth")}
     for path in paths:
         arr = read_video(path)
         rgb = np.ascontiguousarray(arr[..., ::-1])
         t = src.touch(path)
         idx, scores = strongest_contact(arr)
-        strong = np.flatnonzero(scores >= EXTRA_MIN * scores[idx])
-        pick = np.unique(strong[np.round(np.linspace(0, len(strong) - 1,
-                                                     min(8, len(strong)))).astype(int)])
         jobs = {
             "descriptor": lambda: texture.describe(t.frame, t.no_contact),
             "filter_bank_1st": lambda: filter_bank(
@@ -225,7 +221,6 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 3) -> dict[str, dic
             "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),
             "height_map": lambda: height_map(texture.contact_difference(t.frame, t.no_contact)),
             "growth": lambda: growth(rgb, t.no_contact, scores, idx),
-            "burst8": lambda: [texture.describe(rgb[i], t.no_contact) for i in pick],
         }
         for _ in range(repeats):
             for k, f in jobs.items():
