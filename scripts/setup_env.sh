@@ -2,6 +2,7 @@
 # Installs what the project needs into .venv (repository root) and builds the package into it.
 #   scripts/setup_env.sh deps   - pinned Python + ROS 2 Kilted wheels: requirements-lab.txt (the
 #                                 lab's), which includes requirements.txt (the product's);
+#                                 PRODUCT=1: requirements.txt only (no torch, Ray, matplotlib);
 #                                 TORCH=cuda first installs the CUDA build of the pinned torch
 #                                 from TORCH_INDEX (default the PyTorch CUDA 12.8 index)
 #   scripts/setup_env.sh browser - headless chromium + chromedriver via apt (root only; for the
@@ -19,9 +20,14 @@ deps() {
   if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
   fi
+  local reqs=requirements-lab.txt
+  if [ "${PRODUCT:-0}" = 1 ]; then
+    reqs=requirements.txt
+  fi
   case "${TORCH:-cpu}" in
     cpu) ;;
-    cuda)
+    cuda) [ "$reqs" = requirements.txt ] && { echo "setup_env: PRODUCT=1 installs no torch:" \
+            "TORCH=cuda needs the lab" >&2; exit 2; }
       # the pinned version's CUDA build (e.g. 2.13.0+cu128); requirements-lab.txt's torch==2.13.0
       # is then already satisfied (a local version label matches the plain pin)
       local pin
@@ -30,7 +36,7 @@ deps() {
         --index-url "${TORCH_INDEX:-https://download.pytorch.org/whl/cu128}" ;;
     *) echo "setup_env: TORCH=${TORCH}: choose cpu or cuda" >&2; exit 2 ;;
   esac
-  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements-lab.txt
+  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r "$reqs"
   # The ROS wheels' exported CMake files name the wheel builder's include dirs; point them at ours.
   local py_inc np_inc
   py_inc=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')

@@ -2,7 +2,12 @@
 the lanes: every test under ``test/lab/`` is marked ``lab`` (the thesis lab: CNN training, Ray),
 every test under ``test/ros/`` and ``test/launch/`` ``ros`` (real processes), so
 ``make test-fast`` (``-m "not slow and not ros and not lab"`` over ``test/unit``) runs the
-product's pure tests and ``make test`` runs everything."""
+product's pure tests and ``make test`` runs everything but the ``soak`` tests (``make
+test-soak``: long property and cluster runs).
+
+``make test`` runs two workers, a file per worker at a time: the files of real processes (the
+longest) are handed out first, so that the many short files fill the end of the run instead of
+one worker finishing a long graph test while the other waits (``--no-loadscope-reorder``)."""
 
 from __future__ import annotations
 
@@ -40,15 +45,21 @@ def keys_fixture() -> Path:
 
 
 _LANES = {"lab": "lab", "ros": "ros", "launch": "ros"}
+#: the order the lanes are run in (the longest tests first; see the module doc)
+_FIRST = {"ros": 0, "lab": 1}
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark each test by the folder below ``test/`` it lives in (``_LANES``)."""
+    """Mark each test by the folder below ``test/`` it lives in (``_LANES``) and put the
+    lanes in ``_FIRST`` order (stable: the files' own order is kept within a lane)."""
+    lane: dict[int, int] = {}
     for item in items:
         rel = Path(str(item.fspath)).resolve().relative_to(REPO / "test")
         marker = _LANES.get(rel.parts[0]) if len(rel.parts) > 1 else None
         if marker is not None:
             item.add_marker(marker)
+        lane[id(item)] = _FIRST.get(marker or "", len(_FIRST))
+    items.sort(key=lambda it: lane[id(it)])
 
 
 @pytest.fixture(scope="session")

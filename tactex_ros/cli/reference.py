@@ -255,6 +255,16 @@ def declared_plugins(group: str) -> list[tuple[str, str]]:
     return sorted((n.strip(), v.strip()) for n, v in pairs)
 
 
+def lab_missing() -> str | None:
+    """Why the lab's page cannot be generated in this install (a product install without the
+    lab's requirements: ``make setup PRODUCT=1``), or None when it can."""
+    try:
+        lab_parser()
+    except ModuleNotFoundError as exc:
+        return (f"the lab's commands need {exc.name!r}, not installed (requirements-lab.txt)")
+    return None
+
+
 def lab_parser() -> argparse.ArgumentParser:
     """The ``tactex`` parser with the product's commands and the lab's (``setup.cfg``)."""
     from .main import build_parser
@@ -406,7 +416,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="write nothing; exit 1 with a diff when the page differs")
     args = p.parse_args(argv)
     out = Path(args.out)
-    pages = ((render(), out), (render_lab(), out.parent / LAB_OUT))
+    pages = [(render(), out)]
+    missing = lab_missing()
+    if missing is None:
+        pages.append((render_lab(), out.parent / LAB_OUT))
+    else:
+        print(f"{out.parent / LAB_OUT} left as it is: {missing}", file=sys.stderr)
     if args.check:
         stale = 0
         for text, path in pages:

@@ -5,6 +5,11 @@ computed on blurred frames (sensor noise averages out) against a no-contact refe
 score = mean |blur(frame) - blur(reference)| over pixels and channels, in grey levels.
 Used by the replay source (per recorded press) and by the sensor's frame ring
 (``robot/frames.py``).
+
+"In contact" is one rule for both: a frame whose score is at least ``CONTACT_SHARE`` of the
+press's strongest (``in_contact``). The replay source keeps up to ``EXTRA_FRAMES`` such frames
+of a recorded press besides the strongest; the ring's burst (``burst_indices``) returns the
+strongest and its consecutive in-contact neighbours.
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ from .errors import InputError
 from .touch import FRAME_H, FRAME_W
 
 _BLUR = (5, 5)
+EXTRA_FRAMES = 3       # in-contact frames of a press kept besides the strongest (replay, burst)
+CONTACT_SHARE = 0.7    # in contact: at least this share of the press's strongest contact score
 
 
 def blur(frame: np.ndarray) -> np.ndarray:
@@ -57,6 +64,36 @@ def strongest_contact(frames: np.ndarray, reference: np.ndarray | None = None,
         lo, hi = max(0, c - smooth // 2), min(len(s), c + smooth // 2 + 1)
         return lo + int(np.argmax(s[lo:hi])), s
     return int(np.argmax(s)), s
+
+
+def in_contact(scores: np.ndarray, best: int) -> np.ndarray:
+    """(F,) bool: the frames whose contact score is at least ``CONTACT_SHARE`` of frame
+    ``best``'s (the press's strongest); ``scores``: (F,) contact scores [grey levels]."""
+    s = np.asarray(scores, dtype=float)
+    return s >= CONTACT_SHARE * s[best]
+
+
+def burst_indices(scores: np.ndarray, count: int) -> list[int]:
+    """A burst of up to ``count`` consecutive frames around the strongest contact.
+
+    ``scores``: (F,) contact scores of consecutive frames [grey levels]. Returns indices into
+    them: the strongest frame (raw argmax; the first on a tie) first, then its in-contact
+    neighbours (``in_contact``) in time order, taken from the unbroken run of in-contact frames
+    around it, as centred on it as the run allows (an even count: one more frame before it).
+    Fewer than ``count`` when the run is shorter; ``count <= 1``: the strongest alone."""
+    s = np.asarray(scores, dtype=float)
+    if s.ndim != 1 or len(s) == 0:
+        raise ValueError(f"burst_indices: need a non-empty (F,) score vector, got {s.shape}")
+    best = int(np.argmax(s))
+    mask = in_contact(s, best)
+    lo, hi = best, best + 1                 # the unbroken in-contact run [lo, hi)
+    while lo > 0 and mask[lo - 1]:
+        lo -= 1
+    while hi < len(s) and mask[hi]:
+        hi += 1
+    n = max(1, min(int(count), hi - lo))
+    start = min(max(lo, best - n // 2), hi - n)
+    return [best] + [i for i in range(start, start + n) if i != best]
 
 
 def to_sensor_frame(img: np.ndarray) -> np.ndarray:

@@ -28,7 +28,8 @@ def features():
     s, f, i = Value("string"), Value("float64"), Value("int32")
     return Features({
         "trial_id": s, "session": s, "seq": i, "platform_id": s, "platform_index": i,
-        "material": s, "image": Image(), "no_contact": Image(), "force_n": f, "depth_m": f,
+        "material": s, "image": Image(), "no_contact": Image(), "extra": Sequence(Image()),
+        "force_n": f, "depth_m": f,
         "pose": Sequence(f), "press_time": f, "accepted": Value("bool"), "reason": s,
         "next_platform": s, "belief": Sequence(f), "belief_platforms": Sequence(s),
         "prediction": s, "prediction_material": s, "reference_material": s,
@@ -62,7 +63,8 @@ def export(source: str, out: str | Path) -> dict[str, Any]:
         batch: list[dict] = []
         for row in (r for t in trials for r in t.rows):
             batch.append(dict(row, image=_image(row["image"]),
-                              no_contact=_image(row["no_contact"])))
+                              no_contact=_image(row["no_contact"]),
+                              extra=[_image(b) for b in row["extra"]]))
             if len(batch) == BATCH:
                 writer = _write(writer, batch, feats, out / DATA_FILE, pq, datasets)
                 batch = []

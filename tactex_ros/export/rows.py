@@ -25,7 +25,7 @@ from ..core.errors import InputError
 from ..trial.record import read_record
 
 #: Columns of a row, in order, with their meaning (units); ``image``/``no_contact`` are PNG
-#: bytes (None where there is none).
+#: bytes (None where there is none), ``extra`` a list of PNG bytes.
 FIELDS: dict[str, str] = {
     "trial_id": "the trial record's folder name ('' for a library press)",
     "session": "the session folder's name ('' outside a session)",
@@ -35,6 +35,8 @@ FIELDS: dict[str, str] = {
     "material": "material on that platform where the scene knows it (else '')",
     "image": "contact image, lossless PNG (RGB)",
     "no_contact": "the sensor's no-contact frame that came with the touch, lossless PNG",
+    "extra": "further in-contact frames of the same press (the capture's burst; a library "
+             "press's extra frames), lossless PNG each, in time order (empty: none)",
     "force_n": "tared normal force at capture [N]",
     "depth_m": "penetration below the platform surface at capture [m]",
     "pose": "end-effector position at capture in the robot base frame [m] (x, y, z)",
@@ -123,6 +125,7 @@ def record_rows(d: Path, session: str = "") -> Trial:
             "platform_id": pid, "platform_index": int(t.get("platform_index", -1)),
             "material": mats.get(pid, ""),
             "image": _bytes(d, t.get("image")), "no_contact": _bytes(d, t.get("no_contact")),
+            "extra": [_bytes(d, n) for n in t.get("extra") or []],
             "force_n": _num(t.get("force_n")), "depth_m": _num(t.get("depth_m")),
             "pose": [float(v) for v in pose] if isinstance(pose, list) else None,
             "press_time": _num(t.get("stamp")), "accepted": used,
@@ -159,8 +162,8 @@ def _bytes(d: Path, name: Any) -> bytes | None:
 
 def library_rows(spec: str) -> Iterator[Trial]:
     """One ``Trial`` per class of a ``replay:DIR`` library, one row per press file: the
-    press's touch (``sources.replay.load_touch``: strongest contact frame, its no-contact frame)
-    encoded as PNG, the class as its material."""
+    press's touch (``sources.replay.load_touch``: strongest contact frame, its no-contact frame,
+    its extra in-contact frames) encoded as PNG, the class as its material."""
     import cv2
 
     from ..sources import open_source
@@ -173,6 +176,7 @@ def library_rows(spec: str) -> Iterator[Trial]:
                 "trial_id": "", "session": "", "seq": i, "platform_id": "",
                 "platform_index": -1, "material": cls, "image": _png(touch.frame, cv2),
                 "no_contact": None if touch.no_contact is None else _png(touch.no_contact, cv2),
+                "extra": [] if touch.extra is None else [_png(f, cv2) for f in touch.extra],
                 "accepted": True, "reason": "", "prediction": "", "prediction_material": "",
                 "reference_material": "", "stop_reason": "",
                 "source_file": str(Path(f).relative_to(src.root))})

@@ -1,12 +1,14 @@
 """The sensor's recent frames: a ring of stamped frames that finds the strongest contact of a
-time window against the no-contact frame (scores from ``core.contact``). No ROS: the GelSight
-node and the mock image node push frames into it and answer capture requests from it."""
+time window against the no-contact frame, and the burst of consecutive in-contact frames around
+it (scores and the in-contact rule from ``core.contact``, the replay source's). No ROS: the
+GelSight node and the mock image node push frames into it and answer capture requests from
+it."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..core.contact import blur, contact_score
+from ..core.contact import blur, burst_indices, contact_score
 
 
 class FrameRing:
@@ -14,7 +16,9 @@ class FrameRing:
 
     ``best(window_s, now)`` returns the strongest-contact frame of the frames stamped within
     ``window_s`` before ``now`` (the whole buffer when ``window_s <= 0``) and its contact score
-    [grey levels] against the reference. Used by the GelSight node and the mock image node.
+    [grey levels] against the reference; ``burst(window_s, now, count)`` that frame and its
+    consecutive in-contact neighbours (``core.contact.burst_indices``), at the sensor's frame
+    rate. Used by the GelSight node and the mock image node.
     """
 
     def __init__(self, capacity: int = 60) -> None:
@@ -40,11 +44,20 @@ class FrameRing:
 
     def best(self, window_s: float, now: float) -> tuple[np.ndarray, float]:
         """Strongest-contact frame in the window and its score; ValueError if none/no reference."""
+        frames, score = self.burst(window_s, now, 1)
+        return frames[0][1], score
+
+    def burst(self, window_s: float, now: float,
+              count: int) -> tuple[list[tuple[float, np.ndarray]], float]:
+        """Up to ``count`` consecutive (stamp [s], frame) of the window: the strongest-contact
+        frame first, then its in-contact neighbours in time order
+        (``core.contact.burst_indices``), and the strongest's contact score [grey levels];
+        ValueError if no frame / no reference."""
         if self._ref_blur is None:
             raise ValueError("no no-contact reference frame yet")
-        frames = [f for t, f in self._frames if window_s <= 0 or t >= now - window_s]
+        frames = [(t, f) for t, f in self._frames if window_s <= 0 or t >= now - window_s]
         if not frames:
             raise ValueError(f"no frame in the last {window_s:.2f} s")
-        scores = [contact_score(f, self._ref_blur) for f in frames]
-        i = int(np.argmax(scores))
-        return frames[i], float(scores[i])
+        scores = [contact_score(f, self._ref_blur) for _, f in frames]
+        pick = burst_indices(np.array(scores), count)
+        return [frames[i] for i in pick], float(scores[pick[0]])

@@ -74,6 +74,7 @@ class PressSettings(Protocol):
     approach_deadline_s: float
     descend_deadline_s: float
     capture_deadline_s: float
+    capture_frames: int
     retract_deadline_s: float
     position_tolerance: float
     tare_window_s: float

@@ -46,7 +46,9 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Annotated, Any, Literal, Sequence
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated, Any, Literal, Sequence, TypeVar
 
 from pydantic import StringConstraints, field_validator, model_validator
 
@@ -363,9 +365,37 @@ def _collision(spec: CollisionSpec | None, origin: str) -> Collision | None:
 
 
 def load_profile(name_or_path: str) -> RobotProfile:
-    """Read and validate a robot profile by name (``config/robots/``) or path."""
+    """Read and validate a robot profile by name (``config/robots/``) or path: once per
+    process and file version (a profile edited on disk is read again)."""
     p = config_file(name_or_path, "robots", "robot profile")
+    return _parsed_profile(str(p.resolve()), p.stat().st_mtime_ns)
+
+
+@lru_cache(maxsize=None)
+def _parsed_profile(path: str, mtime_ns: int) -> RobotProfile:
+    p = Path(path)
     return parse_profile(read_yaml(p, "robot profile"), origin=f"robot profile {p.name}")
+
+
+#: Node settings that are the robot profile's value where they are left empty ('' or 0):
+#: {setting: profile field}.
+FROM_PROFILE = {"stiffness": "stiffness", "force_sign": "force_sign",
+                "wrench_sign": "force_sign", "state_topic": "state_topic",
+                "pose_topic": "pose_topic", "wrench_topic": "wrench_topic",
+                "mode_topic": "mode_topic", "target_topic": "target_topic",
+                "min_state_rate_hz": "min_state_rate_hz"}
+
+S = TypeVar("S", bound=Schema)
+
+
+def with_profile(settings: S, prof: RobotProfile) -> S:
+    """``settings`` (a node's frozen settings model) with each ``FROM_PROFILE`` field it has and
+    leaves empty ('' or 0) set to the profile's value: resolved once, where the node configures,
+    so the node reads one value everywhere."""
+    names = type(settings).model_fields
+    update = {n: getattr(prof, f) for n, f in FROM_PROFILE.items()
+              if n in names and not getattr(settings, n)}
+    return settings.model_copy(update=update) if update else settings
 
 
 def hold_target(position: Sequence[float], surface_z: float, ws_min: Sequence[float],

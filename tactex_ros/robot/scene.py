@@ -27,6 +27,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from ..core.contact import EXTRA_FRAMES
 from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
 from ..paths import read_yaml
@@ -56,6 +57,14 @@ class PressSettings(Schema):
                                     "latest [m]", 0.0005, 0.05)
     settle_s: float = param(0.3, "held at the press before capturing [s]", 0.0, 10.0)
     capture_window_s: float = param(0.5, "frames the capture looks back over [s]", 0.0, 10.0)
+    capture_frames: int = param(
+        1 + EXTRA_FRAMES, "in-contact frames the capture returns, the strongest included: a "
+                          "burst of consecutive sensor frames around it (about 0.16 s at the "
+                          "GelSight Mini's 25 fps for 4 frames). Default 1 + the replay "
+                          "source's extra frames per press (4), so every learner.descriptor_frames "
+                          "gets on the robot the frames it gets offline from recorded presses "
+                          "(descriptor_frames above 4 uses 4 there too); 1 = the strongest "
+                          "alone", 1, 16)
     retries: int = param(2, "extra attempts after a failed press", 0, 10)
     approach_deadline_s: float = param(15.0, "deadline of the approach [s]", 0.1, 600.0)
     descend_deadline_s: float = param(6.0, "deadline of the descent [s]", 0.1, 600.0)

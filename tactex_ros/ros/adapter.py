@@ -63,6 +63,16 @@ def image_to_array(msg: Image, what: str = "image") -> np.ndarray:
     return arr
 
 
+def images_to_frames(msgs: "list[Image]", what: str = "touch") -> np.ndarray | None:
+    """A touch's further in-contact frames (``tactex/Touch.extra_images``) -> RGB uint8
+    (K, 240, 320, 3), the ``core.touch.Touch.extra`` of the touch; None when there are none.
+    InputError (``image_to_array``'s, naming the frame) when one is unusable."""
+    if not msgs:
+        return None
+    return np.stack([image_to_array(m, f"{what}, extra frame {k + 1} of {len(msgs)}")
+                     for k, m in enumerate(msgs)])
+
+
 def array_to_image(rgb: np.ndarray, t: float, frame_id: str) -> Image:
     """RGB uint8 (H, W, 3) -> ``sensor_msgs/Image`` rgb8 stamped ``t`` [s]."""
     rgb = np.ascontiguousarray(rgb, dtype=np.uint8)

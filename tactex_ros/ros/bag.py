@@ -256,14 +256,17 @@ TOUCH_IMAGE_VIEW = "/tactex/touch_image"      # sensor_msgs/Image rgb8 of every 
 #                                               explorer's touch_image_topic (its default)
 NO_CONTACT_VIEW = "/tactex/touch_no_contact_image"   # sensor_msgs/Image: the touch's
 #                                                      no-contact frame (when it has one)
+EXTRA_IMAGE_VIEW = "/tactex/touch_extra_image"   # sensor_msgs/Image: each further in-contact
+#                                                  frame of the touch's burst, at its own stamp
 WRENCH_VIEW = "/tactex/touch_wrench"          # geometry_msgs/WrenchStamped: the press force
 BELIEF_VIEW = "/tactex/belief/"               # + platform id: std_msgs/Float64 per comparison
 
 
 def standard_views(topic: str, msg: Any) -> list[tuple[str, Any]]:
     """The standard messages a viewer shows for one of tactex's own (``topic`` is where
-    ``msg`` goes): a touch (``TOUCH_TOPIC``, tactex/msg/Touch) gives its contact image and its
-    no-contact frame as ``sensor_msgs/Image`` (lossless rgb8, the camera's frame id) and its
+    ``msg`` goes): a touch (``TOUCH_TOPIC``, tactex/msg/Touch) gives its contact image, its
+    further in-contact frames (``extra_images``, one message each) and its no-contact frame as
+    ``sensor_msgs/Image`` (lossless rgb8, the camera's frame id) and its
     force as ``geometry_msgs/WrenchStamped`` (``force.z`` = the tared normal force the sensor
     presses with along its optical axis [N], in the camera's frame, stamped at capture); an
     exploration state (tactex/msg/ExplorationState) gives the belief in each comparison as one
@@ -273,6 +276,7 @@ def standard_views(topic: str, msg: Any) -> list[tuple[str, Any]]:
         from geometry_msgs.msg import WrenchStamped
         header = msg.image.header if msg.image.header.frame_id else msg.header
         out: list[tuple[str, Any]] = [(TOUCH_IMAGE_VIEW, msg.image)]
+        out += [(EXTRA_IMAGE_VIEW, im) for im in msg.extra_images]
         if msg.no_contact_image.data:
             nc = copy.copy(msg.no_contact_image)
             if not nc.header.frame_id:

@@ -4,9 +4,10 @@ Folder layout: ``<root>/<class>/<file>``; each file is one press, a video readab
 (``.mov .mp4 .avi .mkv``) or a single image (``.png .jpg .jpeg .bmp``). For a video the contact
 frame is chosen deliberately: the strongest contact against the press's own no-contact frames
 (see ``core.contact``). A touch is a ``core.touch.Touch``: that frame, the press's no-contact
-frame (median of its first 3 frames) and up to ``EXTRA_FRAMES`` more in-contact frames at other
-depths (frames whose contact score is at least ``EXTRA_MIN`` of the strongest, evenly spaced in
-time). An image file gives a touch without a no-contact frame. Frames are RGB uint8
+frame (median of its first 3 frames) and up to ``core.contact.EXTRA_FRAMES`` more in-contact
+frames at other depths (``core.contact.in_contact``: a contact score at least ``CONTACT_SHARE``
+of the strongest; evenly spaced in time). The live sensor's burst uses the same rule
+(``robot/frames.py``). An image file gives a touch without a no-contact frame. Frames are RGB uint8
 (240, 320, 3).
 
 A trial assigns a class to the reference and to every comparison platform. Touching a platform
@@ -31,12 +32,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..core.contact import strongest_contact, to_sensor_frame
+from ..core.contact import EXTRA_FRAMES, in_contact, strongest_contact, to_sensor_frame
 from ..core.errors import InputError
 from ..core.touch import Touch
 
-EXTRA_FRAMES = 3       # in-contact frames kept per press besides the strongest
-EXTRA_MIN = 0.7        # ... each with at least this share of the strongest contact score
 VIDEO_EXT = {".mov", ".mp4", ".avi", ".mkv"}
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
 
@@ -83,7 +82,7 @@ def load_touch(path: str) -> tuple[Touch, float]:
         return Touch(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)), float("nan")
     arr = read_video(p)
     idx, scores = strongest_contact(arr)
-    strong = np.flatnonzero(scores >= EXTRA_MIN * scores[idx])
+    strong = np.flatnonzero(in_contact(scores, idx))
     strong = strong[strong != idx]
     pick = (strong[np.round(np.linspace(0, len(strong) - 1, EXTRA_FRAMES)).astype(int)]
             if len(strong) > EXTRA_FRAMES else strong)

@@ -5,6 +5,9 @@ Layout of ``<root>/<trial_id>/``::
     touches.jsonl        one JSON line per touch, in arrival order (also rejected ones)
     rejections.jsonl     touches refused after they were written (the core's guard)
     touch_0001_c1.png    the touch image (lossless RGB), name = sequence number + platform id
+    extra_0001_c1_1.png  the touch's further in-contact frames (``Touch.extra``, the capture's
+                         burst), lossless RGB, in their order; the touch line lists them
+                         (``extra``); a record made before they were kept has none
     no_contact_0001.png  the sensor's no-contact frame that came with touch 1 (written again
                          only when it changes; each touch line names its file)
     decisions.jsonl      one JSON line per decision (the exploration state)
@@ -98,6 +101,7 @@ def check_resumable(folder: str | Path) -> dict | None:
                           f"decisions but {str(d / 'touches.jsonl')!r} only {len(lines)} "
                           "touches: the files do not belong together")
     named = {t.get("image") for t in lines}
+    extras = [n for t in lines if not t.get("interrupted") for n in (t.get("extra") or [])]
     last = max((int(t.get("seq", 0)) for t in lines), default=0)
     orphans = sorted(f.name for f in d.glob("touch_*.png") if f.name not in named
                      and _seq_of(f) != last + 1)
@@ -106,7 +110,8 @@ def check_resumable(folder: str | Path) -> dict | None:
                           f"names: {', '.join(orphans[:5])}"
                           f"{' ...' if len(orphans) > 5 else ''}")
     missing = [t["image"] for t in lines if t.get("image") and not t.get("interrupted")
-               and not (d / t["image"]).is_file()]
+               and not (d / t["image"]).is_file()] + [n for n in extras
+                                                      if not (d / n).is_file()]
     if missing:
         raise InputError(f"resume: touch images named in touches.jsonl are missing from "
                           f"{str(d)!r}: {', '.join(missing[:5])}"
@@ -190,8 +195,10 @@ class TrialRecord:
         _fsync_write(path, buf.tobytes(), False)
 
     def add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
-                  no_contact: np.ndarray | None = None) -> Path | None:
-        """Write the image (RGB uint8, any size; None = no usable image), the sensor's
+                  no_contact: np.ndarray | None = None,
+                  extra: np.ndarray | None = None) -> Path | None:
+        """Write the image (RGB uint8, any size; None = no usable image), its further
+        in-contact frames (``extra``: (K, H, W, 3) RGB uint8 or None, each a PNG), the sensor's
         no-contact frame that came with it (written only when it differs from the last one)
         and the metadata line, last (the line commits the touch).
 
@@ -199,10 +206,11 @@ class TrialRecord:
         with self._lock:
             self._open()
             self.check_space(f"touch {self.n_touches + 1}")
-            return self._add_touch(image, meta, no_contact)
+            return self._add_touch(image, meta, no_contact, extra)
 
     def _add_touch(self, image: np.ndarray | None, meta: dict[str, Any],
-                   no_contact: np.ndarray | None) -> Path | None:
+                   no_contact: np.ndarray | None,
+                   extra: np.ndarray | None = None) -> Path | None:
         seq = self.n_touches + 1
         img_path = None
         written: list[Path] = []
@@ -211,6 +219,13 @@ class TrialRecord:
                 img_path = self.dir / f"touch_{seq:04d}_{meta.get('platform_id', 'x')}.png"
                 self._png(img_path, image)
                 written.append(img_path)
+            extra_names = []
+            if image is not None and extra is not None:
+                for k, frame in enumerate(extra, 1):
+                    name = f"extra_{seq:04d}_{meta.get('platform_id', 'x')}_{k}.png"
+                    self._png(self.dir / name, frame)
+                    written.append(self.dir / name)
+                    extra_names.append(name)
             nc_name, nc_new = None, False
             if no_contact is not None:
                 if self._no_contact is not None and np.array_equal(self._no_contact[0],
@@ -221,6 +236,8 @@ class TrialRecord:
                     self._png(self.dir / nc_name, no_contact)
                     written.append(self.dir / nc_name)
             line = dict(meta, seq=seq, image=img_path.name if img_path else None)
+            if extra_names:
+                line["extra"] = extra_names
             if nc_name is not None:
                 line["no_contact"] = nc_name
             _fsync_write(self.dir / "touches.jsonl", _line(line), True)
@@ -318,6 +335,7 @@ NUM = (int, float)
 # that is absent is fine, one of another type refuses the file (InputError, named)
 FIELDS: dict[str, dict[str, tuple]] = {
     "touches.jsonl": {"seq": (int,), "image": (str, None), "no_contact": (str, None),
+                      "extra": ([str], None),
                       "platform_id": (str, None), "platform_index": (int, None),
                       "accepted": (bool, None), "interrupted": (bool, None),
                       "reason": (str, None)},
@@ -408,8 +426,9 @@ def _read_png(path: Path) -> np.ndarray | None:
 
 
 def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
-    """Load a record folder: touches (with images as arrays: ``array``, ``no_contact_array``),
-    decisions, events, result (or None). ``images=False`` skips the PNGs."""
+    """Load a record folder: touches (with images as arrays: ``array``, ``no_contact_array``,
+    ``extra_arrays``: a list, None for a frame that does not read), decisions, events, result
+    (or None). ``images=False`` skips the PNGs."""
     d = Path(folder)
     if not d.is_dir():
         raise InputError(f"trial record {str(d)!r} not found")
@@ -423,6 +442,8 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
         for t in touches:
             if t.get("image"):
                 t["array"] = _read_png(d / t["image"])
+            if t.get("extra"):
+                t["extra_arrays"] = [_read_png(d / n) for n in t["extra"]]
             if t.get("no_contact"):
                 if t["no_contact"] not in cache:
                     cache[t["no_contact"]] = _read_png(d / t["no_contact"])

@@ -43,7 +43,9 @@ class RecordedTouch:
 
 def recorded_touches(record: dict) -> list[RecordedTouch]:
     """The touches of a loaded record (``read_record``) in arrival order, interrupted presses
-    left out. A touch whose image is missing or unreadable is refused (nothing is guessed)."""
+    left out, each with its further in-contact frames (``Touch.extra``) where the record keeps
+    them (a record made before they were kept: the strongest frame alone). A touch whose image
+    or extra frame is missing or unreadable is refused (nothing is guessed)."""
     out = []
     for t in record["touches"]:
         if t.get("interrupted"):
@@ -57,7 +59,13 @@ def recorded_touches(record: dict) -> list[RecordedTouch]:
             if arr is None:
                 raise InputError(f"resume: image {t['image']!r} of touch {seq} is missing or "
                                  "unreadable")
-            touch = Touch(frame=arr, no_contact=t.get("no_contact_array"))
+            extra = t.get("extra_arrays")
+            if extra is not None and any(a is None for a in extra):
+                bad = [n for n, a in zip(t["extra"], extra) if a is None]
+                raise InputError(f"resume: extra frame(s) {bad} of touch {seq} are missing or "
+                                 "unreadable")
+            touch = Touch(frame=arr, no_contact=t.get("no_contact_array"),
+                          extra=np.stack(extra) if extra else None)
         elif t.get("accepted", False):
             raise InputError(f"resume: touch {seq} is marked accepted but has no image")
         out.append(RecordedTouch(seq=seq, platform_index=int(t["platform_index"]),

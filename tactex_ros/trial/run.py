@@ -5,7 +5,7 @@ The robot side (the explorer node, ``ros/nodes/explorer_node.py``) injects the l
 function ``press(platform, meta) -> Touch``: it makes the touch (0 = reference, 1..C) and fills
 ``meta`` (a dict) with what the record keeps of it (time, force, pose, attempts, ...).
 ``TrialRun`` puts every touch on disk before the engine uses it: an accepted touch with its
-image and no-contact frame; a failed one (``TouchFailed``) with its reason; a press cut off by
+image, its further in-contact frames and no-contact frame; a failed one (``TouchFailed``) with its reason; a press cut off by
 the fault itself (``TouchInterrupted``) marked ``interrupted``, so a resume makes it again.
 
 With ``resume`` (a record folder) the trial continues an interrupted one: the settings are
@@ -144,7 +144,7 @@ class TrialRun:
                                              interrupted=True))
             raise
         self.record.add_touch(touch.frame, dict(meta, accepted=True),
-                              no_contact=touch.no_contact)
+                              no_contact=touch.no_contact, extra=touch.extra)
         self._set_guard_reference(touch.no_contact)
         return touch
 

@@ -13,7 +13,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from tactex_ros.ros import adapter
-from tactex_ros.core.contact import contact_score, blur, crop_border
+from tactex_ros.core.contact import contact_score, blur, crop_border, in_contact
 from tactex_ros.ros.graph import NodeSpec
 from tactex_ros.ros.launcher import Graph
 
@@ -40,7 +40,7 @@ def _capture(listener, node, tmp_path: Path, images: list, n_frames: int, settle
         while len(images) < n_frames and time.monotonic() < end:
             time.sleep(0.05)
         time.sleep(settle_s)
-        fut = client.call_async(Capture.Request(window_s=0.0))
+        fut = client.call_async(Capture.Request(window_s=0.0, frames=4))
         while not fut.done() and time.monotonic() < end:
             time.sleep(0.02)
         return fut.result()
@@ -77,6 +77,17 @@ def test_capture_returns_strongest_contact_frame(octopi_dir: Path, tmp_path: Pat
     assert np.array_equal(got, frames[best])
     assert resp.contact_score == pytest.approx(scores[best], rel=1e-4)
     assert scores[best] > 3 * np.median(scores[:n_ref] + 1e-3)
+    # the burst: frames of the recording next to the strongest, each in contact by the replay
+    # source's rule, consecutive at the file's rate (the ring holds the loop from an arbitrary
+    # frame on, so a run cut by the loop's seam may give fewer than 3)
+    idx = [next(i for i, f in enumerate(frames) if np.array_equal(f, adapter.image_to_array(m)))
+           for m in resp.extra_images]
+    assert 1 <= len(idx) <= 3 and all(in_contact(scores, best)[i] for i in idx)
+    run = sorted((i - best) % len(frames) for i in idx + [best])
+    run = sorted(((d + len(frames) // 2) % len(frames)) - len(frames) // 2 for d in run)
+    assert run == list(range(run[0], run[0] + len(run))) and 0 in run
+    stamps = [adapter.seconds(m.header.stamp) for m in resp.extra_images]
+    assert stamps == sorted(stamps)
 
 
 def test_unknown_device_refused(tmp_path: Path, listener) -> None:

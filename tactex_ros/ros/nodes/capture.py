@@ -1,7 +1,9 @@
 """The capture service shared by the GelSight node and the mock image node.
 
 ``tactex/srv/Capture``: the strongest-contact frame of the ring buffer's last ``window_s``
-seconds against the no-contact reference frame, with its contact score [grey levels].
+seconds against the no-contact reference frame, with its contact score [grey levels], and a
+burst of up to ``frames - 1`` more in-contact frames around it (``FrameRing.burst``:
+consecutive frames at the sensor's rate, in time order, each stamped with its capture time).
 """
 
 from __future__ import annotations
@@ -21,12 +23,14 @@ def serve_capture(node, ring: FrameRing, lock: threading.Lock, frame_id: str,
         now = node.get_clock().now().nanoseconds * 1e-9
         with lock:
             try:
-                frame, score = ring.best(req.window_s, now)
+                burst, score = ring.burst(req.window_s, now, max(1, int(req.frames)))
             except ValueError as exc:
                 resp.success, resp.reason = False, str(exc)
                 return resp
         resp.success, resp.reason = True, ""
-        resp.image = adapter.array_to_image(frame, now, frame_id)
+        (t0, frame), more = burst[0], burst[1:]
+        resp.image = adapter.array_to_image(frame, t0, frame_id)
+        resp.extra_images = [adapter.array_to_image(f, t, frame_id) for t, f in more]
         resp.contact_score = score
         if ring.reference is not None:
             resp.no_contact = adapter.array_to_image(ring.reference, now, frame_id)

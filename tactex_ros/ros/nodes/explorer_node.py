@@ -312,8 +312,9 @@ class ExplorerNode(TactexNode):
 
     def _press(self, platform: int, meta: dict) -> Touch:
         """The trial's live touch (``TrialRun``): press ``platform`` (index), return the touch
-        (contact image and the sensor's no-contact frame), ``meta`` filled for the record. A
-        failed press (already retried by the motion node) or an unreadable image raises
+        (contact image, the sensor's no-contact frame, the burst's further in-contact frames as
+        ``Touch.extra``), ``meta`` filled for the record. A failed press (already retried by
+        the motion node) or an unreadable image (any frame of the burst) raises
         ``TouchFailed(retry=False)``; a press server that is gone, ``PressServerLost``."""
         from tactex.action import Press
         self._wait_running()
@@ -364,9 +365,13 @@ class ExplorerNode(TactexNode):
             meta.update(encoding=touch.image.encoding, width=touch.image.width,
                         height=touch.image.height)
             raise TouchFailed(str(exc), retry=False) from exc
+        try:
+            extra = adapter.images_to_frames(touch.extra_images, f"touch of {pid}")
+        except InputError as exc:
+            raise TouchFailed(str(exc), retry=False) from exc
         self.image_pub.publish(touch.image)
         self._bag_write(TOUCH_TOPIC, touch)
-        return Touch(frame=img, no_contact=self._no_contact(touch))
+        return Touch(frame=img, no_contact=self._no_contact(touch), extra=extra)
 
     def _no_contact(self, touch) -> np.ndarray | None:
         """The touch's no-contact frame as an array (None when absent or unusable)."""

@@ -39,7 +39,7 @@ from .. import adapter
 from ...core.errors import InputError
 from ...robot.mock_world import ArmModel, ControlLaw, Faults
 from ..settings import MockArmSettings
-from ...robot.robots import import_interface, load_profile
+from ...robot.robots import import_interface, load_profile, with_profile
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
@@ -52,8 +52,8 @@ class MockArmNode(TactexNode):
         super().__init__("mock_arm", **kw)
 
     def configure(self) -> None:
-        s = self.settings
-        prof = load_profile(s.robot)
+        prof = load_profile(self.settings.robot)
+        s = self.settings = with_profile(self.settings, prof)
         if prof.franka_state:
             raise InputError(f"robot profile {prof.name!r}: the mock arm publishes "
                              "PoseStamped + WrenchStamped state only")
@@ -62,14 +62,14 @@ class MockArmNode(TactexNode):
         self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
                             mock_law(prof.law, s), mass=s.mass, faults=mock_faults(s))
         self.max_publishers = prof.max_publishers
-        self.sign = s.wrench_sign or prof.force_sign
+        self.sign = s.wrench_sign
         self.quat = np.array(scene.tool_orientation)
         self.pose_pub = self.create_lifecycle_publisher(
-            PoseStamped, s.pose_topic or prof.pose_topic, adapter.qos_profile(prof.pose_qos))
+            PoseStamped, s.pose_topic, adapter.qos_profile(prof.pose_qos))
         self.wrench_pub = self.create_lifecycle_publisher(
-            WrenchStamped, s.wrench_topic or prof.wrench_topic,
+            WrenchStamped, s.wrench_topic,
             adapter.qos_profile(prof.wrench_qos))
-        self.target_topic = s.target_topic or prof.target_topic
+        self.target_topic = s.target_topic
         # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
         self.create_subscription(import_interface(prof.target_type), self.target_topic,
                                  self._on_target, 1)

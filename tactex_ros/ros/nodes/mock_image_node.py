@@ -3,8 +3,11 @@
 Knows what lies on each platform from the scene (``sim_fabric`` for the simulator,
 ``replay_class`` for recorded presses). While the mock arm presses a platform (force > 0 and
 the sensor within the platform's radius) it publishes that fabric's texture at a gel depth
-proportional to the contact force (``depth_per_n``); otherwise a no-contact frame. Each press
-shows a new random patch of the fabric (new window; a new recorded press for replay sources).
+proportional to the contact force (``depth_per_n``), rendered anew every frame (so the frames
+of one press follow the held force); otherwise a no-contact frame. Each press shows a new random
+patch of the fabric (new window; a new recorded press for replay sources, whose in-contact
+frames, the strongest and ``Touch.extra``, it shows in turn while the press lasts). The capture
+service answers from the ring of these frames (``capture.py``): a burst of in-contact frames.
 
 ``placement`` (``platform=fabric,...``) puts other catalogue fabrics on platforms over the
 scene's ``sim_fabric``; it may be set while the node runs (``ros2 param set``, or the explorer's
@@ -90,7 +93,8 @@ class MockImageNode(TactexNode):
         self.force = 0.0
         self.press_id = 0
         self._in_contact = False
-        self._press_frame = None
+        self._press_frames: list[np.ndarray] = []
+        self._press_tick = 0
         self._blank = False
         self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
         self.create_subscription(PoseStamped, s.pose_topic, self._on_pose,
@@ -193,12 +197,15 @@ class MockImageNode(TactexNode):
             self.press_id += 1
             self._blank = self._rng_fault().random() < self.settings.fault_blank
             if self.kind == "replay":
-                self._press_frame = self.replay(idx).frame
+                t = self.replay(idx)
+                self._press_frames = [t.frame] + ([] if t.extra is None else list(t.extra))
+                self._press_tick = 0
         self._in_contact = contact
         if not contact or self._blank:
             return self.no_contact
         if self.kind == "replay":
-            return self._press_frame
+            self._press_tick += 1
+            return self._press_frames[(self._press_tick - 1) % len(self._press_frames)]
         fabric = self.fabrics[idx]
         depth_mm = float(np.clip(self.settings.depth_per_n * self.force, 0.02, 1.0))
         rng = np.random.default_rng([self.settings.seed, self.press_id])

@@ -48,7 +48,8 @@ from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
 from ..preflight import Probe
 from ..settings import MotionSettings
-from ...robot.robots import fill_message, hold_target, import_interface, load_profile
+from ...robot.robots import (fill_message, hold_target, import_interface, load_profile,
+                             with_profile)
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode, in_thread, wait_for
 from .process import run
@@ -73,14 +74,14 @@ class MotionNode(TactexNode):
     def configure(self) -> None:
         from tactex.action import Press
         from tactex.srv import Capture
-        s = self.settings
-        self.scene = load_scene(s.scene_file)
-        prof = self.profile = load_profile(s.robot)
+        self.scene = load_scene(self.settings.scene_file)
+        prof = self.profile = load_profile(self.settings.robot)
+        s = self.settings = with_profile(self.settings, prof)
         if self.scene.frame_id != prof.frame_id:
             raise InputError(f"scene frame_id {self.scene.frame_id!r} is not robot profile "
                              f"{prof.name!r}'s base frame {prof.frame_id!r}")
-        self.k = s.stiffness or prof.stiffness
-        self.sign = s.force_sign or prof.force_sign
+        self.k = s.stiffness
+        self.sign = s.force_sign
         check_press(self.scene, self.k, f"scene with robot {prof.name!r}", prof.law.error_clip)
         self.quat = np.array(self.scene.tool_orientation)
         self.position: np.ndarray | None = None
@@ -94,12 +95,12 @@ class MotionNode(TactexNode):
         # every state subscription asks for its upstream publisher's QoS (the profile's)
         if prof.franka_state:
             self.create_subscription(import_interface(prof.state_type),
-                                     s.state_topic or prof.state_topic, self._on_state,
+                                     s.state_topic, self._on_state,
                                      adapter.qos_profile(prof.state_qos))
         else:
-            self.create_subscription(PoseStamped, s.pose_topic or prof.pose_topic,
+            self.create_subscription(PoseStamped, s.pose_topic,
                                      self._on_pose, adapter.qos_profile(prof.pose_qos))
-            self.create_subscription(WrenchStamped, s.wrench_topic or prof.wrench_topic,
+            self.create_subscription(WrenchStamped, s.wrench_topic,
                                      self._on_wrench, adapter.qos_profile(prof.wrench_qos))
         if prof.mode_topic:
             # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
@@ -113,12 +114,12 @@ class MotionNode(TactexNode):
                 self._mode_next, self._mode_t, self.topic_mode = 0.0, float("-inf"), None
                 try:
                     sub = self.create_subscription(
-                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        self._mode_type, s.mode_topic, self._on_mode_raw,
                         adapter.qos_profile(prof.mode_qos), raw=True,
                         content_filter_options=MODE_FILTER)
                 except TypeError:           # an rclpy without content filters
                     sub = self.create_subscription(
-                        self._mode_type, s.mode_topic or prof.mode_topic, self._on_mode_raw,
+                        self._mode_type, s.mode_topic, self._on_mode_raw,
                         adapter.qos_profile(prof.mode_qos), raw=True)
                 cft = getattr(sub, "is_cft_enabled", False)   # a property or a method
                 self.get_logger().info(
@@ -130,7 +131,7 @@ class MotionNode(TactexNode):
                                           f"stopping): {exc}")
         self.target_type = prof.target_type
         self.target_pub = self.create_lifecycle_publisher(import_interface(prof.target_type),
-                                                          s.target_topic or prof.target_topic,
+                                                          s.target_topic,
                                                           10)
         self.capture = self.create_client(Capture, s.capture_service)
         self._setup_recovery()
@@ -157,19 +158,19 @@ class MotionNode(TactexNode):
         probe = Probe(self.context, f"{self.get_name()}_preflight")
         try:
             if prof.franka_state:
-                topics = [(import_interface(prof.state_type), s.state_topic or prof.state_topic,
+                topics = [(import_interface(prof.state_type), s.state_topic,
                            prof.state_qos)]
             else:
-                topics = [(PoseStamped, s.pose_topic or prof.pose_topic, prof.pose_qos),
-                          (WrenchStamped, s.wrench_topic or prof.wrench_topic, prof.wrench_qos)]
+                topics = [(PoseStamped, s.pose_topic, prof.pose_qos),
+                          (WrenchStamped, s.wrench_topic, prof.wrench_qos)]
             mode = None
-            min_rate = s.min_state_rate_hz or prof.min_state_rate_hz
+            min_rate = s.min_state_rate_hz
             for mtype, topic, qos in topics:
                 stamps, last = probe.sample(mtype, topic, adapter.qos_profile(qos),
                                             s.preflight_window_s, s.preflight_deadline_s)
                 # one graph per arm, checked once the sampling gave discovery its time
                 problem = probe.other_graph(
-                    [("the arm's target", s.target_topic or prof.target_topic),
+                    [("the arm's target", s.target_topic),
                      ("the press action's status", f"{s.press_action}/_action/status")]
                     + [("the robot state", t) for _, t, _ in topics])
                 if problem:
@@ -202,7 +203,7 @@ class MotionNode(TactexNode):
         except InputError as exc:
             self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
             return None
-        topic = s.mode_topic or prof.mode_topic
+        topic = s.mode_topic
         stamps, last = probe.sample(mtype, topic, adapter.qos_profile(prof.mode_qos), 0.0,
                                     s.preflight_deadline_s)
         if last is None:
@@ -535,7 +536,8 @@ class MotionNode(TactexNode):
                 self.scene.frame_id))
             if ctrl.capture_requested:
                 ok, reason, cap = self._capture(ctrl.s.capture_window_s,
-                                                  ctrl.s.capture_deadline_s)
+                                                  ctrl.s.capture_deadline_s,
+                                                  ctrl.s.capture_frames)
                 pose_xyz = self.position.copy()
                 ctrl.captured(ok, reason, time.monotonic())
             fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
@@ -551,17 +553,20 @@ class MotionNode(TactexNode):
                       tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
                       tare_samples=out.tare.samples, surface_z=out.surface_z,
                       surface_error_m=out.surface_z - platform.position[2],
-                      warning=out.warning)
+                      warning=out.warning, extra_images=list(cap.extra_images))
         if out.warning:
             self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
 
-    def _capture(self, window_s: float, deadline_s: float):
+    def _capture(self, window_s: float, deadline_s: float, frames: int):
+        """Ask the camera for the strongest-contact frame of the last ``window_s`` [s] and a
+        burst of ``frames`` in-contact frames in all (the scene's ``press.capture_frames``);
+        (ok, reason, the Capture response)."""
         from tactex.srv import Capture
         if not self.capture.wait_for_service(timeout_sec=deadline_s):
             return False, "capture service not available", None
-        fut = self.capture.call_async(Capture.Request(window_s=window_s))
+        fut = self.capture.call_async(Capture.Request(window_s=window_s, frames=frames))
         if not wait_for(fut, deadline_s):
             self.capture.remove_pending_request(fut)
             return False, f"no image within capture_deadline_s ({deadline_s} s)", None

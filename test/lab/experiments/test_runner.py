@@ -41,6 +41,7 @@ def test_joblib_workers_give_the_in_process_results(in_process):
     assert [r.job.trial_id for r in res] == ["infogain0", "random0", "infogain1", "random1"]
 
 
+@pytest.mark.soak      # a Ray cluster's start-up is over a minute here: `make test-soak`
 def test_a_local_ray_instance_gives_the_joblib_results(in_process):
     ray = pytest.importorskip("ray", reason="ray is not installed")
     try:

@@ -45,10 +45,12 @@ def _trial(root: Path, trial_id: str, scene_text: str, seed: int) -> Path:
     def touch(p: int) -> Touch:
         t = as_touch(fn(p))
         nc = t.no_contact if t.no_contact is not None else np.full_like(t.frame, 90)
+        # a burst of p more frames of the press (the live capture's): none for the reference
+        extra = np.stack([np.roll(t.frame, k, axis=1) for k in range(1, p + 1)]) if p else None
         rec.add_touch(t.frame, {"platform_id": ids[p], "platform_index": p, "accepted": True,
                                 "force_n": 4.0 + p, "depth_m": 4e-4, "stamp": 100.0 + p,
-                                "pose": [0.4, 0.1 * p, 0.08]}, no_contact=nc)
-        return Touch(frame=t.frame, no_contact=nc, extra=t.extra)
+                                "pose": [0.4, 0.1 * p, 0.08]}, no_contact=nc, extra=extra)
+        return Touch(frame=t.frame, no_contact=nc, extra=extra)
 
     def decided(r) -> None:
         rec.add_decision({"round": r.round, "belief": list(r.probs),
@@ -63,7 +65,8 @@ def _trial(root: Path, trial_id: str, scene_text: str, seed: int) -> Path:
 def _load(out: Path, tmp: Path):
     ds = datasets.load_dataset(str(out), split="train", cache_dir=str(tmp / "cache"))
     return ds.cast_column("image", datasets.Image(decode=False)).cast_column(
-        "no_contact", datasets.Image(decode=False))
+        "no_contact", datasets.Image(decode=False)).cast_column(
+        "extra", datasets.Sequence(datasets.Image(decode=False)))
 
 
 def _same_as_record(ds, d: Path, session: str = "") -> None:
@@ -75,6 +78,9 @@ def _same_as_record(ds, d: Path, session: str = "") -> None:
     for row, t in zip(rows, rec["touches"]):
         assert row["image"]["bytes"] == (d / t["image"]).read_bytes()      # byte for byte
         assert row["no_contact"]["bytes"] == (d / t["no_contact"]).read_bytes()
+        assert [x["bytes"] for x in row["extra"]] == [(d / n).read_bytes()
+                                                      for n in t.get("extra", [])]
+        assert len(row["extra"]) == t["platform_index"]
         assert (row["seq"], row["platform_id"], row["session"]) == (t["seq"], t["platform_id"],
                                                                   session)
         assert row["material"] == mats[t["platform_id"]]

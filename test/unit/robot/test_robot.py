@@ -12,7 +12,8 @@ from tactex_ros.ros import adapter
 from tactex_ros.core.errors import InputError
 from tactex_ros.ros.graph import describe, fixed_frame
 from tactex_ros.paths import config_dir, config_names
-from tactex_ros.robot.robots import fill_message, import_interface, load_profile, parse_profile
+from tactex_ros.robot.robots import (fill_message, import_interface, load_profile, parse_profile,
+                                     with_profile)
 
 
 def _fr3() -> dict:
@@ -87,6 +88,24 @@ def test_profile_errors_name_the_field(path, value, field) -> None:
     target[path[-1]] = value
     with pytest.raises(InputError, match=field):
         parse_profile(d)
+
+
+def test_node_settings_take_the_profiles_values_once() -> None:
+    """Empty settings ('' / 0) are the profile's, given ones stay; the profile is parsed once
+    per process (the same object) and again after the file changes."""
+    from tactex_ros.ros.settings import MockArmSettings, MotionSettings
+    prof = load_profile("fr3_crisp")
+    assert load_profile("fr3_crisp") is prof
+    s = with_profile(MotionSettings(robot="fr3_crisp", stiffness=800.0), prof)
+    assert (s.stiffness, s.force_sign, s.target_topic) == (800.0, prof.force_sign,
+                                                           prof.target_topic)
+    assert s.min_state_rate_hz == prof.min_state_rate_hz and s.state_topic == prof.state_topic
+    arm = with_profile(MockArmSettings(robot="sim", pose_topic="/p"), load_profile("sim"))
+    assert (arm.pose_topic, arm.wrench_sign) == ("/p", load_profile("sim").force_sign)
+    given = MotionSettings(robot="fr3_crisp", stiffness=700.0, force_sign=1, state_topic="/s",
+                           pose_topic="/p", wrench_topic="/w", mode_topic="/m",
+                           target_topic="/t", min_state_rate_hz=10.0)
+    assert with_profile(given, prof) is given
 
 
 def test_hold_target_never_below_the_surface() -> None:

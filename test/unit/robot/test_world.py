@@ -135,7 +135,7 @@ def test_activation_transient_is_bounded_by_the_error_clip() -> None:
 
 # ---------------------------------------------------------------------- 1000 worlds
 
-@pytest.mark.parametrize("n", [pytest.param(1000, marks=pytest.mark.slow), 60])
+@pytest.mark.parametrize("n", [pytest.param(1000, marks=[pytest.mark.slow, pytest.mark.soak]), 60])
 def test_every_press_in_1000_worlds_captures_at_the_force_or_refuses_by_name(n: int) -> None:
     """Property over 1000 seeded worlds (``Faults.draw``: offset up to 5 N with drift and a
     configuration part, static force up to 4 N up or down and 3 N sideways, Coulomb friction
@@ -144,7 +144,7 @@ def test_every_press_in_1000_worlds_captures_at_the_force_or_refuses_by_name(n: 
     offset and static force add up to 9 N): >= 99 % capture within the tolerance of the
     intended force, the rest refuse with a reason, no true contact force over max_force at
     any control cycle, never a success at the wrong force. (1000 worlds take ~4 min on a
-    loaded 2-core machine: marked slow; the first 60 of them run in every test run.)"""
+    loaded 2-core machine: marked soak, `make test-soak`; the first 60 of them run in every test run.)"""
     scene = replace(SIM, press=SIM.press.replace(
         force_threshold=5.0, max_force=12.0, max_depth=0.012, tare_max_offset_n=10.0,
         tare_max_spread_n=1.2))
