@@ -213,19 +213,6 @@ def run_unseen(args: argparse.Namespace) -> dict:
                                                   for k, v in costs.items()))
         write_json(out / "feature_screen.json", {"rows": rows, "touch_costs_ms": costs})
         return {"feature_screen": rows, "touch_costs_ms": costs}
-    if args.screen_cnn:
-        from tactex_lab.analysis import cnn_embed
-        diffs = {}
-        for name, root in (("a", args.a), ("b", args.b)):
-            path = Path(args.cache_dir) / f"{Path(root).name}_diffs.npz"
-            if not path.is_file():
-                print(f"contact differences of every press of {root} -> {path}")
-                np.savez(path, **cnn_embed.build_diffs(root))
-            diffs[name] = load_cache(path)
-        rows = cnn_embed.screen(caches["a"], caches["b"], diffs, args.cnn_seconds,
-                                tuple(args.mlp_seeds))
-        write_json(out / "cnn_screen.json", rows)
-        return {"cnn_screen": rows}
     if args.screen_mlp:
         grid = tuple(itertools.product(args.mlp_losses, args.mlp_hidden, args.mlp_decays))
         rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
@@ -272,12 +259,6 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "and the whitened frame on the same scenes; writes feature_screen.json")
     p.add_argument("--features", nargs="+", default=list(metric_screen.CANDIDATES),
                    choices=list(FEATURES), help="per-press features (--screen-features)")
-    p.add_argument("--screen-cnn", action="store_true",
-                   help="only the screening of a small CNN (analysis/cnn_embed, torch on the CPU) "
-                        "trained on the library, both directions; seeds: --mlp-seeds; writes "
-                        "cnn_screen.json (the contact differences are cached in --cache-dir)")
-    p.add_argument("--cnn-seconds", type=float, default=150.0,
-                   help="training time per network [s] (--screen-cnn)")
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
                    help="MLP training seeds (--screen-mlp)")
