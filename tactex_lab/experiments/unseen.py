@@ -20,7 +20,9 @@ each direction (test on A with B as the lab's library, and the reverse) every se
 
 Per-press features (``FEATURES``) tried on top of the shipped 106-number descriptor: several
 frames of the press (the strongest + 3 more in contact; the frame at half the strongest contact,
-the contact growing), and 2 x 2 regions of the strongest frame (mean and spread over regions).
+the contact growing), and 2 x 2 regions of the strongest frame (mean and spread over regions);
+with ``--candidates``, issue 33's filter bank, height map and contact growth
+(``analysis/press_features.py``), screened by ``--screen-features``.
 
 The cache holds descriptors of ``../shared`` presses: write it under /tmp, never into the
 repository.
@@ -199,6 +201,13 @@ def run_unseen(args: argparse.Namespace) -> dict:
             print(f"describing every press of {root} -> {path}")
             build_cache(root, path, candidates=args.candidates)
         caches[name] = load_cache(path)
+    wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
+    for f in sorted(wanted):
+        try:
+            FEATURES[f](caches["a"])
+        except KeyError as exc:
+            raise InputError(f"feature {f!r} needs the cache array {exc} "
+                             f"({'add' if not args.candidates else 'drop'} --candidates)") from None
     out = results_dir(args.out, "unseen", {k: v for k, v in vars(args).items() if k != "func"})
     if args.screen:
         rows = screen(caches["a"], caches["b"])
@@ -258,7 +267,8 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "metric and whitened, both directions, exact McNemar against the frame "
                         "and the whitened frame on the same scenes; writes feature_screen.json")
     p.add_argument("--features", nargs="+", default=list(metric_screen.CANDIDATES),
-                   choices=list(FEATURES), help="per-press features (--screen-features)")
+                   choices=list(metric_screen.CANDIDATES),
+                   help="per-press features (--screen-features)")
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
                    help="MLP training seeds (--screen-mlp)")
