@@ -163,8 +163,8 @@ def height_map(d: np.ndarray) -> np.ndarray:
     ms = cv2.GaussianBlur(mag, (0, 0), 16.0)
     if np.corrcoef(shape.ravel(), ms.ravel())[0, 1] < 0:
         hgt, shape, gx, gy = -hgt, -shape, -gx, -gy
-    radius, window = texture._geometry(*hgt.shape)
-    feats = [texture._radial_bands(hgt, radius, window)]
+    radius, window = texture.fft_geometry(*hgt.shape)
+    feats = [texture.radial_bands(hgt, radius, window)]
     t = (hgt - shape).ravel()
     sd = t.std() + 1e-9
     z = (t - t.mean()) / sd
