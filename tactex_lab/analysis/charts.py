@@ -515,3 +515,32 @@ def sim_vs_real(path: Path, real: Sequence, sim: Sequence, ranking: dict | None)
         ax.tick_params(labelsize=5)
         axes[1, -1].axis("off")
     return _save(fig, path)
+
+
+def library_curve(path: Path, results: dict) -> Path:
+    """``tactex experiment library``: right at the stop (Wilson 95 %) and touches after the
+    baseline per block of trial positions, learning off and each learning arm; one column per
+    replay library (``results``: {library: its results with ``summary.curve`` and ``arms``})."""
+    plt = _plt()
+    names = list(results)
+    fig, axes = plt.subplots(2, len(names), figsize=(5.5 * len(names), 7), squeeze=False)
+    for j, name in enumerate(names):
+        cur = results[name]["summary"]["curve"]
+        xs = [np.mean(c["trials"]) for c in cur]
+        for arm, style in zip(results[name]["arms"], ("o--", "s-", "^-", "v-", "d-", "x-")):
+            acc = [c["all"][arm]["accuracy"] for c in cur]
+            lo = [a - c["all"][arm]["accuracy_ci95"][0] for a, c in zip(acc, cur)]
+            hi = [c["all"][arm]["accuracy_ci95"][1] - a for a, c in zip(acc, cur)]
+            axes[0, j].errorbar(xs, acc, yerr=[lo, hi], fmt=style, capsize=3,
+                                label=f"learning {arm}")
+            axes[1, j].plot(xs, [c["all"][arm]["touches_mean"] for c in cur], style,
+                            label=f"learning {arm}")
+        axes[0, j].plot(xs, [c["reference_known_share"] for c in cur], ":", color="grey",
+                        label="reference fabric seen before")
+        axes[0, j].set_title(f"{name} ({results[name]['sessions']} sessions)")
+        axes[0, j].set_ylabel("right at stop (Wilson 95 %)")
+        axes[0, j].set_ylim(0, 1.05)
+        axes[1, j].set_ylabel("touches after the baseline")
+        axes[1, j].set_xlabel("trial of the session")
+        axes[0, j].legend(loc="lower right", fontsize=8)
+    return _save(fig, path)

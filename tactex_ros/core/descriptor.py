@@ -15,6 +15,7 @@ import numpy as np
 from .config import DescriptorSettings
 from .schema import validate
 from .errors import InputError
+from .library import EVIDENCE_WEIGHT, FabricLibrary, LibraryBelief, library_belief
 from .match import MatchModel
 from .representation import Representation, load
 from .texture import describe_touch
@@ -61,6 +62,19 @@ class DescriptorLearner:
                                 temperature, scene_units=cfg.match_units == "scene")
         self._rng = np.random.default_rng([int(seed), 31])
         self._heldout: np.ndarray | None = None
+        self.library: LibraryBelief | None = None
+        self.library_state: dict = {"used": False}
+
+    def use_library(self, lib: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT) -> None:
+        """Let the belief ask the fabric library ``lib`` too (``core/library.py``; None: the
+        scene-only belief; ``weight``: of its evidence); ``library_state`` says what the trial
+        saw."""
+        if lib is None:
+            self.library, self.library_state = None, {"used": False}
+            return
+        apply = self.representation.apply if self.representation is not None else None
+        self.library = library_belief(lib, apply, self.match.beta, weight)
+        self.library_state = {"used": True, **lib.state()}
 
     def _describe(self, touch: Touch) -> np.ndarray:
         x = raw_descriptor(touch, self.cfg)
@@ -91,8 +105,13 @@ class DescriptorLearner:
         return self.match.samples(DRAWS, self._rng)
 
     def belief(self, probs: np.ndarray) -> np.ndarray:
-        """(C,) the exact belief (the draws only serve the uncertainty strategies)."""
-        return self.match.belief()
+        """(C,) the exact belief (the draws only serve the uncertainty strategies); with a
+        fabric library, its known fabrics marginalised in (``LibraryBelief``)."""
+        scene = self.match.belief()
+        if self.library is None:
+            return scene
+        means = np.stack([np.mean(s, axis=0) for s in self.match.samples_by_platform])
+        return self.library.belief(means, self.match.counts, scene)
 
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, 0 = reference (``MatchModel``)."""

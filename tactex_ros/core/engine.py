@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field, replace
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -55,6 +55,9 @@ from .build import make_learner
 from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
+
+if TYPE_CHECKING:
+    from .library import FabricLibrary
 
 
 class TouchFailed(RuntimeError):
@@ -573,11 +576,17 @@ class TrialSpec:
     seed: int = 0
     platform_ids: tuple[str, ...] | None = None
     no_contact: np.ndarray | None = None
+    library: "FabricLibrary | None" = None
 
     def engine(self) -> TrialEngine:
-        """The trial's engine, ready for its first touch (the one place one is built)."""
+        """The trial's engine, ready for its first touch (the one place one is built). A
+        ``library`` (``core/library.py``) is given to a learner whose settings turn
+        ``fabric_library`` on."""
         eng = TrialEngine(self.comparisons, self.learner, self.trial, seed=self.seed,
                           platform_ids=list(self.platform_ids) if self.platform_ids else None)
+        if self.library is not None and getattr(self.learner, "fabric_library", False) and \
+                hasattr(eng.learner, "use_library"):
+            eng.learner.use_library(self.library)
         if self.no_contact is not None:
             eng.set_no_contact_reference(self.no_contact)
         return eng

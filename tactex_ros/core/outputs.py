@@ -200,3 +200,21 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 def write_json(path: str | Path, obj: Any, indent: int | None = 2) -> Path:
     """Write ``obj`` as strict indented JSON, atomically; returns the path."""
     return write_bytes(path, dumps(obj, indent).encode())
+
+
+def read_npz(path: str | Path, what: str, fmt: str, remedy: str) -> dict[str, Any]:
+    """The arrays of the numpy ``.npz`` archive ``path`` (read with ``allow_pickle=False``)
+    whose ``format`` field is ``fmt``; InputError naming ``what``, the path and ``remedy``
+    when it is absent, torn, foreign or of another format."""
+    import numpy as np
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{what} not found: {p}")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+    except Exception as exc:  # numpy raises several types for a corrupt or foreign file
+        raise InputError(f"{what} {p} is not loadable ({exc}); {remedy}") from None
+    if str(d.get("format", "")) != fmt:
+        raise InputError(f"{what} {p}: not a {fmt} file; {remedy}")
+    return d

@@ -130,18 +130,9 @@ def save(rep: Representation, path: str | Path) -> Path:
 def load(path: str | Path) -> Representation:
     """Read a representation file; InputError naming the file and what is wrong."""
     import json
+    from .outputs import read_npz
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"representation file not found: {p}")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
-    except Exception as exc:  # numpy raises several types for a corrupt or foreign file
-        raise InputError(f"representation file {p} is not loadable ({exc}); make it with "
-                         "`tactex prepare`") from None
-    if str(d.get("format", "")) != FORMAT:
-        raise InputError(f"representation file {p}: not a {FORMAT} file; make it with "
-                         "`tactex prepare`")
+    d = read_npz(p, "representation file", FORMAT, "make it with `tactex prepare`")
     def number(key: str, default: float) -> float:
         """A numeric scalar field; InputError naming the file and the field otherwise."""
         v = d.get(key)

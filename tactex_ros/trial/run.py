@@ -231,7 +231,8 @@ class TrialRun:
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name,
-                   seed=self.spec.seed)
+                   seed=self.spec.seed,
+                   fabric_library=getattr(eng.learner, "library_state", {"used": False}))
         if self.replay is not None:
             out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
                               if e.get("event") == "resumed"]

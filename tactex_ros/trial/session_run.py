@@ -20,6 +20,7 @@ from typing import Any, Callable, Protocol
 
 from ..core.errors import TrialError
 from . import session as sess
+from .library import LibraryKeeper
 
 
 class Operator(Protocol):
@@ -54,8 +55,10 @@ class SessionRun:
 
     def __init__(self, session: sess.Session, session_dir: str | Path,
                  settings: dict[str, Any], confirm_timeout_s: float,
-                 log: Callable[[int, str], None] | None = None) -> None:
+                 log: Callable[[int, str], None] | None = None,
+                 library: LibraryKeeper | None = None) -> None:
         self.session = session
+        self.library = library
         self.dir = Path(session_dir).resolve()
         self.confirm_timeout_s = confirm_timeout_s
         self.log = log or (lambda level, text: logging.getLogger("tactex.session").log(level,
@@ -109,6 +112,7 @@ class SessionRun:
             for k, trial in enumerate(trials, 1):
                 state = sess.trial_state(d, trial)
                 if state == "done":
+                    self._learn(trial)        # idempotent: a press is filed once
                     continue
                 if not (state == "started" and self.confirmed(trial)) and \
                         not self._prompt(operator, trial, k, len(trials)):
@@ -128,10 +132,12 @@ class SessionRun:
                                        "reason": f"trial {trial.id} failed: {res['error']}",
                                        "time": time.time()})
                     return 0
+                self._learn(trial)
                 sess.add_event(d, {"event": "trial_done", "trial": trial.id,
                                    "prediction": res.get("prediction"),
                                    "correct": res.get("correct"), "touches": res.get("touches"),
                                    "stop_reason": res.get("stop_reason"), "time": time.time()})
+            self.current_library()            # the last trial's presses are filed first
             out = sess.summary(d)
             sess.finish_session(d, out)
             sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
@@ -156,6 +162,18 @@ class SessionRun:
                     write_session_report(d)
                 except Exception as exc:  # noqa: BLE001 - the records are the ground truth
                     self.log(logging.WARNING, f"session report not written: {exc}")
+
+    def _learn(self, trial: sess.SessionTrial) -> None:
+        """A finished trial's presses join the fabric library (background; its placement is
+        the trial file's)."""
+        if self.library is not None:
+            sid = sess.load_started(self.dir)["session_id"]
+            self.library.learn(self.dir / trial.record_name, trial.placement,
+                               f"{sid}/{trial.id}")
+
+    def current_library(self):
+        """The fabric library the next trial sees (None: off): after the update under way."""
+        return None if self.library is None else self.library.current()
 
     def trial_started(self, trial: sess.SessionTrial, resumed: bool, after_touch: int) -> None:
         """Note in the session's events that ``trial`` began (``after_touch``: its record's

@@ -67,6 +67,17 @@ def test_scripted_session_runs_every_trial_with_its_truth(session_run) -> None:
         assert (rec / "report.html").stat().st_size > 10_000
     assert run.result["accuracy"] == sum(correct) / 2
     assert (d / "report.html").is_file()
+    # the fabric library (record_dir): trial 1 saw it empty, trial 2 saw trial 1's presses
+    from tactex_ros.core import library as flib
+    lib = flib.load(tmp / flib.LIBRARY_FILE)
+    seen = [json.loads((d / t.record_name / "result.json").read_text())["fabric_library"]
+            for t in trials]
+    accepted = [sum(x["accepted"] for x in read_record(d / t.record_name,
+                                                       images=False)["touches"])
+                for t in trials]
+    assert [s["used"] for s in seen] == [True, True]
+    assert (seen[0]["presses"], seen[1]["presses"], lib.presses) == (
+        0, accepted[0], sum(accepted))
     ev = sess.events(d)
     assert [e["trial"] for e in ev if e["event"] == "confirmed"] == ["1", "2"]
     assert all(e["by"] == "yes_flag" and e["caller"].startswith("tactex graph run")

@@ -112,8 +112,9 @@ class ExplorerNode(TactexNode):
 
     def _spec(self, seed: int) -> TrialSpec:
         s = self.settings
+        lib = self.session.current_library() if self.session is not None else None
         return TrialSpec(len(self.ids) - 1, s.learner, s.trial, seed=seed,
-                         platform_ids=tuple(self.ids))
+                         platform_ids=tuple(self.ids), library=lib)
 
     def _open_trial(self, seed: int, resume: str | None, trial_id: str, record_dir: str,
                     placed_scene: str | None = None, extra: dict | None = None) -> None:
@@ -433,10 +434,15 @@ class ExplorerNode(TactexNode):
         session = sess.load_session(s.session_file, self.ids, seed=s.seed)
         d = Path(s.session_dir or Path(s.record_dir) /
                  f"{session.name}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
+        keeper = None
+        if getattr(s.learner, "fabric_library", False):     # a lab session learns its fabrics
+            from ...core.library import LIBRARY_FILE
+            from ...trial.library import LibraryKeeper
+            keeper = LibraryKeeper(Path(s.record_dir) / LIBRARY_FILE, s.learner, log=self._log)
         self.session = SessionRun(session, d, {
             "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
-            log=self._log)
+            log=self._log, library=keeper)
         self.session_dir = d
         from tactex.srv import Confirm
         self._confirmed = threading.Event()

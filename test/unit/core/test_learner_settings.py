@@ -25,7 +25,8 @@ def test_each_learner_has_its_own_fields_and_shipped_defaults() -> None:
         "model": "descriptor", "guards": True, "contact_flat_min": 0.35, "contact_min": 0.8,
         "descriptor_frames": 1, "match_prior_scale": 1.0, "match_prior_strength": 4.0,
         "descriptor_no_contact": True, "representation": "", "representation_temperature": True,
-        "match_units": "scene", "match_temperature": 0.05, "contact_region_min": 0.0}
+        "match_units": "scene", "match_temperature": 0.05, "contact_region_min": 0.0,
+        "fabric_library": True}
     assert learner_settings({}) == d == TrialSettings().learner == preset("default")
     c = CnnSettings()
     assert (c.model, c.input_size, c.epochs, c.lr, c.mc_passes, c.guards) == \
@@ -108,7 +109,7 @@ def test_fields_of_the_union() -> None:
         "learner.descriptor_frames", "learner.match_prior_scale", "learner.match_prior_strength",
         "learner.descriptor_no_contact", "learner.representation",
         "learner.representation_temperature", "learner.match_units",
-        "learner.match_temperature", "learner.contact_region_min"]
+        "learner.match_temperature", "learner.contact_region_min", "learner.fabric_library"]
     cnn = {s.name for s in fields(TrialSettings, values={"learner": {"model": "inception_v3"}})}
     assert "learner.lr" in cnn and "learner.auto_patience" not in cnn
     assert "learner.match_temperature" not in cnn and "learner.contact_region_min" not in cnn

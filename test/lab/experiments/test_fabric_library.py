@@ -1,0 +1,61 @@
+"""`tactex experiment library`: the arms of a trial touch the same presses, the library grows by
+the videos each trial touched, and a trial's belief never sees a video the trial touched."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from tactex_ros.core import descriptor
+from tactex_ros.core.library import FabricLibrary
+from tactex_lab.experiments import fabric_library as fl
+
+CLASSES = [f"c{i}" for i in range(6)]
+
+
+def _presses(per: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """``per`` synthetic press descriptors (106 numbers) of each class: a class mean + noise."""
+    rng = np.random.default_rng(0)
+    means = rng.normal(0, 1, (len(CLASSES), 106))
+    cls = np.repeat(CLASSES, per)
+    x = means.repeat(per, axis=0) + rng.normal(0, 0.3, (len(cls), 106))
+    return x, cls
+
+
+def test_a_trial_never_sees_a_video_it_touched(monkeypatch):
+    x, cls = _presses()
+    lib = FabricLibrary()
+    for i, (v, c) in enumerate(zip(x, cls)):
+        lib = lib.add(str(c), v[None], [str(i)])
+    seen: list[int] = []
+    real = descriptor.DescriptorLearner.use_library
+
+    def spy(self, library, weight=fl.EVIDENCE_WEIGHT):
+        real(self, library, weight)
+        seen.append(self.library_state["presses"])
+    monkeypatch.setattr(descriptor.DescriptorLearner, "use_library", spy)
+    scene = ["c1", "c0", "c1", "c2", "c3"]
+    _, log = fl.run_trial_arm(x, cls, scene, seed=4, budget=4, library=lib)
+    touched = {v for _, v in log}
+    assert seen[0] == len(x) and seen[-1] == len(x) - len(touched)
+    assert seen == sorted(seen, reverse=True)
+
+
+def test_a_replayed_session_learns_and_its_arms_are_paired():
+    x, cls = _presses()
+    args = argparse.Namespace(trials=5, comparisons=4, budget=3, stop=0.9, weights=[0.25, 1.0])
+    rows = fl.run_session(x, cls, seed=2, args=args, log=lambda text: None)
+    assert [r["trial"] for r in rows] == [1, 2, 3, 4, 5]
+    assert rows[0]["library"]["presses"] == 0 and not rows[0]["reference_known"]
+    grow = [r["library"]["presses"] for r in rows]
+    assert grow == sorted(grow) and grow[-1] > 0
+    earlier: set[str] = set()          # every platform is touched in the baseline
+    for r in rows:
+        assert set(r) >= {"off", "on", "on_w1"}
+        assert r["reference_known"] == (r["scene"][0] in earlier)
+        assert r["platforms_known"] == sum(c in earlier for c in r["scene"][1:])
+        earlier |= set(r["scene"])
+    s = fl.summarise(rows, 1, fl.arm_names(args.weights))
+    assert s["all"]["n"] == 5 and s["reference_new"]["n"] + s["reference_known"]["n"] == 5
+    assert "mcnemar_vs_off" in s["all"]["on"] and "mcnemar_vs_off" not in s["all"]["off"]
