@@ -101,3 +101,43 @@ def _line(r: dict) -> str:
          f"  p vs whiten {r['vs_whiten']['1']['p']:.3g} / {r['vs_whiten']['2']['p']:.3g}")
     return (f"{r['direction']} {r['feature']:>8} {what:>36}: {r['acc_1']:.3f} / "
             f"{r['acc_2']:.3f}  fit {r['fit_s']:.1f} s{p}")
+
+
+#: Issue 33's candidate features (``press_cache.FEATURES``) screened by ``feature_screen``,
+#: after today's ``frame`` and ``frames4``.
+CANDIDATES = ("frame", "frames4", "fb", "hm", "fb_hm", "frame_fb", "frame_hm", "frame_grow",
+              "frames4_fb", "frames4_hm", "frames4_grow", "frames4_all")
+
+
+def feature_screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
+                   features: dict[str, Callable[[dict], np.ndarray]],
+                   scenes: int = 3000) -> list[dict]:
+    """Every feature of ``features`` with no metric and with the whitening fitted on the other
+    library, scored with ``scene_hits`` (1 press / the means of 2), both directions, on the
+    same ``scenes`` for every feature: exact McNemar against today's feature (``frame``, no
+    metric: ``vs_frame``) and against the whitened frame (``vs_whiten``). ``features`` must
+    hold ``frame``."""
+    rows = []
+    for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
+        base: dict[str, dict[int, np.ndarray]] = {}
+        for feat in ["frame"] + [f for f in features if f != "frame"]:
+            x, cls, xl = features[feat](test), test["cls"], features[feat](lib)
+            libd = {c: xl[lib["cls"] == c] for c in sorted(set(lib["cls"].tolist()))}
+            for kind in ("none", "whiten"):
+                rep = None if kind == "none" else representation.fit(libd, kind="whiten")
+                hits = {per: scene_hits(x, cls, rep, per, scenes) for per in (1, 2)}
+                if feat == "frame":
+                    base[kind] = hits
+                row = {"direction": name, "feature": feat, "metric": kind, "dims": x.shape[1],
+                       "acc_1": float(hits[1].mean()), "acc_2": float(hits[2].mean()),
+                       "vs_frame": {str(p): mcnemar_exact(hits[p], base["none"][p])
+                                    for p in (1, 2)},
+                       "vs_whiten": ({str(p): mcnemar_exact(hits[p], base["whiten"][p])
+                                      for p in (1, 2)} if "whiten" in base else None)}
+                rows.append(row)
+                vs = "" if row["vs_whiten"] is None else "  p vs frame/whiten " + " ".join(
+                    f"{row['vs_whiten'][p]['p']:.2g}" for p in ("1", "2"))
+                print(f"{name} {feat:>14} {kind:>6}: {row['acc_1']:.3f} / {row['acc_2']:.3f}"
+                      f"  p vs frame {row['vs_frame']['1']['p']:.2g} "
+                      f"{row['vs_frame']['2']['p']:.2g}{vs}", flush=True)
+    return rows

@@ -16,26 +16,47 @@ from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 
 
+def _frames4(c: dict[str, np.ndarray]) -> np.ndarray:
+    """(n, DIM) the descriptor averaged over the strongest frame and the 3 extra frames."""
+    return np.mean(np.concatenate([c["f0"][:, None], c["extra"]], axis=1), 1)
+
+
 #: Per-press features: cache arrays -> (n, D') vectors.
 FEATURES = {
     "frame": lambda c: c["f0"],
-    "frames4": lambda c: np.mean(np.concatenate([c["f0"][:, None], c["extra"]], axis=1), 1),
+    "frames4": _frames4,
     "growth": lambda c: np.concatenate([c["f0"], c["early"] - c["f0"]], axis=1),
     "regions": lambda c: np.concatenate([c["reg"].mean(1), c["reg"].std(1)], axis=1),
     "frame_regstd": lambda c: np.concatenate([c["f0"], c["reg"].std(1)], axis=1),
+    # issue 33 candidates (analysis/press_features.py)
+    "fb": lambda c: c["fb"],
+    "hm": lambda c: c["hm"],
+    "fb_hm": lambda c: np.concatenate([c["fb"], c["hm"]], axis=1),
+    "frame_fb": lambda c: np.concatenate([c["f0"], c["fb"]], axis=1),
+    "frame_hm": lambda c: np.concatenate([c["f0"], c["hm"]], axis=1),
+    "frame_grow": lambda c: np.concatenate([c["f0"], c["grow"]], axis=1),
+    "frames4_fb": lambda c: np.concatenate([_frames4(c), c["fb"]], axis=1),
+    "frames4_hm": lambda c: np.concatenate([_frames4(c), c["hm"]], axis=1),
+    "frames4_grow": lambda c: np.concatenate([_frames4(c), c["grow"]], axis=1),
+    "frames4_all": lambda c: np.concatenate([_frames4(c), c["fb"], c["hm"], c["grow"]], axis=1),
 }
 
 
-def build_cache(root: str | Path, out: str | Path) -> Path:
+def build_cache(root: str | Path, out: str | Path, candidates: bool = False) -> Path:
     """Describe every press of the replay folder ``root`` once: the strongest frame (``f0``),
-    the 3 other in-contact frames of the touch (``extra``), the first frame with half the
-    strongest contact score (``early``), the 2 x 2 regions of the strongest frame's contact
-    difference (``reg``); with the class and file of each press. Written as ``out`` (.npz)."""
+    the 3 other in-contact frames of the touch (``extra``); then either the first frame with
+    half the strongest contact score (``early``) and the 2 x 2 regions of the strongest frame's
+    contact difference (``reg``), or with ``candidates`` issue 33's candidates
+    (``analysis/press_features.py``): the filter bank (``fb``) and the height map (``hm``) of
+    the strongest frame and the contact's growth (``grow``). With the class and file of each
+    press. Written as ``out`` (.npz)."""
     from tactex_ros.core import texture
     from tactex_ros.core.contact import strongest_contact
     from tactex_ros.sources.replay import ReplaySource, read_video
+    from tactex_lab.analysis import press_features as pf
     src = ReplaySource(root)
-    rows: dict[str, list] = {k: [] for k in ("cls", "path", "f0", "extra", "early", "reg")}
+    keys = ("fb", "hm", "grow") if candidates else ("early", "reg")
+    rows: dict[str, list] = {k: [] for k in ("cls", "path", "f0", "extra") + keys}
     for cls in src.classes:
         for path in src.presses(cls):
             arr = read_video(path)
@@ -46,15 +67,19 @@ def build_cache(root: str | Path, out: str | Path) -> Path:
             ex = [texture.describe(x, nc) for x in (touch.extra if touch.extra is not None
                                                     else [])]
             ex += [f0] * (3 - len(ex))
-            rise = np.flatnonzero(scores[:idx + 1] >= 0.5 * scores[idx])
-            early = texture.describe(np.ascontiguousarray(arr[rise[0] if len(rise) else idx,
-                                                              ..., ::-1]), nc)
             d = texture.contact_difference(touch.frame, nc)
-            h, w = d.shape[0] // 2, d.shape[1] // 2
-            reg = [texture.describe_difference(d[i * h:(i + 1) * h, j * w:(j + 1) * w])
-                   for i in range(2) for j in range(2)]
-            for k, v in (("cls", cls), ("path", str(path)), ("f0", f0),
-                         ("extra", np.stack(ex[:3])), ("early", early), ("reg", np.stack(reg))):
+            row = {"cls": cls, "path": str(path), "f0": f0, "extra": np.stack(ex[:3])}
+            if candidates:
+                row.update(fb=pf.filter_bank(d), hm=pf.height_map(d),
+                           grow=pf.growth(arr[..., ::-1], nc, scores, idx))
+            else:
+                rise = np.flatnonzero(scores[:idx + 1] >= 0.5 * scores[idx])
+                row["early"] = texture.describe(
+                    np.ascontiguousarray(arr[rise[0] if len(rise) else idx, ..., ::-1]), nc)
+                h, w = d.shape[0] // 2, d.shape[1] // 2
+                row["reg"] = np.stack([texture.describe_difference(
+                    d[i * h:(i + 1) * h, j * w:(j + 1) * w]) for i in range(2) for j in range(2)])
+            for k, v in row.items():
                 rows[k].append(v)
     out = Path(out)
     np.savez(out, **{k: np.array(v) for k, v in rows.items()})

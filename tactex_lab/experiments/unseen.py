@@ -20,7 +20,9 @@ each direction (test on A with B as the lab's library, and the reverse) every se
 
 Per-press features (``FEATURES``) tried on top of the shipped 106-number descriptor: several
 frames of the press (the strongest + 3 more in contact; the frame at half the strongest contact,
-the contact growing), and 2 x 2 regions of the strongest frame (mean and spread over regions).
+the contact growing), and 2 x 2 regions of the strongest frame (mean and spread over regions);
+with ``--candidates``, issue 33's filter bank, height map and contact growth
+(``analysis/press_features.py``), screened by ``--screen-features``.
 
 The cache holds descriptors of ``../shared`` presses: write it under /tmp, never into the
 repository.
@@ -194,16 +196,32 @@ def run_unseen(args: argparse.Namespace) -> dict:
         raise InputError(f"--setting labels must be unique, got {labels}")
     caches = {}
     for name, root in (("a", args.a), ("b", args.b)):
-        path = Path(args.cache_dir) / f"{Path(root).name}.npz"
+        path = Path(args.cache_dir) / f"{Path(root).name}{'_candidates' * args.candidates}.npz"
         if args.build_cache or not path.is_file():
             print(f"describing every press of {root} -> {path}")
-            build_cache(root, path)
+            build_cache(root, path, candidates=args.candidates)
         caches[name] = load_cache(path)
+    wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
+    for f in sorted(wanted):
+        try:
+            FEATURES[f](caches["a"])
+        except KeyError as exc:
+            raise InputError(f"feature {f!r} needs the cache array {exc} "
+                             f"({'add' if not args.candidates else 'drop'} --candidates)") from None
     out = results_dir(args.out, "unseen", {k: v for k, v in vars(args).items() if k != "func"})
     if args.screen:
         rows = screen(caches["a"], caches["b"])
         write_json(out / "screen.json", rows)
         return {"screen": rows}
+    if args.screen_features:
+        rows = metric_screen.feature_screen(caches["a"], caches["b"],
+                                            {f: FEATURES[f] for f in args.features})
+        from tactex_lab.analysis.press_features import touch_costs
+        costs = touch_costs(args.a)
+        print("per-touch cost [ms]: " + ", ".join(f"{k} {v['median_ms']:.1f}"
+                                                  for k, v in costs.items()))
+        write_json(out / "feature_screen.json", {"rows": rows, "touch_costs_ms": costs})
+        return {"feature_screen": rows, "touch_costs_ms": costs}
     if args.screen_mlp:
         grid = tuple(itertools.product(args.mlp_losses, args.mlp_hidden, args.mlp_decays))
         rows = metric_screen.screen(caches["a"], caches["b"], {f: FEATURES[f] for f in
@@ -234,12 +252,23 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="where the per-press descriptors are cached, e.g. under /tmp (never the "
                         "repository: they are descriptors of ../shared's presses)")
     p.add_argument("--build-cache", action="store_true", help="re-describe every press")
+    p.add_argument("--candidates", action="store_true",
+                   help="a cache with issue 33's candidate features (press_cache.build_cache "
+                        "candidates=True; file <library>_candidates.npz): needed by "
+                        "--screen-features and by settings on those features")
     p.add_argument("--screen", action="store_true",
                    help="only the screening proxy (nearest mean, no trials) of every feature x "
                         "metric of SCREEN, both directions; writes screen.json")
     p.add_argument("--screen-mlp", action="store_true",
                    help="only the screening of a small numpy MLP metric (analysis/mlp_metric) "
                         "against the whitening, both directions; writes metric_screen.json")
+    p.add_argument("--screen-features", action="store_true",
+                   help="only the screening proxy of per-press features (--features), with no "
+                        "metric and whitened, both directions, exact McNemar against the frame "
+                        "and the whitened frame on the same scenes; writes feature_screen.json")
+    p.add_argument("--features", nargs="+", default=list(metric_screen.CANDIDATES),
+                   choices=list(metric_screen.CANDIDATES),
+                   help="per-press features (--screen-features)")
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],
                    help="MLP training seeds (--screen-mlp)")

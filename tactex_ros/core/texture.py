@@ -66,7 +66,7 @@ def contact_difference(frame: np.ndarray, no_contact: np.ndarray | None) -> np.n
     return d - d.reshape(-1, 3).mean(axis=0)
 
 
-def _radial_bands(img: np.ndarray, radius: np.ndarray, window: np.ndarray) -> np.ndarray:
+def radial_bands(img: np.ndarray, radius: np.ndarray, window: np.ndarray) -> np.ndarray:
     """(H, W) float -> (N_BANDS,) log mean power per radial frequency band."""
     p = np.abs(np.fft.fft2((img - img.mean()) * window)) ** 2
     out = np.empty(N_BANDS)
@@ -101,7 +101,7 @@ def _structure(grey: np.ndarray, sigma: float,
 _GEOMETRY: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _geometry(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+def fft_geometry(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     """Radial frequency [cycles/px] of every FFT bin and the Hann window, cached per shape."""
     if (h, w) not in _GEOMETRY:
         fy = np.fft.fftfreq(h)[:, None]
@@ -137,13 +137,13 @@ def describe_difference(d: np.ndarray, region: np.ndarray | None = None) -> np.n
     grey = d.mean(axis=-1)
     q = np.percentile(mag[inside], [50, 75, 90, 99])
     feats = [np.log(q + 1e-3), np.log([mag[inside].mean() + 1e-3, mag[inside].std() + 1e-3])]
-    radius, window = _geometry(*grey.shape)
+    radius, window = fft_geometry(*grey.shape)
     if region is None:
-        feats += [_radial_bands(d[..., ch], radius, window) for ch in range(3)]
+        feats += [radial_bands(d[..., ch], radius, window) for ch in range(3)]
     else:
         share = float((window ** 2 * region).sum() / (window ** 2).sum())
         dz = np.where(region[..., None], d - d[region].mean(axis=0), 0.0)
-        feats += [_radial_bands(dz[..., ch], radius, window) - np.log(share) for ch in range(3)]
+        feats += [radial_bands(dz[..., ch], radius, window) - np.log(share) for ch in range(3)]
     smooth = cv2.GaussianBlur(grey, (0, 0), 1.0)
     u8 = np.clip(smooth * 4.0 + 128.0, 0, 255).astype(np.uint8)
     for points, rad, down in LBP_SCALES:

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.errors import InputError
+from tactex_lab.analysis import press_features as pf
 from tactex_lab.experiments import press_cache, unseen
 from tactex_lab.experiments.curves import belief_curves, draw_scenes, parse_setting
 
@@ -46,9 +47,15 @@ def test_settings_parse_and_name_what_is_wrong():
 def test_region_and_frame_features_have_the_documented_sizes():
     rng = np.random.default_rng(0)
     cache = {"f0": rng.normal(size=(5, 106)), "extra": rng.normal(size=(5, 3, 106)),
-             "early": rng.normal(size=(5, 106)), "reg": rng.normal(size=(5, 4, 106))}
-    sizes = {k: f(cache).shape for k, f in press_cache.FEATURES.items()}
-    assert sizes == {"frame": (5, 106), "frames4": (5, 106), "growth": (5, 212),
-                     "regions": (5, 212), "frame_regstd": (5, 212)}
+             "early": rng.normal(size=(5, 106)), "reg": rng.normal(size=(5, 4, 106)),
+             "fb": rng.normal(size=(5, pf.FB_DIM)), "hm": rng.normal(size=(5, pf.HM_DIM)),
+             "grow": rng.normal(size=(5, pf.GROWTH_DIM))}
+    sizes = {k: f(cache).shape[1] for k, f in press_cache.FEATURES.items()}
+    fb, hm, gr = pf.FB_DIM, pf.HM_DIM, pf.GROWTH_DIM
+    assert sizes == {"frame": 106, "frames4": 106, "growth": 212, "regions": 212,
+                     "frame_regstd": 212, "fb": fb, "hm": hm, "fb_hm": fb + hm,
+                     "frame_fb": 106 + fb, "frame_hm": 106 + hm, "frame_grow": 106 + gr,
+                     "frames4_fb": 106 + fb, "frames4_hm": 106 + hm, "frames4_grow": 106 + gr,
+                     "frames4_all": 106 + fb + hm + gr}
     np.testing.assert_allclose(press_cache.FEATURES["frames4"](cache)[0],
                                np.mean([cache["f0"][0], *cache["extra"][0]], axis=0))
