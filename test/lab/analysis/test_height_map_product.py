@@ -1,6 +1,8 @@
-"""The product's height map (``core/texture.py``) is the computation the issue 33 trials ran
-(``tactex_lab/analysis/press_features.py`` via ``experiments/press_cache.py``'s ``frame_hm``),
-on real presses."""
+"""The shipped descriptor with the height map (``core/texture.py``) is the feature the issue 33
+trials ran (``experiments/press_cache.py``'s ``frame_hm``: the strongest frame's descriptor, then
+``press_features.height_map`` of its contact difference), on real presses. The lab's height map
+is the product's (one implementation); before the move the two agreed to 1e-9 on these presses
+(this test's first version, commit "test: the product's height map equals the lab's")."""
 
 import numpy as np
 import pytest
@@ -18,9 +20,8 @@ def test_product_height_map_matches_the_trials(octopi_press, material):
     frame, nc = frames[idx], frames[0]
     d = texture.contact_difference(frame, nc)
     lab = pf.height_map(d)
-    got = texture.height_map(d)
-    assert got.shape == (texture.HM_DIM,) == lab.shape
-    np.testing.assert_allclose(got, lab, rtol=0, atol=1e-9)
+    assert pf.height_map is texture.height_map and lab.shape == (pf.HM_DIM,)
+    assert np.all(np.isfinite(lab)) and np.ptp(lab) > 0
     # the shipped descriptor: the trials' frame_hm (strongest frame's descriptor, then hm)
     x = texture.describe_touch(Touch(frame, nc), 1, with_height_map=True)
     np.testing.assert_allclose(x, np.concatenate([texture.describe(frame, nc), lab]),
