@@ -176,8 +176,9 @@ def load(path: str | Path) -> Representation:
     mean, std, w = (np.asarray(v, dtype=np.float64) for v in arrays)
     dim = int(number("descriptor_dim", mean.shape[0] if mean.ndim == 1 else -1))
     if dim not in (DIM, DIM_HEIGHT_MAP):
-        raise InputError(f"representation file {p}: descriptor size {dim}, expected {DIM} "
-                         f"(without the height map) or {DIM_HEIGHT_MAP} (with it)")
+        raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
+                         f"{w.shape} do not fit a descriptor of size {DIM} (without the height "
+                         f"map) or {DIM_HEIGHT_MAP} (with it)")
     if (mean.shape != (dim,) or std.shape != (dim,) or w.ndim != 2 or w.shape[1] != dim
             or not 1 <= w.shape[0] <= dim):
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
