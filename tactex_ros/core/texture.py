@@ -85,13 +85,25 @@ def contact_difference(frame: np.ndarray, no_contact: np.ndarray | None) -> np.n
     return d - d.reshape(-1, 3).mean(axis=0)
 
 
+_BANDS: dict[tuple[int, int], list[np.ndarray]] = {}
+
+
+def _band_index(radius: np.ndarray) -> list[np.ndarray]:
+    """Flat indices of the FFT bins of each radial band (row-major, as a boolean mask picks
+    them), cached per shape."""
+    if radius.shape not in _BANDS:
+        _BANDS[radius.shape] = [np.flatnonzero((radius >= BAND_EDGES[k])
+                                               & (radius < BAND_EDGES[k + 1]))
+                                for k in range(N_BANDS)]
+    return _BANDS[radius.shape]
+
+
 def radial_bands(img: np.ndarray, radius: np.ndarray, window: np.ndarray) -> np.ndarray:
     """(H, W) float -> (N_BANDS,) log mean power per radial frequency band."""
-    p = np.abs(np.fft.fft2((img - img.mean()) * window)) ** 2
+    p = (np.abs(np.fft.fft2((img - img.mean()) * window)) ** 2).ravel()
     out = np.empty(N_BANDS)
-    for k in range(N_BANDS):
-        m = (radius >= BAND_EDGES[k]) & (radius < BAND_EDGES[k + 1])
-        out[k] = np.log(p[m].mean() + 1e-6)
+    for k, idx in enumerate(_band_index(radius)):
+        out[k] = np.log(p[idx].mean() + 1e-6)
     return out
 
 
