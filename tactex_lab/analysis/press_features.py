@@ -144,7 +144,8 @@ def growth(frames_rgb: np.ndarray, no_contact: np.ndarray, scores: np.ndarray,
 
 
 def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dict]:
-    """Per-touch cost [ms] of today's descriptor and of each candidate, timed side by side
+    """Per-touch cost [ms] of the descriptor without and with the height map (the shipped
+    default since issue 33) and of each candidate, timed side by side
     (interleaved, the same presses) on the first ``presses`` presses of the replay folder
     ``root``: median and quartiles over presses x ``repeats``. ``growth`` includes the contact
     differences of its 4 frames."""
@@ -153,7 +154,8 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     from tactex_ros.sources.replay import ReplaySource, read_video
     src = ReplaySource(root)
     paths = [p for c in src.classes for p in src.presses(c)][:presses]
-    times: dict[str, list[float]] = {k: [] for k in ("descriptor", "filter_bank_1st",
+    times: dict[str, list[float]] = {k: [] for k in ("descriptor", "descriptor_height_map",
+                                                     "filter_bank_1st",
                                                      "filter_bank", "height_map", "growth")}
     for path in paths:
         arr = read_video(path)
@@ -162,6 +164,7 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
         idx, scores = strongest_contact(arr)
         jobs = {
             "descriptor": lambda: texture.describe(t.frame, t.no_contact),
+            "descriptor_height_map": lambda: texture.describe(t.frame, t.no_contact, True),
             "filter_bank_1st": lambda: filter_bank(
                 texture.contact_difference(t.frame, t.no_contact), second_order=False),
             "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),
