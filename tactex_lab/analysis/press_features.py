@@ -14,7 +14,8 @@ cropped), so any of them could run in the product (no torch, nothing trained):
   direction, a square weave). Second order: the orientation-averaged modulus map of scale j1
   filtered again at every coarser scale j2, log mean modulus minus the first order of j1
   (how the texture's fine-scale energy is modulated at coarser scales).
-- ``height_map``: photometric stereo without a calibration ball. The gradient is a linear map of
+- ``height_map`` (now ``tactex_ros.core.texture.height_map``, the shipped descriptor's last
+  part): photometric stereo without a calibration ball. The gradient is a linear map of
   the colour difference (g = M d, M 2 x 3); M is the one whose gradient field is most nearly
   curl-free on this very press (a generalized 6 x 6 eigenproblem: a true gradient field of
   any surface has zero curl, and for a colour response linear in the gradient only M = lambda
@@ -36,7 +37,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from scipy import fft as sfft
-from scipy import linalg
 
 from tactex_ros.core import texture
 
@@ -121,63 +121,9 @@ def filter_bank(d: np.ndarray, second_order: bool = True) -> np.ndarray:
     return np.concatenate([np.asarray(f, np.float64).ravel() for f in feats])
 
 
-def gradient_map(d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(gx, gy) (H, W) of the press (up to one scale) and M (2, 3), see the module docstring."""
-    dy = np.gradient(d, axis=0).reshape(-1, 3)
-    dx = np.gradient(d, axis=1).reshape(-1, 3)
-    k = np.hstack([dy, -dx]).astype(np.float64)               # curl = K m
-    v = d.reshape(-1, 3).astype(np.float64)
-    a = k.T @ k
-    b = np.zeros((6, 6))
-    b[:3, :3] = b[3:, 3:] = v.T @ v                           # energy of the field
-    _, vec = linalg.eigh(a, b + 1e-9 * np.trace(b) * np.eye(6))
-    m = vec[:, 0].reshape(2, 3)
-    g = d @ m.T.astype(np.float32)
-    scale = np.sqrt((g ** 2).sum(-1).mean()) + 1e-12
-    return g[..., 0] / scale, g[..., 1] / scale, m / scale
-
-
-def integrate(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
-    """Height (H, W) whose gradient is nearest (least squares, periodic) to (gx, gy): the FFT
-    Poisson solution (Frankot-Chellappa), mean zero."""
-    h, w = gx.shape
-    fy = np.fft.fftfreq(h)[:, None]
-    fx = np.fft.fftfreq(w)[None, :]
-    den = (2 * np.pi) ** 2 * (fx ** 2 + fy ** 2)
-    den[0, 0] = 1.0
-    num = -2j * np.pi * (fx * np.fft.fft2(gx) + fy * np.fft.fft2(gy))
-    z = num / den
-    z[0, 0] = 0.0
-    return np.real(np.fft.ifft2(z))
-
-
-HM_DIM = texture.N_BANDS + 4 + 1 + 3 + 4 + 1
-
-
-def height_map(d: np.ndarray) -> np.ndarray:
-    """(HM_DIM,) statistics of the press's height map, see the module docstring."""
-    gx, gy, _ = gradient_map(d)
-    hgt = integrate(gx, gy).astype(np.float32)
-    mag = np.sqrt((d ** 2).sum(-1))
-    shape = cv2.GaussianBlur(hgt, (0, 0), 16.0)
-    ms = cv2.GaussianBlur(mag, (0, 0), 16.0)
-    if np.corrcoef(shape.ravel(), ms.ravel())[0, 1] < 0:
-        hgt, shape, gx, gy = -hgt, -shape, -gx, -gy
-    radius, window = texture.fft_geometry(*hgt.shape)
-    feats = [texture.radial_bands(hgt, radius, window)]
-    t = (hgt - shape).ravel()
-    sd = t.std() + 1e-9
-    z = (t - t.mean()) / sd
-    feats.append([np.log(sd), np.log(np.abs(t).mean() + 1e-9), (z ** 3).mean(),
-                  np.log((z ** 4).mean())])
-    feats.append([np.log(shape.std() + 1e-9)])
-    gm = np.sqrt(gx ** 2 + gy ** 2)
-    feats.append(np.log(np.percentile(gm, [50, 90, 99]) + 1e-6))
-    th = np.arctan2(gy, gx)
-    wsum = gm.sum() + 1e-9
-    feats.append([np.abs((gm * np.exp(1j * k * th)).sum()) / wsum for k in (1, 2, 3, 4)])
-    feats.append([np.log(cv2.Laplacian(hgt, cv2.CV_32F).std() + 1e-9)])
-    return np.concatenate([np.asarray(f, np.float64).ravel() for f in feats])
+#: The height map is the product's since it became part of the shipped descriptor (issue 33).
+gradient_map, integrate, height_map = texture.gradient_map, texture.integrate, texture.height_map
+HM_DIM = texture.HM_DIM
 
 
 GROWTH_DIM = 2 * len(GROWTH_SHARES)
@@ -198,7 +144,8 @@ def growth(frames_rgb: np.ndarray, no_contact: np.ndarray, scores: np.ndarray,
 
 
 def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dict]:
-    """Per-touch cost [ms] of today's descriptor and of each candidate, timed side by side
+    """Per-touch cost [ms] of the descriptor without and with the height map (the shipped
+    default since issue 33) and of each candidate, timed side by side
     (interleaved, the same presses) on the first ``presses`` presses of the replay folder
     ``root``: median and quartiles over presses x ``repeats``. ``growth`` includes the contact
     differences of its 4 frames."""
@@ -207,7 +154,8 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     from tactex_ros.sources.replay import ReplaySource, read_video
     src = ReplaySource(root)
     paths = [p for c in src.classes for p in src.presses(c)][:presses]
-    times: dict[str, list[float]] = {k: [] for k in ("descriptor", "filter_bank_1st",
+    times: dict[str, list[float]] = {k: [] for k in ("descriptor", "descriptor_height_map",
+                                                     "filter_bank_1st",
                                                      "filter_bank", "height_map", "growth")}
     for path in paths:
         arr = read_video(path)
@@ -216,6 +164,7 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
         idx, scores = strongest_contact(arr)
         jobs = {
             "descriptor": lambda: texture.describe(t.frame, t.no_contact),
+            "descriptor_height_map": lambda: texture.describe(t.frame, t.no_contact, True),
             "filter_bank_1st": lambda: filter_bank(
                 texture.contact_difference(t.frame, t.no_contact), second_order=False),
             "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),

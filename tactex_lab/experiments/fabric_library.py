@@ -27,6 +27,7 @@ import numpy as np
 
 from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
+from tactex_ros.core import texture
 from tactex_ros.core.library import EVIDENCE_WEIGHT, FabricLibrary
 from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
@@ -61,7 +62,9 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
     it, less the videos touched so far."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
-    cfg = preset("default", guards=False, fabric_library=library is not None)
+    # the cached "frame" feature: the descriptor without the height map (the study's)
+    cfg = preset("default", guards=False, fabric_library=library is not None,
+                 descriptor_height_map=x.shape[1] != texture.DIM)
     spec = TrialSpec(len(scene) - 1, cfg, TrialConfig(strategy="infogain", rounds=budget,
                                                       stop_confidence=0.0),
                      seed=seed, library=library)

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from tactex_ros.core.config import SHIPPED_STOP, preset, trial_preset
+from tactex_ros.core.texture import DIM
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
 from tactex_lab.analysis.stats import wilcoxon_paired
@@ -93,6 +94,9 @@ def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], see
     from tactex_ros.sources.replay import ReplayTrial
     label, pre, strategy, over = setting
     cfg = preset(pre, **{"guards": False, **over})
+    if hasattr(cfg, "descriptor_height_map") and "descriptor_height_map" not in over:
+        # the cache's descriptors: 106 numbers (the study's) or with the height map
+        cfg = cfg.replace(descriptor_height_map=cache["f0"].shape[1] != DIM)
     tcfg = trial_preset(pre, strategy=strategy, rounds=budget, stop_confidence=0.0)
     src = FramedPresses(cache, needs_frames(cfg))
     truth = plat[1:].index(plat[0]) + 1

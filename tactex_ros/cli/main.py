@@ -85,9 +85,10 @@ def cmd_trial(args: argparse.Namespace) -> int:
 
 
 def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
-                        seed: int = 0) -> dict[str, np.ndarray]:
+                        seed: int = 0, height_map: bool = True) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of a library: every press of ``replay:DIR``, or
-    ``sim_presses`` simulated presses of every catalogue fabric for ``sim``."""
+    ``sim_presses`` simulated presses of every catalogue fabric for ``sim``; ``height_map``:
+    as ``learner.descriptor_height_map`` (D = ``texture.descriptor_dim``)."""
     import numpy as np
     from ..core.texture import describe_touch
     from ..core.touch import Touch
@@ -99,7 +100,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
             xs = []
             for path in src.presses(cls):
                 try:
-                    xs.append(describe_touch(src.touch(path), frames))
+                    xs.append(describe_touch(src.touch(path), frames, height_map))
                 except InputError as exc:
                     print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
             if xs:
@@ -108,7 +109,8 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
     rng = np.random.default_rng([seed, 43])
     for cls in src.classes:
         nc = src.renderer.no_contact(rng)
-        out[f"{spec}/{cls}"] = np.stack([describe_touch(Touch(src.press(cls, rng), nc), frames)
+        out[f"{spec}/{cls}"] = np.stack([describe_touch(Touch(src.press(cls, rng), nc), frames,
+                                                        height_map)
                                          for _ in range(sim_presses)])
     return out
 
@@ -122,12 +124,15 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     from ..core.config import SHIPPED_STOP, preset
     t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
+    height_map = args.height_map == "on"
     for spec in args.library:
-        desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed))
+        desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed,
+                                        height_map))
     fit = partial(representation.fit, shrink=args.shrink, kind=args.kind, dims=args.dims)
     rep = fit(desc)
     if args.calibration != "off":
-        cfg = preset("default", descriptor_frames=args.frames)
+        cfg = preset("default", descriptor_frames=args.frames,
+                     descriptor_height_map=height_map)
         trajs = calibration.trajectories(desc, fit, cfg, folds=args.calibration_folds,
                                          scenes=args.calibration_scenes,
                                          budget=args.calibration_budget, seed=args.seed,
@@ -143,7 +148,8 @@ def cmd_prepare(args: argparse.Namespace) -> int:
            f"left-out trials (wrong stops at {SHIPPED_STOP:g}: "
            f"{rep.calibration['wrong_stop'][str(SHIPPED_STOP)]:.3f}, "
            f"ECE {rep.calibration['ece']:.3f})" if args.calibration != "off" else "")
-    print(f"representation {rep.kind} ({rep.dims} dims) from {rep.classes} classes, "
+    print(f"representation {rep.kind} ({rep.dims} dims of a {rep.descriptor_dim}-number "
+          f"descriptor, height map {args.height_map}) from {rep.classes} classes, "
           f"{rep.presses} presses ({', '.join(args.library)}){cal} -> {path} in "
           f"{time.perf_counter() - t0:.0f} s; use it with `tactex trial ... --representation "
           f"{path}`")
@@ -207,11 +213,16 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                                         "library of presses of other materials")
     if not builds(command, "prepare"):
         return
-    from ..core.config import SHIPPED_STOP
+    from ..core.config import SHIPPED_STOP, DescriptorSettings
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
     pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
                     help="contact frames per press, 1..16")
+    pr.add_argument("--height-map", choices=("on", "off"),
+                    default="on" if DescriptorSettings().descriptor_height_map else "off",
+                    help="describe the library with the height map's statistics (as "
+                         "learner.descriptor_height_map; a trial refuses a file prepared "
+                         "with the other setting)")
     pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
                     help="presses per simulated fabric, 1..10000")
     pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
@@ -221,8 +232,9 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                          "docs/research/unseen_materials.md), lda (Fisher directions of the library, "
                          "--dims of them), none (descriptor as is; the file then only carries "
                          "the calibrated temperature)")
-    pr.add_argument("--dims", type=bounded(int, 1, 105), default=24,
-                    help="output dimensions of --kind lda")
+    pr.add_argument("--dims", type=bounded(int, 1, 128), default=24,
+                    help="output dimensions of --kind lda, below the descriptor's size (129 "
+                         "with the height map, 106 without)")
     pr.add_argument("--calibration", choices=("stop", "target", "nll", "off"), default="off",
                     help="belief temperature from left-out library trials: stop (largest whose "
                          "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "

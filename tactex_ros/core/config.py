@@ -68,6 +68,12 @@ class DescriptorSettings(LearnerBase):
     descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
                                       "into its descriptor (the strongest + more of the press)",
                                    1, 16)
+    descriptor_height_map: bool = param(
+        True, "model 'descriptor': append the contact's height-map statistics (photometric "
+              "stereo without calibration, 23 numbers; core/texture.py) to the descriptor "
+              "(129 numbers; off: the 106-number descriptor of earlier releases). Representation "
+              "files and fabric libraries hold descriptors of one size: prepare them with the "
+              "same setting")
     match_prior_scale: float = param(1.0, "model 'descriptor': prior within-platform spread of a "
                                           "descriptor, as a fraction of the scene's spread",
                                      1e-3, 10.0)
@@ -101,7 +107,9 @@ class DescriptorSettings(LearnerBase):
               "holds, and each finished trial's presses join it (core/library.py; off: the "
               "scene-only belief, the thesis protocol)")
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
-    # were chosen in every one of 3 class folds of octopi-dev (docs/research/real_presses.md)
+    # were chosen in every one of 3 class folds of octopi-dev (docs/research/real_presses.md);
+    # descriptor_height_map on: fewer touches at equal accuracy on classes the settings never
+    # saw, both directions, 2 seeds (issue 33, docs/research/unseen_materials.md)
 
 
 #: ``learner.device``: its allowed forms (whether the device exists is checked by the lab,

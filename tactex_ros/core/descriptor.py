@@ -18,7 +18,7 @@ from .errors import InputError
 from .library import EVIDENCE_WEIGHT, FabricLibrary, LibraryBelief, library_belief
 from .match import MatchModel
 from .representation import Representation, load
-from .texture import describe_touch
+from .texture import describe_touch, descriptor_dim
 from .touch import Touch
 
 #: Posterior draws of the belief returned by ``reference_probs`` (the (T, C) table).
@@ -36,13 +36,14 @@ def _load_representation(path: str) -> Representation:
 
 
 def raw_descriptor(touch: Touch, cfg: DescriptorSettings) -> np.ndarray:
-    """(DIM,) the texture descriptor of ``touch`` as ``cfg`` describes it (``descriptor_frames``,
-    ``descriptor_no_contact``), before any representation; the touch's own when it has one."""
+    """(D,) the texture descriptor of ``touch`` as ``cfg`` describes it (``descriptor_frames``,
+    ``descriptor_no_contact``, ``descriptor_height_map``: D = ``texture.descriptor_dim``),
+    before any representation; the touch's own when it has one."""
     if touch.descriptor is not None:
         return np.asarray(touch.descriptor, dtype=np.float64)
     if not cfg.descriptor_no_contact:
         touch = Touch(touch.frame, None, touch.extra)
-    return describe_touch(touch, cfg.descriptor_frames)
+    return describe_touch(touch, cfg.descriptor_frames, cfg.descriptor_height_map)
 
 
 class DescriptorLearner:
@@ -56,6 +57,8 @@ class DescriptorLearner:
         self.representation: Representation | None = (
             _load_representation(cfg.representation) if cfg.representation else None)
         rep = self.representation
+        if rep is not None:
+            rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}")
         temperature = (rep.temperature if rep is not None and cfg.representation_temperature
                        and np.isfinite(rep.temperature) else cfg.match_temperature)
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
@@ -72,6 +75,14 @@ class DescriptorLearner:
         if lib is None:
             self.library, self.library_state = None, {"used": False}
             return
+        want = descriptor_dim(self.cfg.descriptor_height_map)
+        if lib.presses and lib.descriptors.shape[1] != want:
+            raise InputError(
+                f"fabric library: its descriptors have size {lib.descriptors.shape[1]}, this "
+                f"learner's {want} (learner.descriptor_height_map="
+                f"{str(self.cfg.descriptor_height_map).lower()}): set "
+                f"learner.descriptor_height_map={str(not self.cfg.descriptor_height_map).lower()}"
+                " or learner.fabric_library=false for this record folder")
         apply = self.representation.apply if self.representation is not None else None
         self.library = library_belief(lib, apply, self.match.beta, weight)
         self.library_state = {"used": True, **lib.state()}

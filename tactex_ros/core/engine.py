@@ -277,8 +277,9 @@ class TrialEngine:
         self.failed: list[dict] = []
         self.next_platform: int | None = None
         g = self.learner_cfg
-        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min,
-                                   getattr(g, "contact_region_min", 0.0))   # descriptor only
+        self.guard = (ContactGuard(g.contact_flat_min, g.contact_min,     # descriptor only:
+                                   getattr(g, "contact_region_min", 0.0),
+                                   getattr(g, "descriptor_height_map", False))
                       if g.guards else None)
         self._pending_heldout: list[bool] = []             # since the last decision
         self._separated = True           # the last decision's "not sure" rule (separated)

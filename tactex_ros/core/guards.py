@@ -69,8 +69,9 @@ class ContactGuard:
     also finds a partial contact (``region_min`` > 0) and returns the touch to store."""
 
     def __init__(self, flat_min: float = 0.35, contact_min: float = 0.8,
-                 region_min: float = 0.0) -> None:
+                 region_min: float = 0.0, with_height_map: bool = False) -> None:
         self.flat_min = float(flat_min)
+        self.with_height_map = bool(with_height_map)   # the region descriptor's height map
         self.contact_min = float(contact_min)
         self.region_min = float(region_min)
         self._ref: np.ndarray | None = None
@@ -109,6 +110,7 @@ class ContactGuard:
         share = float(region.mean())
         if share >= self.region_min or not region.any():
             return True, "", touch
-        x = describe_difference(contact_difference(touch.frame, touch.no_contact), region)
+        x = describe_difference(contact_difference(touch.frame, touch.no_contact), region,
+                                self.with_height_map)
         return True, (f"partial contact: region {share:.2f} < {self.region_min:g} of the "
                       "frame, described over the region"), replace(touch, descriptor=x)

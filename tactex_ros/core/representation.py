@@ -23,9 +23,11 @@ The belief's temperature depends on the number of dimensions and on the material
 calibrates it on the library itself with classes left out (``core/calibration.py``), and the
 file keeps it (``temperature``; NaN when not calibrated). The file (``save`` / ``load``) is a
 numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped path): mean
-(D,), std (D,), the map (k, D) (key ``whiten``), the kind, the temperature, what the calibration
-measured (JSON) and the library's size; no frames or descriptors of the library. A file without
-kind or temperature is a whitening without calibration.
+(D,), std (D,), the map (k, D) (key ``whiten``), the descriptor's size D (``descriptor_dim``:
+``texture.DIM`` without the height map, ``texture.DIM_HEIGHT_MAP`` with it), the kind, the
+temperature, what the calibration measured (JSON) and the library's size; no frames or
+descriptors of the library. A file without kind or temperature is a whitening without
+calibration; one without ``descriptor_dim`` holds the size of its mean.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .texture import DIM
+from .texture import DIM, DIM_HEIGHT_MAP, descriptor_dim
 
 FORMAT = "tactex-representation-2"
 KINDS = ("none", "whiten", "lda")
@@ -53,6 +55,25 @@ class Representation:
     kind: str = "whiten"
     temperature: float = float("nan")   # calibrated belief temperature, NaN = not calibrated
     calibration: dict = field(default_factory=dict)   # what the calibration measured
+
+    @property
+    def descriptor_dim(self) -> int:
+        """D, the size of the descriptors it takes."""
+        return int(self.mean.shape[0])
+
+    def check_descriptor(self, height_map: bool, where: str) -> None:
+        """InputError unless it takes the descriptors ``learner.descriptor_height_map =
+        height_map`` makes (``where``: the file, for the message)."""
+        want = descriptor_dim(height_map)
+        if self.descriptor_dim != want:
+            made = "with" if self.descriptor_dim == DIM_HEIGHT_MAP else "without"
+            raise InputError(
+                f"representation {where} was prepared on descriptors of size "
+                f"{self.descriptor_dim} ({made} the height map); this learner describes touches "
+                f"with size {want} (learner.descriptor_height_map={str(height_map).lower()}): "
+                f"set learner.descriptor_height_map={str(not height_map).lower()} or prepare "
+                f"the file again (`tactex prepare --height-map "
+                f"{'on' if height_map else 'off'}`)")
 
     @property
     def dims(self) -> int:
@@ -122,6 +143,7 @@ def save(rep: Representation, path: str | Path) -> Path:
         np.savez(f, format=np.array(FORMAT), mean=rep.mean, std=rep.std, whiten=rep.whiten,
                  kind=np.array(rep.kind), classes=np.array(rep.classes),
                  presses=np.array(rep.presses), shrink=np.array(rep.shrink),
+                 descriptor_dim=np.array(rep.descriptor_dim),
                  temperature=np.array(rep.temperature),
                  calibration=np.array(json.dumps(rep.calibration)))
     return path
@@ -152,10 +174,15 @@ def load(path: str | Path) -> Representation:
             raise InputError(f"representation file {p}: field {k!r} must hold numbers, got "
                              f"{v.dtype}")
     mean, std, w = (np.asarray(v, dtype=np.float64) for v in arrays)
-    if (mean.shape != (DIM,) or std.shape != (DIM,) or w.ndim != 2 or w.shape[1] != DIM
-            or not 1 <= w.shape[0] <= DIM):
+    dim = int(number("descriptor_dim", mean.shape[0] if mean.ndim == 1 else -1))
+    if dim not in (DIM, DIM_HEIGHT_MAP):
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
-                          f"{w.shape} do not fit the descriptor of size {DIM}")
+                         f"{w.shape} do not fit a descriptor of size {DIM} (without the height "
+                         f"map) or {DIM_HEIGHT_MAP} (with it)")
+    if (mean.shape != (dim,) or std.shape != (dim,) or w.ndim != 2 or w.shape[1] != dim
+            or not 1 <= w.shape[0] <= dim):
+        raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
+                          f"{w.shape} do not fit the descriptor of size {dim}")
     if not (np.all(np.isfinite(w)) and np.all(std > 0) and np.all(np.isfinite(mean))):
         raise InputError(f"representation file {p}: non-finite map or mean, or std <= 0")
     temp = number("temperature", float("nan"))

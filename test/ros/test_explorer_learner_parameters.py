@@ -41,6 +41,7 @@ def test_learner_parameters_follow_the_learner(domain_id) -> None:
         "learner.model", "learner.guards", "learner.contact_flat_min", "learner.contact_min",
         "learner.contact_region_min", "learner.descriptor_frames", "learner.match_prior_scale",
         "learner.match_prior_strength", "learner.descriptor_no_contact",
+        "learner.descriptor_height_map",
         "learner.representation", "learner.representation_temperature",
         "learner.match_units", "learner.match_temperature", "learner.fabric_library"])
     s = _declared(domain_id, {"config": "seed_faithful"})["values"]

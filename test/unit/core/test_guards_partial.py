@@ -8,7 +8,8 @@ from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.guards import ContactGuard, contact_region
-from tactex_ros.core.texture import PARTS, contact_difference, describe_difference
+from tactex_ros.core.texture import (DIM, PARTS, contact_difference, describe_difference,
+                                     height_map)
 from tactex_ros.core.touch import Touch
 
 
@@ -83,8 +84,11 @@ def test_engine_stores_the_partial_touch_described_over_its_region():
         eng.learner.add_touch = lambda touch, label, _a=add, _n=name: (
             stored[_n].append(touch) or _a(touch, label))
         eng.add_touch(1, t)
-    want = describe_difference(contact_difference(t.frame, t.no_contact),
-                               contact_region(t.frame, t.no_contact))
+    d, region = contact_difference(t.frame, t.no_contact), contact_region(t.frame, t.no_contact)
+    want = describe_difference(d, region, with_height_map=True)   # the default descriptor's
     assert np.array_equal(stored["on"][0].descriptor, want)
+    # the region's parts, then the height map of the whole difference
+    assert np.array_equal(want[:DIM], describe_difference(d, region))
+    assert np.array_equal(want[DIM:], height_map(d))
     assert stored["off"][0].descriptor is None                    # the guard's test is off
     assert engines["on"].touches.tolist() == [1, 0] and engines["on"].failed == []

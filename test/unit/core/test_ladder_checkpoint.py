@@ -12,7 +12,9 @@ from tactex_ros.core.calibration import PLACEHOLDER_FRAME
 from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.engine import TrialEngine
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.texture import DIM
+from tactex_ros.core.texture import descriptor_dim
+
+DIM = descriptor_dim(True)        # the shipped descriptor (with the height map)
 from tactex_ros.core.touch import Touch
 
 

@@ -15,7 +15,9 @@ from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.engine import TrialSpec, run_trial
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.ladder import Evidence, Ladder, Rule, escalation_reason, parse_rungs
-from tactex_ros.core.texture import DIM
+from tactex_ros.core.texture import descriptor_dim
+
+DIM = descriptor_dim(True)        # the shipped descriptor (with the height map)
 from tactex_ros.core.touch import Touch
 
 RULE = Rule(patience=2, min_gain=0.1, sure=0.9, margin=0.1, window=3, heldout_acc=0.5)

@@ -11,6 +11,7 @@ from tactex_ros.core import library as flib
 from tactex_ros.core.config import preset
 from tactex_ros.core.descriptor import DescriptorLearner
 from tactex_ros.core.errors import InputError
+from tactex_ros.core.texture import descriptor_dim
 from tactex_ros.core.touch import Touch
 
 # three fabrics in 2 dimensions, 3 presses each
@@ -79,23 +80,24 @@ def test_an_unknown_fabric_gives_todays_belief_exactly():
 
 def test_learner_belief_with_a_library_and_without():
     cfg = preset("default", guards=False)
+    D = descriptor_dim(cfg.descriptor_height_map)
     rng = np.random.default_rng(3)
     plain, learned = DescriptorLearner(2, cfg), DescriptorLearner(2, cfg)
-    base = {k: rng.normal(0, 1, 106) * 3 for k in ("a", "b")}
+    base = {k: rng.normal(0, 1, D) * 3 for k in ("a", "b")}
     lib = flib.FabricLibrary()
     for k, m in base.items():
-        lib = lib.add(k, m + rng.normal(0, 0.3, (4, 106)), [f"{k}/{i}" for i in range(4)])
+        lib = lib.add(k, m + rng.normal(0, 0.3, (4, D)), [f"{k}/{i}" for i in range(4)])
     learned.use_library(lib)
     assert learned.library_state == {"used": True, **lib.state()}
     assert plain.library_state == {"used": False}
     for learner in (plain, learned):
         r = np.random.default_rng(7)
         learner.add_reference(Touch(np.zeros((1, 1, 3), np.uint8), descriptor=base["b"]
-                                    + r.normal(0, 0.3, 106)))
+                                    + r.normal(0, 0.3, D)))
         learner.add_touch(Touch(np.zeros((1, 1, 3), np.uint8), descriptor=base["a"]
-                                + r.normal(0, 0.3, 106)), 0)
+                                + r.normal(0, 0.3, D)), 0)
         learner.add_touch(Touch(np.zeros((1, 1, 3), np.uint8), descriptor=base["b"]
-                                + r.normal(0, 0.3, 106)), 1)
+                                + r.normal(0, 0.3, D)), 1)
     p0, p1 = plain.belief(None), learned.belief(None)
     np.testing.assert_array_equal(p0, plain.match.belief())
     assert p1[1] > p0[1]
@@ -124,3 +126,15 @@ def test_torn_library_file_is_refused_with_its_path(tmp_path):
     from tactex_ros.trial.library import LibraryKeeper
     with pytest.raises(InputError, match=str(path)):
         LibraryKeeper(path, preset("default"))
+
+
+def test_a_library_of_the_other_descriptor_is_refused_by_setting():
+    rng = np.random.default_rng(5)
+    lib = flib.FabricLibrary()
+    for k in ("a", "b"):
+        lib = lib.add(k, rng.normal(0, 1, (3, descriptor_dim(False))), [f"{k}/{i}" for i in range(3)])
+    with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
+        DescriptorLearner(2, preset("default", guards=False)).use_library(lib)
+    learner = DescriptorLearner(2, preset("default", guards=False, descriptor_height_map=False))
+    learner.use_library(lib)
+    assert learner.library_state["used"]

@@ -9,7 +9,9 @@ import pytest
 from tactex_ros.cli.main import main
 from tactex_ros.core import representation as rp
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.texture import DIM
+from tactex_ros.core.config import preset
+from tactex_ros.core.descriptor import DescriptorLearner
+from tactex_ros.core.texture import DIM, descriptor_dim
 
 
 def _library(rng, noisy_dims=(0, 1)):
@@ -34,6 +36,20 @@ def test_fit_downweights_dimensions_that_vary_within_a_class(tmp_path):
     x = np.random.default_rng(1).normal(size=(3, DIM))
     np.testing.assert_allclose(back.apply(x), ((x - rep.mean) / rep.std) @ rep.whiten.T)
     assert (back.classes, back.presses) == (6, 30)
+
+
+def test_the_file_records_its_descriptor_and_the_learner_checks_it(tmp_path):
+    rep = rp.load(rp.save(rp.fit(_library(np.random.default_rng(0))), tmp_path / "r.npz"))
+    assert rep.descriptor_dim == DIM == descriptor_dim(False)
+    rep.check_descriptor(False, "r.npz")
+    with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
+        rep.check_descriptor(True, "r.npz")
+    with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
+        DescriptorLearner(2, preset("default", representation=str(tmp_path / "r.npz")))
+    np.savez(tmp_path / "lie.npz", format=np.array(rp.FORMAT), mean=rep.mean, std=rep.std,
+             whiten=rep.whiten, descriptor_dim=np.array(descriptor_dim(True)))
+    with pytest.raises(InputError, match="do not fit"):
+        rp.load(tmp_path / "lie.npz")
 
 
 def test_bad_representation_files_are_refused_by_name(tmp_path):
@@ -106,6 +122,16 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     assert d["model"] == "descriptor" and d["truth"] == "c2"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--representation",
                  str(tmp_path / "nope.npz")]) == 2
+    assert rp.load(out).descriptor_dim == descriptor_dim(True)     # the default describes
+    # a file prepared on the other descriptor: refused (exit 2) unless the setting follows it
+    old = tmp_path / "old.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(old), "--kind",
+                 "whiten", "--calibration", "off", "--height-map", "off"]) == 0
+    assert rp.load(old).descriptor_dim == descriptor_dim(False)
+    trial = ["trial", "--source", f"replay:{octopi_dir}", "--classes", "basket,tissue,wires",
+             "--reference", "tissue", "--seed", "1", "--representation", str(old), "--quiet"]
+    assert main(trial) == 2
+    assert main(trial + ["--set", "learner.descriptor_height_map=false"]) == 0
 
 
 @pytest.mark.slow
