@@ -4,7 +4,8 @@ chosen with a whole family of materials held out (issue 33, docs/research/calibr
 Families: replay folders of recorded presses (``../shared``'s octopi-dev, octopi-objects) and
 ``sim`` (the simulator's catalogue fabrics, ``config/fabrics.yaml``, pressed by the sim touch
 source in one live session: one no-contact frame, as a robot records). Every press is described
-once (the shipped 106-number descriptor, the strongest frame) into a cache under
+once (the strongest frame; ``--feature frame_hm``: today's 129-number descriptor with the height
+map, ``frame``: the 106-number descriptor of earlier releases) into a cache under
 ``--cache-dir`` (never the repository).
 
 Per family and seed the trials of ``core/calibration.py``'s ``trajectories`` (3 class folds x
@@ -50,38 +51,47 @@ THETAS = (0.8, 0.9, 0.95)
 SEPARATIONS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
 #: The issue's goal for wrong stops at the shipped stop 0.9.
 GOAL = 0.03
+#: ``--feature``: the descriptor each press is described by -> whether it has the height map.
+FEATURE_HEIGHT_MAP = {"frame_hm": True, "frame": False}
 
 
-def sim_presses(per_class: int, seed: int = 0) -> dict[str, np.ndarray]:
-    """{fabric: (per_class, 106) descriptors} of the catalogue fabrics, pressed by the sim touch
-    source in one live session (``SimSource.trial``: one no-contact frame for every press)."""
+def sim_presses(per_class: int, seed: int = 0, height_map: bool = True
+                ) -> dict[str, np.ndarray]:
+    """{fabric: (per_class, D) descriptors} of the catalogue fabrics, pressed by the sim touch
+    source in one live session (``SimSource.trial``: one no-contact frame for every press);
+    D = 129 with the height map, 106 without."""
     from tactex_ros import sources
     from tactex_ros.core.descriptor import raw_descriptor
     src = sources.open_source("sim")
-    cfg = preset("default")
+    cfg = preset("default", descriptor_height_map=height_map)
     names = src.classes
     touch = src.trial(names, seed)
     return {n: np.stack([raw_descriptor(touch(i), cfg) for _ in range(per_class)])
             for i, n in enumerate(names)}
 
 
-def family_presses(spec: str, cache_dir: Path, per_class: int) -> dict[str, np.ndarray]:
-    """{class: (n, D) descriptors} of family ``spec`` (``sim`` or a replay folder), cached."""
+def family_presses(spec: str, cache_dir: Path, per_class: int, feature: str = "frame"
+                   ) -> dict[str, np.ndarray]:
+    """{class: (n, D) descriptors} of family ``spec`` (``sim`` or a replay folder) described
+    by ``feature`` (``FEATURE_HEIGHT_MAP``), cached (replay folders: ``press_cache``'s
+    ``<folder>.npz``, with the height map ``<folder>_candidates.npz``, as ``experiment
+    unseen``)."""
+    hm = FEATURE_HEIGHT_MAP[feature]
     if spec == "sim":
-        path = cache_dir / f"sim_{per_class}.npz"
+        path = cache_dir / f"sim_{per_class}{'_hm' * hm}.npz"
         if not path.is_file():
-            x = sim_presses(per_class)
+            x = sim_presses(per_class, height_map=hm)
             np.savez(path, **x)
         with np.load(path) as z:
             return {k: z[k] for k in z.files}
     root = Path(spec)
     if not root.is_dir():
         raise InputError(f"family {spec!r}: 'sim' or a replay folder")
-    path = cache_dir / f"{root.name}.npz"
+    path = cache_dir / f"{root.name}{'_candidates' * hm}.npz"
     if not path.is_file():
         print(f"describing every press of {root} -> {path}", flush=True)
-        build_cache(root, path)
-    return by_class(load_cache(path), "frame")
+        build_cache(root, path, candidates=hm)
+    return by_class(load_cache(path), feature)
 
 
 def outcome(trajs: list[cal.Trajectory], beta: float, theta: float,
@@ -147,7 +157,9 @@ def run_family(name: str, presses: dict[str, np.ndarray], seeds: list[int],
     trials kept in ``--cache-dir`` (reused by a later run with the same settings)."""
     out = []
     for s in seeds:
-        path = Path(args.cache_dir) / (f"trials_{name}_b{beta:.6g}_s{s}_f{args.folds}"
+        feature = getattr(args, "feature", "frame")
+        tag = "" if feature == "frame" else f"_{feature}"
+        path = Path(args.cache_dir) / (f"trials_{name}{tag}_b{beta:.6g}_s{s}_f{args.folds}"
                                        f"_n{args.scenes}_k{args.budget}.npz")
         if not path.is_file():
             ts = cal.trajectories(presses, None, preset("default"), folds=args.folds,
@@ -173,14 +185,16 @@ def run_families(args: argparse.Namespace) -> dict:
     beta0 = preset("default").match_temperature
     fams, base = {}, {}
     for name, spec in zip(names, args.family):
-        fams[name] = family_presses(spec, cache, args.per_class)
+        fams[name] = family_presses(spec, cache, args.per_class, args.feature)
         t0 = time.time()
         base[name] = run_family(name, fams[name], args.seed, args, beta0)
         print(f"{name}: {len(fams[name])} classes, {len(base[name])} trials at {beta0} "
               f"({time.time() - t0:.0f} s)", flush=True)
     if args.baseline_only:
         return {}
-    summary: dict = {"families": {n: {"classes": len(fams[n]),
+    summary: dict = {"feature": args.feature,
+                     "descriptor_dim": int(next(iter(fams[names[0]].values())).shape[1]),
+                     "families": {n: {"classes": len(fams[n]),
                                       "presses": int(sum(len(v) for v in fams[n].values()))}
                                   for n in names}, "default_temperature": beta0, "held_out": {}}
     for held in names:
@@ -267,6 +281,9 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="'sim' (the catalogue fabrics) or a replay folder; >= 3 (repeat)")
     p.add_argument("--cache-dir", required=True,
                    help="per-press descriptors, e.g. under /tmp (never the repository)")
+    p.add_argument("--feature", choices=list(FEATURE_HEIGHT_MAP), default="frame_hm",
+                   help="each press's descriptor: frame_hm = today's (129 numbers, the height "
+                        "map), frame = the 106 numbers of earlier releases")
     p.add_argument("--per-class", type=int, default=6, help="sim presses per fabric")
     p.add_argument("--scenes", type=int, default=40, help="scenes per class fold and seed")
     p.add_argument("--folds", type=int, default=3)

@@ -55,30 +55,76 @@ from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 @dataclass
 class Setting:
     """One way to prepare: per-press feature, representation kind (``none`` = the descriptor as
-    is), output dims (lda), calibration method (``off`` = the config's temperature)."""
+    is), output dims (lda), calibration method on the library (``off`` = the config's
+    temperature), and ``temperature``: the trials' ``match_temperature`` (the learner's
+    setting): '' = the config's, a number, or one of ``FAMILY_CHOICES``: the temperature that
+    ``tactex experiment families`` chose with the test side's family held out (``--families``)."""
     label: str
     feature: str = "frame"
     kind: str = "none"
     dims: int = 0
     calibration: str = "off"
     shrink: float = 1.0
+    temperature: str = ""
 
     @staticmethod
     def parse(text: str) -> "Setting":
-        """``label=key:value,...`` (keys feature, kind, dims, calibration, shrink)."""
+        """``label=key:value,...`` (keys feature, kind, dims, calibration, shrink,
+        temperature)."""
         label, sep, rest = text.partition("=")
         if not sep or not label:
             raise InputError(f"--setting {text!r}: expected label=key:value,...")
         kw: dict[str, Any] = {}
         for item in filter(None, rest.split(",")):
             k, _, v = item.partition(":")
-            if k not in ("feature", "kind", "dims", "calibration", "shrink"):
+            if k not in ("feature", "kind", "dims", "calibration", "shrink", "temperature"):
                 raise InputError(f"--setting {text!r}: unknown key {k!r}")
             kw[k] = int(v) if k == "dims" else float(v) if k == "shrink" else v
         s = Setting(label, **kw)
         if s.feature not in FEATURES:
             raise InputError(f"--setting {text!r}: feature one of {', '.join(FEATURES)}")
+        if s.temperature and s.calibration != "off":
+            raise InputError(f"--setting {text!r}: temperature and calibration both set the "
+                             "belief's temperature; give one")
+        if s.temperature and s.temperature not in FAMILY_CHOICES:
+            try:
+                ok = float(s.temperature) > 0
+            except ValueError:
+                ok = False
+            if not ok:
+                raise InputError(f"--setting {text!r}: temperature a number > 0 or one of "
+                                 f"{', '.join(FAMILY_CHOICES)}")
         return s
+
+
+#: ``temperature:`` values read from ``tactex experiment families``' summary (its settings).
+FAMILY_CHOICES = ("pooled", "worst", "worst_target")
+
+
+def setting_temperature(setting: Setting, test_family: str, families: dict | None
+                        ) -> float | None:
+    """The trials' temperature of ``setting`` on the test side ``test_family`` (a folder
+    name): None = the config's (or the prepared file's); a number as given; a families choice
+    from the summary ``families`` with ``test_family`` held out, whose descriptor must be the
+    setting's (``feature``)."""
+    t = setting.temperature
+    if not t:
+        return None
+    if t not in FAMILY_CHOICES:
+        return float(t)
+    if families is None:
+        raise InputError(f"setting {setting.label!r}: temperature {t!r} needs --families "
+                         "(summary.json of tactex experiment families)")
+    held = families.get("held_out", {})
+    if test_family not in held:
+        raise InputError(f"--families: no run with {test_family!r} held out (has "
+                         f"{', '.join(held) or 'none'})")
+    feature = families.get("feature", "frame")
+    if setting.feature != feature or setting.kind != "none":
+        raise InputError(f"setting {setting.label!r}: feature {setting.feature!r}, kind "
+                         f"{setting.kind!r}, but the families were calibrated on {feature!r} "
+                         "with no representation (kind none)")
+    return float(held[test_family]["settings"][t]["temperature"])
 
 
 def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int = 0
@@ -100,13 +146,15 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,
                  cache: dict[str, np.ndarray], scenes: list[list[str]], seed: int,
-                 budget: int) -> list[dict]:
+                 budget: int, temperature: float | None = None) -> list[dict]:
     """Belief curves (``experiment real``'s ``curve``) of ``scenes`` on the cached test presses;
-    scene i runs with seed ``seed + i``, as ``experiment real``."""
+    scene i runs with seed ``seed + i``, as ``experiment real``. ``temperature``: the learner's
+    ``match_temperature`` (None: the preset's)."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
     src = CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
-    cfg = preset("default", guards=False)
+    cfg = preset("default", guards=False,
+                 **({} if temperature is None else {"match_temperature": temperature}))
     tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
     out = []
     for i, plat in enumerate(scenes):
@@ -164,22 +212,27 @@ UNSEEN_SETTINGS = ("default=feature:frame", "whiten=feature:frame,kind:whiten",
 
 
 def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
-                  library: dict[str, np.ndarray], args: argparse.Namespace) -> dict:
+                  library: dict[str, np.ndarray], args: argparse.Namespace,
+                  test_family: str = "", families: dict | None = None) -> dict:
     """One direction: prepare every setting on ``library``, then ``experiment real``'s
-    protocol on the ``test`` presses. Returns the summary (``prepared``: what each setting's
-    preparation measured and took)."""
-    reps, prepared = {}, {}
+    protocol on the ``test`` presses (``test_family``: its folder name, for the temperatures
+    of ``families``, ``setting_temperature``). Returns the summary (``prepared``: what each
+    setting's preparation measured and took)."""
+    reps, prepared, temps = {}, {}, {}
     for s in settings:
         t0 = time.perf_counter()
         reps[s.label] = prepare_setting(s, by_class(library, s.feature), seed=args.seed)
+        temps[s.label] = setting_temperature(s, test_family, families)
         r = reps[s.label]
         prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": vars(s),
                              "dims": None if r is None else r.dims,
-                             "temperature": None if r is None else r.temperature,
+                             "temperature": (temps[s.label] if r is None
+                                             or temps[s.label] is not None else r.temperature),
                              "calibration": None if r is None else r.calibration}
 
     def runner(scenes: list[list[str]], tag: str) -> dict[str, list[dict]]:
-        return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget)
+        return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget,
+                                      temps[s.label])
                 for s in settings}
 
     classes = sorted(set(test["cls"].tolist()))
@@ -229,12 +282,21 @@ def run_unseen(args: argparse.Namespace) -> dict:
                                     seeds=tuple(args.mlp_seeds))
         write_json(out / "metric_screen.json", rows)
         return {"metric_screen": rows}
+    families = None
+    if args.families:
+        import json
+        fp = Path(args.families)
+        if not fp.is_file():
+            raise InputError(f"--families {fp}: not a file (summary.json of tactex experiment "
+                             "families)")
+        families = json.loads(fp.read_text())
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
         d = out / name
         d.mkdir(parents=True, exist_ok=True)
-        summary = run_direction(settings, caches[test], caches[lib], args)
+        summary = run_direction(settings, caches[test], caches[lib], args,
+                                Path(getattr(args, test)).name, families)
         summary.update(test=getattr(args, test), library=getattr(args, lib),
                        settings={s.label: vars(s) for s in settings})
         print(f"== test {getattr(args, test)}, library {getattr(args, lib)}")
@@ -281,8 +343,12 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--mlp-features", nargs="+", default=["frame", "frames4"],
                    choices=["frame", "frames4"], help="per-press features (--screen-mlp)")
     p.add_argument("--setting", action="append",
-                   help="label=feature:F,kind:K,dims:N,calibration:C (repeat); default: "
+                   help="label=feature:F,kind:K,dims:N,calibration:C,temperature:T (repeat); "
+                        "default: "
                         + " ".join(UNSEEN_SETTINGS))
+    p.add_argument("--families", metavar="SUMMARY",
+                   help="summary.json of tactex experiment families: the temperatures of "
+                        "settings with temperature:" + "|".join(FAMILY_CHOICES))
     p.add_argument("--comparisons", type=int, default=4)
     p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")

@@ -24,6 +24,12 @@ def test_offline_stop_equals_the_engine_with_the_rule(tmp_path):
     assert len(trajs) == 12 and len(list(tmp_path.glob("trials_x_*.npz"))) == 1
     again = fam.run_family("x", presses, [0], args, 0.05)          # from the cache
     np.testing.assert_array_equal(again[3].evidence, trajs[3].evidence)
+    # another descriptor (--feature) is another cache file, never the 106-number one's
+    args.feature = "frame_hm"
+    fam.run_family("x", {k: np.hstack([v, v[:, :23]]) for k, v in presses.items()}, [0], args,
+                   0.05)
+    assert len(list(tmp_path.glob("trials_x_frame_hm_*.npz"))) == 1
+    del args.feature
     # the same trials run by the engine with the stop 0.9 and the rule off, s0 = 2 (every stop
     # later) and s0 = 3 (5 of 12 end not sure): the same ends
     groups = cal.class_split(sorted(presses), 2, 0)

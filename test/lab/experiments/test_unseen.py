@@ -60,3 +60,46 @@ def test_region_and_frame_features_have_the_documented_sizes():
                      "frames4_all": 106 + fb + hm + gr}
     np.testing.assert_allclose(press_cache.FEATURES["frames4"](cache)[0],
                                np.mean([cache["f0"][0], *cache["extra"][0]], axis=0))
+
+
+def test_a_setting_temperature_is_the_learners_or_the_families_choice():
+    s = unseen.Setting.parse("t=feature:frame_hm,temperature:worst")
+    fams = {"feature": "frame_hm",
+            "held_out": {"octopi-dev": {"settings": {"worst": {"temperature": 0.0421}}}}}
+    assert unseen.setting_temperature(s, "octopi-dev", fams) == 0.0421
+    assert unseen.setting_temperature(unseen.Setting.parse("t=temperature:0.07"), "x",
+                                      None) == 0.07
+    assert unseen.setting_temperature(unseen.Setting("d"), "x", fams) is None
+    with pytest.raises(InputError, match="held out"):
+        unseen.setting_temperature(s, "octopi-objects", fams)
+    with pytest.raises(InputError, match="needs --families"):
+        unseen.setting_temperature(s, "octopi-dev", None)
+    with pytest.raises(InputError, match="calibrated on 'frame_hm'"):   # another descriptor
+        unseen.setting_temperature(unseen.Setting.parse("t=temperature:worst"), "octopi-dev",
+                                   fams)
+    with pytest.raises(InputError, match="calibrated on 'frame_hm'"):   # a representation
+        unseen.setting_temperature(unseen.Setting.parse(
+            "t=feature:frame_hm,kind:whiten,temperature:worst"), "octopi-dev", fams)
+    with pytest.raises(InputError, match="give one"):
+        unseen.Setting.parse("t=calibration:stop,temperature:0.05")
+    for bad in ("-1", "hot"):
+        with pytest.raises(InputError, match="a number > 0 or one of"):
+            unseen.Setting.parse(f"t=temperature:{bad}")
+
+
+def test_a_setting_temperature_reaches_the_trials_belief():
+    rng = np.random.default_rng(3)
+    classes = [f"k{i}" for i in range(6)]
+    centre = {c: rng.normal(0, 1, 129) for c in classes}
+    cls = np.repeat(classes, 4)
+    cache = {"f0": np.stack([centre[c][:106] + rng.normal(0, 0.7, 106) for c in cls]),
+             "hm": np.stack([centre[c][106:] + rng.normal(0, 0.7, 23) for c in cls]),
+             "cls": cls}
+    scenes = draw_scenes(classes, 4, 4, 1)
+    run = lambda t: unseen.scene_curves(unseen.Setting("d", feature="frame_hm"), None, cache,
+                                        scenes, seed=2, budget=3, temperature=t)
+    default, same, sharp = run(None), run(0.05), run(0.15)
+    for a, b, c in zip(default, same, sharp):
+        assert a["conf"] == b["conf"]                     # 0.05 is the preset's temperature
+        # the first decision sees the same touches: a hotter temperature, a sharper belief
+        assert c["conf"][0] > a["conf"][0]
