@@ -241,6 +241,27 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
     return summary
 
 
+def read_families(paths: list[str]) -> dict:
+    """The ``summary.json`` files of ``tactex experiment families`` runs (e.g. one per
+    ``--held-out`` family) as one summary: their held-out families together, one descriptor."""
+    import json
+    merged: dict = {"held_out": {}}
+    for p in map(Path, paths):
+        if not p.is_file():
+            raise InputError(f"--families {p}: not a file (summary.json of tactex experiment "
+                             "families)")
+        s = json.loads(p.read_text())
+        feature = s.get("feature", "frame")
+        if merged.setdefault("feature", feature) != feature:
+            raise InputError(f"--families: {p} is of descriptor {feature!r}, another of "
+                             f"{merged['feature']!r}")
+        for held, r in s.get("held_out", {}).items():
+            if held in merged["held_out"]:
+                raise InputError(f"--families: {held!r} held out in more than one file")
+            merged["held_out"][held] = r
+    return merged
+
+
 def run_unseen(args: argparse.Namespace) -> dict:
     """Both directions (A tested with B as the library, and B with A)."""
     settings = [Setting.parse(t) for t in args.setting or UNSEEN_SETTINGS]
@@ -282,14 +303,7 @@ def run_unseen(args: argparse.Namespace) -> dict:
                                     seeds=tuple(args.mlp_seeds))
         write_json(out / "metric_screen.json", rows)
         return {"metric_screen": rows}
-    families = None
-    if args.families:
-        import json
-        fp = Path(args.families)
-        if not fp.is_file():
-            raise InputError(f"--families {fp}: not a file (summary.json of tactex experiment "
-                             "families)")
-        families = json.loads(fp.read_text())
+    families = read_families(args.families) if args.families else None
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
@@ -346,9 +360,10 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="label=feature:F,kind:K,dims:N,calibration:C,temperature:T (repeat); "
                         "default: "
                         + " ".join(UNSEEN_SETTINGS))
-    p.add_argument("--families", metavar="SUMMARY",
-                   help="summary.json of tactex experiment families: the temperatures of "
-                        "settings with temperature:" + "|".join(FAMILY_CHOICES))
+    p.add_argument("--families", metavar="SUMMARY", nargs="+",
+                   help="summary.json of tactex experiment families (several: one per "
+                        "--held-out run): the temperatures of settings with temperature:"
+                   + "|".join(FAMILY_CHOICES))
     p.add_argument("--comparisons", type=int, default=4)
     p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")

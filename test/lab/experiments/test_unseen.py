@@ -103,3 +103,21 @@ def test_a_setting_temperature_reaches_the_trials_belief():
         assert a["conf"] == b["conf"]                     # 0.05 is the preset's temperature
         # the first decision sees the same touches: a hotter temperature, a sharper belief
         assert c["conf"][0] > a["conf"][0]
+
+
+def test_families_summaries_of_separate_held_out_runs_are_read_as_one(tmp_path):
+    import json
+    for held, t in (("octopi-dev", 0.04), ("octopi-objects", 0.03)):
+        (tmp_path / held).mkdir()
+        (tmp_path / held / "summary.json").write_text(json.dumps(
+            {"feature": "frame_hm", "held_out": {held: {"settings": {"worst": {
+                "temperature": t}}}}}))
+    fams = unseen.read_families([str(tmp_path / "octopi-dev" / "summary.json"),
+                                 str(tmp_path / "octopi-objects" / "summary.json")])
+    s = unseen.Setting.parse("t=feature:frame_hm,temperature:worst")
+    assert [unseen.setting_temperature(s, h, fams) for h in ("octopi-dev", "octopi-objects")] \
+        == [0.04, 0.03]
+    with pytest.raises(InputError, match="more than one file"):
+        unseen.read_families([str(tmp_path / "octopi-dev" / "summary.json")] * 2)
+    with pytest.raises(InputError, match="not a file"):
+        unseen.read_families([str(tmp_path / "none.json")])
