@@ -97,17 +97,10 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
         pytest.fail("no /tactex/press server within 30 s")
     end = time.monotonic() + timeout
     goal = Press.Goal(platform_id=platform_id, run_id=run_id)
-    req = GoalRequest(ac, goal, answer_s=answer_s)
     # a request whose every send went unanswered (the server's readers not yet matched on a
-    # loaded machine) is asked again as a new request, as the explorer's next attempt would be
-    unanswered_s = 30.0
-    again = time.monotonic() + unanswered_s
+    # loaded machine) is asked again as a new request after 30 s, as the explorer's is
+    req = GoalRequest(ac, goal, answer_s=answer_s, renew_s=30.0)
     while not req.finished() and time.monotonic() < end:
-        if time.monotonic() > again and not req.answered() and \
-                not any(x.fut.done() for x in req.sent):
-            req.cancel()
-            req = GoalRequest(ac, goal, answer_s=answer_s)
-            again = time.monotonic() + unanswered_s
         time.sleep(0.02)
     if not req.answered():
         pytest.fail(f"press goal for {platform_id} not answered within {timeout} s")
