@@ -104,7 +104,8 @@ def test_shipped_replay_scene_runs_on_recorded_presses(tmp_path: Path, domain_id
     assert res["prediction"] in ("c1", "c2", "c3", "c4") and res["touches"] >= 5
 
 
-def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int) -> None:
+def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int,
+                                                  quick_scene: str) -> None:
     """Ctrl-C in `--rounds 3 --seed 0 --yes` after two touches: exit 130 and a hint that is
     `--resume DIR` alone; run as printed (plus this test's DDS domain and log folder) the trial
     goes on with the record's options (the sim graph, 3 rounds, seed 0) to its result, exit 0."""
@@ -115,7 +116,8 @@ def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int
     script = Path(sys.executable).parent / "tactex"
     entry = [str(script)] if script.is_file() else [sys.executable, "-P", "-m",
                                                     "tactex_ros.cli.main"]
-    p = subprocess.Popen(entry + ["graph", "run", "--sim", "--rounds", "3", "--seed", "0",
+    p = subprocess.Popen(entry + ["graph", "run", "--sim", "--scene", quick_scene,
+                                  "--rounds", "3", "--seed", "0",
                                   "--yes", "--record-dir", str(rec.parent), "--trial-id", "t",
                                   "--domain-id", str(domain_id), "--log-dir",
                                   str(tmp_path / "l1")],
