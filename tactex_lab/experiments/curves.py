@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import trial_preset
 from tactex_ros.core.engine import RoundRecord, confident
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired
@@ -90,13 +91,12 @@ def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, s
     ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
     i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
     (see ``curve``, plus the scene's ``classes``)."""
-    from tactex_ros.core.engine import trial_preset
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
-            st = strategy or trial_preset(pre).strategy
-            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
-                                 rounds=budget, stop_confidence=0.0, preset=pre,
+            jobs.append(TrialJob(source=source, seed=seed + i,
+                                 trial=trial_preset(pre, strategy=strategy, rounds=budget,
+                                                    stop_confidence=0.0), preset=pre,
                                  overrides=over, platform_classes=classes,
                                  comparisons=len(classes) - 1, catch_errors=True,
                                  no_contact_reference=False,
