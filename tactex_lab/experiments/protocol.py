@@ -60,7 +60,7 @@ def calibration(cs: list[dict], bins: int = 10) -> dict:
     """How far the belief's top probability is from being right, over every decision of the
     curves ``cs``: expected calibration error (``bins`` equal-width bins of the confidence in
     [0, 1], weighted by decisions), mean confidence, accuracy, and the accuracy of decisions
-    with confidence >= 0.9 (``right_at_0.9``, None without such decisions)."""
+    with confidence >= ``SHIPPED_STOP`` (``right_at_0.9``, None without such decisions)."""
     conf = np.array([x for c in cs for x in c["conf"]], dtype=np.float64)
     ok = np.array([x for c in cs for x in c["correct"]], dtype=np.float64)
     if conf.size == 0:
@@ -71,8 +71,8 @@ def calibration(cs: list[dict], bins: int = 10) -> dict:
     hi = conf >= SHIPPED_STOP
     return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
             "accuracy": float(ok.mean()),
-            "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
-            "share_at_0.9": float(hi.mean())}
+            f"right_at_{SHIPPED_STOP:g}": float(ok[hi].mean()) if hi.any() else None,
+            f"share_at_{SHIPPED_STOP:g}": float(hi.mean())}
 
 
 def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
