@@ -60,7 +60,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
     """One trial on the cached presses (no stop rule, ``budget`` touches after the baseline):
     its belief curve and the (platform, press row) it touched. With ``library`` the belief asks
     it, less the videos touched so far."""
-    from tactex_ros.core.engine import TrialSpec, run_trial
+    from tactex_ros.core.engine import TrialSpec
     from tactex_ros.sources.replay import ReplayTrial
     # the cached "frame" feature: the descriptor without the height map (the study's)
     cfg = preset("default", guards=False, fabric_library=library is not None,
@@ -81,7 +81,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
         return t
 
     truth = scene[1:].index(scene[0]) + 1
-    res = run_trial(spec, touch, truth=truth, engine=eng)
+    res = eng.run(touch, truth=truth)     # the touches leave their own videos out of its library
     return curve(res.rounds + [res.final], truth), list(replay.log)
 
 

@@ -40,8 +40,7 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 import numpy as np
 
 from tactex_ros.core.config import TrialConfig
-from tactex_ros.core.engine import (RoundRecord, TrialEngine, TrialOutcome, TrialSpec,
-                                    default_platform_ids, run_trial)
+from tactex_ros.core.engine import RoundRecord, TrialOutcome, TrialSpec, default_platform_ids
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.sources.perturb import noise_image
@@ -307,9 +306,9 @@ class TrialResult:
         return out
 
 
-def run_job(job: TrialJob, threads: int = 1,
-            engine_hook: Callable[[TrialEngine], None] | None = None) -> TrialResult:
-    """Run one trial; returns its ``TrialResult``."""
+def run_job(job: TrialJob, threads: int = 1) -> TrialResult:
+    """Run one trial; returns its ``TrialResult`` (a failed trial's: the decisions its engine
+    recorded before it failed, when ``job.catch_errors``)."""
     import torch
 
     from tactex_ros.core.config import preset
@@ -322,11 +321,9 @@ def run_job(job: TrialJob, threads: int = 1,
     no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
     spec = TrialSpec(n, cfg, job.trial, seed=job.seed, no_contact=no_contact)
     eng = spec.engine()
-    if engine_hook:
-        engine_hook(eng)
     t0 = time.perf_counter()
     try:
-        res = run_trial(spec, _touch_fn(job, classes), truth=truth, engine=eng)
+        res = eng.run(_touch_fn(job, classes), truth=truth)
     except (InputError, FloatingPointError, RuntimeError) as exc:
         if not job.catch_errors:
             raise

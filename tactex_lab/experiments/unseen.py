@@ -111,13 +111,8 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     out = []
     for i, plat in enumerate(scenes):
         truth = plat[1:].index(plat[0]) + 1
-        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i)
-        eng = spec.engine()
-        if rep is not None:
-            eng.learner.representation = rep
-            if np.isfinite(rep.temperature):
-                eng.learner.match.beta = rep.temperature
-        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth, engine=eng)
+        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i, representation=rep)
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth)
         c = curve(res.rounds + [res.final], truth)
         c["classes"] = plat
         out.append(c)
