@@ -56,7 +56,7 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
                          f"touches_{at}": float(np.mean([at_stop(c, SHIPPED_STOP)[1]
                                                          for c in cs])),
                          "correct_at_budget": [at_budget(c, budget) for c in cs],
-                         "failed_trials": sum(1 for c in cs if c["error"])}
+                         "failed_trials": sum(1 for c in cs if c.error)}
         row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
                                                      tuple(points))["one_session"]
         row[f"paired_{at}"] = paired_at_thresholds(both, "recorded",

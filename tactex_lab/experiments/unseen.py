@@ -46,7 +46,7 @@ from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.curves import curve
+from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
                                                 load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
@@ -100,7 +100,7 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,
                  cache: dict[str, np.ndarray], scenes: list[list[str]], seed: int,
-                 budget: int) -> list[dict]:
+                 budget: int) -> list[BeliefCurve]:
     """Belief curves (``experiment real``'s ``curve``) of ``scenes`` on the cached test presses;
     scene i runs with seed ``seed + i``, as ``experiment real``."""
     from tactex_ros.core.engine import TrialSpec, run_trial
@@ -113,9 +113,7 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
         truth = plat[1:].index(plat[0]) + 1
         spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i, representation=rep)
         res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth)
-        c = curve(res.rounds + [res.final], truth)
-        c["classes"] = plat
-        out.append(c)
+        out.append(curve(res.rounds + [res.final], truth, classes=plat))
     return out
 
 
@@ -173,7 +171,7 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
                              "temperature": None if r is None else r.temperature,
                              "calibration": None if r is None else r.calibration}
 
-    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[dict]]:
+    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[BeliefCurve]]:
         return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget)
                 for s in settings}
 

@@ -31,8 +31,8 @@ def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
     theirs = belief_curves(scenes, [parse_setting("d=default:learner.descriptor_height_map=false")],
                            f"replay:{small_library}", 5, 4, "t", quiet=True)["d"]
     for a, b in zip(mine, theirs):
-        assert a["extra"] == b["extra"] and a["correct"] == b["correct"]
-        np.testing.assert_allclose(a["conf"], b["conf"], rtol=1e-9)
+        assert a.extra == b.extra and a.correct == b.correct
+        np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
 
 
 def test_settings_parse_and_name_what_is_wrong():
