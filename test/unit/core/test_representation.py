@@ -200,3 +200,23 @@ def test_a_representation_in_memory_runs_the_trial_its_file_runs(tmp_path):
     with pytest.raises(InputError, match="need model 'descriptor'"):
         TrialSpec(3, preset("cnn"), TrialConfig(strategy="variance"),
                   representation=rep).engine()
+
+
+def test_the_prepare_options_are_the_preparation_schema():
+    """`tactex prepare`'s options are ``PrepareSettings``'s fields, with its defaults and
+    ranges (the one preparation schema the lab's ``experiment unseen`` uses too)."""
+    from tactex_ros.cli.main import build_parser
+    from tactex_ros.core.preparation import PrepareSettings
+    base = ["prepare", "--library", "sim", "--out", "x.npz"]
+    parser = build_parser("prepare", plugins=False)
+    args = parser.parse_args(base)
+    assert {k: getattr(args, k) for k in PrepareSettings.model_fields} == \
+        PrepareSettings().model_dump()
+    args = parser.parse_args(base + ["--kind", "lda", "--dims", "12", "--calibration-start",
+                                     "0.5", "--max-wrong", "0.05"])
+    given = PrepareSettings(**{k: getattr(args, k) for k in PrepareSettings.model_fields})
+    assert (given.kind, given.dims, given.calibration_start, given.max_wrong) == \
+        ("lda", 12, 0.5, 0.05)
+    for bad in (["--dims", "0"], ["--kind", "pca"], ["--calibration-folds", "1"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args(base + bad)
