@@ -33,68 +33,83 @@ from __future__ import annotations
 import argparse
 import itertools
 import time
-from dataclasses import dataclass
-from functools import partial
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tactex_ros.core import calibration as belief_calibration
-from tactex_ros.core import representation
-from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
+from tactex_ros.core import preparation, representation
+from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.errors import InputError
+from tactex_ros.core.preparation import PrepareSettings
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.curves import curve
+from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
                                                 load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
+#: The lab's preparation where it differs from the product's (``PrepareSettings``'s defaults,
+#: what `tactex prepare` does): a setting prepares no metric unless it names one.
+LAB_PREPARE: dict[str, Any] = {"kind": "none"}
+PREPARE_KEYS = ("kind", "dims", "calibration", "shrink")
+
+
 @dataclass
 class Setting:
-    """One way to prepare: per-press feature, representation kind (``none`` = the descriptor as
-    is), output dims (lda), calibration method on the library (``off`` = the config's
-    temperature), and ``temperature``: the trials' ``match_temperature`` (the learner's
-    setting): '' = the config's, a number, or one of ``FAMILY_CHOICES``: the temperature that
-    ``tactex experiment families`` chose with the test side's family held out (``--families``)."""
+    """One way to prepare: per-press feature (the lab's), the product's preparation settings
+    (``core/preparation.PrepareSettings``, with ``LAB_PREPARE`` over its defaults) and
+    ``temperature``: the trials' ``match_temperature`` (the learner's setting): '' = the
+    config's (or the prepared file's), a number, or one of ``FAMILY_CHOICES``: the temperature
+    that ``tactex experiment families`` chose with the test side's family held out
+    (``--families``)."""
     label: str
     feature: str = "frame"
-    kind: str = "none"
-    dims: int = 0
-    calibration: str = "off"
-    shrink: float = 1.0
+    prepare: PrepareSettings = field(default_factory=lambda: PrepareSettings(**LAB_PREPARE))
     temperature: str = ""
 
     @staticmethod
     def parse(text: str) -> "Setting":
-        """``label=key:value,...`` (keys feature, kind, dims, calibration, shrink,
-        temperature)."""
+        """``label=key:value,...`` (keys feature, temperature and the preparation's kind,
+        dims, calibration, shrink)."""
         label, sep, rest = text.partition("=")
         if not sep or not label:
             raise InputError(f"--setting {text!r}: expected label=key:value,...")
         kw: dict[str, Any] = {}
         for item in filter(None, rest.split(",")):
             k, _, v = item.partition(":")
-            if k not in ("feature", "kind", "dims", "calibration", "shrink", "temperature"):
+            if k not in ("feature", "temperature") + PREPARE_KEYS:
                 raise InputError(f"--setting {text!r}: unknown key {k!r}")
             kw[k] = int(v) if k == "dims" else float(v) if k == "shrink" else v
-        s = Setting(label, **kw)
-        if s.feature not in FEATURES:
+        feature = kw.pop("feature", "frame")
+        temperature = kw.pop("temperature", "")
+        if feature not in FEATURES:
             raise InputError(f"--setting {text!r}: feature one of {', '.join(FEATURES)}")
-        if s.temperature and s.calibration != "off":
+        try:
+            prep = PrepareSettings(**{**LAB_PREPARE, **kw})
+        except InputError as exc:
+            raise InputError(f"--setting {text!r}: {exc}") from None
+        if temperature and prep.calibration != "off":
             raise InputError(f"--setting {text!r}: temperature and calibration both set the "
                              "belief's temperature; give one")
-        if s.temperature and s.temperature not in FAMILY_CHOICES:
+        if temperature and temperature not in FAMILY_CHOICES:
             try:
-                ok = float(s.temperature) > 0
+                ok = float(temperature) > 0
             except ValueError:
                 ok = False
             if not ok:
                 raise InputError(f"--setting {text!r}: temperature a number > 0 or one of "
                                  f"{', '.join(FAMILY_CHOICES)}")
-        return s
+        return Setting(label, feature, prep, temperature)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file form: label, feature, the preparation's kind, dims, calibration, shrink, and
+        the temperature when one is set."""
+        return {"label": self.label, "feature": self.feature,
+                **{k: getattr(self.prepare, k) for k in PREPARE_KEYS},
+                **({"temperature": self.temperature} if self.temperature else {})}
 
 
 #: ``temperature:`` values read from ``tactex experiment families``' summary (its settings).
@@ -106,7 +121,7 @@ def setting_temperature(setting: Setting, test_family: str, families: dict | Non
     """The trials' temperature of ``setting`` on the test side ``test_family`` (a folder
     name): None = the config's (or the prepared file's); a number as given; a families choice
     from the summary ``families`` with ``test_family`` held out, whose descriptor must be the
-    setting's (``feature``)."""
+    setting's (``feature``) with no representation."""
     t = setting.temperature
     if not t:
         return None
@@ -120,33 +135,26 @@ def setting_temperature(setting: Setting, test_family: str, families: dict | Non
         raise InputError(f"--families: no run with {test_family!r} held out (has "
                          f"{', '.join(held) or 'none'})")
     feature = families.get("feature", "frame")
-    if setting.feature != feature or setting.kind != "none":
+    if setting.feature != feature or setting.prepare.kind != "none":
         raise InputError(f"setting {setting.label!r}: feature {setting.feature!r}, kind "
-                         f"{setting.kind!r}, but the families were calibrated on {feature!r} "
-                         "with no representation (kind none)")
+                         f"{setting.prepare.kind!r}, but the families were calibrated on "
+                         f"{feature!r} with no representation (kind none)")
     return float(held[test_family]["settings"][t]["temperature"])
 
 
 def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int = 0
-            ) -> representation.Representation | None:
-    """What ``tactex prepare`` builds from ``library`` for ``setting`` (None: nothing)."""
-    if setting.kind == "none" and setting.calibration == "off":
+                    ) -> representation.Representation | None:
+    """What ``tactex prepare`` builds from ``library`` for ``setting`` (``preparation.prepare``
+    with the shipped learner settings; None: nothing to prepare)."""
+    p = setting.prepare
+    if p.kind == "none" and p.calibration == "off":
         return None
-    fit = partial(representation.fit, shrink=setting.shrink, kind=setting.kind,
-                  dims=setting.dims)
-    rep = fit(library)
-    if setting.calibration != "off":
-        trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
-        rep.temperature = belief_calibration.fit_temperature(
-            trajs, setting.calibration, *(((SHIPPED_STOP,), 0.03) if setting.calibration == "target"
-                                          else ()))
-        rep.calibration = belief_calibration.report(trajs, rep.temperature)
-    return rep
+    return preparation.prepare(library, p, preset("default"), seed=seed)
 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,
                  cache: dict[str, np.ndarray], scenes: list[list[str]], seed: int,
-                 budget: int, temperature: float | None = None) -> list[dict]:
+                 budget: int, temperature: float | None = None) -> list[BeliefCurve]:
     """Belief curves (``experiment real``'s ``curve``) of ``scenes`` on the cached test presses;
     scene i runs with seed ``seed + i``, as ``experiment real``. ``temperature``: the learner's
     ``match_temperature`` (None: the preset's)."""
@@ -159,16 +167,9 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     out = []
     for i, plat in enumerate(scenes):
         truth = plat[1:].index(plat[0]) + 1
-        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i)
-        eng = spec.engine()
-        if rep is not None:
-            eng.learner.representation = rep
-            if np.isfinite(rep.temperature):
-                eng.learner.match.beta = rep.temperature
-        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth, engine=eng)
-        c = curve(res.rounds + [res.final], truth)
-        c["classes"] = plat
-        out.append(c)
+        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i, representation=rep)
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth)
+        out.append(curve(res.rounds + [res.final], truth, classes=plat))
     return out
 
 
@@ -224,13 +225,13 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
         reps[s.label] = prepare_setting(s, by_class(library, s.feature), seed=args.seed)
         temps[s.label] = setting_temperature(s, test_family, families)
         r = reps[s.label]
-        prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": vars(s),
+        prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": s.to_dict(),
                              "dims": None if r is None else r.dims,
                              "temperature": (temps[s.label] if r is None
                                              or temps[s.label] is not None else r.temperature),
                              "calibration": None if r is None else r.calibration}
 
-    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[dict]]:
+    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[BeliefCurve]]:
         return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget,
                                       temps[s.label])
                 for s in settings}
@@ -312,7 +313,7 @@ def run_unseen(args: argparse.Namespace) -> dict:
         summary = run_direction(settings, caches[test], caches[lib], args,
                                 Path(getattr(args, test)).name, families)
         summary.update(test=getattr(args, test), library=getattr(args, lib),
-                       settings={s.label: vars(s) for s in settings})
+                       settings={s.label: s.to_dict() for s in settings})
         print(f"== test {getattr(args, test)}, library {getattr(args, lib)}")
         write_outputs(d, summary, labels, args)
         both[name] = summary
