@@ -46,8 +46,9 @@ with ``exit_when_done:=true`` the explorer's exit after the trial ends it). A no
 with a non-zero status (a refused start-up or pre-flight, a crash) also makes ``ros2 launch``
 end with status 1: launch has no exit-status action (``LaunchService.run`` returns 1 only when
 an exception reaches its event loop, launch 1.0.7 / 3.4.3 / 3.7.1 ``launch_service.py``), so
-the node's exit handler raises ``NodeFailed`` naming the node and its status
-(docs/hardware_checks.md). rviz2 is started only when it is installed (checked before any node
+the node's exit handler emits an event of its own whose handler raises ``NodeFailed`` naming
+the node and its status, after every other handler of the exit has seen it (launch_testing's
+record of exit codes included; docs/hardware_checks.md). rviz2 is started only when it is installed (checked before any node
 starts) and its exit does not end the launch; its generated config folder is removed when the
 launch shuts down.
 """
@@ -194,7 +195,7 @@ def trial_settings(values: dict[str, str]) -> dict[str, Any]:
 
 
 def _nodes(context, *args, **kwargs):
-    from launch.actions import LogInfo, RegisterEventHandler, Shutdown
+    from launch.actions import EmitEvent, LogInfo, RegisterEventHandler, Shutdown
     from launch.event_handlers import OnShutdown
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
@@ -214,11 +215,14 @@ def _nodes(context, *args, **kwargs):
         # a missing rviz2 must fail here, before any node starts, not after (orphans)
         raise LaunchArgumentError("launch argument rviz:=true: rviz2 is not installed "
                                   "(apt install ros-$ROS_DISTRO-rviz2), nothing started")
-    actions = [Node(package=n.package, executable=n.executable, name=n.name,
-                    parameters=[n.parameters], remappings=n.remappings, output="screen",
-                    sigterm_timeout="10", sigkill_timeout="5",
-                    on_exit=_on_exit(n.name, Shutdown))
-               for n in nodes]
+    failed, fail = _node_failure()
+    actions = [fail] + [Node(package=n.package, executable=n.executable, name=n.name,
+                             parameters=[n.parameters], remappings=n.remappings,
+                             output="screen", sigterm_timeout="10", sigkill_timeout="5",
+                             on_exit=_on_exit(n.name, Shutdown,
+                                              lambda name, code: EmitEvent(
+                                                  event=failed(name, code))))
+                        for n in nodes]
     if sim and _installed("tf2_ros"):   # rviz's fixed frame exists in TF (viewer only)
         actions.append(Node(package="tf2_ros", executable="static_transform_publisher",
                             name="tactex_sim_world",
@@ -252,12 +256,40 @@ def _nodes(context, *args, **kwargs):
     return actions
 
 
-def _on_exit(name: str, shutdown_cls):
-    """The exit handler of tactex node ``name``: end the launch; a non-zero status raises
-    NodeFailed (launch then shuts down and returns 1)."""
+def _on_exit(name: str, shutdown_cls, failure):
+    """The exit handler of tactex node ``name``: end the launch (``shutdown_cls(reason=...)``);
+    after a non-zero status it returns ``failure(name, returncode)`` (an action emitting the
+    event that ``_node_failure`` raises NodeFailed for) and raises nothing itself: an exception
+    in a handler stops launch from giving the same exit to the handlers after it
+    (``LaunchService.__process_event``), launch_testing's record of the exit among them."""
     def handler(event, context):
+        if event.returncode != 0:
+            return [failure(name, event.returncode)]
         return [shutdown_cls(reason=node_exited(name, event.returncode))]
     return handler
+
+
+def _node_failure():
+    """(event class, handler action): a tactex node's non-zero exit as an event of its own,
+    handled after every handler of the process's exit, by raising NodeFailed
+    (``node_exited``): launch then stops the other nodes and ``LaunchService.run`` (``ros2
+    launch``) returns 1."""
+    from launch.actions import OpaqueFunction, RegisterEventHandler
+    from launch.event import Event
+    from launch.event_handler import EventHandler
+
+    class NodeExitFailed(Event):
+        name = "tactex.node_exit_failed"
+
+        def __init__(self, node: str, returncode: int | None) -> None:
+            super().__init__()
+            self.node, self.returncode = node, returncode
+
+    def fail(context):
+        node_exited(context.locals.event.node, context.locals.event.returncode)
+
+    return NodeExitFailed, RegisterEventHandler(EventHandler(
+        matcher=lambda e: isinstance(e, NodeExitFailed), entities=[OpaqueFunction(function=fail)]))
 
 
 def _installed(package: str) -> bool:

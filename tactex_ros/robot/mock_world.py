@@ -51,6 +51,36 @@ def platform_under(platforms: Sequence[Platform], position: np.ndarray
     return None, 0.0
 
 
+@dataclass
+class PressCounter:
+    """The mock camera's count of presses (``presses``: the current press's number, from 1).
+
+    A press begins when the sensor touches a platform (``contact``: a force over ``force_n``
+    [N] with the sensor at or below the platform's surface) and ends only once the sensor is
+    ``clear_m`` [m] above every surface or off every platform: a force that dips for a sample
+    during one press (a late wrench on a loaded machine) never starts another press, so each
+    press draws its faults once."""
+
+    force_n: float = 0.05
+    clear_m: float = 0.001
+    presses: int = 0
+    in_contact: bool = False
+
+    def update(self, platforms: Sequence[Platform], position: np.ndarray | None,
+               force: float) -> tuple[int | None, bool, bool]:
+        """(platform index under the sensor or None, in contact now, a new press began now)."""
+        idx, depth = (None, 0.0) if position is None else platform_under(platforms, position)
+        contact = idx is not None and force > self.force_n and depth > 0
+        began = contact and not self.in_contact
+        if began:
+            self.presses += 1
+            self.in_contact = True
+        elif not contact and (idx is None or float(platforms[idx].position[2])
+                              - float(np.asarray(position, dtype=float)[2]) < -self.clear_m):
+            self.in_contact = False
+        return idx, contact, began
+
+
 def shift_surfaces(scene: Workspace, dz: float) -> Workspace:
     """The scene with every platform's surface ``dz`` [m] higher (lower if < 0)."""
     if not dz:

@@ -1,10 +1,17 @@
-"""launch_testing: ``ros2 launch tactex explore.launch.py sim:=true resume:=RECORD
-explorer_set:="trial.stop_confidence=..."`` continues an interrupted trial with the stop
-threshold set at launch.
+"""launch_testing: ``ros2 launch tactex explore.launch.py sim:=true resume:=RECORD`` with a
+stop threshold set at launch, three launches (``launch_testing.parametrize``):
 
-The interrupted record is made before the launch, without ROS (``trial.run.TrialRun`` with the
-simulator as press, cut off after 4 touches), with the settings the launch gives the explorer
-(``ExplorerSettings.record_inputs``), so the resume is accepted. Run with
+- ``explorer_set``: ``explorer_set:="trial.stop_confidence=0.6"``, the record's threshold: the
+  trial continues from the cut record and ends by that threshold, every process exits 0;
+- ``argument``: the same threshold as the dotted argument ``trial.stop_confidence:=0.6``;
+- ``refused``: ``explorer_set:="trial.stop_confidence=0.7"``, another value than the record's:
+  the explorer refuses the resume (exit status 2), the launch ends, the record is untouched.
+  A resume takes every setting from its record (``trial.resume.settings_from_record``), so
+  this case is the one that shows the launch's threshold reaches the explorer.
+
+The interrupted record is made before each launch, without ROS (``trial.run.TrialRun`` with
+the simulator as press, cut off after 4 touches), with the settings the launch gives the
+explorer (``ExplorerSettings.record_inputs``), so the resume is accepted. Run with
 ``launch_test test/launch/test_explore_launch_resume.py`` (see conftest.py).
 """
 
@@ -27,13 +34,22 @@ from launch.launch_description_sources import PythonLaunchDescriptionSource  # n
 
 RECORD = Path(tempfile.mkdtemp(prefix="tactex_launch_resume_"))
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "explore.launch.py"
-ARGS = {"sim": "true", "rounds": "20", "seed": "0", "record_dir": str(RECORD),
-        "exit_when_done": "true", "explorer_set": "trial.stop_confidence=0.6"}
+STOP = 0.6
+ARGS = {"sim": "true", "rounds": "20", "seed": "0", "exit_when_done": "true",
+        "explorer_set": f"trial.stop_confidence={STOP}"}
+CASES = {"explorer_set": {},
+         "argument": {"explorer_set": "", "trial.stop_confidence": str(STOP)},
+         "refused": {"explorer_set": "trial.stop_confidence=0.7"}}
 CUT = 4
 
 
-def _interrupted_record() -> Path:
-    """A record of the launch's trial cut off after ``CUT`` touches (the process died)."""
+def _folder(case: str) -> Path:
+    return RECORD / case / "cut"
+
+
+def _interrupted_record(case: str) -> Path:
+    """A record of the launch's trial (``ARGS``: threshold ``STOP``) in ``RECORD/case``, cut
+    off after ``CUT`` touches (the process died)."""
     import importlib.util
 
     from tactex_ros.core.engine import TrialSpec
@@ -45,7 +61,8 @@ def _interrupted_record() -> Path:
     spec_ = importlib.util.spec_from_file_location("tactex_explore_launch", LAUNCH_FILE)
     mod = importlib.util.module_from_spec(spec_)
     spec_.loader.exec_module(mod)
-    ex = next(n for n in mod.plan(ARGS)["nodes"] if n.name == "explorer").parameters
+    args = dict(ARGS, record_dir=str(RECORD / case))
+    ex = next(n for n in mod.plan(args)["nodes"] if n.name == "explorer").parameters
     s = ExplorerSettings.check(ex, "explorer")
     ids = tuple(p.id for p in load_scene(s.scene_file).ordered)
     src = open_source("sim")
@@ -62,7 +79,7 @@ def _interrupted_record() -> Path:
         n[0] += 1
         return as_touch(fn(platform))
     run = TrialRun(TrialSpec(len(ids) - 1, s.learner, s.trial, seed=s.seed, platform_ids=ids),
-                   RECORD, "cut", press=press, inputs=s.record_inputs(s.seed),
+                   RECORD / case, "cut", press=press, inputs=s.record_inputs(s.seed),
                    scene_file=s.scene_file)
     try:
         run.run()
@@ -72,11 +89,12 @@ def _interrupted_record() -> Path:
 
 
 @pytest.mark.launch_test
-def generate_test_description():
-    folder = _interrupted_record()
-    include = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(str(LAUNCH_FILE)),
-        launch_arguments=dict(ARGS, resume=str(folder)).items())
+@launch_testing.parametrize("case", list(CASES))
+def generate_test_description(case):
+    folder = _interrupted_record(case)
+    args = dict(ARGS, record_dir=str(RECORD / case), resume=str(folder), **CASES[case])
+    include = IncludeLaunchDescription(PythonLaunchDescriptionSource(str(LAUNCH_FILE)),
+                                       launch_arguments=args.items())
     return launch.LaunchDescription([include, launch_testing.actions.ReadyToTest()])
 
 
@@ -87,16 +105,28 @@ class TestResume(unittest.TestCase):
 
 @launch_testing.post_shutdown_test()
 class TestAfterShutdown(unittest.TestCase):
-    def test_exit_codes(self, proc_info):
-        launch_testing.asserts.assertExitCodes(proc_info)
+    def test_exit_codes(self, proc_info, case):
+        refused = case == "refused"
+        launch_testing.asserts.assertExitCodes(
+            proc_info, allowable_exit_codes=[2] if refused else [0], process="explorer_node")
+        for other in ("mock_arm_node", "mock_image_node", "motion_node"):
+            launch_testing.asserts.assertExitCodes(proc_info, process=other)
 
-    def test_resumed_with_the_threshold_set_at_launch(self):
-        d = RECORD / "cut"
-        result = json.loads((d / "result.json").read_text())
+    def test_record(self, case):
+        d = _folder(case)
         config = json.loads((d / "config.json").read_text())
-        self.assertEqual(config["trial"]["stop_confidence"], 0.6)
-        self.assertEqual(len(result["resumed"]), 1)
+        self.assertEqual(config["trial"]["stop_confidence"], STOP)
         touches = [json.loads(line) for line in (d / "touches.jsonl").read_text().splitlines()]
+        if case == "refused":       # nothing written over the cut record
+            self.assertEqual(len(touches), CUT)
+            self.assertFalse((d / "result.json").exists())
+            return
+        result = json.loads((d / "result.json").read_text())
+        self.assertEqual([r["after_touch"] for r in result["resumed"]], [CUT])
         self.assertGreater(len(touches), CUT)        # the recorded ones, then live presses
-        self.assertTrue(result["stop_reason"] == "confident"
-                        or result["confidence"] < 0.6)
+        self.assertEqual(result["touches"], sum(t["accepted"] for t in touches))
+        # the verdict agrees with the threshold STOP: a confident stop is a sure one with a
+        # final belief of at least STOP, any other end is not sure
+        self.assertEqual(result["sure"], result["confidence"] >= STOP
+                         and result["stop_reason"] == "confident")
+        self.assertIn(result["stop_reason"], ("confident", "rounds"))

@@ -31,7 +31,7 @@ from sensor_msgs.msg import Image
 
 from .. import adapter
 from ...robot.frames import FrameRing
-from ...robot.mock_world import platform_under
+from ...robot.mock_world import PressCounter
 from ...core.errors import InputError
 from ..settings import MockImageSettings
 from ...robot.scene import load_scene
@@ -91,8 +91,7 @@ class MockImageNode(TactexNode):
         self.lock = threading.Lock()
         self.position = None
         self.force = 0.0
-        self.press_id = 0
-        self._in_contact = False
+        self.presses = PressCounter()
         self._press_frames: list[np.ndarray] = []
         self._press_tick = 0
         self._blank = False
@@ -138,8 +137,7 @@ class MockImageNode(TactexNode):
                 return SetParametersResult(successful=False, reason=str(exc))
             with self.lock:
                 self.fabrics = fabrics
-                self.press_id = 0
-                self._in_contact = False
+                self.presses = PressCounter()
             self.get_logger().info("placement: " + ", ".join(
                 f"{q.id}={f}" for q, f in zip(self.scene.ordered, fabrics)))
         return SetParametersResult(successful=True)
@@ -190,17 +188,14 @@ class MockImageNode(TactexNode):
         self.force = abs(float(msg.wrench.force.z))   # either wrench sign convention
 
     def _frame(self) -> np.ndarray:
-        idx, pen = ((None, 0.0) if self.position is None
-                    else platform_under(self.scene.ordered, self.position))
-        contact = idx is not None and self.force > 0.05 and pen > 0
-        if contact and not self._in_contact:      # a new press begins
-            self.press_id += 1
+        idx, contact, began = self.presses.update(self.scene.ordered, self.position,
+                                                  self.force)
+        if began:      # a new press: its faults drawn once
             self._blank = self._rng_fault().random() < self.settings.fault_blank
             if self.kind == "replay":
                 t = self.replay(idx)
                 self._press_frames = [t.frame] + ([] if t.extra is None else list(t.extra))
                 self._press_tick = 0
-        self._in_contact = contact
         if not contact or self._blank:
             return self.no_contact
         if self.kind == "replay":
@@ -208,11 +203,11 @@ class MockImageNode(TactexNode):
             return self._press_frames[(self._press_tick - 1) % len(self._press_frames)]
         fabric = self.fabrics[idx]
         depth_mm = float(np.clip(self.settings.depth_per_n * self.force, 0.02, 1.0))
-        rng = np.random.default_rng([self.settings.seed, self.press_id])
+        rng = np.random.default_rng([self.settings.seed, self.presses.presses])
         return self.src.press(fabric, rng, depth_mm=depth_mm)
 
     def _rng_fault(self) -> np.random.Generator:
-        return np.random.default_rng([self.settings.seed, self.press_id, 99])
+        return np.random.default_rng([self.settings.seed, self.presses.presses, 99])
 
     def _tick(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9

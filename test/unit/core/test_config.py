@@ -5,6 +5,7 @@ command-line options and launch arguments come from the same declarations."""
 from __future__ import annotations
 
 import re
+from types import SimpleNamespace
 
 import pytest
 
@@ -263,6 +264,16 @@ def test_launch_help_defaults_exit_status_and_bag_command() -> None:
     for code in (2, 1, -2, None):
         with pytest.raises(launch.NodeFailed):
             launch.node_exited("gelsight", code)
+    # the exit handler itself never raises (launch would skip the exit's later handlers):
+    # a failure is handed on as its own event, a clean exit shuts the launch down
+    failed = []
+    handler = launch._on_exit("gelsight", lambda reason: ("shutdown", reason),
+                              lambda name, code: failed.append((name, code)) or "emit")
+    for code in (2, 1, -2, None):
+        assert handler(SimpleNamespace(returncode=code), None) == ["emit"]
+    assert failed == [("gelsight", 2), ("gelsight", 1), ("gelsight", -2), ("gelsight", None)]
+    assert handler(SimpleNamespace(returncode=0), None) == [
+        ("shutdown", launch.node_exited("gelsight", 0))]
     humble = launch.bag_command("/r/bag", ["/a", "/b"], "humble")
     jazzy = launch.bag_command("/r/bag", ["/a", "/b"], "jazzy")
     assert humble == ["ros2", "bag", "record", "-s", "mcap", "-o", "/r/bag", "/a", "/b"]

@@ -162,3 +162,25 @@ def test_every_press_in_1000_worlds_captures_at_the_force_or_refuses_by_name(n: 
     refused = [g.outcome.reason for g in got if not g.outcome.success]
     assert all(refused)
     assert len(ok) >= 0.99 * n, (len(ok), sorted(refused)[:20])
+
+
+def test_press_counter_counts_a_press_once_through_a_dip_and_again_after_a_lift() -> None:
+    """A force that dips below the contact threshold while the sensor stays on the surface is
+    the same press; a lift of more than ``clear_m`` ends it; moving off the platforms too."""
+    from types import SimpleNamespace
+
+    from tactex_ros.robot.mock_world import PressCounter
+    plat = [SimpleNamespace(id="c1", position=(0.5, 0.0, 0.1), radius=0.03)]
+    c = PressCounter()
+    on, below, lifted_a_bit, lifted = ((0.5, 0.0, 0.1), (0.5, 0.0, 0.099), (0.5, 0.0, 0.1005),
+                                       (0.5, 0.0, 0.102))
+    steps = [(lifted, 0.0), (below, 0.0), (below, 2.0), (below, 0.01), (on, 0.0),
+             (lifted_a_bit, 0.0), (below, 3.0), (lifted, 0.0), (below, 1.0),
+             ((0.7, 0.0, 0.0), 0.0), ((0.5, 0.0, 0.099), 1.0)]
+    seen = [c.update(plat, np.array(p), f) for p, f in steps]
+    assert [s[1] for s in seen] == [False, False, True, False, False, False, True, False, True,
+                                    False, True]
+    assert [s[2] for s in seen] == [False, False, True, False, False, False, False, False, True,
+                                    False, True]
+    assert c.presses == 3
+    assert seen[-2][0] is None and seen[-1][0] == 0

@@ -16,6 +16,12 @@ pytest.importorskip("rclpy")
 DEADLINE_S = 120.0     # [s] a node's imports on a loaded machine (load 10 on 2 cores)
 
 
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT at its default, as a terminal or a launch gives it (a
+    shell's background job inherits SIGINT ignored, and Python then keeps it ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _importing(pid: int, marker: str) -> bool:
     """The child has mapped ``marker`` (a shared library loaded by an import)."""
     try:
@@ -30,7 +36,7 @@ def _importing(pid: int, marker: str) -> bool:
 def test_a_node_stopped_while_importing_exits_quietly(sig, marker) -> None:
     p = subprocess.Popen([sys.executable, "-P", "-m", "tactex_ros.ros.nodes.explorer_node"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=_default_sigint)
     end = time.monotonic() + DEADLINE_S
     while not _importing(p.pid, marker) and p.poll() is None and time.monotonic() < end:
         time.sleep(0.001)
@@ -50,5 +56,5 @@ def test_the_cli_importing_the_package_keeps_default_signals() -> None:
             "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler, "
             "signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=DEADLINE_S)
+                         timeout=DEADLINE_S, preexec_fn=_default_sigint)
     assert out.stdout.split() == ["True", "True"], out.stderr
