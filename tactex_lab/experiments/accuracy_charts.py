@@ -20,16 +20,16 @@ from pathlib import Path
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import write_json
-from tactex_lab.experiments.curves import paired_at_budgets, paired_at_thresholds
+from tactex_lab.experiments.curves import BeliefCurve, paired_at_budgets, paired_at_thresholds
 from tactex_lab.experiments.protocol import DEFAULT_THRESHOLDS, band_rows, score_pairs
 
 
 def load_runs(folders: list[str | Path], settings: list[str] | None = None
-              ) -> tuple[dict[str, list[dict]], int, int]:
+              ) -> tuple[dict[str, list[BeliefCurve]], int, int]:
     """Pool the report scenes of ``folders`` per setting (in first-seen order, or
     ``settings``): ({label: [belief curve per scene]}, budget, comparisons). The folders must
     share budget and comparisons."""
-    pooled: dict[str, list[dict]] = {}
+    pooled: dict[str, list[BeliefCurve]] = {}
     budget = comparisons = None
     for f in folders:
         f = Path(f)
@@ -45,7 +45,10 @@ def load_runs(folders: list[str | Path], settings: list[str] | None = None
                              f"folder's {budget} / {comparisons}")
         budget, comparisons = b, c
         for lab, cs in runs.items():
-            pooled.setdefault(lab, []).extend(cs)
+            try:
+                pooled.setdefault(lab, []).extend(BeliefCurve.from_json(c) for c in cs)
+            except InputError as exc:
+                raise InputError(f"--runs {f}: runs.json, setting {lab!r}: {exc}") from None
     if budget is None:
         raise InputError("--runs: no folder given")
     labels = settings or list(pooled)
@@ -55,7 +58,7 @@ def load_runs(folders: list[str | Path], settings: list[str] | None = None
     return {lab: pooled[lab] for lab in labels}, budget, comparisons
 
 
-def pooled_figures(curves: dict[str, list[dict]], thresholds: list[float],
+def pooled_figures(curves: dict[str, list[BeliefCurve]], thresholds: list[float],
                    against: list[str]) -> dict:
     """The pooled scenes' figures: every (setting, theta) at the stop (``score_pairs``) and the
     paired tests against each setting of ``against`` at fixed budgets and thresholds."""

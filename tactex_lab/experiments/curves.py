@@ -5,16 +5,18 @@ A *scene* is 1 reference + C comparisons drawn from a set of classes with
 ``sources.assign_platforms`` (the same draw as ``tactex trial --seed S``); a *setting* is
 ``label=preset[:PATH=value,...]`` (``parse_setting``). Every setting runs every scene without a
 stop rule up to a budget of touches after the baseline and records the belief after every
-decision (``curve``); the readings of a curve (``at_budget``, ``at_stop``) and the paired tests
+decision (``curve``: a ``BeliefCurve``, typed until ``runs.json``); the readings of a curve (``at_budget``, ``at_stop``) and the paired tests
 of settings on the same scenes (``paired_at_budgets``, ``paired_at_thresholds``) follow from it.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import trial_preset
 from tactex_ros.core.engine import RoundRecord, confident
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired
@@ -47,71 +49,128 @@ def draw_scenes(classes: list[str], n: int, comparisons: int, seed0: int) -> lis
     return [assign_platforms(classes, comparisons, None, None, seed0 + i)[0] for i in range(n)]
 
 
-def curve(decisions: list[RoundRecord], truth: int, error: str | None = None) -> dict:
-    """Every decision of a trial (platform indices, the final one last; ``truth`` 1..C) -> the
-    belief after every decision (touches after the baseline), whether its top platform is the
-    match, its top probability, its time [s], and how many touches went to the platform the
-    belief favoured when choosing it (``believed`` of ``touched``)."""
-    out = {"extra": [], "correct": [], "conf": [], "decision_s": [], "believed": 0,
-           "touched": 0, "error": error}
+@dataclass(frozen=True)
+class BeliefCurve:
+    """One trial read after every decision (the final one last): touches after the baseline
+    (``extra``), whether the belief's top platform is the match (``correct``), its top
+    probability (``conf``), the decision's time [s] (``decision_s``), how many touches went to
+    the platform the belief favoured when choosing it (``believed`` of ``touched``), the
+    trial's ``error`` (None: it ran), the scene's ``classes`` [reference, comparisons...] when
+    known, and what ``experiment ladder`` adds per decision: ``cpu`` (cumulative learner CPU
+    [s]), ``models`` and the trial's ``escalations`` / ``notes``.
+
+    ``to_json`` / ``from_json``: the form of ``runs.json`` (key order and values as they
+    were written before the curve was typed; an unset optional field is left out)."""
+
+    extra: tuple[int, ...]
+    correct: tuple[bool, ...]
+    conf: tuple[float, ...]
+    decision_s: tuple[float, ...]
+    believed: int = 0
+    touched: int = 0
+    error: str | None = None
+    classes: tuple[str, ...] | None = None
+    cpu: tuple[float, ...] | None = None
+    escalations: tuple[dict, ...] | None = None
+    notes: tuple[str, ...] | None = None
+    models: tuple[str, ...] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON form (lists for tuples)."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if v is None and f.name in _OPTIONAL:
+                continue
+            out[f.name] = list(v) if isinstance(v, tuple) else v
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> "BeliefCurve":
+        """A curve from its JSON form; InputError names an unknown or missing field."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        missing = [k for k in ("extra", "correct", "conf", "decision_s") if k not in d]
+        if unknown or missing:
+            raise InputError(f"belief curve: unknown fields {unknown}, missing {missing}; "
+                             f"known: {', '.join(sorted(names))}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+_OPTIONAL = ("classes", "cpu", "escalations", "notes", "models")
+
+
+def curve(decisions: list[RoundRecord], truth: int, error: str | None = None,
+          classes: list[str] | None = None) -> BeliefCurve:
+    """Every decision of a trial (platform indices, the final one last; ``truth`` 1..C) -> its
+    ``BeliefCurve`` (of the scene ``classes`` when given)."""
+    extra, correct, conf, decision_s = [], [], [], []
+    believed = touched = 0
     prev = None
     for r in decisions:
         probs = np.asarray(r.probs)
         base = len(r.probs) + 1                 # the baseline: every platform once
-        out["extra"].append(int(sum(r.touches) + r.reference_touches - base))
-        out["correct"].append(bool(int(np.argmax(probs)) + 1 == truth))
-        out["conf"].append(float(probs.max()))
-        out["decision_s"].append(float(r.decision_s))
+        extra.append(int(sum(r.touches) + r.reference_touches - base))
+        correct.append(bool(int(np.argmax(probs)) + 1 == truth))
+        conf.append(float(probs.max()))
+        decision_s.append(float(r.decision_s))
         if prev is not None and prev.platform not in (None, 0):
-            out["touched"] += 1
-            out["believed"] += int(prev.platform == int(np.argmax(prev.probs)) + 1)
+            touched += 1
+            believed += int(prev.platform == int(np.argmax(prev.probs)) + 1)
         prev = r
-    return out
+    return BeliefCurve(tuple(extra), tuple(correct), tuple(conf), tuple(decision_s), believed,
+                       touched, error, None if classes is None else tuple(classes))
 
 
-def at_budget(c: dict, k: int) -> bool:
+def at_budget(c: BeliefCurve, k: int) -> bool:
     """Correct after ``k`` touches after the baseline (``common.budget_index``)."""
-    idx = budget_index(c["extra"], k)
-    return bool(idx >= 0 and c["correct"][idx])
+    idx = budget_index(c.extra, k)
+    return bool(idx >= 0 and c.correct[idx])
 
 
-def at_stop(c: dict, theta: float) -> tuple[bool, int, bool]:
-    """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
-    for i, conf in enumerate(c["conf"]):
+def stop_index(c: BeliefCurve, theta: float) -> int | None:
+    """The decision at which a trial with stop threshold ``theta`` stops confident (None:
+    never; it then ends at its last decision)."""
+    for i, conf in enumerate(c.conf):
         if confident(conf, theta):
-            return c["correct"][i], c["extra"][i], True
-    return c["correct"][-1], c["extra"][-1], False
+            return i
+    return None
+
+
+def at_stop(c: BeliefCurve, theta: float) -> tuple[bool, int, bool]:
+    """(correct, touches after the baseline, stopped confident) under stop threshold theta."""
+    i = stop_index(c, theta)
+    if i is not None:
+        return c.correct[i], c.extra[i], True
+    return c.correct[-1], c.extra[-1], False
 
 
 def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
                   budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
-                  quiet: bool = False) -> dict[str, list[dict]]:
+                  quiet: bool = False) -> dict[str, list[BeliefCurve]]:
     """Run every scene (``[reference, comparisons...]`` classes) with every setting of
     ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
     i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
-    (see ``curve``, plus the scene's ``classes``)."""
-    from tactex_ros.core.engine import trial_preset
+    (``BeliefCurve``s with their scene's ``classes``)."""
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
-            st = strategy or trial_preset(pre).strategy
-            jobs.append(TrialJob(source=source, seed=seed + i, strategy=st,
-                                 rounds=budget, stop_confidence=0.0, preset=pre,
+            jobs.append(TrialJob(source=source, seed=seed + i,
+                                 trial=trial_preset(pre, strategy=strategy, rounds=budget,
+                                                    stop_confidence=0.0), preset=pre,
                                  overrides=over, platform_classes=classes,
                                  comparisons=len(classes) - 1, catch_errors=True,
                                  no_contact_reference=False,
                                  trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
     res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
                    quiet=quiet)
-    out: dict[str, list[dict]] = {s[0]: [] for s in settings}
+    out: dict[str, list[BeliefCurve]] = {s[0]: [] for s in settings}
     for r in res:
-        c = curve(r.decisions, r.truth, r.error)
-        c["classes"] = r.classes
-        out[r.job.tags["setting"]].append(c)
+        out[r.job.tags["setting"]].append(curve(r.decisions, r.truth, r.error, r.classes))
     return out
 
 
-def _paired(curves: dict[str, list[dict]], reference: str, points, outcome) -> dict:
+def _paired(curves: dict[str, list[BeliefCurve]], reference: str, points, outcome) -> dict:
     """Every setting against ``reference`` on the same scenes at each point (a budget or a
     threshold): ``outcome(curve, point)`` gives (correct, touches after the baseline or None).
     {setting: {str(point): {"reference", "setting" (accuracies), "p" (exact McNemar)[,
@@ -134,14 +193,14 @@ def _paired(curves: dict[str, list[dict]], reference: str, points, outcome) -> d
     return out
 
 
-def paired_at_budgets(curves: dict[str, list[dict]], reference: str,
+def paired_at_budgets(curves: dict[str, list[BeliefCurve]], reference: str,
                       budgets: tuple[int, ...] = (0, 1, 3, 5, 10)) -> dict:
     """Exact McNemar of every setting against ``reference`` at fixed touch budgets (no stop
     rule), on the same scenes: {setting: {str(k): {"reference", "setting", "p"}}}."""
     return _paired(curves, reference, budgets, lambda c, k: (at_budget(c, k), None))
 
 
-def paired_at_thresholds(curves: dict[str, list[dict]], reference: str,
+def paired_at_thresholds(curves: dict[str, list[BeliefCurve]], reference: str,
                          thresholds: list[float]) -> dict:
     """Every setting against ``reference`` under each stop threshold, on the same scenes:
     {setting: {str(theta): {"reference", "setting" (accuracies), "p" (exact McNemar),

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import TrialConfig
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import correct_at, learner_set, results_dir, write_json
@@ -57,7 +58,7 @@ def compact(res: TrialResult) -> dict:
                           "entropy": round(r.predictive_entropy, 5),
                           "next": None if r.platform is None else out.platform_ids[r.platform],
                           "decision_s": round(r.decision_s, 4)})
-    return {"trial": job.tags["trial"], "strategy": job.strategy,
+    return {"trial": job.tags["trial"], "strategy": job.trial.strategy,
             "model": job.tags["model"], "seed": job.tags["seed"], "job_seed": job.seed,
             "classes": res.classes, "truth": res.truth,
             "prediction": res.prediction, "correct": res.correct,
@@ -84,8 +85,10 @@ def build_jobs(trials: list[dict], source: str, strategies: list[str], models: l
             for pos, t in enumerate(trials):
                 classes = platform_classes(src, t)
                 for strat in strategies:
-                    jobs.append(TrialJob(source=source, seed=1000 * seed + pos, strategy=strat,
-                                         rounds=rounds, preset=preset_name, overrides=over,
+                    jobs.append(TrialJob(source=source, seed=1000 * seed + pos,
+                                         trial=TrialConfig(strategy=strat, rounds=rounds,
+                                                           stop_confidence=0.0),
+                                         preset=preset_name, overrides=over,
                                          platform_classes=classes, trial_id=t["id"],
                                          tags={"trial": t["id"], "model": model, "seed": seed}))
     return jobs

@@ -32,7 +32,7 @@ from tactex_ros.core.library import EVIDENCE_WEIGHT, FabricLibrary
 from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.curves import at_stop, curve
+from tactex_lab.experiments.curves import BeliefCurve, at_stop, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache,
                                                 load_cache)
 
@@ -56,11 +56,11 @@ def study_scenes(classes: list[str], trials: int, comparisons: int, seed: int
 
 def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, budget: int,
                   library: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT
-                  ) -> tuple[dict, list[tuple[int, str]]]:
+                  ) -> tuple[BeliefCurve, list[tuple[int, str]]]:
     """One trial on the cached presses (no stop rule, ``budget`` touches after the baseline):
     its belief curve and the (platform, press row) it touched. With ``library`` the belief asks
     it, less the videos touched so far."""
-    from tactex_ros.core.engine import TrialSpec, run_trial
+    from tactex_ros.core.engine import TrialSpec
     from tactex_ros.sources.replay import ReplayTrial
     # the cached "frame" feature: the descriptor without the height map (the study's)
     cfg = preset("default", guards=False, fabric_library=library is not None,
@@ -81,7 +81,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
         return t
 
     truth = scene[1:].index(scene[0]) + 1
-    res = run_trial(spec, touch, truth=truth, engine=eng)
+    res = eng.run(touch, truth=truth)     # the touches leave their own videos out of its library
     return curve(res.rounds + [res.final], truth), list(replay.log)
 
 
@@ -105,7 +105,7 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
             ok, extra, sure = at_stop(c, args.stop)
             row[arm] = {"correct": bool(ok), "touches_after_baseline": int(extra),
                         "stopped": bool(sure), "wrong_stop": bool(sure and not ok),
-                        "final_correct": bool(c["correct"][-1])}
+                        "final_correct": bool(c.correct[-1])}
         if any(v != logs["off"] for v in logs.values()):
             raise RuntimeError(f"trial {t + 1}: the arms touched different presses")
         for platform, video in logs["off"]:

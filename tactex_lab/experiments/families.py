@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from tactex_ros.core import calibration as cal
-from tactex_ros.core.config import preset
+from tactex_ros.core.config import SHIPPED_STOP, preset
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.match import softmax
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
@@ -132,10 +132,10 @@ def paired(a: list[cal.Trajectory], beta_a: float, b: list[cal.Trajectory], beta
 
 
 def choose_separation(train: list[list[cal.Trajectory]], beta: float) -> float:
-    """The smallest s0 of ``SEPARATIONS`` whose wrong stops at 0.9 stay <= ``GOAL`` on every
+    """The smallest s0 of ``SEPARATIONS`` whose wrong stops at the shipped stop stay <= ``GOAL`` on every
     training family (the largest tried when none does)."""
     for s0 in SEPARATIONS:
-        if all(np.mean((o := outcome(t, beta, 0.9, s0))["sure"] & ~o["correct"]) <= GOAL + 1e-12
+        if all(np.mean((o := outcome(t, beta, SHIPPED_STOP, s0))["sure"] & ~o["correct"]) <= GOAL + 1e-12
                for t in train):
             return s0
     return SEPARATIONS[-1]
@@ -191,7 +191,8 @@ def run_families(args: argparse.Namespace) -> dict:
         betas = {"default": beta0,
                  "pooled": cal.fit_temperature(pool, "stop", THETAS),
                  "worst": cal.fit_temperature_families(train, "stop", THETAS),
-                 "worst_target": cal.fit_temperature_families(train, "target", (0.9,), GOAL)}
+                 "worst_target": cal.fit_temperature_families(train, "target", (SHIPPED_STOP,),
+                                                                GOAL)}
         runs = {"default": base[held]}
         res: dict = {"trained_on": [n for n in names if n != held], "settings": {}}
         for label, beta in betas.items():
@@ -235,24 +236,27 @@ def _pct(x: float) -> str:
 def print_tables(summary: dict) -> None:
     """Markdown tables of the summary (docs/research/calibration_families.md)."""
     print("| held out | setting | temperature | " + " | ".join(
-        f"wrong stops {th} [95 %]" for th in THETAS) + " | acc / touches at 0.9 | ECE decisions"
-        " / stops (0.9) | McNemar p, Wilcoxon p vs default (0.9) |")
+        f"wrong stops {th} [95 %]" for th in THETAS) + f" | acc / touches at {SHIPPED_STOP:g} | "
+        f"ECE decisions / stops ({SHIPPED_STOP:g}) | McNemar p, Wilcoxon p vs default "
+        f"({SHIPPED_STOP:g}) |")
     print("|" + " --- |" * (6 + len(THETAS) - 1 + 1))
     for held, r in summary["held_out"].items():
         for label, s in r["settings"].items():
             w = " | ".join(f"{_pct(s[str(th)]['wrong_stop'])} [{_pct(s[str(th)]['wrong_stop_ci'][0])}"
                            f", {_pct(s[str(th)]['wrong_stop_ci'][1])}]" for th in THETAS)
-            v = s["vs_default"]["0.9"]
+            at = s[str(SHIPPED_STOP)]
+            v = s["vs_default"][str(SHIPPED_STOP)]
             print(f"| {held} | {label} | {s['temperature']:.4g} | {w} | "
-                  f"{s['0.9']['accuracy']:.3f} / {s['0.9']['touches']:.2f} | "
-                  f"{s['ece_decisions']:.3f} / {s['0.9']['ece_stops']:.3f} | "
+                  f"{at['accuracy']:.3f} / {at['touches']:.2f} | "
+                  f"{s['ece_decisions']:.3f} / {at['ece_stops']:.3f} | "
                   f"{v['mcnemar_p']:.2g}, {v['wilcoxon_p']:.2g} |")
     print()
-    print("| held out | s0 | wrong stops 0.9 [95 %] | not sure | acc (all / sure) | touches |")
+    print(f"| held out | s0 | wrong stops {SHIPPED_STOP:g} [95 %] | not sure | acc (all / sure) "
+          "| touches |")
     print("| --- | --- | --- | --- | --- | --- |")
     for held, r in summary["held_out"].items():
         for s0, s in r["separation"]["sweep"].items():
-            x = s["0.9"]
+            x = s[str(SHIPPED_STOP)]
             mark = " (chosen)" if float(s0) == r["separation"]["chosen"] else ""
             print(f"| {held} | {s0}{mark} | {_pct(x['wrong_stop'])} [{_pct(x['wrong_stop_ci'][0])}"
                   f", {_pct(x['wrong_stop_ci'][1])}] | {_pct(x['not_sure'])} | "

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -85,9 +86,10 @@ def needs_frames(cfg) -> bool:
 
 
 def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], seed: int,
-              budget: int) -> dict:
-    """One scene under one ``parse_setting`` tuple: the belief curve (``curves.curve``) plus
-    ``cpu`` (cumulative learner CPU seconds at each decision), ``escalations`` and ``notes``."""
+              budget: int) -> real_curves.BeliefCurve:
+    """One scene under one ``parse_setting`` tuple: the belief curve (``curves.curve``) with
+    ``cpu`` (cumulative learner CPU seconds at each decision), ``escalations``, ``notes`` and
+    ``models``."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
     label, pre, strategy, over = setting
@@ -107,30 +109,25 @@ def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], see
 
     out = run_trial(spec, ReplayTrial(src, plat, seed), truth=truth, on_round=on_round)
     decisions = out.rounds + [out.final]
-    c = real_curves.curve(decisions, truth)
     d = out.to_dict()
-    c.update(classes=plat, cpu=cpu, escalations=d["escalations"], notes=d["notes"],
-             models=[r.model for r in decisions])
-    return c
+    return replace(real_curves.curve(decisions, truth, classes=plat), cpu=tuple(cpu),
+                   escalations=tuple(d["escalations"]), notes=tuple(d["notes"]),
+                   models=tuple(r.model for r in decisions))
 
 
-def cpu_at_stop(c: dict, theta: float) -> float:
-    """Learner CPU seconds of the trial until it stops at ``theta`` (``curves.at_stop``)."""
-    for i, conf in enumerate(c["conf"]):
-        if conf >= theta:
-            return c["cpu"][i]
-    return c["cpu"][-1]
+def cpu_at_stop(c: real_curves.BeliefCurve, theta: float) -> float:
+    """Learner CPU seconds of the trial until it stops at ``theta`` (``curves.stop_index``)."""
+    i = real_curves.stop_index(c, theta)
+    return c.cpu[-1 if i is None else i]
 
 
-def rungs_at_stop(c: dict, theta: float) -> list[str]:
+def rungs_at_stop(c: real_curves.BeliefCurve, theta: float) -> list[str]:
     """The models a trial used until it stops at ``theta``."""
-    for i, conf in enumerate(c["conf"]):
-        if conf >= theta:
-            return c["models"][:i + 1]
-    return c["models"]
+    i = real_curves.stop_index(c, theta)
+    return list(c.models if i is None else c.models[:i + 1])
 
 
-def ladder_summary(curves: dict[str, list[dict]], thresholds: list[float],
+def ladder_summary(curves: dict[str, list[real_curves.BeliefCurve]], thresholds: list[float],
                    reference: str) -> dict:
     """Per setting and threshold: CPU seconds per trial (mean, median), paired Wilcoxon on CPU
     against ``reference``, the share of scenes whose trial reached each model, and the
@@ -151,11 +148,11 @@ def ladder_summary(curves: dict[str, list[dict]], thresholds: list[float],
                             "reached": {m: n / len(cs) for m, n in sorted(reached.items())}}
         reasons: dict[str, int] = {}
         for c in cs:
-            for e in c["escalations"]:
+            for e in c.escalations:
                 key = e["reason"].split(":")[1].strip() if ":" in e["reason"] else e["reason"]
                 reasons[f"{e['model']}: {key}"] = reasons.get(f"{e['model']}: {key}", 0) + 1
         out[lab] = {"thresholds": row, "escalation_reasons": reasons,
-                    "notes": sorted({n for c in cs for n in c["notes"]})}
+                    "notes": sorted({n for c in cs for n in c.notes})}
     return out
 
 
@@ -174,7 +171,7 @@ def run_ladder(args: argparse.Namespace) -> dict:
     scenes = real_curves.draw_scenes(classes, args.scenes, args.comparisons, args.seed)
     thresholds = sorted(args.thresholds or THRESHOLDS)
     out = results_dir(args.out, "ladder", {k: v for k, v in vars(args).items() if k != "func"})
-    curves: dict[str, list[dict]] = {lab: [] for lab in labels}
+    curves: dict[str, list[real_curves.BeliefCurve]] = {lab: [] for lab in labels}
     for i, plat in enumerate(scenes):
         for s in settings:
             curves[s[0]].append(scene_run(s, cache, plat, args.seed + i, args.budget))
@@ -182,7 +179,7 @@ def run_ladder(args: argparse.Namespace) -> dict:
             print(f"scene {i + 1}/{len(scenes)}: " + "  ".join(
                 f"{lab} "
                 f"{'ok' if real_curves.at_stop(curves[lab][-1], SHIPPED_STOP)[0] else 'x'} "
-                f"{curves[lab][-1]['cpu'][-1]:.1f}s" for lab in labels), flush=True)
+                f"{curves[lab][-1].cpu[-1]:.1f}s" for lab in labels), flush=True)
     budgets = tuple(k for k in (0, 1, 3, 5, 10) if k <= args.budget)
     ref = labels[0]
     summary = {"test": args.test, "representation": args.representation,

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import TrialConfig
 from tactex_ros.core.engine import training_of
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
@@ -89,13 +90,12 @@ THESIS_LABEL = "seed_faithful"
 # ------------------------------------------------------------------------------ small helpers
 def job_key(job: TrialJob) -> str:
     """Content hash of a job with its learner settings resolved (a preset change changes it)."""
-    import dataclasses
     import hashlib
     import json
 
     from tactex_ros.core.config import preset
     cfg = preset(job.preset, **job.overrides).model_dump()   # a learner's own fields only
-    d = dataclasses.asdict(job)
+    d = job.to_dict()
     d.pop("tags")
     blob = json.dumps({"job": d, "cfg": cfg}, sort_keys=True, default=str)
     return hashlib.sha1(blob.encode()).hexdigest()[:20]
@@ -198,7 +198,9 @@ def _grid_jobs(args, grid: list[tuple], scenes: list[tuple], heavy_n: int,
                 if heavy and (pos >= heavy_n or seed not in heavy_seeds):
                     continue
                 jobs.append(TrialJob(source=args.source, seed=1000 * seed + pos,
-                                     strategy=args.strategy, rounds=args.rounds, preset=pre,
+                                     trial=TrialConfig(strategy=args.strategy,
+                                                       rounds=args.rounds, stop_confidence=0.0),
+                                     preset=pre,
                                      overrides={**over, **args.overrides},
                                      platform_classes=classes,
                                      trial_id=tid, catch_errors=True,
@@ -271,8 +273,9 @@ def run_grid(args, out: Path) -> dict:
 def run_faithful(args, out: Path) -> dict:
     settings = [(THESIS_LABEL, "seed_faithful", dict(args.overrides)),
                 ("default", "cnn", dict(args.overrides))]
-    jobs = [TrialJob(source=args.faithful_source, seed=s, strategy="variance",
-                     rounds=args.faithful_rounds, preset=pre, overrides=over,
+    jobs = [TrialJob(source=args.faithful_source, seed=s,
+                     trial=TrialConfig(strategy="variance", rounds=args.faithful_rounds,
+                                       stop_confidence=0.0), preset=pre, overrides=over,
                      comparisons=4, trial_id=f"s{s}", catch_errors=True,
                      tags={"setting": label, "seed": s})
             for s in range(args.faithful_trials) for label, pre, over in settings]
@@ -318,8 +321,9 @@ def run_touches(args, out: Path) -> dict:
     scenes = _trial_scenes(args.trials_file, args.source)
     if args.max_trials:
         scenes = scenes[:args.max_trials]
-    jobs = [TrialJob(source=args.source, seed=1000 * seed + pos, strategy=s,
-                     rounds=args.touch_rounds, preset="cnn", overrides=dict(args.overrides),
+    jobs = [TrialJob(source=args.source, seed=1000 * seed + pos,
+                     trial=TrialConfig(strategy=s, rounds=args.touch_rounds, stop_confidence=0.0),
+                     preset="cnn", overrides=dict(args.overrides),
                      platform_classes=classes, trial_id=tid, catch_errors=True,
                      tags={"setting": "default", "seed": seed})
             for seed in args.touch_seeds for pos, (tid, classes) in enumerate(scenes)

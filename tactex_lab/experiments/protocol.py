@@ -16,8 +16,8 @@ from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import write_json
-from tactex_lab.experiments.curves import (at_budget, at_stop, draw_scenes, paired_at_budgets,
-                                           paired_at_thresholds)
+from tactex_lab.experiments.curves import (BeliefCurve, at_budget, at_stop, draw_scenes,
+                                           paired_at_budgets, paired_at_thresholds)
 
 DEFAULT_THRESHOLDS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 1.01)
 
@@ -30,7 +30,7 @@ def class_folds(classes: list[str], k: int, seed: int) -> list[list[str]]:
     return [sorted(order[i::k]) for i in range(k)]
 
 
-def score_pairs(curves: dict[str, list[dict]], thresholds: list[float]) -> list[dict]:
+def score_pairs(curves: dict[str, list[BeliefCurve]], thresholds: list[float]) -> list[dict]:
     """Every (setting, theta): accuracy at the stop, mean touches, wrong-stop rate, n."""
     rows = []
     for label, cs in curves.items():
@@ -56,13 +56,13 @@ def choose(rows: list[dict], target: float, settings: list[str] | None = None) -
     return max(ok, key=lambda r: (r["accuracy"], -r["touches"]))
 
 
-def calibration(cs: list[dict], bins: int = 10) -> dict:
+def calibration(cs: list[BeliefCurve], bins: int = 10) -> dict:
     """How far the belief's top probability is from being right, over every decision of the
     curves ``cs``: expected calibration error (``bins`` equal-width bins of the confidence in
     [0, 1], weighted by decisions), mean confidence, accuracy, and the accuracy of decisions
-    with confidence >= 0.9 (``right_at_0.9``, None without such decisions)."""
-    conf = np.array([x for c in cs for x in c["conf"]], dtype=np.float64)
-    ok = np.array([x for c in cs for x in c["correct"]], dtype=np.float64)
+    with confidence >= ``SHIPPED_STOP`` (``right_at_0.9``, None without such decisions)."""
+    conf = np.array([x for c in cs for x in c.conf], dtype=np.float64)
+    ok = np.array([x for c in cs for x in c.correct], dtype=np.float64)
     if conf.size == 0:
         return {"decisions": 0}
     idx = np.minimum((conf * bins).astype(int), bins - 1)
@@ -71,11 +71,11 @@ def calibration(cs: list[dict], bins: int = 10) -> dict:
     hi = conf >= SHIPPED_STOP
     return {"decisions": int(conf.size), "ece": float(ece), "mean_confidence": float(conf.mean()),
             "accuracy": float(ok.mean()),
-            "right_at_0.9": float(ok[hi].mean()) if hi.any() else None,
-            "share_at_0.9": float(hi.mean())}
+            f"right_at_{SHIPPED_STOP:g}": float(ok[hi].mean()) if hi.any() else None,
+            f"share_at_{SHIPPED_STOP:g}": float(hi.mean())}
 
 
-def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
+def summarise(curves: dict[str, list[BeliefCurve]], budget: int) -> dict:
     """Per setting: accuracy after k touches with intervals, decision time, believed share."""
     out = {}
     for label, cs in curves.items():
@@ -85,13 +85,13 @@ def summarise(curves: dict[str, list[dict]], budget: int) -> dict:
             s = sum(at_budget(c, k) for c in cs)
             lo, hi = wilson(s, n)
             acc.append({"touches": k, "accuracy": s / n, "ci95": [lo, hi]})
-        dec = [d for c in cs for d in c["decision_s"]]
-        touched = sum(c["touched"] for c in cs)
+        dec = [d for c in cs for d in c.decision_s]
+        touched = sum(c.touched for c in cs)
         out[label] = {"scenes": n, "accuracy_vs_touches": acc,
                       "decision_s_median": statistics.median(dec) if dec else None,
-                      "believed_share": (sum(c["believed"] for c in cs) / touched
+                      "believed_share": (sum(c.believed for c in cs) / touched
                                          if touched else None),
-                      "errors": sum(1 for c in cs if c["error"]),
+                      "errors": sum(1 for c in cs if c.error),
                       "calibration": calibration(cs)}
     return out
 
@@ -108,7 +108,7 @@ def protocol(classes: list[str], labels: list[str], runner, args: argparse.Names
     unknown = [a for a in against if a not in labels]
     if unknown:
         raise InputError(f"--paired-against {unknown}: not a --setting label; one of {labels}")
-    report_curves: dict[str, list[dict]] = {lab: [] for lab in labels}
+    report_curves: dict[str, list[BeliefCurve]] = {lab: [] for lab in labels}
     fold_info = []
     for k, fold in enumerate(folds):
         if args.folds >= 2 and not report_only:
@@ -148,13 +148,13 @@ def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Na
                   ) -> None:
     """runs.json (the report curves), summary.json, the charts and the printed table."""
     curves = summary.pop("report_curves")
-    write_json(out / "runs.json", curves)
+    write_json(out / "runs.json", {lab: [c.to_json() for c in cs] for lab, cs in curves.items()})
     write_json(out / "summary.json", summary)
     _charts(out, summary, curves, labels, args.budget, getattr(args, "press_s", PRESS_S))
     _print(summary, labels, args)
 
 
-def _report(curves: dict[str, list[dict]], best: dict | None,
+def _report(curves: dict[str, list[BeliefCurve]], best: dict | None,
             per_setting: dict[str, dict]) -> dict:
     """Report-scene outcomes (per scene) of each setting at its chosen theta."""
     out = {}
@@ -188,13 +188,13 @@ def _pool_chosen(fold_info: list[dict], labels: list[str]) -> dict:
     return out
 
 
-def band_rows(curves: dict[str, list[dict]], budget: int
+def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
               ) -> dict[str, tuple[np.ndarray, float]]:
     """{label: (right after k = 0..budget touches (scenes, budget + 1), median decision time
     [s] over every decision)}: the input of ``charts.touches_and_time``."""
     rows = {}
     for lab, cs in curves.items():
-        dec = [d for c in cs for d in c["decision_s"]]
+        dec = [d for c in cs for d in c.decision_s]
         rows[lab] = (np.array([[at_budget(c, k) for k in range(budget + 1)] for c in cs],
                               dtype=bool).reshape(-1, budget + 1),
                      statistics.median(dec) if dec else 0.0)
@@ -207,7 +207,7 @@ def band_rows(curves: dict[str, list[dict]], budget: int
 PRESS_S = 15.5
 
 
-def _charts(out: Path, summary: dict, curves: dict[str, list[dict]], labels: list[str],
+def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],
             budget: int, press_s: float = PRESS_S) -> None:
     """accuracy_vs_touches.png and accuracy_vs_time.png (``charts.touches_and_time``: Wilson
     bands, scenes per line; ``press_s`` seconds per press) from the report ``curves``;

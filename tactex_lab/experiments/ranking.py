@@ -56,7 +56,7 @@ def run_ranking(real_dir: str, settings: list[str] | tuple[str, ...], scenes: in
         curves = belief_curves(draw_scenes(classes, scenes, comparisons, seed),
                                parsed, spec, seed, budget, f"{side}-",
                                Backend("joblib", workers))
-        errors = sum(1 for cs in curves.values() for c in cs if c["error"])
+        errors = sum(1 for cs in curves.values() for c in cs if c.error)
         at_b = np.array([[at_budget(c, budget) for c in curves[lab]] for lab in labels], float)
         mean_b = np.array([[np.mean([at_budget(c, k) for k in range(budget + 1)])
                             for c in curves[lab]] for lab in labels], float)

@@ -43,7 +43,7 @@ import argparse
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import results_dir
-from tactex_lab.experiments.curves import belief_curves, parse_setting
+from tactex_lab.experiments.curves import BeliefCurve, belief_curves, parse_setting
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 from tactex_lab.experiments.runner import add_runner_args, backend_of
 
@@ -51,7 +51,7 @@ DEFAULT_SETTINGS = ("default=default", "random=default:trial.strategy=random",
                     "variance=default:trial.strategy=variance")
 
 
-def _run(scenes, settings, args, tag) -> dict[str, list[dict]]:
+def _run(scenes, settings, args, tag) -> dict[str, list[BeliefCurve]]:
     return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
                          backend_of(args), args.threads, args.quiet)
 

@@ -44,31 +44,32 @@ def run_sessions(real_dir: str, settings: list[str], scenes: int, comparisons: i
     points = sorted({0, 1, 3, budget})
     res: dict[str, Any] = {"scenes": scenes, "comparisons": comparisons, "budget": budget,
                            "seed": seed, "settings": {}}
+    at = f"at_stop_{SHIPPED_STOP:g}"       # the shipped stop, in the summary's keys
     for lab in labels:
         both = {side: curves[side][lab] for side in curves}
         row: dict[str, Any] = {}
         for side, cs in both.items():
             row[side] = {"accuracy_at": {str(k): float(np.mean([at_budget(c, k) for c in cs]))
                                          for k in points},
-                         "accuracy_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[0]
-                                                                for c in cs])),
-                         "touches_at_stop_0.9": float(np.mean([at_stop(c, SHIPPED_STOP)[1]
-                                                               for c in cs])),
+                         f"accuracy_{at}": float(np.mean([at_stop(c, SHIPPED_STOP)[0]
+                                                          for c in cs])),
+                         f"touches_{at}": float(np.mean([at_stop(c, SHIPPED_STOP)[1]
+                                                         for c in cs])),
                          "correct_at_budget": [at_budget(c, budget) for c in cs],
-                         "failed_trials": sum(1 for c in cs if c["error"])}
+                         "failed_trials": sum(1 for c in cs if c.error)}
         row["paired_at_budgets"] = paired_at_budgets(both, "recorded",
                                                      tuple(points))["one_session"]
-        row["paired_at_stop_0.9"] = paired_at_thresholds(both, "recorded",
-                                                         [SHIPPED_STOP])["one_session"]
+        row[f"paired_{at}"] = paired_at_thresholds(both, "recorded",
+                                                   [SHIPPED_STOP])["one_session"]
         res["settings"][lab] = row
     write_json(d / "summary.json", res)
     for lab, row in res["settings"].items():
         r, o = row["recorded"], row["one_session"]
         pb = row["paired_at_budgets"][str(budget)]["p"]
         print(f"{lab:>16}: +{budget} recorded {r['accuracy_at'][str(budget)]:.3f} one-session "
-              f"{o['accuracy_at'][str(budget)]:.3f} (McNemar p {pb:.3g}); stop 0.9 "
-              f"{r['accuracy_at_stop_0.9']:.3f} / {o['accuracy_at_stop_0.9']:.3f} with "
-              f"{r['touches_at_stop_0.9']:.2f} / {o['touches_at_stop_0.9']:.2f} touches")
+              f"{o['accuracy_at'][str(budget)]:.3f} (McNemar p {pb:.3g}); stop {SHIPPED_STOP:g} "
+              f"{r[f'accuracy_{at}']:.3f} / {o[f'accuracy_{at}']:.3f} with "
+              f"{r[f'touches_{at}']:.2f} / {o[f'touches_{at}']:.2f} touches")
     print(f"wrote {d}")
     return res
 

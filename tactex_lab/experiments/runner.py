@@ -14,7 +14,8 @@ item order, with one progress display (``common.progress``). ``Backend`` says wh
 
 A ``TrialJob`` is everything one trial needs as plain data (so it pickles into a worker):
 the source spec (``sim[:q]`` or ``replay:DIR``), the scene (explicit platform classes, or drawn
-from the seed), learner preset + overrides, trial settings, the seed, and an optional
+from the seed), learner preset + overrides, the product's trial settings (``TrialConfig``, no
+defaults of the job's own), the seed, and an optional
 ``perturb`` dict that experiments use to degrade touches (see ``apply_perturbation``).
 ``run_jobs`` returns one ``TrialResult`` per job in job order: the job, its scene, the engine's
 typed ``TrialOutcome`` (platform indices: 0 = the reference, 1..C the comparisons) or, when the
@@ -28,6 +29,7 @@ comparable.
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import functools
 import os
@@ -37,8 +39,8 @@ from typing import Any, Callable, Iterator, Sequence, TypeVar
 
 import numpy as np
 
-from tactex_ros.core.engine import (RoundRecord, TrialConfig, TrialEngine, TrialOutcome, TrialSpec,
-                                    default_platform_ids, run_trial)
+from tactex_ros.core.config import TrialConfig
+from tactex_ros.core.engine import RoundRecord, TrialOutcome, TrialSpec, default_platform_ids
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch, as_touch
 from tactex_ros.sources.perturb import noise_image
@@ -146,15 +148,22 @@ def _chunks(fn: Callable[[T], R], items: list[T], size: int) -> Iterator[R]:
         yield from joblib.Parallel()(joblib.delayed(fn)(it) for it in items[i:i + size])
 
 
+#: The trial settings a job's file form names always, in this order (the rest of
+#: ``TrialConfig`` only when it differs from the product's default, so older files stay as they were).
+JOB_TRIAL_FIELDS = ("strategy", "rounds", "max_touches", "stop_confidence")
+
+
 @dataclass
 class TrialJob:
+    """One trial as plain data. ``trial`` is the product's ``TrialConfig`` and ``preset`` a
+    learner preset of ``core/config.PRESETS`` (with ``overrides`` on top): a job has no
+    trial defaults of its own, so an experiment that wants another than the shipped method
+    (e.g. variance touches, no stop) says so where it makes the job."""
+
     source: str                                   # "sim:0.5", "replay:/path"
     seed: int
-    strategy: str = "variance"
-    rounds: int = 20
-    max_touches: int = 0
-    stop_confidence: float = 0.0
-    preset: str = "cnn"
+    trial: TrialConfig
+    preset: str
     overrides: dict[str, Any] = field(default_factory=dict)
     platform_classes: list[str] | None = None     # [reference, comp 1..C]; None = draw
     comparisons: int = 4                          # used when drawing the scene
@@ -163,6 +172,21 @@ class TrialJob:
     tags: dict[str, Any] = field(default_factory=dict)   # free labels carried to the result
     catch_errors: bool = False    # a trial that raises gives a result with "error" (not a crash)
     no_contact_reference: bool = True   # give the engine a no-contact frame when the source can
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file form (results, caches): the job's fields with its trial settings in their
+        place, ``JOB_TRIAL_FIELDS`` always and any other ``TrialConfig`` field that is not the
+        default."""
+        given, shipped = self.trial.model_dump(), TrialConfig().model_dump()
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            if f.name == "trial":
+                out.update({k: given[k] for k in JOB_TRIAL_FIELDS})
+                out.update({k: v for k, v in given.items()
+                            if k not in JOB_TRIAL_FIELDS and v != shipped[k]})
+            else:
+                out[f.name] = copy.deepcopy(getattr(self, f.name))
+        return out
 
 
 _SOURCES: dict[str, TouchSource] = {}
@@ -264,7 +288,7 @@ class TrialResult:
 
     def to_dict(self) -> dict:
         """The JSON form (platform names) of result files and caches."""
-        job = dataclasses.asdict(self.job)
+        job = self.job.to_dict()
         decision_s = [r.decision_s for r in self.decisions]
         if self.outcome is None:
             return {"correct": False, "prediction": None,
@@ -282,9 +306,9 @@ class TrialResult:
         return out
 
 
-def run_job(job: TrialJob, threads: int = 1,
-            engine_hook: Callable[[TrialEngine], None] | None = None) -> TrialResult:
-    """Run one trial; returns its ``TrialResult``."""
+def run_job(job: TrialJob, threads: int = 1) -> TrialResult:
+    """Run one trial; returns its ``TrialResult`` (a failed trial's: the decisions its engine
+    recorded before it failed, when ``job.catch_errors``)."""
     import torch
 
     from tactex_ros.core.config import preset
@@ -293,17 +317,13 @@ def run_job(job: TrialJob, threads: int = 1,
     classes, truth = scene(job)
     n = len(classes) - 1
     cfg = preset(job.preset, **job.overrides)
-    tcfg = TrialConfig(strategy=job.strategy, rounds=job.rounds, max_touches=job.max_touches,
-                       stop_confidence=job.stop_confidence)
     src = cached_source(job.source)
     no_contact = src.no_contact(job.seed) if job.no_contact_reference else None
-    spec = TrialSpec(n, cfg, tcfg, seed=job.seed, no_contact=no_contact)
+    spec = TrialSpec(n, cfg, job.trial, seed=job.seed, no_contact=no_contact)
     eng = spec.engine()
-    if engine_hook:
-        engine_hook(eng)
     t0 = time.perf_counter()
     try:
-        res = run_trial(spec, _touch_fn(job, classes), truth=truth, engine=eng)
+        res = eng.run(_touch_fn(job, classes), truth=truth)
     except (InputError, FloatingPointError, RuntimeError) as exc:
         if not job.catch_errors:
             raise

@@ -29,7 +29,8 @@ import numpy as np
 import torch
 
 from tactex_ros.core.config import preset
-from tactex_ros.core.engine import TrialConfig, TrialSpec, run_trial
+from tactex_ros.core.config import TrialConfig
+from tactex_ros.core.engine import TrialSpec
 from tactex_ros.core.errors import InputError
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_lab.cnn.saliency import display_image, grad_cam, input_x_gradient
@@ -152,7 +153,7 @@ def run_explore(args, pool: Pool, kind: str, out: Path) -> dict:
                           "ixg_concentration_top10": concentration(ixg),
                           "reference_probs": rec.probs, "next": rec.platform})
         maps.append((rec.round, imgs, ixg, cam, probs))
-    res = run_trial(spec, touch, truth=comps.index(ref_cls) + 1, on_round=on_round, engine=eng)
+    res = eng.run(touch, truth=comps.index(ref_cls) + 1, on_round=on_round)   # reads its learner
     for r_i in (0, len(maps) - 1):
         rnd, imgs, ixg, cam, probs = maps[r_i]
         charts.saliency_rows(out / f"explore_{kind}_round{rnd}.png", comps, imgs, ixg, cam, probs,

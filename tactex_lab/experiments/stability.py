@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from tactex_ros.core.config import TrialConfig
 from tactex_ros.core.engine import training_of
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
@@ -154,8 +155,10 @@ def build_jobs(args) -> list[TrialJob]:
         if not guards:
             over["guards"] = False
         for seed in args.seeds:
-            jobs.append(TrialJob(source=c["source"], seed=seed, strategy=strategy,
-                                 rounds=args.rounds, preset="cnn", overrides=over,
+            jobs.append(TrialJob(source=c["source"], seed=seed,
+                                 trial=TrialConfig(strategy=strategy, rounds=args.rounds,
+                                                   stop_confidence=0.0),
+                                 preset="cnn", overrides=over,
                                  platform_classes=None, comparisons=4,
                                  trial_id=f"{axis}={value:g}/s{seed}", perturb=c["perturb"],
                                  catch_errors=True,

@@ -86,14 +86,13 @@ def build_jobs(args: argparse.Namespace, scenes: list[list[str]]) -> list[TrialJ
     guard_over = learner_set(args.guard_set, "--guard-set")
     for label, kind, sev in conditions(args):
         method = "default" if label == GUARDED else label
-        tcfg = trial_preset(method)
         n = args.scenes if method == "default" else args.cnn_scenes
         rounds = args.budget if method == "default" else args.cnn_rounds
         over: dict[str, Any] = dict(guard_over) if label == GUARDED else {}
         for i, classes in enumerate(scenes[:n]):
             jobs.append(TrialJob(
-                source=args.source, seed=args.seed + i, rounds=rounds, preset=method,
-                strategy=tcfg.strategy, stop_confidence=tcfg.stop_confidence,
+                source=args.source, seed=args.seed + i, trial=trial_preset(method, rounds=rounds),
+                preset=method,
                 overrides=over, platform_classes=classes, comparisons=len(classes) - 1,
                 perturb={"touch": [kind, sev]} if kind != "clean" else {},
                 catch_errors=True, no_contact_reference=False, trial_id=f"{label}/{kind}={sev:g}/"

@@ -33,74 +33,80 @@ from __future__ import annotations
 import argparse
 import itertools
 import time
-from dataclasses import dataclass
-from functools import partial
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tactex_ros.core import calibration as belief_calibration
-from tactex_ros.core import representation
-from tactex_ros.core.config import SHIPPED_STOP, TrialConfig, preset
+from tactex_ros.core import preparation, representation
+from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.errors import InputError
+from tactex_ros.core.preparation import PrepareSettings
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.curves import curve
+from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
                                                 load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
+#: The lab's preparation where it differs from the product's (``PrepareSettings``'s defaults,
+#: what `tactex prepare` does): a setting prepares no metric unless it names one.
+LAB_PREPARE: dict[str, Any] = {"kind": "none"}
+PREPARE_KEYS = ("kind", "dims", "calibration", "shrink")
+
+
 @dataclass
 class Setting:
-    """One way to prepare: per-press feature, representation kind (``none`` = the descriptor as
-    is), output dims (lda), calibration method (``off`` = the config's temperature)."""
+    """One way to prepare: per-press feature (the lab's) and the product's preparation
+    settings (``core/preparation.PrepareSettings``, with ``LAB_PREPARE`` over its defaults)."""
     label: str
     feature: str = "frame"
-    kind: str = "none"
-    dims: int = 0
-    calibration: str = "off"
-    shrink: float = 1.0
+    prepare: PrepareSettings = field(default_factory=lambda: PrepareSettings(**LAB_PREPARE))
 
     @staticmethod
     def parse(text: str) -> "Setting":
-        """``label=key:value,...`` (keys feature, kind, dims, calibration, shrink)."""
+        """``label=key:value,...`` (keys feature and the preparation's kind, dims,
+        calibration, shrink)."""
         label, sep, rest = text.partition("=")
         if not sep or not label:
             raise InputError(f"--setting {text!r}: expected label=key:value,...")
         kw: dict[str, Any] = {}
         for item in filter(None, rest.split(",")):
             k, _, v = item.partition(":")
-            if k not in ("feature", "kind", "dims", "calibration", "shrink"):
+            if k not in ("feature",) + PREPARE_KEYS:
                 raise InputError(f"--setting {text!r}: unknown key {k!r}")
             kw[k] = int(v) if k == "dims" else float(v) if k == "shrink" else v
-        s = Setting(label, **kw)
-        if s.feature not in FEATURES:
+        feature = kw.pop("feature", "frame")
+        if feature not in FEATURES:
             raise InputError(f"--setting {text!r}: feature one of {', '.join(FEATURES)}")
-        return s
+        try:
+            prep = PrepareSettings(**{**LAB_PREPARE, **kw})
+        except InputError as exc:
+            raise InputError(f"--setting {text!r}: {exc}") from None
+        return Setting(label, feature, prep)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file form: label, feature and the preparation's kind, dims, calibration,
+        shrink."""
+        return {"label": self.label, "feature": self.feature,
+                **{k: getattr(self.prepare, k) for k in PREPARE_KEYS}}
 
 
 def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int = 0
-            ) -> representation.Representation | None:
-    """What ``tactex prepare`` builds from ``library`` for ``setting`` (None: nothing)."""
-    if setting.kind == "none" and setting.calibration == "off":
+                    ) -> representation.Representation | None:
+    """What ``tactex prepare`` builds from ``library`` for ``setting`` (``preparation.prepare``
+    with the shipped learner settings; None: nothing to prepare)."""
+    p = setting.prepare
+    if p.kind == "none" and p.calibration == "off":
         return None
-    fit = partial(representation.fit, shrink=setting.shrink, kind=setting.kind,
-                  dims=setting.dims)
-    rep = fit(library)
-    if setting.calibration != "off":
-        trajs = belief_calibration.trajectories(library, fit, preset("default"), seed=seed)
-        rep.temperature = belief_calibration.fit_temperature(
-            trajs, setting.calibration, *(((SHIPPED_STOP,), 0.03) if setting.calibration == "target"
-                                          else ()))
-        rep.calibration = belief_calibration.report(trajs, rep.temperature)
-    return rep
+    return preparation.prepare(library, p, preset("default"), seed=seed)
 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,
                  cache: dict[str, np.ndarray], scenes: list[list[str]], seed: int,
-                 budget: int) -> list[dict]:
+                 budget: int) -> list[BeliefCurve]:
     """Belief curves (``experiment real``'s ``curve``) of ``scenes`` on the cached test presses;
     scene i runs with seed ``seed + i``, as ``experiment real``."""
     from tactex_ros.core.engine import TrialSpec, run_trial
@@ -111,16 +117,9 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     out = []
     for i, plat in enumerate(scenes):
         truth = plat[1:].index(plat[0]) + 1
-        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i)
-        eng = spec.engine()
-        if rep is not None:
-            eng.learner.representation = rep
-            if np.isfinite(rep.temperature):
-                eng.learner.match.beta = rep.temperature
-        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth, engine=eng)
-        c = curve(res.rounds + [res.final], truth)
-        c["classes"] = plat
-        out.append(c)
+        spec = TrialSpec(len(plat) - 1, cfg, tcfg, seed=seed + i, representation=rep)
+        res = run_trial(spec, ReplayTrial(src, plat, seed + i), truth=truth)
+        out.append(curve(res.rounds + [res.final], truth, classes=plat))
     return out
 
 
@@ -173,12 +172,12 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
         t0 = time.perf_counter()
         reps[s.label] = prepare_setting(s, by_class(library, s.feature), seed=args.seed)
         r = reps[s.label]
-        prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": vars(s),
+        prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": s.to_dict(),
                              "dims": None if r is None else r.dims,
                              "temperature": None if r is None else r.temperature,
                              "calibration": None if r is None else r.calibration}
 
-    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[dict]]:
+    def runner(scenes: list[list[str]], tag: str) -> dict[str, list[BeliefCurve]]:
         return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget)
                 for s in settings}
 
@@ -236,7 +235,7 @@ def run_unseen(args: argparse.Namespace) -> dict:
         d.mkdir(parents=True, exist_ok=True)
         summary = run_direction(settings, caches[test], caches[lib], args)
         summary.update(test=getattr(args, test), library=getattr(args, lib),
-                       settings={s.label: vars(s) for s in settings})
+                       settings={s.label: s.to_dict() for s in settings})
         print(f"== test {getattr(args, test)}, library {getattr(args, lib)}")
         write_outputs(d, summary, labels, args)
         both[name] = summary

@@ -118,31 +118,19 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
 def cmd_prepare(args: argparse.Namespace) -> int:
     """Describe every press of the library, fit the representation, calibrate the belief's
     temperature on the library with classes left out (``core/calibration.py``), write .npz."""
-    from functools import partial
-
-    from ..core import calibration, representation
+    from ..core import representation
     from ..core.config import SHIPPED_STOP, preset
+    from ..core.preparation import PrepareSettings, prepare
     t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
     height_map = args.height_map == "on"
     for spec in args.library:
         desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed,
                                         height_map))
-    fit = partial(representation.fit, shrink=args.shrink, kind=args.kind, dims=args.dims)
-    rep = fit(desc)
-    if args.calibration != "off":
-        cfg = preset("default", descriptor_frames=args.frames,
-                     descriptor_height_map=height_map)
-        trajs = calibration.trajectories(desc, fit, cfg, folds=args.calibration_folds,
-                                         scenes=args.calibration_scenes,
-                                         budget=args.calibration_budget, seed=args.seed,
-                                         temperature0=args.calibration_start)
-        rep.temperature = calibration.fit_temperature(
-            trajs, args.calibration, *(((args.stop_at,), args.max_wrong)
-                                       if args.calibration == "target" else ()))
-        rep.calibration = dict(calibration.report(trajs, rep.temperature),
-                               method=args.calibration, folds=args.calibration_folds,
-                               budget=args.calibration_budget)
+    settings = PrepareSettings(**{name: getattr(args, name)
+                                  for name in PrepareSettings.model_fields})
+    cfg = preset("default", descriptor_frames=args.frames, descriptor_height_map=height_map)
+    rep = prepare(desc, settings, cfg, seed=args.seed)
     path = representation.save(rep, args.out)
     cal = (f"; belief temperature {rep.temperature:.4g} calibrated on {rep.calibration['trials']} "
            f"left-out trials (wrong stops at {SHIPPED_STOP:g}: "
@@ -213,7 +201,7 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                                         "library of presses of other materials")
     if not builds(command, "prepare"):
         return
-    from ..core.config import SHIPPED_STOP, DescriptorSettings
+    from ..core.config import DescriptorSettings
     pr.add_argument("--library", action="append", required=True,
                     help="replay:DIR of recorded presses, or sim (repeat to combine)")
     pr.add_argument("--frames", type=bounded(int, 1, 16), default=1,
@@ -225,33 +213,13 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                          "with the other setting)")
     pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
                     help="presses per simulated fabric, 1..10000")
-    pr.add_argument("--shrink", type=bounded(float, 1e-6, 1e6), default=1.0,
-                    help="ridge added to the within-class covariance (standardised units)")
-    pr.add_argument("--kind", choices=("none", "whiten", "lda"), default="whiten",
-                    help="the metric: whiten (within-class whitening; measured best, "
-                         "docs/research/unseen_materials.md), lda (Fisher directions of the library, "
-                         "--dims of them), none (descriptor as is; the file then only carries "
-                         "the calibrated temperature)")
-    pr.add_argument("--dims", type=bounded(int, 1, 128), default=24,
-                    help="output dimensions of --kind lda, below the descriptor's size (129 "
-                         "with the height map, 106 without)")
-    pr.add_argument("--calibration", choices=("stop", "target", "nll", "off"), default="off",
-                    help="belief temperature from left-out library trials: stop (largest whose "
-                         "wrong stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= "
-                         "--max-wrong at --stop-at), nll, off (default: the config's "
-                         "temperature; the calibrated ones stopped wrong more often on unseen "
-                         "classes, docs/research/unseen_materials.md)")
-    pr.add_argument("--stop-at", type=bounded(float, 0.5, 0.9999), default=SHIPPED_STOP,
-                    help="the trials' stop threshold, for --calibration target")
-    pr.add_argument("--max-wrong", type=bounded(float, 0.0, 0.5), default=0.03,
-                    help="wrong-stop rate allowed at --stop-at, for --calibration target")
-    pr.add_argument("--calibration-folds", type=bounded(int, 2, 20), default=3)
-    pr.add_argument("--calibration-scenes", type=bounded(int, 1, 10000), default=40,
-                    help="left-out trials per fold")
-    pr.add_argument("--calibration-budget", type=bounded(int, 1, 100), default=10,
-                    help="touches after the baseline per left-out trial")
-    pr.add_argument("--calibration-start", type=bounded(float, 1e-4, 10.0), default=None,
-                    help="temperature the left-out trials run with (default: the config's)")
+    from ..core.preparation import PrepareSettings
+    from ..core.schema import fields
+    for spec in fields(PrepareSettings):         # the one preparation schema: its defaults
+        kind = float if spec.kind not in (int, float, str) else spec.kind
+        pr.add_argument("--" + spec.name.replace("_", "-"), default=spec.default,
+                        help=spec.description, choices=spec.choices or None,
+                        type=bounded(kind, spec.lo, spec.hi) if spec.lo is not None else kind)
     pr.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
     pr.add_argument("--out", required=True, help="representation file to write (.npz)")
     pr.set_defaults(func=cmd_prepare)

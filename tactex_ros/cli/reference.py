@@ -255,14 +255,14 @@ def declared_plugins(group: str) -> list[tuple[str, str]]:
     return sorted((n.strip(), v.strip()) for n, v in pairs)
 
 
-def lab_missing() -> str | None:
-    """Why the lab's page cannot be generated in this install (a product install without the
-    lab's requirements: ``make setup PRODUCT=1``), or None when it can."""
+def lab_parser_or_missing() -> tuple[argparse.ArgumentParser | None, str | None]:
+    """(the lab's parser, None), built once (:func:`lab_parser`), or (None, why the lab's page
+    cannot be generated in this install: a product install without the lab's requirements,
+    ``make setup PRODUCT=1``)."""
     try:
-        lab_parser()
+        return lab_parser(), None
     except ModuleNotFoundError as exc:
-        return (f"the lab's commands need {exc.name!r}, not installed (requirements-lab.txt)")
-    return None
+        return None, f"the lab's commands need {exc.name!r}, not installed (requirements-lab.txt)"
 
 
 def lab_parser() -> argparse.ArgumentParser:
@@ -370,8 +370,9 @@ def settings_files() -> list[str]:
 
 # --- the page ------------------------------------------------------------------------------
 
-def render_lab() -> str:
-    """The whole of docs/reference_lab.md: the lab's learners and commands."""
+def render_lab(parser: argparse.ArgumentParser | None = None) -> str:
+    """The whole of docs/reference_lab.md: the lab's learners and commands (``parser``: the
+    lab's parser when the caller has built it, else :func:`lab_parser`)."""
     from ..core.plugins import COMMANDS, LEARNERS
     from .main import build_parser
     product = set(command_sections(build_parser(plugins=False)))
@@ -385,7 +386,7 @@ def render_lab() -> str:
                                          for n, v in declared_plugins(LEARNERS)]) + [""]
     lines += [f"## Commands (entry point group `{COMMANDS}`)", "",
               f"`tactex <command> ...` (`tactex_lab/cli/`). {EXIT_STATUS}", ""]
-    for path, section in command_sections(lab_parser()).items():
+    for path, section in command_sections(parser or lab_parser()).items():
         if path not in product:
             lines += section
     while lines and lines[-1] == "":
@@ -417,9 +418,9 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     out = Path(args.out)
     pages = [(render(), out)]
-    missing = lab_missing()
-    if missing is None:
-        pages.append((render_lab(), out.parent / LAB_OUT))
+    lab, missing = lab_parser_or_missing()
+    if lab is not None:
+        pages.append((render_lab(lab), out.parent / LAB_OUT))
     else:
         print(f"{out.parent / LAB_OUT} left as it is: {missing}", file=sys.stderr)
     if args.check:

@@ -98,7 +98,7 @@ def trajectories(presses: dict[str, np.ndarray],
     representation's, else ``cfg.match_temperature`` scaled by D / k: the log evidence sums
     over the k dimensions). ``fit_rep`` None: the descriptors as given, no representation (the
     shipped default; its temperature ``cfg.match_temperature``)."""
-    from .engine import TrialSpec, run_trial
+    from .engine import TrialSpec
     classes = sorted(c for c, x in presses.items() if len(x) >= 2)
     if folds < 2:
         raise InputError(f"calibration needs >= 2 class folds, got {folds}")
@@ -119,10 +119,8 @@ def trajectories(presses: dict[str, np.ndarray],
         rng = np.random.default_rng([seed, 53, k])
         for s in range(scenes):
             plat, truth, touch = _scene(held, presses, comparisons, rng)
-            spec = TrialSpec(comparisons, cfg, tcfg, seed=seed * 1000 + s)
-            eng = spec.engine()
-            eng.learner.representation = rep
-            eng.learner.match.beta = float(beta)
+            eng = TrialSpec(comparisons, cfg, tcfg, seed=seed * 1000 + s, representation=rep,
+                            temperature=float(beta)).engine()
             ev, extra, sep = [], [], []
 
             def keep(rec, eng=eng) -> None:
@@ -130,7 +128,7 @@ def trajectories(presses: dict[str, np.ndarray],
                 extra.append(eng.total_touches - (comparisons + 1))
                 sep.append(eng.learner.match.separation())
 
-            run_trial(spec, touch, truth=truth, on_round=keep, engine=eng)
+            eng.run(touch, truth=truth, on_round=keep)        # keep reads its learner
             out.append(Trajectory(np.stack(ev), truth - 1, np.array(extra), np.array(sep)))
     return out
 

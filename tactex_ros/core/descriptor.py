@@ -54,19 +54,35 @@ class DescriptorLearner:
     def __init__(self, num_classes: int, cfg: DescriptorSettings, seed: int = 0) -> None:
         self.cfg = validate(cfg)
         self.num_classes = num_classes
-        self.representation: Representation | None = (
-            _load_representation(cfg.representation) if cfg.representation else None)
-        rep = self.representation
+        rep = _load_representation(cfg.representation) if cfg.representation else None
         if rep is not None:
             rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}")
-        temperature = (rep.temperature if rep is not None and cfg.representation_temperature
-                       and np.isfinite(rep.temperature) else cfg.match_temperature)
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
-                                temperature, scene_units=cfg.match_units == "scene")
+                                cfg.match_temperature, scene_units=cfg.match_units == "scene")
+        self.representation: Representation | None = None
+        self.use_representation(rep)
         self._rng = np.random.default_rng([int(seed), 31])
         self._heldout: np.ndarray | None = None
         self.library: LibraryBelief | None = None
         self.library_state: dict = {"used": False}
+
+    def use_representation(self, rep: Representation | None,
+                           temperature: float | None = None) -> None:
+        """Before the first touch: describe touches through ``rep`` (a prepared representation
+        held in memory, e.g. one a class fold fitted; None: the raw descriptor) in place of the
+        settings' file, with the belief temperature ``temperature`` when given, else the
+        representation's calibrated one where the settings use it
+        (``representation_temperature``) and it has one, else ``match_temperature``."""
+        if self.match.counts.any():
+            raise InputError("use_representation: the learner has touches already")
+        if temperature is None:
+            temperature = (rep.temperature if rep is not None
+                           and self.cfg.representation_temperature
+                           and np.isfinite(rep.temperature) else self.cfg.match_temperature)
+        if not temperature > 0:
+            raise InputError(f"belief temperature must be > 0, got {temperature}")
+        self.representation = rep
+        self.match.beta = float(temperature)
 
     def use_library(self, lib: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT) -> None:
         """Let the belief ask the fabric library ``lib`` too (``core/library.py``; None: the

@@ -10,12 +10,17 @@ texture descriptors and a closed-form belief over the matching comparison; nothi
 a plug-in such as the thesis CNN (``tactex_lab/cnn/learner.py``, loaded only when named). Both give ``reference_probs()`` (T, C) and ``belief(probs)`` (C,); a
 strategy with ``includes_reference`` (``infogain``) may choose platform 0, the reference again.
 
-One contract for every caller: ``TrialSpec`` (what decides the outcome besides the touches) ->
-``run_trial(spec, touch_fn)`` -> ``TrialOutcome`` (typed, platform indices; ``to_dict`` is the
-JSON at the file edge). The command line and experiments pass a simulated or replayed touch, the
-ROS explorer node its press over the graph (in its trial thread, off the executor).
-``TrialSpec.engine`` is the one place a trial's engine is built; ``add_touch`` / ``decide`` /
-``done`` are the steps ``run`` takes, for callers that need them one by one (the latency bench).
+One contract for every caller: ``TrialSpec`` (what decides the outcome besides the touches,
+including what a learner is given in memory: a fabric library, a prepared representation, a
+fixed belief temperature) -> ``run_trial(spec, touch_fn)`` -> ``TrialOutcome`` (typed, platform
+indices; ``to_dict`` is the JSON at the file edge). The command line and experiments pass a
+simulated or replayed touch, the ROS explorer node its press over the graph (in its trial
+thread, off the executor). ``TrialSpec.engine`` is the one place a trial's engine is built and
+``TrialEngine.run`` the one loop (``run_trial`` is ``spec.engine().run``): a caller that
+continues an engine restored from a checkpoint (``trial/run.py``) or reads its learner as the
+trial goes (calibration's evidence, a failed trial's decisions) holds the engine and calls its
+``run``; ``add_touch`` / ``decide`` / ``done`` are the steps ``run`` takes, for callers that
+need them one by one (the latency bench).
 
 A round (``decide``): train one round (CNN), the (T, C) table of the reference and the belief,
 the strategy's per-platform scores, the choice of the next platform (or none). At most
@@ -61,6 +66,7 @@ from .touch import Touch, as_touch, validate_frame
 
 if TYPE_CHECKING:
     from .library import FabricLibrary
+    from .representation import Representation
 
 
 class TouchFailed(RuntimeError):
@@ -584,7 +590,15 @@ class TrialSpec:
     """What decides a trial's outcome besides its touches: ``comparisons`` platforms besides
     the reference, the learner and trial settings, the seed, the platforms' names (default
     ``reference, c1..cC``) and the sensor session's no-contact frame (240, 320, 3) uint8 for the
-    contact guard (None: the guard's flatness test only)."""
+    contact guard (None: the guard's flatness test only).
+
+    What a descriptor learner is given in memory rather than by a file: ``library``, the
+    session's fabric library (used when the settings turn ``fabric_library`` on);
+    ``representation``, a prepared representation (``core/representation.py``, what
+    ``tactex prepare`` writes; e.g. one fitted on a class fold) in place of the settings'
+    ``representation`` file; ``temperature``, the belief's temperature fixed for this trial
+    (None: the representation's calibrated one or ``match_temperature``, as the settings say).
+    """
 
     comparisons: int
     learner: LearnerSettings = field(default_factory=DescriptorSettings)
@@ -593,13 +607,21 @@ class TrialSpec:
     platform_ids: tuple[str, ...] | None = None
     no_contact: np.ndarray | None = None
     library: "FabricLibrary | None" = None
+    representation: "Representation | None" = None
+    temperature: float | None = None
 
     def engine(self) -> TrialEngine:
         """The trial's engine, ready for its first touch (the one place one is built). A
         ``library`` (``core/library.py``) is given to a learner whose settings turn
-        ``fabric_library`` on."""
+        ``fabric_library`` on; ``representation`` / ``temperature`` need a descriptor learner
+        (InputError otherwise)."""
         eng = TrialEngine(self.comparisons, self.learner, self.trial, seed=self.seed,
                           platform_ids=list(self.platform_ids) if self.platform_ids else None)
+        if self.representation is not None or self.temperature is not None:
+            if not hasattr(eng.learner, "use_representation"):
+                raise InputError("TrialSpec.representation / temperature need model "
+                                 f"'descriptor', got {self.learner.model!r}")
+            eng.learner.use_representation(self.representation, self.temperature)
         if self.library is not None and getattr(self.learner, "fabric_library", False) and \
                 hasattr(eng.learner, "use_library"):
             eng.learner.use_library(self.library)
@@ -611,11 +633,10 @@ class TrialSpec:
 def run_trial(spec: TrialSpec, touch_fn: Callable[[int], "Touch | np.ndarray"],
               truth: int | None = None,
               on_round: Callable[[RoundRecord], None] | None = None,
-              on_rejected: Callable[[int, TouchRejected], None] | None = None,
-              engine: TrialEngine | None = None) -> TrialOutcome:
+              on_rejected: Callable[[int, TouchRejected], None] | None = None) -> TrialOutcome:
     """Run the trial ``spec`` describes with ``touch_fn(platform)`` (0 = reference, 1..C) until
-    it ends (``TrialEngine.run``); ``truth`` (1..C) when known. ``engine``: the one
-    ``spec.engine()`` built when the caller needed it before the first touch (a node validates
-    its settings at configure, an experiment inspects it); a new one otherwise."""
-    eng = engine if engine is not None else spec.engine()
-    return eng.run(touch_fn, truth=truth, on_round=on_round, on_rejected=on_rejected)
+    it ends, on a new engine: ``spec.engine().run(...)`` (``TrialEngine.run``); ``truth``
+    (1..C) when known. Everything the trial is given is in ``spec``; a caller that holds the
+    engine itself (to continue one restored from a checkpoint, or to read its learner while the
+    trial runs) builds it with ``spec.engine()`` and calls its ``run``."""
+    return spec.engine().run(touch_fn, truth=truth, on_round=on_round, on_rejected=on_rejected)

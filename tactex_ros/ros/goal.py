@@ -13,7 +13,11 @@ became of the unanswered ones:
 - a re-sent goal is rejected (the motion node takes one press at a time) while an earlier one
   is unanswered: the earlier one is followed by its goal id (its result request is held by
   the server until it ends); a result with ``STATUS_UNKNOWN`` means the server never took it;
-- every goal answered and rejected: refused.
+- every goal answered and rejected: refused;
+- every goal unanswered (the server's readers not yet matched on a loaded machine): with
+  ``renew_s``, once the ``max_sends`` sends are out and the newest has gone unanswered for
+  ``renew_s`` seconds, the goal is asked again as a new request (``max_sends`` more sends,
+  new goal ids); the earlier ones are still followed should their answer come late.
 
 Used by the explorer for every press and by the ROS tests, so the logic lives in one place.
 Non-blocking: the caller polls ``answered()`` / ``finished()`` from its own wait loop (with its
@@ -48,19 +52,25 @@ class GoalRequest:
     """Send ``goal`` on ``client`` (an ``rclpy.action.ActionClient``) and follow it.
 
     ``answer_s``: re-send a goal whose response has not come within this many seconds
-    (at most ``max_sends`` goals in all). ``feedback_callback`` receives feedback of every
-    goal sent (only the one running sends any). After ``finished()``: ``result`` is the
+    (at most ``max_sends`` goals per request). ``renew_s``: when all ``max_sends`` goals of a
+    request went unanswered and the newest has waited this many seconds, ask again as a new
+    request (``renewals`` counts them; 0: never, the caller's deadline ends the wait).
+    ``feedback_callback`` receives feedback of every goal sent (only the one running sends
+    any). After ``finished()``: ``result`` is the
     GetResult response (``status``, ``result``) of the goal that ran, or None when refused;
     ``status == GoalStatus.STATUS_UNKNOWN`` says the followed goal was never taken.
     """
 
     def __init__(self, client: Any, goal: Any, answer_s: float = 2.0,
                  feedback_callback: Callable[[Any], None] | None = None, max_sends: int = 3,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        if answer_s <= 0 or max_sends < 1:
-            raise ValueError(f"GoalRequest: answer_s ({answer_s}) must be > 0 and max_sends "
-                             f"({max_sends}) >= 1")
+                 clock: Callable[[], float] = time.monotonic, renew_s: float = 0.0) -> None:
+        if answer_s <= 0 or max_sends < 1 or renew_s < 0:
+            raise ValueError(f"GoalRequest: answer_s ({answer_s}) must be > 0, max_sends "
+                             f"({max_sends}) >= 1 and renew_s ({renew_s}) >= 0")
         self.client, self.goal, self.answer_s = client, goal, float(answer_s)
+        self.renew_s = float(renew_s)
+        self.renewals = 0        # times every send went unanswered and the goal was asked again
+        self._request_start = 0  # index in ``sent`` of the current request's first send
         self.feedback_callback, self.max_sends, self.clock = feedback_callback, max_sends, clock
         self.sent: list[_Sent] = []
         self.handle: ClientGoalHandle | None = None   # the goal followed
@@ -198,9 +208,18 @@ class GoalRequest:
             self._unanswered = first
             return
         newest = self.sent[-1]
-        if self.clock() - newest.t >= self.answer_s and len(self.sent) < self.max_sends:
-            self._probe(newest)      # in case it was taken and has ended already
-            self._send()
+        waited = self.clock() - newest.t
+        if len(self.sent) - self._request_start < self.max_sends:
+            if waited < self.answer_s:
+                return
+        elif not self.renew_s or waited < self.renew_s:
+            return
+        else:
+            # every send of this request unanswered for renew_s: ask again as a new request
+            self.renewals += 1
+            self._request_start = len(self.sent)
+        self._probe(newest)      # in case it was taken and has ended already
+        self._send()
 
     def _settle_unanswered(self) -> None:
         """An unanswered goal followed by its id whose probe came back: a real status is its

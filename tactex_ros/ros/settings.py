@@ -223,6 +223,11 @@ class ExplorerSettings(TrialSettings):
                                       "(a lost goal response); the first one is followed by "
                                       "its goal id if it runs [s] (< press_silence_s)",
                                  0.1, 600.0)
+    goal_renew_s: float = param(2.0, "a press goal whose every send (goal_answer_s apart, 3 "
+                                     "in all) went unanswered is asked again as a new request "
+                                     "once the newest has waited this long [s] (0 = never; a "
+                                     "server silent for press_silence_s ends the trial first)",
+                                0.0, 600.0)
     exit_when_done: bool = param(False, "shut the node down after the trial (runner, tests)")
     session_file: str = param("", "trial file of a study session (config/trials/NAME.yaml or a "
                                   "path; '' = one trial): its trials run in order in this "

@@ -161,7 +161,7 @@ def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
 _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nice",
                       "press_timeout_s", "server_timeout_s", "press_silence_s", "press_action",
                       "pause_timeout_s", "state_topic", "marker_topic", "touch_image_topic",
-                      "goal_answer_s", "min_free_mb", "run_id",
+                      "goal_answer_s", "goal_renew_s", "min_free_mb", "run_id",
                       "scene_file", "session_file", "session_dir", "trials", "auto_confirm",
                       "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s"},
          "learner": {"threads"}, "trial": set()}

@@ -26,7 +26,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..core.engine import RoundRecord, TouchFailed, TrialSpec, run_trial
+from ..core.engine import RoundRecord, TouchFailed, TrialSpec
 from ..core.errors import TrialError
 from ..core.touch import Touch
 from .record import MIN_FREE_MB, TrialRecord, append_event, read_record
@@ -226,8 +226,7 @@ class TrialRun:
             if on_decision is not None:
                 on_decision(rec, line)
 
-        res = run_trial(self.spec, self.touch, on_round=on_round,
-                        on_rejected=self._on_rejected, engine=eng)
+        res = eng.run(self.touch, on_round=on_round, on_rejected=self._on_rejected)
         out = res.to_dict()
         out.update(trial_id=self.trial_id, record=str(self.record.dir),
                    strategy=eng.trial_cfg.strategy, model=eng.learner.model_name,

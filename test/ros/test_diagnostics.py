@@ -27,13 +27,13 @@ def _wait(cond, timeout: float, step: float = 0.02) -> bool:
 
 
 def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
-        tmp_path: Path, listener) -> None:
+        tmp_path: Path, listener, quick_scene: str) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from tactex.msg import ExplorationState
-    nodes = describe(True, explorer={"trial": {"rounds": 20, "stop_confidence": 0.0},
-                                     "seed": 0, "record_dir": str(tmp_path),
-                                     "trial_id": "t"})
+    nodes = describe(True, quick_scene,
+                     explorer={"trial": {"rounds": 20, "stop_confidence": 0.0}, "seed": 0,
+                               "record_dir": str(tmp_path), "trial_id": "t"})
     got: list[tuple[float, object]] = []
     listener.node.create_subscription(DiagnosticArray, "/diagnostics",
                                       lambda m: got.append((time.monotonic(), m)), 50)

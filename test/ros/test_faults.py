@@ -147,12 +147,12 @@ def _check_record(record: Path, used: list[np.ndarray]) -> dict:
 
 
 def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | None = None,
-         **explorer) -> tuple:
+         scene: str | None = None, **explorer) -> tuple:
     ex = {"trial": {"rounds": ROUNDS, "stop_confidence": 0.0}, "seed": 0,
           "record_dir": str(tmp), "trial_id": "trial", **explorer}
     if resume is not None:
         ex["resume"] = str(resume)
-    nodes = describe(True, explorer=ex)
+    nodes = describe(True, scene, explorer=ex)
     used = listener.collect(Image, TOUCH_IMAGE_TOPIC)
     t0 = time.monotonic()
     run = run_graph(nodes, tmp / f"logs_{name}", timeout_s=DEADLINE_S,
@@ -171,11 +171,12 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     return run, rec, clear
 
 
-def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
+def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_scene: str
+                                              ) -> None:
     """One trial, interrupted four times and resumed each time: kill -9 of the motion node
     (after the mock arm was frozen for 5 s), of the mock camera, of the mock arm, SIGINT of
     the explorer mid-round; the last resume finishes it. No touch lost, none twice."""
-    scene = load_scene(describe(True)[0].parameters["scene_file"])
+    scene = load_scene(quick_scene)
     truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
     wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
     presses = Presses(listener)
@@ -191,7 +192,8 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
         f.t = time.monotonic()
         kill("motion")(g)
     f = Fault(record, 2, freeze_then_kill, presses)
-    run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f)
+    run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f,
+                           scene=quick_scene)
     assert run.failed_node == "motion" and run.node_exit["motion"] == -signal.SIGKILL
     assert run.result is None and clear is not None and clear < CLEAR_S
     assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
@@ -202,7 +204,7 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
              ("sigint_explorer", "explorer", kill("explorer", signal.SIGINT))]
     for name, node, act in steps:
         f = Fault(record, n + 1, act, presses)
-        run, rec, clear = _run(tmp_path, listener, name, f, resume=record)
+        run, rec, clear = _run(tmp_path, listener, name, f, resume=record, scene=quick_scene)
         if run.result is not None:            # the trial ended before the fault could land
             break
         assert run.failed_node == node, run.failure
@@ -211,7 +213,8 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener) -> None:
         n = len(rec["touches"])
 
     if run.result is None:
-        run, rec, _ = _run(tmp_path, listener, "resume_to_the_end", None, resume=record)
+        run, rec, _ = _run(tmp_path, listener, "resume_to_the_end", None, resume=record,
+                           scene=quick_scene)
     res = run.result
     assert res is not None and "error" not in res, res
     assert res["prediction"] == truth and res["stop_reason"] == "rounds"
@@ -298,14 +301,15 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     _check_record(record, [])
 
 
-def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener) -> None:
+def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener,
+                                                       quick_scene: str) -> None:
     """SIGSTOP of the explorer during its 4th press for more than press_silence_s, then
     SIGCONT: the press server was healthy, so the trial goes on and ends with its result; the
     press whose result arrived during the stall is used, none is marked interrupted."""
     # 22 s: longer than press_silence_s (10 s) and than Fast DDS's default participant lease
     # (20 s), after which the other nodes forget the stalled one until it announces itself again
     f = Fault(tmp_path / "trial", 3, freeze("explorer", 22.0), Presses(listener))
-    run, rec, _ = _run(tmp_path, listener, "stall_explorer", f)
+    run, rec, _ = _run(tmp_path, listener, "stall_explorer", f, scene=quick_scene)
     assert f.t is not None                                 # the stall happened
     assert run.result is not None and "error" not in run.result, run.failure
     assert not [t for t in rec["touches"] if t.get("interrupted")]

@@ -25,19 +25,21 @@ SHORT = Path(__file__).parents[1] / "data" / "session_short.yaml"
 ARTIFACTS = Path(__file__).parents[2] / "test-artifacts"
 
 
-def _nodes(tmp: Path, rounds: int = 1):
-    return describe(True, explorer={"trial": {"rounds": rounds, "stop_confidence": 0.0},
-                                    "seed": 3, "record_dir": str(tmp),
-                                    "session_file": str(SHORT)})
+def _nodes(tmp: Path, scene: str | None = None):
+    """The simulated graph running SHORT's trials (one round each) in ``scene`` (default
+    config/scene_sim.yaml)."""
+    return describe(True, scene, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0},
+                                           "seed": 3, "record_dir": str(tmp),
+                                           "session_file": str(SHORT)})
 
 
 @pytest.fixture(scope="module")
-def session_run(tmp_path_factory):
+def session_run(tmp_path_factory, quick_scene):
     """One scripted 2-trial session (module-wide: the browser test reads its records)."""
     tmp = tmp_path_factory.mktemp("session")
     lines: list[tuple[str, str]] = []
     domain = 160 + os.getpid() % 40
-    run = run_session(_nodes(tmp), tmp / "logs", tmp / "sess", confirm="yes",
+    run = run_session(_nodes(tmp, quick_scene), tmp / "logs", tmp / "sess", confirm="yes",
                       timeout_s=900, domain_id=domain,
                       out=lambda text, kind: lines.append((kind, text)))
     return run, lines, tmp
@@ -144,8 +146,8 @@ def test_trial_report_in_a_real_browser(session_run, tmp_path: Path) -> None:
         drv.quit()
 
 
-def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path,
-                                                                 domain_id) -> None:
+def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path, domain_id,
+                                                                 quick_scene: str) -> None:
     d = tmp_path / "sess"
     killed: dict = {}
 
@@ -161,14 +163,14 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path,
                 time.sleep(0.05)
         threading.Thread(target=watch, daemon=True).start()
 
-    first = run_session(_nodes(tmp_path, rounds=2), tmp_path / "logs1", d, confirm="yes",
+    first = run_session(_nodes(tmp_path, quick_scene), tmp_path / "logs1", d, confirm="yes",
                         timeout_s=900, domain_id=domain_id, on_start=kill_after_touches,
                         out=lambda *_: None)
     assert first.result is None and first.node_exit["explorer"] == -signal.SIGKILL
     before = [json.loads(x) for x in (d / "trial_1" / "touches.jsonl").read_text()
               .splitlines() if x.strip()]
     assert len(before) >= killed["touches"]
-    second = run_session(_nodes(tmp_path, rounds=2), tmp_path / "logs2", d, confirm="yes",
+    second = run_session(_nodes(tmp_path, quick_scene), tmp_path / "logs2", d, confirm="yes",
                          timeout_s=900, domain_id=domain_id, out=lambda *_: None)
     assert second.result is not None, (second.failure, tmp_path / "logs2" / "explorer.log")
     assert second.result["done"] == 2

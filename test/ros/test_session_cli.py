@@ -69,7 +69,8 @@ def _start(args: list[str], domain_id: int) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
-def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener) -> None:
+def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener,
+                                                         quick_scene: str) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
     got: list[tuple[float, object]] = []
     listener.node.create_subscription(DiagnosticArray, "/diagnostics",
@@ -77,9 +78,9 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
     d = tmp_path / "sess"
     params = tmp_path / "nodes.yaml"
     params.write_text(NODE_PARAMS)
-    proc = _start(["--sim", "--session", str(THREE), "--session-dir", str(d), "--yes",
-                   "--seed", "3", "--set", "trial.rounds=1", "--set",
-                   "trial.stop_confidence=0.0", "--set", "server_timeout_s=120",
+    proc = _start(["--sim", "--scene", quick_scene, "--session", str(THREE),
+                   "--session-dir", str(d), "--yes", "--seed", "3", "--set", "trial.rounds=1",
+                   "--set", "trial.stop_confidence=0.0", "--set", "server_timeout_s=120",
                    "--node-params", str(params)], listener.domain_id)
     cut = _when(lambda: _lines(d / "trial_2" / "touches.jsonl") >= 2, DEADLINE_S,
                 lambda: proc.send_signal(signal.SIGINT))     # the operator's Ctrl-C
@@ -136,7 +137,8 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
 
 
 def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
-                                                                 domain_id: int) -> None:
+                                                                 domain_id: int,
+                                                                 quick_scene: str) -> None:
     d = tmp_path / "sess"
 
     def run(*args: str) -> tuple[int, str, str]:
@@ -147,9 +149,10 @@ def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
             if p.poll() is None:
                 p.kill()
         return p.returncode, out, err
-    code, out, err = run("--sim", "--session", str(THREE), "--session-dir", str(d), "--yes",
-                         "--set", "trial.rounds=1", "--set", "trial.stop_confidence=0.0",
-                         "--trials", "3")
+    # the baseline's five touches alone (rounds 0): which trials run is the point here
+    code, out, err = run("--sim", "--scene", quick_scene, "--session", str(THREE),
+                         "--session-dir", str(d), "--yes", "--set", "trial.rounds=0",
+                         "--set", "trial.stop_confidence=0.0", "--trials", "3")
     assert code == 0, err[-3000:]
     assert "1 of 3 trials done" in out
     states = [sess.trial_state(d, {"id": t}) for t in ("1", "2", "3")]

@@ -14,7 +14,8 @@ A press server that leaves the ROS graph, or sends no feedback for ``press_silen
 the trial with that reason (the press that was cut off is recorded as ``interrupted``), rather
 than waiting out ``press_timeout_s``. A press goal whose answer is lost (Fast DDS can drop a
 response sent before the server matched the client's reader) is re-sent after
-``goal_answer_s`` and the first one followed by its goal id (``ros/goal.py``). With ``resume``
+``goal_answer_s`` and the first one followed by its goal id (``ros/goal.py``); a request none
+of whose sends was answered is asked again after ``goal_renew_s``. With ``resume``
 (a record folder) the trial continues an interrupted one (``trial/resume.py``).
 
 With ``session_file`` the node is the session's operator (``session_run.Operator``): the
@@ -345,9 +346,11 @@ class ExplorerNode(TactexNode):
         meta["requested"] = self._now()
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
-        # followed by its id when it runs (ros/goal.py): a lost response costs no touch
+        # followed by its id when it runs (ros/goal.py): a lost response costs no touch; a
+        # request whose every send went unanswered is asked again after goal_renew_s
         req = GoalRequest(self.press, Press.Goal(platform_id=pid, run_id=self.run_id),
                           answer_s=self.settings.goal_answer_s,
+                          renew_s=self.settings.goal_renew_s,
                           feedback_callback=self._on_feedback)
         if not self._wait(req.answered, deadline, watch=True):
             self._failed(meta, "press goal not answered before the deadline")

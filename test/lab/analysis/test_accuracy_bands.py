@@ -39,6 +39,7 @@ def test_trial_time_counts_baseline_presses_and_decisions():
 
 
 def _curve(extra, correct):
+    """A belief curve's JSON form, as runs.json holds it."""
     return {"extra": extra, "correct": correct, "conf": [0.5] * len(extra),
             "decision_s": [0.01] * len(extra)}
 

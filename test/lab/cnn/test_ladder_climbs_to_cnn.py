@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.config import TrialConfig, preset
-from tactex_ros.core.engine import TrialSpec, run_trial
+from tactex_ros.core.engine import TrialSpec
 from stripes import stripe_frames
 
 
@@ -28,9 +28,8 @@ def _touch_fn(seed: int = 0):
 def test_hard_scene_climbs_to_the_cnn_and_records_why():
     cfg = preset("default", model="auto", guards=False, ladder="descriptor,cnn@32",
                  ladder_patience=2, ladder_catchup=1)
-    spec = TrialSpec(4, cfg, TrialConfig(rounds=5, stop_confidence=0.0), seed=0)
-    eng = spec.engine()
-    out = run_trial(spec, _touch_fn(), truth=1, engine=eng)
+    eng = TrialSpec(4, cfg, TrialConfig(rounds=5, stop_confidence=0.0), seed=0).engine()
+    out = eng.run(_touch_fn(), truth=1)             # the test reads its learner after
     d = json.loads(json.dumps(out.to_dict()))            # what the trial JSON holds
     assert len(d["escalations"]) == 1
     esc = d["escalations"][0]

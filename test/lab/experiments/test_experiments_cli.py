@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from tactex_ros.cli.main import main
+from tactex_ros.core.config import TrialConfig
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import decision_at_budget
 from tactex_lab.experiments.humans import load_humans
@@ -42,10 +43,11 @@ def test_budget_readout_equals_a_capped_run():
     """The decision at budget k read from a full run is the final decision of a run capped at k."""
     classes = ["chino", "cotton_canvas", "chino", "wool_serge"]
     for strategy, k in (("variance", 7), ("yoto", 6), ("variance", 5)):
-        full = TrialJob(source="sim", seed=4, strategy=strategy, rounds=4, overrides=TINY_OVR,
+        trial = TrialConfig(strategy=strategy, rounds=4, stop_confidence=0.0)
+        full = TrialJob(source="sim", seed=4, trial=trial, preset="cnn", overrides=TINY_OVR,
                         platform_classes=classes)
-        capped = TrialJob(source="sim", seed=4, strategy=strategy, rounds=4, max_touches=k,
-                          overrides=TINY_OVR, platform_classes=classes)
+        capped = TrialJob(source="sim", seed=4, trial=trial.replace(max_touches=k),
+                          preset="cnn", overrides=TINY_OVR, platform_classes=classes)
         rf, rc = run_job(full), run_job(capped)
         decisions = [{"probs": r.probs, "total": sum(r.touches) + 1} for r in rf.decisions]
         d = decision_at_budget(decisions, k)

@@ -8,13 +8,14 @@ import sys
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.curves import at_budget, at_stop, parse_setting
+from tactex_lab.experiments.curves import BeliefCurve, at_budget, at_stop, parse_setting
 from tactex_lab.experiments.protocol import choose, class_folds
 from tactex_ros.core.errors import InputError
 
 
 def _curve(correct, conf):
-    return {"extra": list(range(len(correct))), "correct": correct, "conf": conf}
+    return BeliefCurve(tuple(range(len(correct))), tuple(correct), tuple(conf),
+                       (0.0,) * len(conf))
 
 
 def test_stop_and_budget_read_the_belief_curve():
@@ -23,6 +24,36 @@ def test_stop_and_budget_read_the_belief_curve():
     assert at_stop(c, 0.95) == (True, 2, True)
     assert at_stop(c, 1.01) == (True, 3, False)     # never confident: the budget's end
     assert [at_budget(c, k) for k in range(4)] == [False, False, True, True]
+
+
+def test_a_belief_curve_reads_a_trial_and_keeps_its_runs_json_form():
+    """``curve`` of a real trial's decisions; the JSON form has the keys, in the order, and
+    the values runs.json always had, and reads back to the same curve."""
+    from tactex_ros.core.config import TrialConfig
+    from tactex_ros.core.engine import TrialSpec, run_trial
+    from tactex_ros.sources import open_source, trial_scene
+    from tactex_lab.experiments.curves import curve
+    src = open_source("sim")
+    classes, truth = trial_scene(src, 3, 2)
+    res = run_trial(TrialSpec(3, trial=TrialConfig(rounds=3, stop_confidence=0.0), seed=2),
+                    src.trial(classes, 2), truth=truth)
+    decisions = res.rounds + [res.final]
+    c = curve(decisions, truth, classes=classes)
+    assert c.extra == tuple(range(4)) and len(c.conf) == 4
+    assert c.correct[-1] == res.correct and c.conf[-1] == max(res.final.probs)
+    chosen = [r for r in res.rounds if r.platform not in (None, 0)]     # comparison touches
+    assert c.touched == len(chosen)
+    assert c.believed == sum(r.platform == max(range(3), key=r.probs.__getitem__) + 1
+                             for r in chosen)
+    d = c.to_json()
+    assert list(d) == ["extra", "correct", "conf", "decision_s", "believed", "touched",
+                       "error", "classes"]
+    assert d["extra"] == [0, 1, 2, 3] and d["classes"] == classes and d["error"] is None
+    text = json.dumps(d)
+    assert BeliefCurve.from_json(json.loads(text)) == c
+    assert json.dumps(BeliefCurve.from_json(json.loads(text)).to_json()) == text
+    with pytest.raises(InputError, match="unknown fields \\['confidence'\\]"):
+        BeliefCurve.from_json({**d, "confidence": 1})
 
 
 def test_choose_takes_the_most_accurate_pair_within_the_touch_target():

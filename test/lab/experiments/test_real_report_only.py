@@ -7,11 +7,12 @@ import json
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.curves import paired_at_thresholds
+from tactex_lab.experiments.curves import BeliefCurve, paired_at_thresholds
 
 
 def _curve(correct, conf):
-    return {"extra": list(range(len(correct))), "correct": correct, "conf": conf}
+    return BeliefCurve(tuple(range(len(correct))), tuple(correct), tuple(conf),
+                       (0.0,) * len(conf))
 
 
 def test_paired_at_a_threshold_by_hand():

@@ -6,12 +6,14 @@ import os
 
 import pytest
 
+from tactex_ros.core.config import SHIPPED_STOP, TrialConfig
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.runner import (Backend, TrialJob, add_runner_args, backend_of,
                                            run_jobs, run_parallel)
 
 # descriptor trials: a few hundred ms each, so the sweep costs little beyond starting workers
-JOBS = [TrialJob(source="sim", seed=s, preset="default", strategy=st, rounds=2, comparisons=3,
+JOBS = [TrialJob(source="sim", seed=s, preset="default",
+                 trial=TrialConfig(strategy=st, rounds=2, stop_confidence=0.0), comparisons=3,
                  trial_id=f"{st}{s}")
         for s in (0, 1) for st in ("infogain", "random")]
 
@@ -91,10 +93,30 @@ def test_a_result_names_platforms_only_in_its_file_form():
 def test_a_failed_trial_keeps_its_error_and_no_outcome():
     """Every touch blank: the baseline fails; the result says why, has no outcome, and its
     file form names the true platform and no final decision."""
-    job = TrialJob(source="sim", seed=0, preset="default", strategy="infogain", rounds=2,
+    job = TrialJob(source="sim", seed=0, preset="default",
+                   trial=TrialConfig(strategy="infogain", rounds=2, stop_confidence=0.0),
                    comparisons=3, perturb={"blank": 1.0}, catch_errors=True)
     res = run_jobs([job], Backend("joblib", 1), quiet=True)[0]
     assert res.outcome is None and res.prediction is None and not res.correct
     assert res.error and res.failed_touches and res.decisions == []
     d = res.to_dict()
     assert d["final"] is None and d["truth"] == ["reference", "c1", "c2", "c3"][res.truth]
+
+
+def test_a_job_carries_the_products_trial_settings_and_writes_its_old_file_form():
+    """A job's trial settings are the product's ``TrialConfig`` (its defaults: the shipped
+    method); the file form names the four trial fields in their old place, and another trial
+    setting only when it is not the default."""
+    job = TrialJob(source="sim", seed=3, trial=TrialConfig(rounds=7), preset="default")
+    d = job.to_dict()
+    assert list(d) == ["source", "seed", "strategy", "rounds", "max_touches", "stop_confidence",
+                       "preset", "overrides", "platform_classes", "comparisons", "trial_id",
+                       "perturb", "tags", "catch_errors", "no_contact_reference"]
+    assert (d["strategy"], d["rounds"], d["max_touches"], d["stop_confidence"]) == \
+        ("infogain", 7, 0, SHIPPED_STOP)
+    sep = TrialJob(source="sim", seed=3, preset="default",
+                   trial=TrialConfig(rounds=7, stop_separation=2.0, touch_retries=0)).to_dict()
+    assert list(sep)[6:8] == ["stop_separation", "touch_retries"]
+    assert (sep["stop_separation"], sep["touch_retries"]) == (2.0, 0)
+    job.tags["x"] = 1                       # the file form is a copy
+    assert d["tags"] == {}

@@ -6,6 +6,7 @@ import pytest
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import press_features as pf
+from tactex_ros.core.preparation import PrepareSettings
 from tactex_lab.experiments import press_cache, unseen
 from tactex_lab.experiments.curves import belief_curves, draw_scenes, parse_setting
 
@@ -31,14 +32,21 @@ def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
     theirs = belief_curves(scenes, [parse_setting("d=default:learner.descriptor_height_map=false")],
                            f"replay:{small_library}", 5, 4, "t", quiet=True)["d"]
     for a, b in zip(mine, theirs):
-        assert a["extra"] == b["extra"] and a["correct"] == b["correct"]
-        np.testing.assert_allclose(a["conf"], b["conf"], rtol=1e-9)
+        assert a.extra == b.extra and a.correct == b.correct
+        np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
 
 
 def test_settings_parse_and_name_what_is_wrong():
     s = unseen.Setting.parse("x=feature:regions,kind:lda,dims:12,calibration:stop")
-    assert (s.label, s.feature, s.kind, s.dims, s.calibration) == ("x", "regions", "lda", 12,
-                                                                   "stop")
+    assert (s.label, s.feature, s.prepare.kind, s.prepare.dims, s.prepare.calibration) == (
+        "x", "regions", "lda", 12, "stop")
+    # the product's preparation schema; the lab states where it differs (no metric unless named)
+    d = unseen.Setting.parse("d=")
+    assert d.prepare == PrepareSettings(kind="none") and PrepareSettings().kind == "whiten"
+    assert d.to_dict() == {"label": "d", "feature": "frame", "kind": "none", "dims": 24,
+                           "calibration": "off", "shrink": 1.0}
+    with pytest.raises(InputError, match="calibration"):
+        unseen.Setting.parse("x=calibration:sometimes")
     with pytest.raises(InputError, match="unknown key"):
         unseen.Setting.parse("x=colour:red")
     with pytest.raises(InputError, match="feature one of"):

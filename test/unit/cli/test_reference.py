@@ -21,11 +21,13 @@ def fresh() -> str:
 
 
 @pytest.fixture(scope="module")
-def lab() -> None:
-    """Skips where the lab's page cannot be generated (a product install: no torch)."""
-    missing = reference.lab_missing()
-    if missing is not None:
+def lab() -> argparse.ArgumentParser:
+    """The lab's parser; skips where the lab's page cannot be generated (a product install:
+    no torch)."""
+    parser, missing = reference.lab_parser_or_missing()
+    if parser is None:
         pytest.skip(missing)
+    return parser
 
 
 def test_the_committed_reference_is_current(fresh: str) -> None:
@@ -36,30 +38,32 @@ def test_the_committed_reference_is_current(fresh: str) -> None:
                           f"docs/{PAGE.name}")
 
 
-def test_the_committed_lab_reference_is_current(lab: None) -> None:
+def test_the_committed_lab_reference_is_current(lab: argparse.ArgumentParser) -> None:
     page = PAGE.parent / reference.LAB_OUT
     old = page.read_text() if page.is_file() else ""
-    assert old == reference.render_lab(), (f"{page.name} is stale: run `make reference` and "
+    assert old == reference.render_lab(lab), (f"{page.name} is stale: run `make reference` and "
                                            f"commit docs/{page.name}")
 
 
-def test_the_product_page_does_not_depend_on_what_is_installed(monkeypatch, lab: None) -> None:
+def test_the_product_page_does_not_depend_on_what_is_installed(monkeypatch,
+                                                               lab: argparse.ArgumentParser
+                                                               ) -> None:
     """No plug-in installed: the product's page is the same; the lab's page still lists the
     lab's commands and learners (read from setup.cfg), none of them on the product's page."""
     from tactex_ros.core import plugins
     with_lab = reference.render()
     monkeypatch.setattr(plugins, "available", lambda group: {})
     assert reference.render() == with_lab
-    lab = reference.render_lab()
+    lab_page = reference.render_lab()
     for name in ("`tactex experiment real`", "`tactex bench latency`", "`tactex sim compare`",
                  "`small_inception`"):
-        assert name in lab and f"### {name}" not in with_lab, name
-    assert "`cnn_auto`" not in lab        # the product's ladder over the lab's CNNs, no plug-in
-    assert "### `tactex prepare`" in with_lab and "### `tactex prepare`" not in lab
+        assert name in lab_page and f"### {name}" not in with_lab, name
+    assert "`cnn_auto`" not in lab_page   # the product's ladder over the lab's CNNs, no plug-in
+    assert "### `tactex prepare`" in with_lab and "### `tactex prepare`" not in lab_page
 
 
-def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str, lab: None
-                                                                   ) -> None:
+def test_every_node_parameter_launch_argument_and_option_is_listed(
+        fresh: str, lab: argparse.ArgumentParser) -> None:
     from tactex_ros.ros.graph import SETTINGS
     text = fresh
     for cls in SETTINGS.values():
@@ -76,8 +80,8 @@ def test_every_node_parameter_launch_argument_and_option_is_listed(fresh: str, l
                     yield from options(sp)
             else:
                 yield from a.option_strings
-    text += reference.render_lab()
-    flags = set(options(reference.lab_parser())) - {"-h", "--help"}
+    text += reference.render_lab(lab)
+    flags = set(options(lab)) - {"-h", "--help"}
     assert flags and all(f"`{f}`" in text for f in flags), \
         sorted(f for f in flags if f"`{f}`" not in text)
 
@@ -91,10 +95,20 @@ def test_a_new_setting_appears_with_its_type_default_range_and_description() -> 
     assert rows[1][:3] == ("`mode`", "str", "`a`")
 
 
-def test_check_mode_reports_a_stale_page(tmp_path, capsys, lab: None) -> None:
+def test_check_mode_reports_a_stale_page(tmp_path, capsys, lab: argparse.ArgumentParser
+                                          ) -> None:
     page = tmp_path / "reference.md"
     page.write_text("old\n")
     assert reference.main(["--check", "--out", str(page)]) == 1
     assert page.read_text() == "old\n"
     assert reference.main(["--out", str(page)]) == 0
     assert reference.main(["--check", "--out", str(page)]) == 0
+
+
+def test_main_builds_the_labs_parser_once(tmp_path, monkeypatch,
+                                          lab: argparse.ArgumentParser) -> None:
+    built = []
+    real = reference.lab_parser
+    monkeypatch.setattr(reference, "lab_parser", lambda: built.append(1) or real())
+    assert reference.main(["--out", str(tmp_path / "reference.md")]) == 0
+    assert len(built) == 1 and (tmp_path / reference.LAB_OUT).is_file()

@@ -9,9 +9,11 @@ import pytest
 from tactex_ros.cli.main import main
 from tactex_ros.core import representation as rp
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.config import preset
+from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.descriptor import DescriptorLearner
+from tactex_ros.core.engine import TrialSpec, run_trial
 from tactex_ros.core.texture import DIM, descriptor_dim
+from tactex_ros.core.touch import Touch
 
 
 def _library(rng, noisy_dims=(0, 1)):
@@ -158,3 +160,63 @@ def test_prepare_calibrates_the_temperature_with_classes_left_out(octopi_dir, tm
                  "--representation", str(out), "--json", str(js), "--quiet"]) == 0
     d = json.loads(js.read_text())
     assert d["sure"] in (True, False) and 0 < d["confidence"] <= 1
+
+
+def _descriptor_touches(seed: int):
+    """Touches of a 1 + 3 scene that carry their (DIM,) descriptors: reference = comparison 2."""
+    rng = np.random.default_rng(seed)
+    centres = rng.normal(0, 1.0, (3, DIM))
+    frame = rng.integers(0, 256, (240, 320, 3), dtype=np.uint8)
+
+    def touch(p: int) -> Touch:
+        c = centres[1 if p == 0 else p - 1]
+        return Touch(frame, descriptor=c + rng.normal(0, 0.3, DIM))
+    return touch
+
+
+def test_a_representation_in_memory_runs_the_trial_its_file_runs(tmp_path):
+    """``TrialSpec.representation`` (a fold's fit, never saved) gives the trial the settings'
+    file gives, its calibrated temperature included; ``TrialSpec.temperature`` fixes the
+    belief's temperature; a CNN learner is refused by name."""
+    rep = rp.fit(_library(np.random.default_rng(0)))
+    rep.temperature = 0.02
+    path = rp.save(rep, tmp_path / "r.npz")
+    trial = TrialConfig(rounds=4, stop_confidence=0.0)
+    plain = preset("default", descriptor_height_map=False, guards=False)
+    by_file = run_trial(TrialSpec(3, plain.replace(representation=str(path)), trial, seed=2),
+                        _descriptor_touches(5), truth=2)
+    in_memory = TrialSpec(3, plain, trial, seed=2, representation=rp.load(path))
+    assert in_memory.engine().learner.match.beta == 0.02
+    res = run_trial(in_memory, _descriptor_touches(5), truth=2)
+    assert [r.platform for r in res.rounds] == [r.platform for r in by_file.rounds]
+    np.testing.assert_array_equal(res.final.probs, by_file.final.probs)
+    raw = run_trial(TrialSpec(3, plain, trial, seed=2), _descriptor_touches(5), truth=2)
+    assert not np.allclose(raw.final.probs, by_file.final.probs)     # the representation counts
+    fixed = TrialSpec(3, plain, trial, seed=2, representation=rep, temperature=0.5)
+    assert fixed.engine().learner.match.beta == 0.5
+    assert TrialSpec(3, plain, trial, temperature=0.5).engine().learner.representation is None
+    with pytest.raises(InputError, match="temperature must be > 0"):
+        TrialSpec(3, plain, trial, temperature=0.0).engine()
+    with pytest.raises(InputError, match="need model 'descriptor'"):
+        TrialSpec(3, preset("cnn"), TrialConfig(strategy="variance"),
+                  representation=rep).engine()
+
+
+def test_the_prepare_options_are_the_preparation_schema():
+    """`tactex prepare`'s options are ``PrepareSettings``'s fields, with its defaults and
+    ranges (the one preparation schema the lab's ``experiment unseen`` uses too)."""
+    from tactex_ros.cli.main import build_parser
+    from tactex_ros.core.preparation import PrepareSettings
+    base = ["prepare", "--library", "sim", "--out", "x.npz"]
+    parser = build_parser("prepare", plugins=False)
+    args = parser.parse_args(base)
+    assert {k: getattr(args, k) for k in PrepareSettings.model_fields} == \
+        PrepareSettings().model_dump()
+    args = parser.parse_args(base + ["--kind", "lda", "--dims", "12", "--calibration-start",
+                                     "0.5", "--max-wrong", "0.05"])
+    given = PrepareSettings(**{k: getattr(args, k) for k in PrepareSettings.model_fields})
+    assert (given.kind, given.dims, given.calibration_start, given.max_wrong) == \
+        ("lda", 12, 0.5, 0.05)
+    for bad in (["--dims", "0"], ["--kind", "pca"], ["--calibration-folds", "1"]):
+        with pytest.raises(SystemExit):
+            parser.parse_args(base + bad)

@@ -101,10 +101,12 @@ class Client:
         return Fut()
 
 
-def run(server: Server, goal: str = "c1", answer_s: float = 2.0, limit: float = 60.0):
-    req = GoalRequest(Client(server), goal, answer_s=answer_s, clock=lambda: server.now)
+def run(server: Server, goal: str = "c1", answer_s: float = 2.0, limit: float = 60.0,
+        renew_s: float = 0.0, dt: float = 0.1):
+    req = GoalRequest(Client(server), goal, answer_s=answer_s, clock=lambda: server.now,
+                      renew_s=renew_s)
     while not req.finished() and server.now < limit:
-        server.tick(0.1)
+        server.tick(dt)
     return req
 
 
@@ -186,9 +188,32 @@ def test_silent_server_sends_at_most_max_sends() -> None:
     assert not req.answered() and len(req.sent) == 3 and s.n_requests == 3
 
 
+def test_unanswered_request_is_asked_again_after_renew_s() -> None:
+    # the server's readers match late: the three sends at 0, 2, 4 s are lost; 5 s after the
+    # newest (t = 9 s) the goal is asked again as a new request, which runs 4 s: one touch
+    s = Server(duration=4.0, lose_request={0, 1, 2})
+    req = run(s, renew_s=5.0, dt=0.25)        # a binary fraction: exact times
+    assert req.renewals == 1 and len(req.sent) == 4 and s.n_requests == 4
+    assert [x.t for x in req.sent] == [0.0, 2.0, 4.0, 9.0]
+    assert req.result.status == GoalStatus.STATUS_SUCCEEDED
+    assert req.result.result == bytes(req.sent[3].gid.uuid) and len(s.goals) == 1
+    assert s.now == 13.0
+
+
+def test_silent_server_is_asked_again_every_renew_s() -> None:
+    # sends at 0 2 4 | 9 11 13 | 18 20 22 | 27 29 s within 30 s (without renew_s: 0 2 4,
+    # test_silent_server_sends_at_most_max_sends)
+    s = Server(duration=1.0, lose_request=set(range(20)))
+    req = run(s, renew_s=5.0, limit=30.0, dt=0.25)
+    assert not req.answered() and req.renewals == 3 and s.n_requests == 11
+    assert [x.t for x in req.sent] == [0, 2, 4, 9, 11, 13, 18, 20, 22, 27, 29]
+
+
 def test_bad_arguments() -> None:
     with pytest.raises(ValueError, match="answer_s"):
         GoalRequest(Client(Server(1.0)), "c1", answer_s=0.0)
+    with pytest.raises(ValueError, match="renew_s"):
+        GoalRequest(Client(Server(1.0)), "c1", renew_s=-1.0)
 
 
 def test_silence_does_not_count_time_the_caller_was_stopped():

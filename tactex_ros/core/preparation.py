@@ -1,0 +1,76 @@
+"""What `tactex prepare` does to a library's descriptors, described once: ``PrepareSettings``
+(the metric and the belief temperature's calibration; the class defaults are the product's)
+and ``prepare``, which fits the representation and calibrates it. `tactex prepare` makes its
+options from this schema, and the lab's ``experiment unseen`` prepares each of its settings
+with it (stating where it wants other values than these defaults).
+
+The schema imports only pydantic (`tactex prepare --help` builds it); ``prepare`` imports the
+numpy modules when it runs.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+from .config import SHIPPED_STOP
+from .schema import Schema, param
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .config import DescriptorSettings
+    from .representation import Representation
+
+
+class PrepareSettings(Schema):
+    """How a representation file is prepared from a library's descriptors."""
+
+    kind: Literal["none", "whiten", "lda"] = param(
+        "whiten", "the metric: whiten (within-class whitening; measured best, "
+                  "docs/research/unseen_materials.md), lda (Fisher directions of the library, "
+                  "--dims of them), none (descriptor as is; the file then only carries the "
+                  "calibrated temperature)")
+    dims: int = param(24, "output dimensions of --kind lda, below the descriptor's size (129 "
+                          "with the height map, 106 without)", 1, 128)
+    shrink: float = param(1.0, "ridge added to the within-class covariance (standardised units)",
+                          1e-6, 1e6)
+    calibration: Literal["stop", "target", "nll", "off"] = param(
+        "off", "belief temperature from left-out library trials: stop (largest whose wrong "
+               "stops stay <= 1 - theta at theta 0.8, 0.9, 0.95), target (<= --max-wrong at "
+               "--stop-at), nll, off (default: the config's temperature; the calibrated ones "
+               "stopped wrong more often on unseen classes, docs/research/unseen_materials.md)")
+    stop_at: float = param(SHIPPED_STOP, "the trials' stop threshold, for --calibration target",
+                           0.5, 0.9999)
+    max_wrong: float = param(0.03, "wrong-stop rate allowed at --stop-at, for --calibration "
+                                   "target", 0.0, 0.5)
+    calibration_folds: int = param(3, "class folds of the left-out trials", 2, 20)
+    calibration_scenes: int = param(40, "left-out trials per fold", 1, 10000)
+    calibration_budget: int = param(10, "touches after the baseline per left-out trial", 1, 100)
+    calibration_start: float | None = param(
+        None, "temperature the left-out trials run with (default: the config's)", 1e-4, 10.0)
+
+
+def prepare(descriptors: dict[str, "np.ndarray"], settings: PrepareSettings,
+            cfg: "DescriptorSettings", seed: int = 0) -> "Representation":
+    """The representation of the library ``{class: (n, D) descriptors}`` as ``settings`` say:
+    the metric fitted on every class, and (``calibration`` not off) the belief temperature
+    calibrated on left-out trials run with the learner settings ``cfg``
+    (``core/calibration.py``), with what they measured in ``Representation.calibration``."""
+    from functools import partial
+
+    from . import calibration, representation
+    s = settings
+    fit = partial(representation.fit, shrink=s.shrink, kind=s.kind, dims=s.dims)
+    rep = fit(descriptors)
+    if s.calibration != "off":
+        trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
+                                         scenes=s.calibration_scenes,
+                                         budget=s.calibration_budget, seed=seed,
+                                         temperature0=s.calibration_start)
+        rep.temperature = calibration.fit_temperature(
+            trajs, s.calibration, *(((s.stop_at,), s.max_wrong)
+                                    if s.calibration == "target" else ()))
+        rep.calibration = dict(calibration.report(trajs, rep.temperature),
+                               method=s.calibration, folds=s.calibration_folds,
+                               budget=s.calibration_budget)
+    return rep
