@@ -1,3 +1,3 @@
 """The thesis learners (torch): ``small_inception``, ``inception_v3``, ``inception_v3_random``
-(``learner.OnlineLearner``) and ``cnn_auto`` (``auto.AutoLearner``), plug-ins of group
-``tactex.learners``."""
+(``learner.OnlineLearner``), plug-ins of group ``tactex.learners``; ``cnn_auto`` is the
+product's ladder over them (``tactex_ros/core/ladder.py``)."""

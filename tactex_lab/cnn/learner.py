@@ -46,7 +46,7 @@ from tactex_lab.cnn.device import configure, resolve_device, rng_devices, to_cpu
 from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
-from tactex_ros.core.config import CnnSettings
+from tactex_ros.core.config import CNN_MODELS, CnnSettings, learner_class
 from tactex_ros.core.schema import validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
@@ -77,8 +77,9 @@ class OnlineLearner:
         self.num_classes = num_classes
         self.seed = int(seed)
         name = model_name or cfg.model
-        if name in ("auto", "cnn_auto"):
-            raise InputError(f"model {name!r} is a wrapper of learners, not one learner")
+        if not learner_class(name).plugin:
+            raise InputError(f"model {name!r} is not a CNN; choose one of "
+                             f"{', '.join(CNN_MODELS)}")
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
         self.device = resolve_device(cfg.device)

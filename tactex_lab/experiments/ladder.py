@@ -79,12 +79,10 @@ class FramedPresses(press_cache.CachedPresses):
 
 def needs_frames(cfg) -> bool:
     """Whether a learner of ``cfg`` may look at frames (not only descriptors)."""
-    if cfg.model == "descriptor":
-        return False
-    if cfg.model == "auto":
-        from tactex_ros.core.ladder import DESCRIPTOR_RUNGS, parse_rungs
-        return any(r not in DESCRIPTOR_RUNGS for r in parse_rungs(cfg.ladder))
-    return True
+    if cfg.is_ladder:
+        from tactex_ros.core.ladder import DESCRIPTOR_RUNGS, rungs_of
+        return any(r not in DESCRIPTOR_RUNGS for r in rungs_of(cfg).names)
+    return cfg.plugin
 
 
 def scene_run(setting: tuple, cache: dict[str, np.ndarray], plat: list[str], seed: int,

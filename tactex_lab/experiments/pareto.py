@@ -94,9 +94,7 @@ def job_key(job: TrialJob) -> str:
     import json
 
     from tactex_ros.core.config import preset
-    cfg = preset(job.preset, **job.overrides).model_dump()
-    if cfg["model"] != "cnn_auto":      # the auto_* fields do not change a fixed model's run
-        cfg = {k: v for k, v in cfg.items() if not k.startswith("auto_")}
+    cfg = preset(job.preset, **job.overrides).model_dump()   # a learner's own fields only
     d = job.to_dict()
     d.pop("tags")
     blob = json.dumps({"job": d, "cfg": cfg}, sort_keys=True, default=str)

@@ -141,10 +141,10 @@ def build_jobs(args) -> list[TrialJob]:
     jobs = []
     models = {"default": {}, "auto": {"model": "cnn_auto"}, "top": {}}
     from tactex_ros.core.config import preset
-    from tactex_lab.cnn.auto import parse_ladder
-    d = preset("cnn", **{"model": "cnn_auto", **args.overrides})
-    top = parse_ladder(d.auto_ladder, d.input_size)[-1]
-    models["top"] = {"model": top[0], "input_size": top[1]}
+    from tactex_ros.core.ladder import rungs_of
+    top = rungs_of(preset("cnn", **{"model": "cnn_auto", **args.overrides})).names[-1]
+    name, _, px = top.partition("@")
+    models["top"] = {"model": name, "input_size": int(px)}
     axes = {a: AXES[a] for a in args.axes}
     if "difficulty" in axes and args.difficulties:
         axes["difficulty"] = args.difficulties

@@ -135,7 +135,7 @@ def node_parameters() -> list[str]:
             out += ["`learner.model` picks the learner and with it the `learner.*` parameters "
                     "the node declares: those marked *(learner: ...)* exist only for that "
                     "learner family (`descriptor`: model descriptor; `cnn`: the CNN models; "
-                    "`cnn_auto`: the CNN chooser, which also has the `cnn` ones; `auto`: the "
+                    "`cnn_auto`: the ladder over CNN sizes, which also has the `cnn` ones; `auto`: the "
                     "ladder descriptor -> representation -> CNN, which also has the "
                     "`descriptor` ones); one given to another "
                     "learner is refused by name (exit status 2).", ""]

@@ -27,7 +27,7 @@ MODEL_NAMES = ("descriptor",) + CNN_MODELS + ("cnn_auto", "auto")
 MODEL_HELP = ("model: 'descriptor' (texture descriptor + Gaussian match belief, no training), "
               "a CNN variant, 'auto' (a ladder: descriptor, then the prepared representation, "
               "then a CNN, climbed only on the trial's evidence, core/ladder.py) or 'cnn_auto' "
-              "(escalating CNN chooser); it picks the learner's settings (a descriptor has no "
+              "(the same ladder over CNN sizes); it picks the learner's settings (a descriptor has no "
               "CNN setting)")
 
 
@@ -36,6 +36,11 @@ class LearnerBase(Schema):
     engine's contact guards. A subclass per learner; ``LearnerSettings`` is their union."""
 
     kind: ClassVar[str] = ""      # the learner family: 'descriptor', 'cnn', 'cnn_auto', 'auto'
+    # capabilities (what code asks instead of testing ``model``): a learner of a
+    # ``tactex.learners`` plug-in named by ``model`` (``core/build.py`` loads it) ...
+    plugin: ClassVar[bool] = False
+    # ... or a ladder of learners (``core/ladder.py``; its rungs are built by ``make_learner``)
+    is_ladder: ClassVar[bool] = False
     # capability: its belief takes touches of the reference too, so a strategy that scores the
     # reference (``Strategy.includes_reference``, infogain) can run with it
     scores_reference: ClassVar[bool] = False
@@ -126,6 +131,7 @@ class CnnSettings(LearnerBase):
     pure pydantic, so the product validates, declares and documents it without torch."""
 
     kind: ClassVar[str] = "cnn"
+    plugin: ClassVar[bool] = True
     model: Literal[CNN_MODELS] = param("small_inception", MODEL_HELP)
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
@@ -178,16 +184,19 @@ class CnnSettings(LearnerBase):
                                     "touches (measured: it restores accuracy under drift in "
                                     "simulation, and cost 2 of 24 replayed octopi-dev scenes, "
                                     "docs/research/speed_stability.md)")
-    # model 'cnn_auto': start cheap, escalate on evidence (tactex_lab/cnn/auto.py). The first
+    # model 'cnn_auto': start cheap, escalate on evidence (core/ladder.py). The first
     # stage is the cheapest that works: 32 px lost 19 points against 48 px in the pareto grid
     # (docs/research/speed_stability.md), and a 32 px start made it 9 points worse than the default.
 
 
 class AutoSettings(CnnSettings):
-    """Model 'cnn_auto' (``tactex_lab/cnn/auto.py``): a ladder of CNNs (each with the CNN
-    settings here), moved up on evidence from the trial itself."""
+    """Model 'cnn_auto': the ladder of ``core/ladder.py`` whose rungs are CNNs (``auto_ladder``,
+    each rung with the CNN settings here at its input size), climbed by the ``auto_*`` rule
+    (held-back touches, then a reference entropy that does not fall)."""
 
     kind: ClassVar[str] = "cnn_auto"
+    plugin: ClassVar[bool] = False
+    is_ladder: ClassVar[bool] = True
     model: Literal["cnn_auto"] = param("cnn_auto", MODEL_HELP)
     auto_ladder: str = param("small_inception@48,small_inception@96",
                              "model 'cnn_auto': stages cheapest first, 'model@input_px' "
@@ -214,6 +223,7 @@ class LadderSettings(DescriptorSettings):
     ladder's; a CNN rung runs with its preset's settings."""
 
     kind: ClassVar[str] = "auto"
+    is_ladder: ClassVar[bool] = True
     model: Literal["auto"] = param("auto", MODEL_HELP)
     ladder: str = param("descriptor,representation,cnn",
                         "model 'auto': rungs cheapest first, separated by commas: 'descriptor', "

@@ -33,7 +33,7 @@ sure.
 
 Model ``auto`` (``LadderSettings``, ``core/ladder.py``) climbs a ladder (descriptor, the
 prepared representation, a CNN plug-in) on evidence from the trial itself; ``cnn_auto``
-(``AutoSettings``, the lab's ``tactex_lab/cnn/auto.py``) does the same over CNN sizes. The round
+(``AutoSettings``, the same ladder) does the same over CNN sizes. The round
 records the model and input size it used (``RoundRecord.model``, ``TrainingDetail.input_size``)
 and why it escalated (``TrainingDetail.escalation``); ``TrialOutcome.notes`` says which rungs
 were skipped. A round's ``detail`` is its learner's: ``TrainingDetail`` for a learner that

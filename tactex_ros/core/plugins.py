@@ -4,7 +4,7 @@ The product names no plug-in package: a distribution declares entry points in a 
 repository's ``setup.cfg`` declares the lab's), ``importlib.metadata`` lists them from the
 installed metadata (nothing is imported), and ``load`` imports the one asked for.
 
-Groups: ``tactex.learners`` (name = ``learner.model``, a ``CnnSettings`` / ``AutoSettings``
+Groups: ``tactex.learners`` (name = ``learner.model``, a ``CnnSettings``
 tag, object = a factory ``(num_classes, cfg, seed) -> learner``, see ``core/learners.py``) and ``tactex.commands``
 (object = ``add_commands(subparsers)`` adding ``tactex`` sub-commands, see ``cli/main.py``).
 """

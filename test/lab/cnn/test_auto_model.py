@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from tactex_ros.core.config import preset, trial_preset
-from tactex_lab.cnn.auto import parse_ladder
+from tactex_ros.core.ladder import parse_cnn_rungs
 from tactex_ros.core.engine import TouchRejected, TrialEngine
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.guards import ContactGuard, flatness_score
@@ -28,14 +28,14 @@ def _touch_fn(seed=0, n=4):
 
 
 def test_parse_ladder_checks_names_and_sizes():
-    assert parse_ladder("small_inception@32, small_inception", 64) == [
-        ("small_inception", 32), ("small_inception", 64)]
+    assert parse_cnn_rungs("small_inception@32, small_inception", 64) == [
+        "small_inception@32", "small_inception@64"]
     with pytest.raises(InputError, match="unknown model"):
-        parse_ladder("resnet@32", 64)
+        parse_cnn_rungs("resnet@32", 64)
     with pytest.raises(InputError, match="at least 75"):
-        parse_ladder("inception_v3_random@48", 64)
+        parse_cnn_rungs("inception_v3_random@48", 64)
     with pytest.raises(InputError, match="empty"):
-        parse_ladder(" , ", 64)
+        parse_cnn_rungs(" , ", 64)
 
 
 def test_auto_escalates_on_evidence_and_keeps_touches():

@@ -11,7 +11,6 @@ import pytest
 import torch
 
 from tactex_lab.cnn import device as device_mod
-from tactex_lab.cnn.auto import AutoLearner
 from tactex_lab.cnn.learner import OnlineLearner
 from tactex_ros.cli.main import main
 from tactex_ros.core.config import (AutoSettings, CnnSettings, LadderSettings, preset,
@@ -149,10 +148,11 @@ def test_to_cpu_keeps_structure():
 
 
 def test_cnn_auto_stage_learners_take_the_device(no_cuda):
-    lr = AutoLearner(4, AutoSettings(device="auto", input_size=48, steps=2, augment=2))
+    from tactex_ros.core.build import make_learner
+    lr = make_learner(4, AutoSettings(device="auto", input_size=48, steps=2, augment=2))
     assert lr.inner.device.type == "cpu" and lr.cfg.device == "auto"
     with pytest.raises(InputError, match="torch.cuda.is_available"):
-        AutoLearner(4, AutoSettings(device="cuda", input_size=48))
+        make_learner(4, AutoSettings(device="cuda", input_size=48))
 
 
 def test_ladder_cnn_rung_runs_with_the_ladder_device():

@@ -14,7 +14,8 @@ from tactex_ros.core.calibration import PLACEHOLDER_FRAME
 from tactex_ros.core.config import TrialConfig, preset
 from tactex_ros.core.engine import TrialSpec, run_trial
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.ladder import Evidence, Ladder, Rule, escalation_reason, parse_rungs
+from tactex_ros.core.ladder import (EntropyRule, Evidence, Ladder, Rule, entropy_reason,
+                                    escalation_reason, parse_cnn_rungs, parse_rungs, rungs_of)
 from tactex_ros.core.texture import descriptor_dim
 
 DIM = descriptor_dim(True)        # the shipped descriptor (with the height map)
@@ -58,6 +59,42 @@ def test_a_sharp_belief_never_climbs_on_belief_evidence():
     flat = [b(0.92, 0.05, 0.02, 0.01)] * 4
     assert escalation_reason(flat, [], RULE) is None
     assert escalation_reason(flat, [False, False, False], RULE).test == "heldout"
+
+
+ERULE = EntropyRule(patience=2, min_drop=0.7, entropy=0.2, window=3, heldout_acc=0.5,
+                    num_classes=4)          # floor 0.2 log 4 = 0.277 nats
+
+
+def test_cnn_auto_rule_heldout_from_the_first_full_window():
+    # unlike the belief rule, held-back touches are judged before any decision on the rung
+    ev = entropy_reason([], [True, False, False], ERULE)
+    assert ev == Evidence("heldout", pytest.approx(1 / 3), 0.5, 0)
+    assert ERULE.describe(ev, "a", "b") == \
+        "held-back touches: 0.33 of the last 3 classified right < 0.5"
+    assert entropy_reason([1.0], [False, False], ERULE) is None
+
+
+def test_cnn_auto_rule_entropy_that_does_not_fall():
+    ev = entropy_reason([1.0, 0.8, 0.5], [], ERULE)      # fell 50 % < 70 %, above 0.277
+    assert (ev.test, ev.value, ev.before, ev.decisions) == ("entropy", 0.5, 1.0, 3)
+    assert ev.threshold == pytest.approx(0.2 * np.log(4))
+    assert ERULE.describe(ev, "a", "b") == \
+        "entropy not falling: 1.000 -> 0.500 nats over 2 rounds, above 0.277"
+    assert entropy_reason([1.0, 0.8], [], ERULE) is None          # not more than patience
+    assert entropy_reason([1.0, 0.8, 0.29], [], ERULE) is None    # fell 71 %
+    assert entropy_reason([0.5, 0.4, 0.27], [], ERULE) is None    # below the floor
+
+
+def test_cnn_auto_is_the_ladder_with_cnn_rungs():
+    cfg = preset("cnn", model="cnn_auto", auto_ladder="small_inception@32,small_inception",
+                 auto_patience=3, auto_catchup=1, lr=1e-2)
+    assert cfg.is_ladder and not cfg.plugin and preset("cnn").plugin
+    plan = rungs_of(cfg, 4)
+    assert plan.names == ["small_inception@32", "small_inception@48"]
+    assert plan.rule == EntropyRule(3, 0.7, 0.2, 3, 0.5, 4) and plan.catchup == 1
+    rung = plan.config("small_inception@48")
+    assert (rung.model, rung.input_size, rung.lr, rung.steps) == ("small_inception", 48, 1e-2, 8)
+    assert parse_cnn_rungs("inception_v3@96", 48) == ["inception_v3@96"]
 
 
 @pytest.mark.parametrize("text", ["", "descriptor,vgg", "descriptor@32", "cnn@16",
@@ -129,9 +166,14 @@ def test_the_products_learners_need_no_installed_metadata():
             "from tactex_ros.core.errors import InputError; "
             "lad = make_learner(4, preset('default', model='auto')); "
             "d = make_learner(4, preset('default')); "
-            "print(type(lad).__name__, lad.rungs, type(d).__name__); "
+            "print(type(lad).__name__, lad.rungs, type(d).__name__)\n"
+            "try: make_learner(4, preset('cnn', model='cnn_auto'))\n"
+            "except InputError as e: print(e)\n"
             "make_learner(4, preset('cnn'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=Path(__file__).resolve().parents[3], timeout=600)
     assert out.stdout.split("\n")[0] == "Ladder ['descriptor'] DescriptorLearner", out.stderr
+    # cnn_auto is a ladder of plug-in CNNs: without them no rung is usable, each one named
+    assert out.stdout.split("\n")[1].startswith(
+        "ladder 'small_inception@48,small_inception@96': no usable rung"), out.stdout
     assert "InputError" in out.stderr and "small_inception" in out.stderr
