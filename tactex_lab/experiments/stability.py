@@ -315,7 +315,7 @@ def run(args) -> int:
     unique: dict[str, int] = {}
     todo: list[TrialJob] = []
     for j in jobs:
-        k = json.dumps([j.source, j.perturb, j.overrides, j.strategy, j.seed], sort_keys=True)
+        k = json.dumps([j.source, j.perturb, j.overrides, j.trial.strategy, j.seed], sort_keys=True)
         if k not in unique:
             unique[k] = len(todo)
             todo.append(j)
@@ -324,7 +324,7 @@ def run(args) -> int:
                    description=f"stability ({len(todo)} trials)", quiet=args.quiet)
     runs = []
     for j in jobs:
-        k = json.dumps([j.source, j.perturb, j.overrides, j.strategy, j.seed], sort_keys=True)
+        k = json.dumps([j.source, j.perturb, j.overrides, j.trial.strategy, j.seed], sort_keys=True)
         d = res[unique[k]].to_dict()      # runs.json's form
         r = dict(d, job=dict(d["job"], tags=j.tags))
         runs.append(compact(r))
