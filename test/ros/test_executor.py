@@ -97,7 +97,11 @@ def test_state_stays_fresh_while_a_callback_works(domain_id, mock_arm) -> None:
         assert 1.9 <= t1 - t0 < 5.0
         for name, ts in (("pose", pose_t), ("wrench", wrench_t)):
             inside = np.array([t for t in ts if t0 <= t <= t1])
-            assert len(inside) >= 100, f"{name}: {len(inside)} messages in {t1 - t0:.1f} s"
+            # the mock arm publishes at 100 Hz; at load (two busy processes beside the suite on
+            # 2 cores) 97 came in 2 s: the state stays fresh if it keeps coming (>= 20 Hz) with
+            # no gap of 0.5 s, which a callback blocking the executor for 2 s would make
+            assert len(inside) >= 20 * (t1 - t0), \
+                f"{name}: {len(inside)} messages in {t1 - t0:.1f} s"
             gaps = np.diff(np.concatenate([[t0], inside, [t1]]))
             assert gaps.max() < 0.5, f"{name}: state gap {gaps.max():.2f} s"
     finally:

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from tactex_ros.cli.main import main
-from tactex_lab.experiments.curves import at_stop
+from tactex_lab.experiments.curves import BeliefCurve, at_stop
 
 pytestmark = pytest.mark.slow
 
@@ -31,7 +31,7 @@ def test_env_evaluation_equals_experiment_real(octopi_dir, tmp_path):
     env = json.loads(f.read_text())["agents"]["default"]
     for c, ep in zip(curves, env["episodes"], strict=True):
         assert ep["classes"] == c["classes"]                  # the same scene
-        correct, touches, _ = at_stop(c, 0.9)
+        correct, touches, _ = at_stop(BeliefCurve.from_json(c), 0.9)
         assert (ep["correct"], ep["touches"]) == (correct, touches)
     assert env["accuracy"] == pytest.approx(row["accuracy"])
     assert env["touches"] == pytest.approx(row["touches"])
