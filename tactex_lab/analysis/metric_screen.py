@@ -25,6 +25,7 @@ import numpy as np
 from tactex_ros.core import representation
 from tactex_lab.analysis import mlp_metric
 from tactex_lab.analysis.stats import mcnemar_exact
+from tactex_lab.analysis.learned_features import library_view
 
 #: (loss, hidden, decay) of the MLPs screened.
 GRID = tuple(itertools.product(("episode", "triplet"), (64,), (1e-3, 1e-2, 1e-1)))
@@ -66,7 +67,7 @@ def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
     for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
         for feat, read in features.items():
             x, cls = read(test), test["cls"]
-            xl = read(lib)
+            xl = read(library_view(lib))
             libd = {c: xl[lib["cls"] == c] for c in sorted(set(lib["cls"].tolist()))}
             t0 = time.perf_counter()
             white = representation.fit(libd, kind="whiten")
@@ -109,31 +110,42 @@ CANDIDATES = ("frame", "frames4", "fb", "hm", "fb_hm", "frame_fb", "frame_hm", "
               "frames4_fb", "frames4_hm", "frames4_grow", "frames4_all")
 
 
+#: Further baselines of ``feature_screen`` when their feature is screened (``vs``): today's
+#: default descriptor and the best prepared feature before the learned candidates.
+BASELINES = (("frame_hm", "none"), ("frames4_hm", "whiten"))
+
+
 def feature_screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
                    features: dict[str, Callable[[dict], np.ndarray]],
                    scenes: int = 3000) -> list[dict]:
     """Every feature of ``features`` with no metric and with the whitening fitted on the other
     library, scored with ``scene_hits`` (1 press / the means of 2), both directions, on the
     same ``scenes`` for every feature: exact McNemar against today's feature (``frame``, no
-    metric: ``vs_frame``) and against the whitened frame (``vs_whiten``). ``features`` must
-    hold ``frame``."""
+    metric: ``vs_frame``) and against the whitened frame (``vs_whiten``), and in ``vs``
+    against every ``BASELINES`` row screened before it. ``features`` must hold ``frame``."""
     rows = []
     for name, test, lib in (("a_with_b", a, b), ("b_with_a", b, a)):
         base: dict[str, dict[int, np.ndarray]] = {}
-        for feat in ["frame"] + [f for f in features if f != "frame"]:
-            x, cls, xl = features[feat](test), test["cls"], features[feat](lib)
+        allhits: dict[tuple[str, str], dict[int, np.ndarray]] = {}
+        order = ["frame"] + [b for b, _ in BASELINES if b in features and b != "frame"]
+        for feat in dict.fromkeys(order + list(features)):
+            x, cls, xl = features[feat](test), test["cls"], features[feat](library_view(lib))
             libd = {c: xl[lib["cls"] == c] for c in sorted(set(lib["cls"].tolist()))}
             for kind in ("none", "whiten"):
                 rep = None if kind == "none" else representation.fit(libd, kind="whiten")
                 hits = {per: scene_hits(x, cls, rep, per, scenes) for per in (1, 2)}
                 if feat == "frame":
                     base[kind] = hits
+                allhits[feat, kind] = hits
                 row = {"direction": name, "feature": feat, "metric": kind, "dims": x.shape[1],
                        "acc_1": float(hits[1].mean()), "acc_2": float(hits[2].mean()),
                        "vs_frame": {str(p): mcnemar_exact(hits[p], base["none"][p])
                                     for p in (1, 2)},
                        "vs_whiten": ({str(p): mcnemar_exact(hits[p], base["whiten"][p])
-                                      for p in (1, 2)} if "whiten" in base else None)}
+                                      for p in (1, 2)} if "whiten" in base else None),
+                       "vs": {f"{b}/{m}": {str(p): mcnemar_exact(hits[p], allhits[b, m][p])
+                                           for p in (1, 2)}
+                              for b, m in BASELINES if (b, m) in allhits}}
                 rows.append(row)
                 vs = "" if row["vs_whiten"] is None else "  p vs frame/whiten " + " ".join(
                     f"{row['vs_whiten'][p]['p']:.2g}" for p in ("1", "2"))

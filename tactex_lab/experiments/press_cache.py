@@ -14,6 +14,7 @@ import numpy as np
 from tactex_ros.core import calibration as belief_calibration
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
+from tactex_lab.analysis.learned_features import library_view  # noqa: F401 (re-exported)
 
 
 def _frames4(c: dict[str, np.ndarray]) -> np.ndarray:
@@ -39,8 +40,14 @@ FEATURES = {
     "frames4_hm": lambda c: np.concatenate([_frames4(c), c["hm"]], axis=1),
     "frames4_grow": lambda c: np.concatenate([_frames4(c), c["grow"]], axis=1),
     "frames4_all": lambda c: np.concatenate([_frames4(c), c["fb"], c["hm"], c["grow"]], axis=1),
+    # issue 33's last candidates (analysis/learned_features.py; --scattering, --cnn-seed)
+    "scat": lambda c: c["scat"],
+    "frame_hm_scat": lambda c: np.concatenate([c["f0"], c["hm"], c["scat"]], axis=1),
+    "cnn": lambda c: c["cnn"],
+    "cnn4": lambda c: c["cnn4"],
+    "frame_hm_cnn": lambda c: np.concatenate([c["f0"], c["hm"], c["cnn"]], axis=1),
+    "frames4_hm_cnn4": lambda c: np.concatenate([_frames4(c), c["hm"], c["cnn4"]], axis=1),
 }
-
 
 def build_cache(root: str | Path, out: str | Path, candidates: bool = False) -> Path:
     """Describe every press of the replay folder ``root`` once: the strongest frame (``f0``),
@@ -96,7 +103,7 @@ def load_cache(path: str | Path) -> dict[str, np.ndarray]:
 
 
 def by_class(cache: dict[str, np.ndarray], feature: str) -> dict[str, np.ndarray]:
-    """{class: (n_c, D') feature vectors}."""
+    """{class: (n_c, D') feature vectors} (of a library: pass ``library_view(cache)``)."""
     x = FEATURES[feature](cache)
     return {c: x[cache["cls"] == c] for c in sorted(set(cache["cls"].tolist()))}
 

@@ -47,7 +47,7 @@ from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
-                                                load_cache)
+                                                library_view, load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
@@ -197,7 +197,8 @@ def screen(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[dict]:
         for f, kind, k, shrink in SCREEN:
             x = FEATURES[f](test)
             rep = (None if kind == "none" else
-                   representation.fit(by_class(lib, f), shrink=shrink, kind=kind, dims=k))
+                   representation.fit(by_class(library_view(lib), f), shrink=shrink,
+                                      kind=kind, dims=k))
             rows.append({"direction": name, "feature": f, "kind": kind, "dims": k,
                          "shrink": shrink,
                          "acc_1": nearest_mean_accuracy(x, test["cls"], rep, 1),
@@ -222,7 +223,8 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
     reps, prepared, temps = {}, {}, {}
     for s in settings:
         t0 = time.perf_counter()
-        reps[s.label] = prepare_setting(s, by_class(library, s.feature), seed=args.seed)
+        reps[s.label] = prepare_setting(s, by_class(library_view(library), s.feature),
+                                        seed=args.seed)
         temps[s.label] = setting_temperature(s, test_family, families)
         r = reps[s.label]
         prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": s.to_dict(),
@@ -276,6 +278,11 @@ def run_unseen(args: argparse.Namespace) -> dict:
             print(f"describing every press of {root} -> {path}")
             build_cache(root, path, candidates=args.candidates)
         caches[name] = load_cache(path)
+    if args.scattering or args.cnn_seed is not None:
+        from tactex_lab.analysis import learned_features
+        learned_features.add_to_caches(caches, {"a": args.a, "b": args.b}, args.cache_dir,
+                                       scattering=args.scattering, cnn_seed=args.cnn_seed,
+                                       cnn_steps=args.cnn_steps)
     wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
     for f in sorted(wanted):
         try:
@@ -339,12 +346,22 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--screen-mlp", action="store_true",
                    help="only the screening of a small numpy MLP metric (analysis/mlp_metric) "
                         "against the whitening, both directions; writes metric_screen.json")
+    p.add_argument("--scattering", action="store_true",
+                   help="add kymatio's wavelet scattering of every press to the caches (features "
+                        "scat, frame_hm_scat; analysis/learned_features.py)")
+    p.add_argument("--cnn-seed", type=int, default=None,
+                   help="train the small CNN on each library with this seed and add the "
+                        "embeddings to the caches (features cnn, cnn4, frame_hm_cnn, "
+                        "frames4_hm_cnn4; the test side is embedded by the other library's "
+                        "network); cached under --cache-dir per seed and steps")
+    p.add_argument("--cnn-steps", type=int, default=800,
+                   help="training steps of the small CNN (--cnn-seed)")
     p.add_argument("--screen-features", action="store_true",
                    help="only the screening proxy of per-press features (--features), with no "
                         "metric and whitened, both directions, exact McNemar against the frame "
                         "and the whitened frame on the same scenes; writes feature_screen.json")
     p.add_argument("--features", nargs="+", default=list(metric_screen.CANDIDATES),
-                   choices=list(metric_screen.CANDIDATES),
+                   choices=list(FEATURES),
                    help="per-press features (--screen-features)")
     p.add_argument("--mlp-steps", type=int, default=600, help="Adam steps per MLP (--screen-mlp)")
     p.add_argument("--mlp-seeds", type=int, nargs="+", default=[0],

@@ -71,7 +71,8 @@ class DescriptorSettings(LearnerBase):
     scores_reference: ClassVar[bool] = True
     model: Literal["descriptor"] = param("descriptor", MODEL_HELP)
     descriptor_frames: int = param(1, "model 'descriptor': contact frames of one press averaged "
-                                      "into its descriptor (the strongest + more of the press)",
+                                      "into its descriptor (the strongest + more of the press; "
+                                      "the height map is the strongest frame's)",
                                    1, 16)
     descriptor_height_map: bool = param(
         True, "model 'descriptor': append the contact's height-map statistics (photometric "

@@ -56,7 +56,8 @@ class DescriptorLearner:
         self.num_classes = num_classes
         rep = _load_representation(cfg.representation) if cfg.representation else None
         if rep is not None:
-            rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}")
+            rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}",
+                                 cfg.descriptor_frames)
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
                                 cfg.match_temperature, scene_units=cfg.match_units == "scene")
         self.representation: Representation | None = None

@@ -62,6 +62,7 @@ def prepare(descriptors: dict[str, "np.ndarray"], settings: PrepareSettings,
     s = settings
     fit = partial(representation.fit, shrink=s.shrink, kind=s.kind, dims=s.dims)
     rep = fit(descriptors)
+    rep.frames = int(cfg.descriptor_frames)
     if s.calibration != "off":
         trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
                                          scenes=s.calibration_scenes,

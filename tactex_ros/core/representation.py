@@ -25,9 +25,10 @@ file keeps it (``temperature``; NaN when not calibrated). The file (``save`` / `
 numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped path): mean
 (D,), std (D,), the map (k, D) (key ``whiten``), the descriptor's size D (``descriptor_dim``:
 ``texture.DIM`` without the height map, ``texture.DIM_HEIGHT_MAP`` with it), the kind, the
-temperature, what the calibration measured (JSON) and the library's size; no frames or
-descriptors of the library. A file without kind or temperature is a whitening without
-calibration; one without ``descriptor_dim`` holds the size of its mean.
+temperature, what the calibration measured (JSON), the library's size and the contact frames
+per press it was prepared from (``descriptor_frames``; 0 or absent: not recorded, an older
+file); no frames or descriptors of the library. A file without kind or temperature is a
+whitening without calibration; one without ``descriptor_dim`` holds the size of its mean.
 """
 
 from __future__ import annotations
@@ -55,15 +56,18 @@ class Representation:
     kind: str = "whiten"
     temperature: float = float("nan")   # calibrated belief temperature, NaN = not calibrated
     calibration: dict = field(default_factory=dict)   # what the calibration measured
+    frames: int = 0        # contact frames per press it was prepared from; 0 = not recorded
 
     @property
     def descriptor_dim(self) -> int:
         """D, the size of the descriptors it takes."""
         return int(self.mean.shape[0])
 
-    def check_descriptor(self, height_map: bool, where: str) -> None:
+    def check_descriptor(self, height_map: bool, where: str, frames: int | None = None) -> None:
         """InputError unless it takes the descriptors ``learner.descriptor_height_map =
-        height_map`` makes (``where``: the file, for the message)."""
+        height_map`` makes and (when the file records it and ``frames`` is given) was prepared
+        from as many contact frames per press as ``learner.descriptor_frames = frames``
+        (``where``: the file, for the message)."""
         want = descriptor_dim(height_map)
         if self.descriptor_dim != want:
             made = "with" if self.descriptor_dim == DIM_HEIGHT_MAP else "without"
@@ -74,6 +78,12 @@ class Representation:
                 f"set learner.descriptor_height_map={str(not height_map).lower()} or prepare "
                 f"the file again (`tactex prepare --height-map "
                 f"{'on' if height_map else 'off'}`)")
+        if frames is not None and self.frames and self.frames != frames:
+            raise InputError(
+                f"representation {where} was prepared from {self.frames} contact frame(s) per "
+                f"press; this learner describes touches from {frames} "
+                f"(learner.descriptor_frames={frames}): set learner.descriptor_frames="
+                f"{self.frames} or prepare the file again (`tactex prepare --frames {frames}`)")
 
     @property
     def dims(self) -> int:
@@ -144,6 +154,7 @@ def save(rep: Representation, path: str | Path) -> Path:
                  kind=np.array(rep.kind), classes=np.array(rep.classes),
                  presses=np.array(rep.presses), shrink=np.array(rep.shrink),
                  descriptor_dim=np.array(rep.descriptor_dim),
+                 descriptor_frames=np.array(rep.frames),
                  temperature=np.array(rep.temperature),
                  calibration=np.array(json.dumps(rep.calibration)))
     return path
@@ -198,5 +209,9 @@ def load(path: str | Path) -> Representation:
     if not isinstance(calib, dict):
         raise InputError(f"representation file {p}: field 'calibration' must be a JSON "
                          f"object, got {type(calib).__name__}")
+    frames = number("descriptor_frames", 0)
+    if frames != int(frames) or frames < 0:
+        raise InputError(f"representation file {p}: field 'descriptor_frames' must be a whole "
+                         f"number >= 0 (0: not recorded), got {frames}")
     return Representation(mean, std, w, int(number("classes", 0)), int(number("presses", 0)),
-                          number("shrink", 0.0), kind, temp, calib)
+                          number("shrink", 0.0), kind, temp, calib, int(frames))

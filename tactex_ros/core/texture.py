@@ -298,10 +298,14 @@ def describe_cached(frame: np.ndarray, no_contact: np.ndarray | None = None,
 
 def describe_touch(touch: "Touch | np.ndarray", max_frames: int = 1,
                    with_height_map: bool = False) -> np.ndarray:
-    """(DIM,) (``DIM_HEIGHT_MAP`` ``with_height_map``) mean descriptor over up to
-    ``max_frames`` contact frames of one touch."""
+    """(DIM,) mean descriptor over up to ``max_frames`` contact frames of one touch;
+    ``with_height_map``: (``DIM_HEIGHT_MAP``,), the height map's statistics of the strongest
+    frame appended (the lab's ``frames4_hm``: its texture is the deepest there, and one
+    height map per touch keeps the cost of one)."""
     t = as_touch(touch)
-    frames = [t.frame]
-    if t.extra is not None and max_frames > 1:
-        frames += list(t.extra[:max_frames - 1])
-    return np.mean([describe_cached(f, t.no_contact, with_height_map) for f in frames], axis=0)
+    first = describe_cached(t.frame, t.no_contact, with_height_map)
+    if t.extra is None or max_frames <= 1:
+        return first
+    rest = [describe_cached(f, t.no_contact, False) for f in t.extra[:max_frames - 1]]
+    base = np.mean([first[:DIM]] + rest, axis=0)
+    return np.concatenate([base, first[DIM:]])

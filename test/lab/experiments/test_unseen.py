@@ -58,14 +58,17 @@ def test_region_and_frame_features_have_the_documented_sizes():
     cache = {"f0": rng.normal(size=(5, 106)), "extra": rng.normal(size=(5, 3, 106)),
              "early": rng.normal(size=(5, 106)), "reg": rng.normal(size=(5, 4, 106)),
              "fb": rng.normal(size=(5, pf.FB_DIM)), "hm": rng.normal(size=(5, pf.HM_DIM)),
-             "grow": rng.normal(size=(5, pf.GROWTH_DIM))}
+             "grow": rng.normal(size=(5, pf.GROWTH_DIM)), "scat": rng.normal(size=(5, 42)),
+             "cnn": rng.normal(size=(5, 128)), "cnn4": rng.normal(size=(5, 128))}
     sizes = {k: f(cache).shape[1] for k, f in press_cache.FEATURES.items()}
     fb, hm, gr = pf.FB_DIM, pf.HM_DIM, pf.GROWTH_DIM
     assert sizes == {"frame": 106, "frames4": 106, "growth": 212, "regions": 212,
                      "frame_regstd": 212, "fb": fb, "hm": hm, "fb_hm": fb + hm,
                      "frame_fb": 106 + fb, "frame_hm": 106 + hm, "frame_grow": 106 + gr,
                      "frames4_fb": 106 + fb, "frames4_hm": 106 + hm, "frames4_grow": 106 + gr,
-                     "frames4_all": 106 + fb + hm + gr}
+                     "frames4_all": 106 + fb + hm + gr, "scat": 42, "frame_hm_scat": 106 + hm + 42,
+                     "cnn": 128, "cnn4": 128, "frame_hm_cnn": 106 + hm + 128,
+                     "frames4_hm_cnn4": 106 + hm + 128}
     np.testing.assert_allclose(press_cache.FEATURES["frames4"](cache)[0],
                                np.mean([cache["f0"][0], *cache["extra"][0]], axis=0))
 

@@ -54,6 +54,30 @@ def test_the_file_records_its_descriptor_and_the_learner_checks_it(tmp_path):
         rp.load(tmp_path / "lie.npz")
 
 
+def test_the_file_records_its_frames_and_the_learner_checks_them(tmp_path):
+    rep = rp.fit(_library(np.random.default_rng(0)))
+    assert rep.frames == 0
+    rep.frames = 4
+    back = rp.load(rp.save(rep, tmp_path / "f4.npz"))
+    assert back.frames == 4
+    back.check_descriptor(False, "f4.npz", 4)
+    with pytest.raises(InputError, match="learner.descriptor_frames=1"):
+        back.check_descriptor(False, "f4.npz", 1)
+    with pytest.raises(InputError, match="learner.descriptor_frames=1"):
+        DescriptorLearner(2, preset("default", representation=str(tmp_path / "f4.npz"),
+                                    descriptor_height_map=False))
+    DescriptorLearner(2, preset("default", representation=str(tmp_path / "f4.npz"),
+                                descriptor_height_map=False, descriptor_frames=4))
+    # an older file without the field: not recorded, any frame count
+    old = {k: v for k, v in np.load(tmp_path / "f4.npz").items() if k != "descriptor_frames"}
+    np.savez(tmp_path / "old.npz", **old)
+    assert rp.load(tmp_path / "old.npz").frames == 0
+    rp.load(tmp_path / "old.npz").check_descriptor(False, "old.npz", 3)
+    np.savez(tmp_path / "bad.npz", **dict(old, descriptor_frames=np.array(-1)))
+    with pytest.raises(InputError, match="descriptor_frames"):
+        rp.load(tmp_path / "bad.npz")
+
+
 def test_bad_representation_files_are_refused_by_name(tmp_path):
     with pytest.raises(InputError, match="not found"):
         rp.load(tmp_path / "missing.npz")
@@ -134,6 +158,14 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
              "--reference", "tissue", "--seed", "1", "--representation", str(old), "--quiet"]
     assert main(trial) == 2
     assert main(trial + ["--set", "learner.descriptor_height_map=false"]) == 0
+    # prepared from 4 frames per press: recorded; a 1-frame learner refused (exit 2)
+    f4 = tmp_path / "f4.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(f4), "--kind",
+                 "whiten", "--calibration", "off", "--frames", "4"]) == 0
+    assert (rp.load(f4).frames, rp.load(out).frames) == (4, 1)
+    trial4 = trial[:-3] + ["--representation", str(f4), "--quiet"]
+    assert main(trial4) == 2
+    assert main(trial4 + ["--set", "learner.descriptor_frames=4"]) == 0
 
 
 @pytest.mark.slow

@@ -1,0 +1,241 @@
+"""Issue 33's last two per-press candidates, screened class-disjoint in both directions with the
+``--screen`` proxy (``metric_screen.scene_hits``) against today's default and the best prepared
+feature (docs/research/unseen_materials.md, "Wavelet scattering and a small CNN"):
+
+- **scattering** (kymatio's ``Scattering2D``, numpy frontend, J = 4, L = 8, second order) of the
+  grey contact difference, spatially averaged and made rotation invariant: per scale the log
+  mean first-order modulus over orientations and the moduli of its 2nd / 4th orientation
+  harmonics; per scale pair (j1 < j2) and orientation gap |theta2 - theta1| (0 .. L/2) the log
+  ratio of the second order to the first (how the fine scale's energy is modulated). Nothing
+  trained; kymatio is a lab dependency, not the product's.
+- **cnn**: a small CNN (4 convolutions, global average pooling, a 128-number embedding) trained
+  with cross-entropy on the *library's* classes only (random 64 x 64 crops, flips and quarter
+  turns of the half-resolution contact difference of each press's 4 in-contact frames), then
+  the embedding of the test side's presses (whole half-resolution image, the strongest frame;
+  ``cnn4`` averages the 4 frames). Trained on ``../shared`` in the lab only: never shipped.
+
+The contact differences are computed once per library into an image cache (.npz under /tmp:
+``../shared`` data, never into the repository).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tactex_ros.core import texture
+from tactex_ros.core.errors import InputError
+
+SCAT_J = 4          # the better of J = 3 and 4 in the screen
+SCAT_L = 8
+HALF = 2            # the CNN's images: the contact difference subsampled by 2 (area)
+CROP = 64           # px of the half-resolution image per training crop
+EMBED = 128
+
+
+#: Cache arrays that depend on the direction: ``<k>`` is the press embedded by the network
+#: trained on the *other* library (the test side's view), ``<k>_lib`` by the one trained on its
+#: own (the library's view: the metric is fitted on what that network makes of the library).
+LEARNED = ("cnn", "cnn4")
+
+
+def library_view(cache: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The cache as the library side of a direction sees it: every ``LEARNED`` array replaced
+    by its ``_lib`` twin (a cache without learned arrays is returned as is)."""
+    return {**cache, **{k: cache[f"{k}_lib"] for k in LEARNED if f"{k}_lib" in cache}}
+
+
+def contact_stack(root: str | Path, paths: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """For every press file of ``paths`` (in that order, under the replay folder ``root``): the
+    full-resolution grey contact difference of the strongest frame ((n, 208, 288) float32) and
+    the half-resolution colour differences of its 4 in-contact frames ((n, 4, 3, 104, 144)
+    float16; a touch with fewer frames repeats the strongest)."""
+    import cv2
+    from tactex_ros.sources.replay import ReplaySource
+    src = ReplaySource(root)
+    grey, half = [], []
+    for p in paths:
+        touch = src.touch(Path(p))
+        frames = [touch.frame] + list(touch.extra if touch.extra is not None else [])
+        frames += [touch.frame] * (4 - len(frames))
+        ds = [texture.contact_difference(f, touch.no_contact) for f in frames[:4]]
+        grey.append(ds[0].mean(axis=2))
+        half.append(np.stack([cv2.resize(d, (d.shape[1] // HALF, d.shape[0] // HALF),
+                                         interpolation=cv2.INTER_AREA).transpose(2, 0, 1)
+                              for d in ds]).astype(np.float16))
+    return np.stack(grey).astype(np.float32), np.stack(half)
+
+
+class Scattering:
+    """Rotation-invariant averaged scattering of a (H, W) grey image -> (dim,) float."""
+
+    def __init__(self, shape: tuple[int, int], j: int = SCAT_J, ell: int = SCAT_L) -> None:
+        try:
+            # kymatio.numpy also imports its 3-D part, which needs scipy.special.sph_harm
+            # (gone in scipy 1.15): the 2-D frontend alone
+            from kymatio.scattering2d.frontend.numpy_frontend import (
+                ScatteringNumPy2D as Scattering2D)
+        except ImportError as exc:   # the lab's requirements hold kymatio
+            raise InputError("the scattering screen needs kymatio (requirements-lab.txt)") from exc
+        self.j, self.ell = j, ell
+        self.op = Scattering2D(J=j, shape=shape, L=ell, max_order=2, out_type="list")
+        self.dim = 3 * j + j * (j - 1) // 2 * (ell // 2 + 1)
+
+    def __call__(self, img: np.ndarray) -> np.ndarray:
+        """(H, W) float32 -> (dim,) log features (``dim`` = 3 J + J(J-1)/2 (L/2 + 1); the
+        zeroth order, the image's mean, is left out: the difference's mean is removed)."""
+        coefs = self.op(np.ascontiguousarray(img, dtype=np.float32))
+        j, ell = self.j, self.ell
+        s1 = np.zeros((j, ell))
+        s2 = np.zeros((j, j, ell // 2 + 1))
+        n2 = np.zeros_like(s2)
+        for c in coefs:
+            m = float(np.mean(c["coef"]))
+            if len(c["j"]) == 0:
+                continue
+            if len(c["j"]) == 1:
+                s1[c["j"][0], c["theta"][0]] = m
+            else:
+                (j1, j2), (t1, t2) = c["j"], c["theta"]
+                gap = abs(t2 - t1) % ell
+                gap = min(gap, ell - gap)
+                s2[j1, j2, gap] += m
+                n2[j1, j2, gap] += 1
+        first = s1.mean(axis=1)
+        harm = np.abs(np.fft.rfft(s1, axis=1))[:, [1, 2]] / (s1.sum(axis=1, keepdims=True) + 1e-9)
+        pairs = [np.log(s2[a, b] / np.maximum(n2[a, b], 1) + 1e-6) - np.log(first[a] + 1e-6)
+                 for a in range(j) for b in range(a + 1, j)]
+        return np.concatenate([np.log(first + 1e-6), harm.ravel()] + pairs)
+
+
+def scattering_features(grey: np.ndarray) -> tuple[np.ndarray, float]:
+    """(n, H, W) grey differences -> ((n, dim) features, median ms per press)."""
+    op = Scattering(grey.shape[1:])
+    rows, ms = [], []
+    for g in grey:
+        t0 = time.perf_counter()
+        rows.append(op(g))
+        ms.append(1e3 * (time.perf_counter() - t0))
+    return np.stack(rows), float(np.median(ms))
+
+
+def _net(classes: int):
+    import torch.nn as nn
+
+    def block(i: int, o: int, k: int, s: int) -> list:
+        return [nn.Conv2d(i, o, k, s, k // 2, bias=False), nn.BatchNorm2d(o), nn.ReLU(True)]
+    body = nn.Sequential(*block(3, 32, 5, 2), *block(32, 64, 3, 2), *block(64, 96, 3, 2),
+                         *block(96, EMBED, 3, 1), nn.AdaptiveAvgPool2d(1), nn.Flatten())
+    return body, nn.Sequential(nn.Dropout(0.2), nn.Linear(EMBED, classes))
+
+
+def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 32,
+              seed: int = 0, threads: int = 1) -> tuple[object, dict]:
+    """Train the embedding on a library ((n, 4, 3, h, w) half-resolution differences, (n,)
+    class names): cross-entropy over the library's classes, AdamW, cosine schedule. Returns
+    (the embedding network in eval mode, {steps, seconds, final loss, scale})."""
+    import torch
+    import torch.nn.functional as F
+    torch.manual_seed(seed)
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(seed)
+    names = sorted(set(cls.tolist()))
+    y = np.array([names.index(c) for c in cls])
+    scale = float(np.std(half.astype(np.float32))) + 1e-6
+    x = torch.from_numpy(half.astype(np.float32) / scale)          # (n, 4, 3, h, w)
+    body, head = _net(len(names))
+    opt = torch.optim.AdamW(list(body.parameters()) + list(head.parameters()), 2e-3,
+                            weight_decay=1e-3)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps)
+    h, w = x.shape[-2:]
+    t0, loss = time.perf_counter(), None
+    body.train(), head.train()
+    for _ in range(steps):
+        i = rng.integers(len(y), size=batch)
+        f = rng.integers(4, size=batch)
+        r, c = rng.integers(h - CROP + 1, size=batch), rng.integers(w - CROP + 1, size=batch)
+        xb = torch.stack([x[a, b, :, rr:rr + CROP, cc:cc + CROP]
+                          for a, b, rr, cc in zip(i, f, r, c)])
+        k = int(rng.integers(4))
+        xb = torch.rot90(xb, k, (2, 3))
+        if rng.random() < 0.5:
+            xb = torch.flip(xb, (3,))
+        out = head(body(xb))
+        loss = F.cross_entropy(out, torch.from_numpy(y[i]), label_smoothing=0.1)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+    body.eval()
+    return body, {"steps": steps, "seconds": time.perf_counter() - t0,
+                  "loss": float(loss.detach()), "scale": scale}
+
+
+def embed(body, half: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Embeddings of (n, 4, 3, h, w) presses: the strongest frame's (n, EMBED), the mean over
+    the 4 frames (n, EMBED), and the median ms per press (4 frames, one thread)."""
+    import torch
+    one, four, ms = [], [], []
+    with torch.no_grad():
+        for p in half:
+            t0 = time.perf_counter()
+            e = body(torch.from_numpy(p.astype(np.float32) / scale)).numpy()
+            ms.append(1e3 * (time.perf_counter() - t0))
+            one.append(e[0])
+            four.append(e.mean(0))
+    return np.stack(one), np.stack(four), float(np.median(ms))
+
+
+def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
+                  cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
+                  cnn_steps: int = 800) -> None:
+    """Add the learned candidates to ``experiment unseen``'s two caches ({"a", "b"}: press
+    caches of the replay folders ``roots``), in place: ``scat`` (the scattering of each press)
+    with ``scattering``; with ``cnn_seed``, a network trained on each library and ``cnn`` /
+    ``cnn4`` = the press embedded by the *other* library's network (the test view), ``cnn_lib``
+    / ``cnn4_lib`` by its own (``press_cache.library_view``). Images, scattering and embeddings
+    are cached under ``cache_dir`` (``../shared`` data: /tmp, never the repository)."""
+    d = Path(cache_dir)
+    stacks = {}
+    for k, root in roots.items():
+        path = d / f"{Path(root).name}_stack.npz"
+        if not path.is_file():
+            grey, half = contact_stack(root, [str(p) for p in caches[k]["path"]])
+            np.savez(path, grey=grey, half=half, path=caches[k]["path"])
+        with np.load(path, allow_pickle=False) as z:
+            if not np.array_equal(z["path"], caches[k]["path"]):
+                raise InputError(f"{path}: its presses are not the cache's (delete it)")
+            stacks[k] = {"grey": z["grey"], "half": z["half"]}
+    if scattering:
+        for k, root in roots.items():
+            path = d / f"{Path(root).name}_scat_j{SCAT_J}.npz"
+            if not path.is_file():
+                x, ms = scattering_features(stacks[k]["grey"])
+                np.savez(path, scat=x, ms=np.array(ms))
+                print(f"scattering of {root}: {x.shape[1]} numbers, median {ms:.0f} ms per press",
+                      flush=True)
+            with np.load(path) as z:
+                caches[k]["scat"] = z["scat"]
+    if cnn_seed is None:
+        return
+    emb: dict[str, dict[str, np.ndarray]] = {}   # net trained on k -> {press side: embeddings}
+    for k, root in roots.items():
+        path = d / f"cnn_{Path(root).name}_s{cnn_seed}_n{cnn_steps}.npz"
+        if not path.is_file():
+            body, log = train_cnn(stacks[k]["half"], caches[k]["cls"], steps=cnn_steps,
+                                  seed=cnn_seed)
+            out = {}
+            for side, side_root in roots.items():
+                name = Path(side_root).name
+                out[f"{name}_one"], out[f"{name}_four"], ms = embed(body, stacks[side]["half"],
+                                                                    log["scale"])
+            np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
+            print(f"cnn trained on {root}: {log}, embedding {ms:.1f} ms per press", flush=True)
+        with np.load(path) as z:
+            emb[k] = {key: z[key] for key in z.files if key != "log"}
+    for k, root in roots.items():
+        other, name = ("b" if k == "a" else "a"), Path(root).name
+        caches[k].update(cnn=emb[other][f"{name}_one"], cnn4=emb[other][f"{name}_four"],
+                         cnn_lib=emb[k][f"{name}_one"], cnn4_lib=emb[k][f"{name}_four"])
