@@ -47,17 +47,14 @@ def library_view(cache: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {**cache, **{k: cache[f"{k}_lib"] for k in LEARNED if f"{k}_lib" in cache}}
 
 
-def contact_stack(root: str | Path, paths: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """For every press file of ``paths`` (in that order, under the replay folder ``root``): the
-    full-resolution grey contact difference of the strongest frame ((n, 208, 288) float32) and
-    the half-resolution colour differences of its 4 in-contact frames ((n, 4, 3, 104, 144)
-    float16; a touch with fewer frames repeats the strongest)."""
+def touch_stack(touches) -> tuple[np.ndarray, np.ndarray]:
+    """For every touch of the iterable ``touches``: the full-resolution grey contact difference
+    of the strongest frame ((n, 208, 288) float32) and the half-resolution colour differences
+    of its 4 in-contact frames ((n, 4, 3, 104, 144) float16; a touch with fewer frames repeats
+    the strongest)."""
     import cv2
-    from tactex_ros.sources.replay import ReplaySource
-    src = ReplaySource(root)
     grey, half = [], []
-    for p in paths:
-        touch = src.touch(Path(p))
+    for touch in touches:
         frames = [touch.frame] + list(touch.extra if touch.extra is not None else [])
         frames += [touch.frame] * (4 - len(frames))
         ds = [texture.contact_difference(f, touch.no_contact) for f in frames[:4]]
@@ -66,6 +63,37 @@ def contact_stack(root: str | Path, paths: list[str]) -> tuple[np.ndarray, np.nd
                                          interpolation=cv2.INTER_AREA).transpose(2, 0, 1)
                               for d in ds]).astype(np.float16))
     return np.stack(grey).astype(np.float32), np.stack(half)
+
+
+def contact_stack(root: str | Path, paths: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """``touch_stack`` of the press files ``paths`` (in that order) of the replay folder
+    ``root``."""
+    from tactex_ros.sources.replay import ReplaySource
+    src = ReplaySource(root)
+    return touch_stack(src.touch(Path(p)) for p in paths)
+
+
+def sim_family(cache_dir: str | Path, per_class: int = 6, seed: int = 0) -> dict[str, np.ndarray]:
+    """The simulator's catalogue fabrics as a third family (``experiment families``' ``sim``:
+    ``per_class`` presses of each fabric in one live session): ``cls``, the 129-number
+    descriptors ``f0`` (106) and ``hm`` (23) of each press, and its images (``touch_stack``:
+    ``grey``, ``half``), cached as ``sim_<per_class>_stack.npz`` under ``cache_dir``."""
+    path = Path(cache_dir) / f"sim_{per_class}_s{seed}_stack.npz"
+    if not path.is_file():
+        from tactex_ros import sources
+        from tactex_ros.core.config import preset
+        from tactex_ros.core.descriptor import raw_descriptor
+        src = sources.open_source("sim")
+        names = src.classes
+        touch = src.trial(names, seed)
+        touches = [(n, touch(i)) for i, n in enumerate(names) for _ in range(per_class)]
+        cfg = preset("default", descriptor_height_map=True)
+        desc = np.stack([raw_descriptor(t, cfg) for _, t in touches])
+        grey, half = touch_stack(t for _, t in touches)
+        np.savez(path, cls=np.array([n for n, _ in touches]), f0=desc[:, :texture.DIM],
+                 hm=desc[:, texture.DIM:], grey=grey, half=half)
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
 
 
 class Scattering:
@@ -188,15 +216,23 @@ def embed(body, half: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray,
     return np.stack(one), np.stack(four), float(np.median(ms))
 
 
+def _keys(path: Path) -> list[str]:
+    with np.load(path, allow_pickle=False) as z:
+        return list(z.files)
+
+
 def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
                   cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
-                  cnn_steps: int = 800) -> None:
+                  cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None) -> None:
     """Add the learned candidates to ``experiment unseen``'s two caches ({"a", "b"}: press
     caches of the replay folders ``roots``), in place: ``scat`` (the scattering of each press)
     with ``scattering``; with ``cnn_seed``, a network trained on each library and ``cnn`` /
     ``cnn4`` = the press embedded by the *other* library's network (the test view), ``cnn_lib``
     / ``cnn4_lib`` by its own (``press_cache.library_view``). Images, scattering and embeddings
-    are cached under ``cache_dir`` (``../shared`` data: /tmp, never the repository)."""
+    are cached under ``cache_dir`` (``../shared`` data: /tmp, never the repository). ``sim``
+    (``sim_family``): each library's network also embeds the simulator's fabrics, kept as
+    ``caches[k]["sim"]``, a press cache of that family as library k's network sees it (one
+    frame per press: its 4-frame features repeat it)."""
     d = Path(cache_dir)
     stacks = {}
     for k, root in roots.items():
@@ -223,7 +259,7 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
     emb: dict[str, dict[str, np.ndarray]] = {}   # net trained on k -> {press side: embeddings}
     for k, root in roots.items():
         path = d / f"cnn_{Path(root).name}_s{cnn_seed}_n{cnn_steps}.npz"
-        if not path.is_file():
+        if not path.is_file() or (sim is not None and "sim_one" not in _keys(path)):
             body, log = train_cnn(stacks[k]["half"], caches[k]["cls"], steps=cnn_steps,
                                   seed=cnn_seed)
             out = {}
@@ -231,6 +267,8 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
                 name = Path(side_root).name
                 out[f"{name}_one"], out[f"{name}_four"], ms = embed(body, stacks[side]["half"],
                                                                     log["scale"])
+            if sim is not None:
+                out["sim_one"], out["sim_four"], _ = embed(body, sim["half"], log["scale"])
             np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
             print(f"cnn trained on {root}: {log}, embedding {ms:.1f} ms per press", flush=True)
         with np.load(path) as z:
@@ -239,3 +277,7 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
         other, name = ("b" if k == "a" else "a"), Path(root).name
         caches[k].update(cnn=emb[other][f"{name}_one"], cnn4=emb[other][f"{name}_four"],
                          cnn_lib=emb[k][f"{name}_one"], cnn4_lib=emb[k][f"{name}_four"])
+        if sim is not None:       # the sim family as this library's network embeds it
+            caches[k]["sim"] = {"cls": sim["cls"], "f0": sim["f0"], "hm": sim["hm"],
+                                "extra": np.repeat(sim["f0"][:, None], 3, axis=1),
+                                "cnn": emb[k]["sim_one"], "cnn4": emb[k]["sim_four"]}

@@ -94,14 +94,14 @@ class Setting:
         if temperature and prep.calibration != "off":
             raise InputError(f"--setting {text!r}: temperature and calibration both set the "
                              "belief's temperature; give one")
-        if temperature and temperature not in FAMILY_CHOICES:
+        if temperature and temperature not in FAMILY_CHOICES + (SIM_CHOICE,):
             try:
                 ok = float(temperature) > 0
             except ValueError:
                 ok = False
             if not ok:
                 raise InputError(f"--setting {text!r}: temperature a number > 0 or one of "
-                                 f"{', '.join(FAMILY_CHOICES)}")
+                                 f"{', '.join(FAMILY_CHOICES + (SIM_CHOICE,))}")
         return Setting(label, feature, prep, temperature)
 
     def to_dict(self) -> dict[str, Any]:
@@ -114,6 +114,27 @@ class Setting:
 
 #: ``temperature:`` values read from ``tactex experiment families``' summary (its settings).
 FAMILY_CHOICES = ("pooled", "worst", "worst_target")
+#: ``temperature:`` chosen on the simulator's fabrics (a third family, neither side of the
+#: direction): the largest that keeps their left-out trials' wrong stops at the shipped stop
+#: <= ``SIM_GOAL``, with the setting's representation fitted on the library (``--sim-family``).
+SIM_CHOICE = "sim_target"
+SIM_GOAL = 0.03
+
+
+def sim_temperature(setting: Setting, rep: representation.Representation | None,
+                    sim: dict[str, np.ndarray], seed: int) -> tuple[float, dict]:
+    """``SIM_CHOICE``'s temperature of ``setting`` for one direction: ``core/calibration``'s
+    left-out trials on the sim family ``sim`` (a press cache as the library's network sees it,
+    ``learned_features.add_to_caches``) described by the setting's feature, the
+    representation ``rep`` fitted on the library applied as is; then ``fit_temperature``
+    target at the shipped stop. Returns (temperature, what the calibration measured)."""
+    from tactex_ros.core import calibration
+    from tactex_ros.core.config import SHIPPED_STOP
+    trajs = calibration.trajectories(by_class(sim, setting.feature),
+                                     None if rep is None else (lambda _d: rep),
+                                     preset("default"), seed=seed)
+    beta = calibration.fit_temperature(trajs, "target", (SHIPPED_STOP,), SIM_GOAL)
+    return beta, calibration.report(trajs, beta)
 
 
 def setting_temperature(setting: Setting, test_family: str, families: dict | None
@@ -123,7 +144,7 @@ def setting_temperature(setting: Setting, test_family: str, families: dict | Non
     from the summary ``families`` with ``test_family`` held out, whose descriptor must be the
     setting's (``feature``) with no representation."""
     t = setting.temperature
-    if not t:
+    if not t or t == SIM_CHOICE:
         return None
     if t not in FAMILY_CHOICES:
         return float(t)
@@ -227,11 +248,20 @@ def run_direction(settings: list[Setting], test: dict[str, np.ndarray],
                                         seed=args.seed)
         temps[s.label] = setting_temperature(s, test_family, families)
         r = reps[s.label]
+        sim_cal = None
+        if s.temperature == SIM_CHOICE:
+            if "sim" not in library:
+                raise InputError(f"setting {s.label!r}: temperature {SIM_CHOICE} needs "
+                                 "--sim-family (and --cnn-seed)")
+            temps[s.label], sim_cal = sim_temperature(s, r, library["sim"], args.seed)
+            print(f"{s.label}: temperature {temps[s.label]:.4g} chosen on the sim family",
+                  flush=True)
         prepared[s.label] = {"seconds": time.perf_counter() - t0, "setting": s.to_dict(),
                              "dims": None if r is None else r.dims,
                              "temperature": (temps[s.label] if r is None
                                              or temps[s.label] is not None else r.temperature),
-                             "calibration": None if r is None else r.calibration}
+                             "calibration": None if r is None else r.calibration,
+                             **({"sim_calibration": sim_cal} if sim_cal else {})}
 
     def runner(scenes: list[list[str]], tag: str) -> dict[str, list[BeliefCurve]]:
         return {s.label: scene_curves(s, reps[s.label], test, scenes, args.seed, args.budget,
@@ -278,11 +308,14 @@ def run_unseen(args: argparse.Namespace) -> dict:
             print(f"describing every press of {root} -> {path}")
             build_cache(root, path, candidates=args.candidates)
         caches[name] = load_cache(path)
+    if args.sim_family and args.cnn_seed is None:
+        raise InputError("--sim-family needs --cnn-seed (the networks that embed it)")
     if args.scattering or args.cnn_seed is not None:
         from tactex_lab.analysis import learned_features
+        sim = (learned_features.sim_family(args.cache_dir) if args.sim_family else None)
         learned_features.add_to_caches(caches, {"a": args.a, "b": args.b}, args.cache_dir,
                                        scattering=args.scattering, cnn_seed=args.cnn_seed,
-                                       cnn_steps=args.cnn_steps)
+                                       cnn_steps=args.cnn_steps, sim=sim)
     wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
     for f in sorted(wanted):
         try:
@@ -354,6 +387,9 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "embeddings to the caches (features cnn, cnn4, frame_hm_cnn, "
                         "frames4_hm_cnn4; the test side is embedded by the other library's "
                         "network); cached under --cache-dir per seed and steps")
+    p.add_argument("--sim-family", action="store_true",
+                   help="with --cnn-seed: embed the simulator's fabrics (6 presses each) with "
+                        "each library's network, for settings with temperature:sim_target")
     p.add_argument("--cnn-steps", type=int, default=800,
                    help="training steps of the small CNN (--cnn-seed)")
     p.add_argument("--screen-features", action="store_true",

@@ -132,3 +132,26 @@ def test_families_summaries_of_separate_held_out_runs_are_read_as_one(tmp_path):
         unseen.read_families([str(tmp_path / "octopi-dev" / "summary.json")] * 2)
     with pytest.raises(InputError, match="not a file"):
         unseen.read_families([str(tmp_path / "none.json")])
+
+
+def test_a_temperature_chosen_on_the_sim_family_is_the_calibrations_target():
+    """``temperature:sim_target``: the largest grid temperature whose left-out trials on the
+    third family keep the wrong stops at the shipped stop <= 3 %, with the library's
+    representation applied as is; a family whose presses barely vary gets a sharper one."""
+    from tactex_ros.core import calibration, representation
+    s = unseen.Setting.parse("t=feature:frame_hm,kind:whiten,temperature:sim_target")
+    assert s.temperature == unseen.SIM_CHOICE
+    assert unseen.setting_temperature(s, "octopi-dev", None) is None   # chosen per direction
+    rng = np.random.default_rng(0)
+    def family(noise: float) -> dict:
+        cls = np.repeat([f"f{i}" for i in range(12)], 4)
+        centres = rng.normal(size=(12, 129))
+        x = centres[np.repeat(np.arange(12), 4)] + noise * rng.normal(size=(48, 129))
+        return {"cls": cls, "f0": x[:, :106], "hm": x[:, 106:]}
+    lib = family(0.5)
+    rep = representation.fit(press_cache.by_class(lib, "frame_hm"))
+    beta, report = unseen.sim_temperature(s, rep, family(0.5), seed=0)
+    assert np.isclose(calibration.GRID, beta).any()
+    assert report["wrong_stop"]["0.9"] <= unseen.SIM_GOAL
+    sharp, _ = unseen.sim_temperature(s, rep, family(0.05), seed=0)
+    assert sharp >= beta
