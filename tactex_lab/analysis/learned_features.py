@@ -77,7 +77,7 @@ def sim_family(cache_dir: str | Path, per_class: int = 6, seed: int = 0) -> dict
     """The simulator's catalogue fabrics as a third family (``experiment families``' ``sim``:
     ``per_class`` presses of each fabric in one live session): ``cls``, the 129-number
     descriptors ``f0`` (106) and ``hm`` (23) of each press, and its images (``touch_stack``:
-    ``grey``, ``half``), cached as ``sim_<per_class>_stack.npz`` under ``cache_dir``."""
+    ``grey``, ``half``), cached as ``sim_<per_class>_s<seed>_stack.npz`` under ``cache_dir``."""
     path = Path(cache_dir) / f"sim_{per_class}_s{seed}_stack.npz"
     if not path.is_file():
         from tactex_ros import sources

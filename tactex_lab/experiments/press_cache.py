@@ -14,7 +14,6 @@ import numpy as np
 from tactex_ros.core import calibration as belief_calibration
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.touch import Touch
-from tactex_lab.analysis.learned_features import library_view  # noqa: F401 (re-exported)
 
 
 def _frames4(c: dict[str, np.ndarray]) -> np.ndarray:

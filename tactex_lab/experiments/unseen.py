@@ -46,8 +46,9 @@ from tactex_ros.core.preparation import PrepareSettings
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, curve
+from tactex_lab.analysis.learned_features import library_view
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
-                                                library_view, load_cache)
+                                                load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 

@@ -4,8 +4,9 @@ pairs its scenes, and a library sees its own network's embeddings (``library_vie
 
 import numpy as np
 from tactex_lab.analysis import learned_features as lf
+from tactex_lab.analysis.learned_features import library_view
 from tactex_lab.analysis import metric_screen
-from tactex_lab.experiments.press_cache import FEATURES, library_view
+from tactex_lab.experiments.press_cache import FEATURES
 
 
 def _stripes(freq: float, angle: float, size: int, rng: np.random.Generator) -> np.ndarray:
