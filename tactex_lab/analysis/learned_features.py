@@ -33,6 +33,8 @@ SCAT_L = 8
 HALF = 2            # the CNN's images: the contact difference subsampled by 2 (area)
 CROP = 64           # px of the half-resolution image per training crop
 EMBED = 128
+SIM_VARIANTS = 150  # the simulator's training fabrics beside its 25 catalogue ones
+SIM_PER_CLASS = 8
 
 
 #: Cache arrays that depend on the direction: ``<k>`` is the press embedded by the network
@@ -92,6 +94,30 @@ def sim_family(cache_dir: str | Path, per_class: int = 6, seed: int = 0) -> dict
         grey, half = touch_stack(t for _, t in touches)
         np.savez(path, cls=np.array([n for n, _ in touches]), f0=desc[:, :texture.DIM],
                  hm=desc[:, texture.DIM:], grey=grey, half=half)
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def sim_training_set(cache_dir: str | Path, variants: int = 150, per_class: int = 8,
+                     seed: int = 0) -> dict[str, np.ndarray]:
+    """Presses of simulated fabrics to train a network the product may ship (nothing of
+    ``../shared``): the 25 catalogue fabrics and ``variants`` more, each drawn around a random
+    catalogue fabric as ``draw_scene`` draws a scene's comparisons at difficulty 0 (the widest
+    spread), ``per_class`` presses of each in the recorded mode (every fabric its own session
+    background, every press its own no-contact frame). Returns ``cls`` (n,) and ``half``
+    (n, 1, 3, 104, 144) float16 half-resolution contact differences (``touch_stack``'s), cached
+    as ``simtrain_v<variants>_p<per_class>_s<seed>.npz`` under ``cache_dir``."""
+    path = Path(cache_dir) / f"simtrain_v{variants}_p{per_class}_s{seed}.npz"
+    if not path.is_file():
+        from tactex_ros import sources
+        src = sources.open_source("sim:0:recorded")
+        names = list(src.classes)
+        for v in range(variants):
+            names += src.draw_scene(1, 100_000 * seed + v)
+        touch = src.trial(names, seed)
+        cls = [n for n in names for _ in range(per_class)]
+        _, half = touch_stack(touch(i) for i, n in enumerate(names) for _ in range(per_class))
+        np.savez(path, cls=np.array(cls), half=half[:, :1])
     with np.load(path, allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
 
@@ -159,11 +185,24 @@ def _net(classes: int):
     return body, nn.Sequential(nn.Dropout(0.2), nn.Linear(EMBED, classes))
 
 
+def _normalise(x: np.ndarray, norm: str, scale: float) -> np.ndarray:
+    """(..., 3, h, w) differences as the network sees them: divided by ``scale`` (``norm``
+    "global": the training set's standard deviation) or by each frame's own standard
+    deviation ("image": the press's contrast left out, as a simulator's differs from a
+    sensor's)."""
+    x = x.astype(np.float32)
+    if norm == "global":
+        return x / scale
+    if norm == "image":
+        return x / (x.std(axis=(-3, -2, -1), keepdims=True) + 1e-6)
+    raise InputError(f"norm {norm!r}: use global or image")
+
+
 def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 32,
-              seed: int = 0, threads: int = 1) -> tuple[object, dict]:
-    """Train the embedding on a library ((n, 4, 3, h, w) half-resolution differences, (n,)
-    class names): cross-entropy over the library's classes, AdamW, cosine schedule. Returns
-    (the embedding network in eval mode, {steps, seconds, final loss, scale})."""
+              seed: int = 0, threads: int = 1, norm: str = "global") -> tuple[object, dict]:
+    """Train the embedding on a library ((n, frames, 3, h, w) half-resolution differences,
+    (n,) class names): cross-entropy over the library's classes, AdamW, cosine schedule.
+    Returns (the embedding network in eval mode, {steps, seconds, final loss, scale, norm})."""
     import torch
     import torch.nn.functional as F
     torch.manual_seed(seed)
@@ -172,7 +211,7 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
     names = sorted(set(cls.tolist()))
     y = np.array([names.index(c) for c in cls])
     scale = float(np.std(half.astype(np.float32))) + 1e-6
-    x = torch.from_numpy(half.astype(np.float32) / scale)          # (n, 4, 3, h, w)
+    x = torch.from_numpy(_normalise(half, norm, scale))          # (n, frames, 3, h, w)
     body, head = _net(len(names))
     opt = torch.optim.AdamW(list(body.parameters()) + list(head.parameters()), 2e-3,
                             weight_decay=1e-3)
@@ -182,7 +221,7 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
     body.train(), head.train()
     for _ in range(steps):
         i = rng.integers(len(y), size=batch)
-        f = rng.integers(4, size=batch)
+        f = rng.integers(x.shape[1], size=batch)
         r, c = rng.integers(h - CROP + 1, size=batch), rng.integers(w - CROP + 1, size=batch)
         xb = torch.stack([x[a, b, :, rr:rr + CROP, cc:cc + CROP]
                           for a, b, rr, cc in zip(i, f, r, c)])
@@ -198,22 +237,37 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
         sched.step()
     body.eval()
     return body, {"steps": steps, "seconds": time.perf_counter() - t0,
-                  "loss": float(loss.detach()), "scale": scale}
+                  "loss": float(loss.detach()), "scale": scale, "norm": norm}
 
 
-def embed(body, half: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, float]:
+def embed(body, half: np.ndarray, scale: float,
+          norm: str = "global") -> tuple[np.ndarray, np.ndarray, float]:
     """Embeddings of (n, 4, 3, h, w) presses: the strongest frame's (n, EMBED), the mean over
-    the 4 frames (n, EMBED), and the median ms per press (4 frames, one thread)."""
+    the 4 frames (n, EMBED), and the median ms per press (4 frames, one thread); ``scale``,
+    ``norm``: the training's (``train_cnn``'s log)."""
     import torch
     one, four, ms = [], [], []
     with torch.no_grad():
         for p in half:
             t0 = time.perf_counter()
-            e = body(torch.from_numpy(p.astype(np.float32) / scale)).numpy()
+            e = body(torch.from_numpy(_normalise(p, norm, scale))).numpy()
             ms.append(1e3 * (time.perf_counter() - t0))
             one.append(e[0])
             four.append(e.mean(0))
     return np.stack(one), np.stack(four), float(np.median(ms))
+
+
+STRIDES = (2, 2, 2, 1)   # _net's convolutions
+
+
+def to_embedding(body, log: dict, trained_on: dict):
+    """The trained embedding network (``train_cnn``: the network and its log) as the product's
+    numpy ``core.embedding.Embedding`` (batch normalisation folded in)."""
+    from tactex_ros.core import embedding
+    state = {k: v.detach().numpy() for k, v in body.state_dict().items()
+             if not k.endswith("num_batches_tracked")}
+    return embedding.from_torch(state, STRIDES, log["scale"], log.get("norm", "global"),
+                                trained_on)
 
 
 def _keys(path: Path) -> list[str]:
@@ -223,7 +277,8 @@ def _keys(path: Path) -> list[str]:
 
 def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
                   cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
-                  cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None) -> None:
+                  cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None,
+                  cnn_train: str = "other", cnn_norm: str = "global") -> None:
     """Add the learned candidates to ``experiment unseen``'s two caches ({"a", "b"}: press
     caches of the replay folders ``roots``), in place: ``scat`` (the scattering of each press)
     with ``scattering``; with ``cnn_seed``, a network trained on each library and ``cnn`` /
@@ -232,7 +287,10 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
     are cached under ``cache_dir`` (``../shared`` data: /tmp, never the repository). ``sim``
     (``sim_family``): each library's network also embeds the simulator's fabrics, kept as
     ``caches[k]["sim"]``, a press cache of that family as library k's network sees it (one
-    frame per press: its 4-frame features repeat it)."""
+    frame per press: its 4-frame features repeat it). ``cnn_train`` "sim": one network trained
+    on the simulator's fabrics (``sim_training_set``) embeds both libraries, so the test and the
+    library view are the same, and its weights are kept in the cache file (``net/...``);
+    ``cnn_norm``: ``train_cnn``'s ``norm``."""
     d = Path(cache_dir)
     stacks = {}
     for k, root in roots.items():
@@ -256,19 +314,43 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
                 caches[k]["scat"] = z["scat"]
     if cnn_seed is None:
         return
+    if cnn_train not in ("other", "sim"):
+        raise InputError(f"cnn_train {cnn_train!r}: use other or sim")
+    tag = "" if cnn_norm == "global" else f"_{cnn_norm}"
+    if cnn_train == "sim":
+        path = d / f"cnn_sim_v{SIM_VARIANTS}_s{cnn_seed}_n{cnn_steps}{tag}.npz"
+        if not path.is_file():
+            train = sim_training_set(d, variants=SIM_VARIANTS, per_class=SIM_PER_CLASS)
+            body, log = train_cnn(train["half"], train["cls"], steps=cnn_steps, seed=cnn_seed,
+                                  norm=cnn_norm)
+            out = {f"net/{k}": v.numpy() for k, v in body.state_dict().items()}
+            for side, side_root in roots.items():
+                name = Path(side_root).name
+                out[f"{name}_one"], out[f"{name}_four"], ms = embed(
+                    body, stacks[side]["half"], log["scale"], cnn_norm)
+            np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
+            print(f"cnn trained on the simulator's fabrics: {log}, embedding {ms:.1f} ms per "
+                  "press", flush=True)
+        with np.load(path) as z:
+            for k, root in roots.items():
+                name = Path(root).name
+                caches[k].update(cnn=z[f"{name}_one"], cnn4=z[f"{name}_four"],
+                                 cnn_lib=z[f"{name}_one"], cnn4_lib=z[f"{name}_four"])
+        return
     emb: dict[str, dict[str, np.ndarray]] = {}   # net trained on k -> {press side: embeddings}
     for k, root in roots.items():
-        path = d / f"cnn_{Path(root).name}_s{cnn_seed}_n{cnn_steps}.npz"
+        path = d / f"cnn_{Path(root).name}_s{cnn_seed}_n{cnn_steps}{tag}.npz"
         if not path.is_file() or (sim is not None and "sim_one" not in _keys(path)):
             body, log = train_cnn(stacks[k]["half"], caches[k]["cls"], steps=cnn_steps,
-                                  seed=cnn_seed)
+                                  seed=cnn_seed, norm=cnn_norm)
             out = {}
             for side, side_root in roots.items():
                 name = Path(side_root).name
-                out[f"{name}_one"], out[f"{name}_four"], ms = embed(body, stacks[side]["half"],
-                                                                    log["scale"])
+                out[f"{name}_one"], out[f"{name}_four"], ms = embed(
+                    body, stacks[side]["half"], log["scale"], cnn_norm)
             if sim is not None:
-                out["sim_one"], out["sim_four"], _ = embed(body, sim["half"], log["scale"])
+                out["sim_one"], out["sim_four"], _ = embed(body, sim["half"], log["scale"],
+                                                           cnn_norm)
             np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
             print(f"cnn trained on {root}: {log}, embedding {ms:.1f} ms per press", flush=True)
         with np.load(path) as z:

@@ -13,7 +13,7 @@ from tactex_ros.cli.options import builds
 
 MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency",
                       "real_sessions", "unseen", "real", "accuracy_charts", "stability_real",
-                      "ladder", "fabric_library", "families"]
+                      "ladder", "fabric_library", "families", "sim_embedding"]
 
 
 def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:

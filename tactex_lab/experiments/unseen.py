@@ -311,12 +311,16 @@ def run_unseen(args: argparse.Namespace) -> dict:
         caches[name] = load_cache(path)
     if args.sim_family and args.cnn_seed is None:
         raise InputError("--sim-family needs --cnn-seed (the networks that embed it)")
+    if args.sim_family and args.cnn_train == "sim":
+        raise InputError("--sim-family with --cnn-train sim: the simulator's fabrics are that "
+                         "network's training set, not a held-out family")
     if args.scattering or args.cnn_seed is not None:
         from tactex_lab.analysis import learned_features
         sim = (learned_features.sim_family(args.cache_dir) if args.sim_family else None)
         learned_features.add_to_caches(caches, {"a": args.a, "b": args.b}, args.cache_dir,
                                        scattering=args.scattering, cnn_seed=args.cnn_seed,
-                                       cnn_steps=args.cnn_steps, sim=sim)
+                                       cnn_steps=args.cnn_steps, sim=sim,
+                                       cnn_train=args.cnn_train, cnn_norm=args.cnn_norm)
     wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
     for f in sorted(wanted):
         try:
@@ -393,6 +397,13 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "each library's network, for settings with temperature:sim_target")
     p.add_argument("--cnn-steps", type=int, default=800,
                    help="training steps of the small CNN (--cnn-seed)")
+    p.add_argument("--cnn-train", choices=("other", "sim"), default="other",
+                   help="with --cnn-seed: what the small CNN is trained on: each library's "
+                        "network embeds the other (other), or one network trained on the "
+                        "simulator's fabrics embeds both (sim: weights a product may carry)")
+    p.add_argument("--cnn-norm", choices=("global", "image"), default="global",
+                   help="with --cnn-seed: the CNN's input scale: the training set's standard "
+                        "deviation (global) or each frame's own (image)")
     p.add_argument("--screen-features", action="store_true",
                    help="only the screening proxy of per-press features (--features), with no "
                         "metric and whitened, both directions, exact McNemar against the frame "

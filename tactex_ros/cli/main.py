@@ -19,6 +19,8 @@ from .options import add_schema_options, bounded, builds, schema_values, write_j
 if TYPE_CHECKING:                    # start-up imports no numpy (``tactex --help``)
     import numpy as np
 
+    from ..core.config import DescriptorSettings
+
 
 # a trial touches every platform at least once first; a bench holds a handful (the lab scene
 # has 4 comparisons): more than this is a typing error, not an experiment
@@ -84,13 +86,14 @@ def cmd_trial(args: argparse.Namespace) -> int:
     return 0
 
 
-def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
-                        seed: int = 0, height_map: bool = True) -> dict[str, np.ndarray]:
-    """{class: (n, D) descriptors} of a library: every press of ``replay:DIR``, or
-    ``sim_presses`` simulated presses of every catalogue fabric for ``sim``; ``height_map``:
-    as ``learner.descriptor_height_map`` (D = ``texture.descriptor_dim``)."""
+def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int = 6,
+                        seed: int = 0) -> dict[str, np.ndarray]:
+    """{class: (n, D) descriptors} of a library, described as the learner settings ``cfg``
+    describe a touch (``core.descriptor.raw_descriptor``: frames, height map, embedding): every
+    press of ``replay:DIR``, or ``sim_presses`` simulated presses of every catalogue fabric for
+    ``sim``."""
     import numpy as np
-    from ..core.texture import describe_touch
+    from ..core.descriptor import raw_descriptor
     from ..core.touch import Touch
     from ..sources import open_source
     src = open_source(spec)
@@ -100,7 +103,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
             xs = []
             for path in src.presses(cls):
                 try:
-                    xs.append(describe_touch(src.touch(path), frames, height_map))
+                    xs.append(raw_descriptor(src.touch(path), cfg))
                 except InputError as exc:
                     print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
             if xs:
@@ -109,8 +112,7 @@ def library_descriptors(spec: str, frames: int, sim_presses: int = 6,
     rng = np.random.default_rng([seed, 43])
     for cls in src.classes:
         nc = src.renderer.no_contact(rng)
-        out[f"{spec}/{cls}"] = np.stack([describe_touch(Touch(src.press(cls, rng), nc), frames,
-                                                        height_map)
+        out[f"{spec}/{cls}"] = np.stack([raw_descriptor(Touch(src.press(cls, rng), nc), cfg)
                                          for _ in range(sim_presses)])
     return out
 
@@ -124,12 +126,12 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     desc: dict[str, np.ndarray] = {}
     height_map = args.height_map == "on"
+    cfg = preset("default", descriptor_frames=args.frames, descriptor_height_map=height_map,
+                 descriptor_embedding="" if args.embedding == "none" else args.embedding)
     for spec in args.library:
-        desc.update(library_descriptors(spec, args.frames, args.sim_presses, args.seed,
-                                        height_map))
+        desc.update(library_descriptors(spec, cfg, args.sim_presses, args.seed))
     settings = PrepareSettings(**{name: getattr(args, name)
                                   for name in PrepareSettings.model_fields})
-    cfg = preset("default", descriptor_frames=args.frames, descriptor_height_map=height_map)
     rep = prepare(desc, settings, cfg, seed=args.seed)
     path = representation.save(rep, args.out)
     cal = (f"; belief temperature {rep.temperature:.4g} calibrated on {rep.calibration['trials']} "
@@ -137,7 +139,7 @@ def cmd_prepare(args: argparse.Namespace) -> int:
            f"{rep.calibration['wrong_stop'][str(SHIPPED_STOP)]:.3f}, "
            f"ECE {rep.calibration['ece']:.3f})" if args.calibration != "off" else "")
     print(f"representation {rep.kind} ({rep.dims} dims of a {rep.descriptor_dim}-number "
-          f"descriptor, height map {args.height_map}) from {rep.classes} classes, "
+          f"descriptor, height map {args.height_map}, embedding {args.embedding}) from {rep.classes} classes, "
           f"{rep.presses} presses ({', '.join(args.library)}){cal} -> {path} in "
           f"{time.perf_counter() - t0:.0f} s; use it with `tactex trial ... --representation "
           f"{path}`")
@@ -211,6 +213,11 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                     help="describe the library with the height map's statistics (as "
                          "learner.descriptor_height_map; a trial refuses a file prepared "
                          "with the other setting)")
+    default_emb = DescriptorSettings().descriptor_embedding
+    pr.add_argument("--embedding", default=default_emb or "none",
+                    help="the learned embedding appended to each descriptor, as "
+                         "learner.descriptor_embedding: sim (the shipped network), a weights "
+                         "file, or none (a trial refuses a file prepared with another)")
     pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
                     help="presses per simulated fabric, 1..10000")
     from ..core.preparation import PrepareSettings

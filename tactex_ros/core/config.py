@@ -80,6 +80,12 @@ class DescriptorSettings(LearnerBase):
               "(129 numbers; off: the 106-number descriptor of earlier releases). Representation "
               "files and fabric libraries hold descriptors of one size: prepare them with the "
               "same setting")
+    descriptor_embedding: str = param(
+        "", "model 'descriptor': append a learned embedding of the contact frames (128 "
+            "numbers, the mean over descriptor_frames; core/embedding.py, numpy): 'sim' = the "
+            "shipped network trained on the simulator's fabrics only, a path = a weights file "
+            "the lab exported, '' = none. Representation files and fabric libraries hold "
+            "descriptors of one embedding: prepare them with the same setting")
     match_prior_scale: float = param(1.0, "model 'descriptor': prior within-platform spread of a "
                                           "descriptor, as a fraction of the scene's spread",
                                      1e-3, 10.0)

@@ -13,6 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from .config import DescriptorSettings
+from .embedding import Embedding, embed_touch
+from .embedding import load as load_embedding
+from .embedding import resolve as resolve_embedding
 from .schema import validate
 from .errors import InputError
 from .library import EVIDENCE_WEIGHT, FabricLibrary, LibraryBelief, library_belief
@@ -35,15 +38,38 @@ def _load_representation(path: str) -> Representation:
     return _REPRESENTATIONS[path]
 
 
+def embedding_of(cfg: DescriptorSettings) -> Embedding | None:
+    """The learned embedding ``learner.descriptor_embedding`` names (None: none), loaded once
+    per process; InputError naming the setting when its file is missing or not one."""
+    if not cfg.descriptor_embedding:
+        return None
+    try:
+        return load_embedding(resolve_embedding(cfg.descriptor_embedding))
+    except InputError as exc:
+        raise InputError(f"learner.descriptor_embedding={cfg.descriptor_embedding}: {exc}") \
+            from None
+
+
+def descriptor_size(cfg: DescriptorSettings) -> int:
+    """D, the size of the descriptors ``cfg`` makes: ``texture.descriptor_dim`` plus the
+    embedding's size."""
+    emb = embedding_of(cfg)
+    return descriptor_dim(cfg.descriptor_height_map) + (emb.dim if emb is not None else 0)
+
+
 def raw_descriptor(touch: Touch, cfg: DescriptorSettings) -> np.ndarray:
     """(D,) the texture descriptor of ``touch`` as ``cfg`` describes it (``descriptor_frames``,
-    ``descriptor_no_contact``, ``descriptor_height_map``: D = ``texture.descriptor_dim``),
-    before any representation; the touch's own when it has one."""
+    ``descriptor_no_contact``, ``descriptor_height_map``, ``descriptor_embedding``: D =
+    ``descriptor_size``), before any representation; the touch's own when it has one."""
     if touch.descriptor is not None:
         return np.asarray(touch.descriptor, dtype=np.float64)
     if not cfg.descriptor_no_contact:
         touch = Touch(touch.frame, None, touch.extra)
-    return describe_touch(touch, cfg.descriptor_frames, cfg.descriptor_height_map)
+    x = describe_touch(touch, cfg.descriptor_frames, cfg.descriptor_height_map)
+    emb = embedding_of(cfg)
+    if emb is None:
+        return x
+    return np.concatenate([x, embed_touch(touch, cfg.descriptor_frames, emb)])
 
 
 class DescriptorLearner:
@@ -56,8 +82,10 @@ class DescriptorLearner:
         self.num_classes = num_classes
         rep = _load_representation(cfg.representation) if cfg.representation else None
         if rep is not None:
+            emb = embedding_of(cfg)
             rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}",
-                                 cfg.descriptor_frames)
+                                 cfg.descriptor_frames, emb.identity if emb else "",
+                                 emb.dim if emb else 0)
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
                                 cfg.match_temperature, scene_units=cfg.match_units == "scene")
         self.representation: Representation | None = None
@@ -92,14 +120,15 @@ class DescriptorLearner:
         if lib is None:
             self.library, self.library_state = None, {"used": False}
             return
-        want = descriptor_dim(self.cfg.descriptor_height_map)
+        want = descriptor_size(self.cfg)
         if lib.presses and lib.descriptors.shape[1] != want:
             raise InputError(
                 f"fabric library: its descriptors have size {lib.descriptors.shape[1]}, this "
                 f"learner's {want} (learner.descriptor_height_map="
-                f"{str(self.cfg.descriptor_height_map).lower()}): set "
-                f"learner.descriptor_height_map={str(not self.cfg.descriptor_height_map).lower()}"
-                " or learner.fabric_library=false for this record folder")
+                f"{str(self.cfg.descriptor_height_map).lower()}, learner.descriptor_embedding="
+                f"{self.cfg.descriptor_embedding!r}): set learner.descriptor_height_map="
+                f"{str(not self.cfg.descriptor_height_map).lower()} or the embedding it was "
+                "filed with, or learner.fabric_library=false for this record folder")
         apply = self.representation.apply if self.representation is not None else None
         self.library = library_belief(lib, apply, self.match.beta, weight)
         self.library_state = {"used": True, **lib.state()}

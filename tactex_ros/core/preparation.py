@@ -63,6 +63,9 @@ def prepare(descriptors: dict[str, "np.ndarray"], settings: PrepareSettings,
     fit = partial(representation.fit, shrink=s.shrink, kind=s.kind, dims=s.dims)
     rep = fit(descriptors)
     rep.frames = int(cfg.descriptor_frames)
+    from .descriptor import embedding_of
+    emb = embedding_of(cfg)
+    rep.embedding = emb.identity if emb is not None else ""
     if s.calibration != "off":
         trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
                                          scenes=s.calibration_scenes,

@@ -27,7 +27,8 @@ numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped
 ``texture.DIM`` without the height map, ``texture.DIM_HEIGHT_MAP`` with it), the kind, the
 temperature, what the calibration measured (JSON), the library's size and the contact frames
 per press it was prepared from (``descriptor_frames``; 0 or absent: not recorded, an older
-file); no frames or descriptors of the library. A file without kind or temperature is a
+file), the identity of the learned embedding its descriptors carry (``descriptor_embedding``,
+``core/embedding.py``; '' or absent: none); no frames or descriptors of the library. A file without kind or temperature is a
 whitening without calibration; one without ``descriptor_dim`` holds the size of its mean.
 """
 
@@ -57,18 +58,29 @@ class Representation:
     temperature: float = float("nan")   # calibrated belief temperature, NaN = not calibrated
     calibration: dict = field(default_factory=dict)   # what the calibration measured
     frames: int = 0        # contact frames per press it was prepared from; 0 = not recorded
+    embedding: str = ""    # identity of the learned embedding in its descriptors ('' = none)
 
     @property
     def descriptor_dim(self) -> int:
         """D, the size of the descriptors it takes."""
         return int(self.mean.shape[0])
 
-    def check_descriptor(self, height_map: bool, where: str, frames: int | None = None) -> None:
+    def check_descriptor(self, height_map: bool, where: str, frames: int | None = None,
+                         embedding: str = "", embedding_dim: int = 0) -> None:
         """InputError unless it takes the descriptors ``learner.descriptor_height_map =
-        height_map`` makes and (when the file records it and ``frames`` is given) was prepared
-        from as many contact frames per press as ``learner.descriptor_frames = frames``
-        (``where``: the file, for the message)."""
-        want = descriptor_dim(height_map)
+        height_map`` makes, with the learned embedding of identity ``embedding`` (size
+        ``embedding_dim``; '' = none: ``core/embedding.py``), and (when the file records it and
+        ``frames`` is given) was prepared from as many contact frames per press as
+        ``learner.descriptor_frames = frames`` (``where``: the file, for the message)."""
+        if self.embedding != embedding:
+            raise InputError(
+                f"representation {where} was prepared "
+                f"{'with the embedding ' + self.embedding if self.embedding else 'without an embedding'}"
+                f"; this learner describes touches "
+                f"{'with the embedding ' + embedding if embedding else 'without one'} "
+                "(learner.descriptor_embedding): prepare the file again with the learner's "
+                "setting (`tactex prepare --embedding`)")
+        want = descriptor_dim(height_map) + embedding_dim
         if self.descriptor_dim != want:
             made = "with" if self.descriptor_dim == DIM_HEIGHT_MAP else "without"
             raise InputError(
@@ -155,6 +167,7 @@ def save(rep: Representation, path: str | Path) -> Path:
                  presses=np.array(rep.presses), shrink=np.array(rep.shrink),
                  descriptor_dim=np.array(rep.descriptor_dim),
                  descriptor_frames=np.array(rep.frames),
+                 descriptor_embedding=np.array(rep.embedding),
                  temperature=np.array(rep.temperature),
                  calibration=np.array(json.dumps(rep.calibration)))
     return path
@@ -186,10 +199,12 @@ def load(path: str | Path) -> Representation:
                              f"{v.dtype}")
     mean, std, w = (np.asarray(v, dtype=np.float64) for v in arrays)
     dim = int(number("descriptor_dim", mean.shape[0] if mean.ndim == 1 else -1))
-    if dim not in (DIM, DIM_HEIGHT_MAP):
+    embedding = str(d.get("descriptor_embedding", ""))
+    if (dim not in (DIM, DIM_HEIGHT_MAP)) if not embedding else dim <= DIM_HEIGHT_MAP:
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
                          f"{w.shape} do not fit a descriptor of size {DIM} (without the height "
-                         f"map) or {DIM_HEIGHT_MAP} (with it)")
+                         f"map) or {DIM_HEIGHT_MAP} (with it)"
+                         f"{', plus an embedding' if embedding else ''}")
     if (mean.shape != (dim,) or std.shape != (dim,) or w.ndim != 2 or w.shape[1] != dim
             or not 1 <= w.shape[0] <= dim):
         raise InputError(f"representation file {p}: shapes {mean.shape}, {std.shape}, "
@@ -214,4 +229,4 @@ def load(path: str | Path) -> Representation:
         raise InputError(f"representation file {p}: field 'descriptor_frames' must be a whole "
                          f"number >= 0 (0: not recorded), got {frames}")
     return Representation(mean, std, w, int(number("classes", 0)), int(number("presses", 0)),
-                          number("shrink", 0.0), kind, temp, calib, int(frames))
+                          number("shrink", 0.0), kind, temp, calib, int(frames), embedding)

@@ -2,7 +2,7 @@
 placement is known teaches the library in the background; the next trial sees the result.
 
 ``LibraryKeeper.learn`` starts a thread that reads the trial's record (accepted touches, their
-images and no-contact frames), describes each touch as the trial's learner did
+images, further in-contact frames and no-contact frames), describes each touch as the trial's learner did
 (``core.descriptor.raw_descriptor``), files it under the fabric its platform held and writes
 the library file whole (``core.outputs.write_bytes``): a few seconds, while the operator places
 the next trial's fabrics; no press waits for it. ``current`` waits for that update (at most
@@ -37,7 +37,9 @@ def trial_presses(record_dir: str | Path, placement: dict[str, str], cfg: Descri
         fabric = placement.get(str(t.get("platform_id")))
         if not t.get("accepted") or t.get("array") is None or fabric is None:
             continue
-        x = raw_descriptor(Touch(t["array"], t.get("no_contact_array")), cfg)
+        extra = [f for f in t.get("extra_arrays") or [] if f is not None]
+        x = raw_descriptor(Touch(t["array"], t.get("no_contact_array"),
+                                 np.stack(extra) if extra else None), cfg)
         xs, srcs = out.setdefault(fabric, ([], []))
         xs.append(x)
         srcs.append(f"{tag}/touch {t['seq']}")

@@ -107,3 +107,31 @@ def test_a_trial_without_a_placement_leaves_the_library_as_it_was(tmp_path):
     res = tr.run()
     assert res["fabric_library"] == {"used": False}
     assert lib_path.read_bytes() == data
+
+
+def test_the_library_files_a_touch_with_its_further_frames(tmp_path):
+    """With learner.descriptor_frames = 4 a filed press is described from its recorded burst,
+    exactly as the trial's learner described it (not from its strongest frame alone)."""
+    from tactex_ros.core.descriptor import raw_descriptor
+    from tactex_ros.trial.library import trial_presses
+    fabrics = ["denim", "linen", "denim", "cotton_lawn", "cotton_canvas"]
+    fn = open_source("sim:0.5").trial(fabrics, 7)
+
+    def press(platform: int, meta: dict) -> Touch:
+        meta["attempts"] = 1
+        frames = [as_touch(fn(platform)).frame for _ in range(4)]
+        return Touch(frame=frames[0], no_contact=NC, extra=np.stack(frames[1:]))
+    cfg = preset("default", descriptor_frames=4)
+    spec = TrialSpec(4, cfg, trial_preset("default", rounds=1, stop_confidence=0), seed=7,
+                     platform_ids=tuple(IDS))
+    TrialRun(spec, tmp_path, "burst", inputs=_inputs(spec), press=press).run()
+    placement = dict(zip(IDS, fabrics))
+    filed = trial_presses(tmp_path / "burst", placement, cfg, "t")
+    touches = [t for t in read_record(tmp_path / "burst")["touches"] if t["accepted"]]
+    first = touches[0]
+    assert len(first["extra_arrays"]) == 3
+    want = raw_descriptor(Touch(first["array"], first["no_contact_array"],
+                                np.stack(first["extra_arrays"])), cfg)
+    alone = raw_descriptor(Touch(first["array"], first["no_contact_array"]), cfg)
+    got = filed[placement[first["platform_id"]]][0][0]
+    assert np.array_equal(got, want) and not np.allclose(got, alone)

@@ -79,3 +79,34 @@ def test_a_library_sees_its_own_networks_embeddings():
     assert FEATURES["frames4_hm_cnn4"](lib)[0].tolist() == [0, 0, 0, 1, 8, 8]
     plain = {"f0": np.zeros((2, 3))}
     assert library_view(plain) is not plain and library_view(plain).keys() == plain.keys()
+
+
+def test_the_numpy_forward_pass_equals_the_trained_network():
+    """The product's numpy embedding (``core/embedding.py``, batch normalisation folded in)
+    gives the lab's torch network's numbers, after a save and a load."""
+    import torch
+    from tactex_ros.core import embedding
+    rng = np.random.default_rng(3)
+    half = rng.normal(size=(6, 1, 3, 72, 72)).astype(np.float16)
+    cls = np.array(["a", "b", "c"] * 2)
+    for norm in ("global", "image"):
+        body, log = lf.train_cnn(half, cls, steps=5, batch=4, seed=0, norm=norm)
+        emb = lf.to_embedding(body, log, {"test": True})
+        d = rng.normal(size=(2, 144, 144, 3)).astype(np.float32) * 4
+        x = emb.prepare(d)
+        assert x.shape == (2, 72, 72, 3)
+        with torch.no_grad():
+            ref = body(torch.from_numpy(x.transpose(0, 3, 1, 2).copy())).numpy()
+        assert np.abs(emb.forward(x) - ref).max() < 1e-4 * max(1.0, np.abs(ref).max())
+        one, _, _ = lf.embed(body, x.transpose(0, 3, 1, 2)[:, None] * (
+            log["scale"] if norm == "global" else 1.0), log["scale"], norm)
+        if norm == "global":       # the lab's embed divides by the same scale
+            assert np.allclose(one, ref, atol=1e-4)
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "net.npz"
+        emb.save(path)
+        back = embedding.load(path)
+        assert back.norm == "image" and back.trained_on == {"test": True} and back.dim == lf.EMBED
+        assert np.array_equal(back(d), emb(d))
