@@ -89,7 +89,7 @@ def sim_family(cache_dir: str | Path, per_class: int = 6, seed: int = 0) -> dict
         names = src.classes
         touch = src.trial(names, seed)
         touches = [(n, touch(i)) for i, n in enumerate(names) for _ in range(per_class)]
-        cfg = preset("default", descriptor_height_map=True)
+        cfg = preset("descriptor", descriptor_height_map=True)
         desc = np.stack([raw_descriptor(t, cfg) for _, t in touches])
         grey, half = touch_stack(t for _, t in touches)
         np.savez(path, cls=np.array([n for n, _ in touches]), f0=desc[:, :texture.DIM],

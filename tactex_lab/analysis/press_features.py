@@ -148,7 +148,9 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     default since issue 33) and of each candidate, timed side by side
     (interleaved, the same presses) on the first ``presses`` presses of the replay folder
     ``root``: median and quartiles over presses x ``repeats``. ``growth`` includes the contact
-    differences of its 4 frames."""
+    differences of its 4 frames; ``embedding`` is the shipped network's numpy pass on the
+    strongest frame (``core/embedding.py``), ``descriptor_embedding`` the height-map descriptor
+    and that embedding (``learner.descriptor_embedding=sim``)."""
     import time
     from tactex_ros.core.contact import strongest_contact
     from tactex_ros.sources.replay import ReplaySource, read_video
@@ -156,7 +158,10 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     paths = [p for c in src.classes for p in src.presses(c)][:presses]
     times: dict[str, list[float]] = {k: [] for k in ("descriptor", "descriptor_height_map",
                                                      "filter_bank_1st",
-                                                     "filter_bank", "height_map", "growth")}
+                                                     "filter_bank", "height_map", "growth",
+                                                     "embedding", "descriptor_embedding")}
+    from tactex_ros.core import embedding
+    emb = embedding.load(embedding.SHIPPED)
     for path in paths:
         arr = read_video(path)
         rgb = np.ascontiguousarray(arr[..., ::-1])
@@ -170,6 +175,11 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
             "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),
             "height_map": lambda: height_map(texture.contact_difference(t.frame, t.no_contact)),
             "growth": lambda: growth(rgb, t.no_contact, scores, idx),
+            # the shipped network (core/embedding.py) on the strongest frame, and the whole
+            # touch as learner.descriptor_embedding=sim describes it
+            "embedding": lambda: embedding.embed_touch(t, 1, emb),
+            "descriptor_embedding": lambda: (texture.describe(t.frame, t.no_contact, True),
+                                             embedding.embed_touch(t, 1, emb)),
         }
         for _ in range(repeats):
             for k, f in jobs.items():

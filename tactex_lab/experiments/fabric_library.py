@@ -63,7 +63,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
     from tactex_ros.core.engine import TrialSpec
     from tactex_ros.sources.replay import ReplayTrial
     # the cached "frame" feature: the descriptor without the height map (the study's)
-    cfg = preset("default", guards=False, fabric_library=library is not None,
+    cfg = preset("descriptor", guards=False, fabric_library=library is not None,
                  descriptor_height_map=x.shape[1] != texture.DIM)
     spec = TrialSpec(len(scene) - 1, cfg, TrialConfig(strategy="infogain", rounds=budget,
                                                       stop_confidence=0.0),

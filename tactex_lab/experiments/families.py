@@ -63,7 +63,7 @@ def sim_presses(per_class: int, seed: int = 0, height_map: bool = True
     from tactex_ros import sources
     from tactex_ros.core.descriptor import raw_descriptor
     src = sources.open_source("sim")
-    cfg = preset("default", descriptor_height_map=height_map)
+    cfg = preset("descriptor", descriptor_height_map=height_map)
     names = src.classes
     touch = src.trial(names, seed)
     return {n: np.stack([raw_descriptor(touch(i), cfg) for _ in range(per_class)])
@@ -162,7 +162,7 @@ def run_family(name: str, presses: dict[str, np.ndarray], seeds: list[int],
         path = Path(args.cache_dir) / (f"trials_{name}{tag}_b{beta:.6g}_s{s}_f{args.folds}"
                                        f"_n{args.scenes}_k{args.budget}.npz")
         if not path.is_file():
-            ts = cal.trajectories(presses, None, preset("default"), folds=args.folds,
+            ts = cal.trajectories(presses, None, preset("descriptor"), folds=args.folds,
                                   scenes=args.scenes, budget=args.budget, temperature0=beta,
                                   seed=s)
             np.savez(path, **{f"{k}_{i}": getattr(t, k) for i, t in enumerate(ts)
@@ -182,7 +182,7 @@ def run_families(args: argparse.Namespace) -> dict:
         raise InputError(f"--family: >= 3 distinct families, got {names}")
     out = results_dir(args.out, "families", {k: v for k, v in vars(args).items()
                                              if k != "func"})
-    beta0 = preset("default").match_temperature
+    beta0 = preset("descriptor").match_temperature
     fams, base = {}, {}
     for name, spec in zip(names, args.family):
         fams[name] = family_presses(spec, cache, args.per_class, args.feature)

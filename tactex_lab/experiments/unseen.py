@@ -133,7 +133,7 @@ def sim_temperature(setting: Setting, rep: representation.Representation | None,
     from tactex_ros.core.config import SHIPPED_STOP
     trajs = calibration.trajectories(by_class(sim, setting.feature),
                                      None if rep is None else (lambda _d: rep),
-                                     preset("default"), seed=seed)
+                                     preset("descriptor"), seed=seed)
     beta = calibration.fit_temperature(trajs, "target", (SHIPPED_STOP,), SIM_GOAL)
     return beta, calibration.report(trajs, beta)
 
@@ -171,7 +171,7 @@ def prepare_setting(setting: Setting, library: dict[str, np.ndarray], seed: int 
     p = setting.prepare
     if p.kind == "none" and p.calibration == "off":
         return None
-    return preparation.prepare(library, p, preset("default"), seed=seed)
+    return preparation.prepare(library, p, preset("descriptor"), seed=seed)
 
 
 def scene_curves(setting: Setting, rep: representation.Representation | None,
@@ -183,7 +183,7 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
     src = CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
-    cfg = preset("default", guards=False,
+    cfg = preset("descriptor", guards=False,
                  **({} if temperature is None else {"match_temperature": temperature}))
     tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
     out = []

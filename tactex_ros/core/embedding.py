@@ -71,9 +71,12 @@ class Embedding:
         return x / self.scale
 
     def forward(self, x: np.ndarray) -> np.ndarray:
-        """(F, h, w, 3) float32 network input (``prepare``) -> (F, dim) float32 embeddings."""
-        for layer in self.layers:
-            x = _conv_relu(x, layer)
+        """(F, h, w, 3) float32 network input (``prepare``) -> (F, dim) float32 embeddings.
+        The matrix products run on one BLAS thread: the same numbers in every process, however
+        many threads its BLAS was given (a worker of a parallel sweep, a ROS node)."""
+        with _one_blas_thread():
+            for layer in self.layers:
+                x = _conv_relu(x, layer)
         return x.mean(axis=(1, 2))
 
     def __call__(self, differences: np.ndarray) -> np.ndarray:
@@ -89,6 +92,19 @@ class Embedding:
         np.savez_compressed(path, format=np.array(FORMAT), scale=np.array(self.scale),
                             norm=np.array(self.norm),
                             trained_on=np.array(json.dumps(self.trained_on)), **arrays)
+
+
+_CONTROLLER = None
+
+
+def _one_blas_thread():
+    """A context in which numpy's BLAS uses one thread (threadpoolctl): a float32 matrix
+    product's sums then run in one order, whatever the process's thread count."""
+    global _CONTROLLER
+    if _CONTROLLER is None:
+        from threadpoolctl import ThreadpoolController
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=1, user_api="blas")
 
 
 def _conv_relu(x: np.ndarray, layer: Layer) -> np.ndarray:

@@ -45,7 +45,7 @@ def test_offline_stop_equals_the_engine_with_the_rule(tmp_path):
             rng = np.random.default_rng([0, 53, g])
             for s in range(6):
                 plat, truth, touch = cal._scene(held, presses, 4, rng)
-                spec = TrialSpec(4, preset("default", guards=False),
+                spec = TrialSpec(4, preset("descriptor", guards=False),
                                  TrialConfig(rounds=6, stop_confidence=0.9,
                                              stop_separation=s0), seed=s)
                 res = run_trial(spec, touch, truth=truth)

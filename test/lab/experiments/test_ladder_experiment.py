@@ -28,8 +28,8 @@ def test_ladder_experiment_pairs_settings_and_counts_cpu(tmp_path):
     out = tmp_path / "out"
     rc = main(["experiment", "ladder", "--test", "/data/lab", "--cache-dir", str(tmp_path),
                "--representation", rep, "--scenes", "6", "--budget", "4", "--quiet",
-               "--setting", "descriptor=default",
-               "--setting", f"auto=default:learner.model=auto,learner.representation={rep},"
+               "--setting", "descriptor=descriptor",
+               "--setting", f"auto=descriptor:learner.model=auto,learner.representation={rep},"
                             "learner.ladder=descriptor+representation,"
                             "learner.ladder_patience=1,learner.ladder_min_gain=0.5,"
                             "learner.ladder_sure=1.0",

@@ -29,7 +29,7 @@ def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
     scenes = draw_scenes(sorted(set(cache["cls"].tolist())), 3, 3, 7)
     mine = unseen.scene_curves(unseen.Setting("d"), None, cache, scenes, seed=5, budget=4)
     # the cache's "frame" is the 106-number descriptor: replayed with the height map off
-    theirs = belief_curves(scenes, [parse_setting("d=default:learner.descriptor_height_map=false")],
+    theirs = belief_curves(scenes, [parse_setting("d=descriptor:learner.descriptor_height_map=false")],
                            f"replay:{small_library}", 5, 4, "t", quiet=True)["d"]
     for a, b in zip(mine, theirs):
         assert a.extra == b.extra and a.correct == b.correct

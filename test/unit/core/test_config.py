@@ -21,7 +21,12 @@ def test_presets_keep_their_values() -> None:
     d = preset("default")
     assert d == DescriptorSettings(model="descriptor")
     assert (d.model, d.match_temperature, d.match_prior_scale,
-            d.descriptor_frames, d.match_units) == ("descriptor", 0.05, 1.0, 1, "scene")
+            d.descriptor_frames, d.match_units) == ("descriptor", 0.0251, 1.0, 1, "scene")
+    assert d.descriptor_embedding == "sim"
+    p = preset("descriptor")            # the 129-number descriptor alone, as before issue 33
+    assert (p.descriptor_embedding, p.match_temperature, p.descriptor_height_map) == ("", 0.05,
+                                                                                      True)
+    assert p.replace(descriptor_embedding="sim", match_temperature=0.0251) == d
     c = preset("cnn")
     assert (c.model, c.input_size, c.epochs, c.steps, c.batch_size, c.lr, c.dropout,
             c.mc_passes, c.bn_recalibrate) == ("small_inception", 48, 0, 8, 32, 3e-3, 0.5, 20, 64)
@@ -32,7 +37,8 @@ def test_presets_keep_their_values() -> None:
         t = trial_preset(name)
         assert (t.strategy, t.stop_confidence, t.rounds, t.touch_retries) == \
             ("variance", 0.0, 20, 2)
-    assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "cnn", "seed_faithful"}
+    assert set(PRESETS) == set(TRIAL_PRESETS) == {"default", "descriptor", "cnn",
+                                                  "seed_faithful"}
     # the class defaults are the shipped method: the default preset adds nothing to them
     assert DescriptorSettings() == preset("default") and TrialConfig() == trial_preset("default")
     assert (TrialConfig().strategy, TrialConfig().stop_confidence) == ("infogain", SHIPPED_STOP)
@@ -98,7 +104,7 @@ def test_explorer_settings_are_composed_from_the_core() -> None:
     spec = field_spec(ExplorerSettings, "trial.rounds")
     assert (spec.kind, spec.default, spec.lo, spec.hi) == (int, 20, 0, 1000)
     spec = field_spec(ExplorerSettings, "config")
-    assert spec.read_only and spec.choices == ("default", "seed_faithful", "cnn")
+    assert spec.read_only and spec.choices == ("default", "descriptor", "seed_faithful", "cnn")
     spec = field_spec(MockArmSettings, "recovery_standin")
     assert (spec.kind, spec.choices) == (str, ("none", "action", "service"))
     assert field_spec(MotionSettings, "stiffness").kind is float
@@ -125,7 +131,8 @@ def test_ros_descriptors_from_the_schema() -> None:
     d = descriptor(field_spec(ExplorerSettings, "seed"))
     assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (0, 2**31 - 1)
     d = descriptor(field_spec(ExplorerSettings, "config"))
-    assert d.read_only and d.additional_constraints == "one of: default, seed_faithful, cnn"
+    assert d.read_only and d.additional_constraints == \
+        "one of: default, descriptor, seed_faithful, cnn"
     d = descriptor(field_spec(ExplorerSettings, "exit_when_done"))
     assert not d.integer_range and not d.floating_point_range
 

@@ -69,7 +69,7 @@ def test_the_learner_appends_the_mean_embedding_of_its_frames():
     assert descriptor_size(cfg) == DIM_HEIGHT_MAP + 128
     t = _touch(0, extra=True)
     x = raw_descriptor(t, cfg)
-    plain = raw_descriptor(t, preset("default"))
+    plain = raw_descriptor(t, preset("descriptor"))
     assert x.shape == (DIM_HEIGHT_MAP + 128,) and np.array_equal(x[:DIM_HEIGHT_MAP], plain)
     emb = embedding.load(embedding.SHIPPED)
     one = emb(embedding.contact_difference(t.frame, t.no_contact)[None])[0]
@@ -96,7 +96,7 @@ def test_a_representation_of_another_embedding_is_refused(tmp_path):
     DescriptorLearner(4, preset("default", descriptor_embedding="sim",
                                 representation=str(path)))        # accepted
     with pytest.raises(InputError, match="descriptor_embedding"):
-        DescriptorLearner(4, preset("default", representation=str(path)))
+        DescriptorLearner(4, preset("descriptor", representation=str(path)))
 
 
 def test_a_missing_or_foreign_weights_file_names_the_setting(tmp_path):

@@ -39,7 +39,7 @@ def engine(tmp_path):
     rng = np.random.default_rng(0)
     lib = {f"k{c}": rng.normal(0, 1, DIM) + rng.normal(0, 0.2, (4, DIM)) for c in range(5)}
     rep = str(rp.save(rp.fit(lib), tmp_path / "rep.npz"))
-    cfg = preset("default", model="auto", guards=False, representation=rep,
+    cfg = preset("descriptor", model="auto", guards=False, representation=rep,
                  ladder="descriptor,representation", ladder_patience=2)
     return lambda: TrialEngine(4, cfg, TrialConfig(rounds=8, stop_confidence=0.0), seed=0)
 

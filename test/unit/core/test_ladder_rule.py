@@ -116,7 +116,7 @@ def _rep_file(tmp_path) -> str:
 
 
 def test_rung_without_its_file_is_skipped_with_a_note():
-    lad = make_learner(4, preset("default", model="auto", ladder="descriptor,representation"))
+    lad = make_learner(4, preset("descriptor", model="auto", ladder="descriptor,representation"))
     assert isinstance(lad, Ladder) and lad.rungs == ["descriptor"]
     assert len(lad.notes) == 1 and "representation" in lad.notes[0]
 
@@ -136,7 +136,7 @@ def _scene_touches(twins: bool):
 
 
 def test_trial_climbs_on_a_hard_scene_and_records_why(tmp_path):
-    cfg = preset("default", model="auto", guards=False, representation=_rep_file(tmp_path),
+    cfg = preset("descriptor", model="auto", guards=False, representation=_rep_file(tmp_path),
                  ladder="descriptor,representation", ladder_patience=2)
     spec = TrialSpec(4, cfg, TrialConfig(rounds=8, stop_confidence=0.0), seed=0)
     out = run_trial(spec, _scene_touches(twins=True), truth=1).to_dict()
@@ -149,7 +149,7 @@ def test_trial_climbs_on_a_hard_scene_and_records_why(tmp_path):
 
 
 def test_trial_stays_on_the_descriptor_when_the_scene_is_easy(tmp_path):
-    cfg = preset("default", model="auto", guards=False, representation=_rep_file(tmp_path),
+    cfg = preset("descriptor", model="auto", guards=False, representation=_rep_file(tmp_path),
                  ladder="descriptor,representation")
     spec = TrialSpec(4, cfg, TrialConfig(rounds=8), seed=0)
     out = run_trial(spec, _scene_touches(twins=False), truth=1).to_dict()
@@ -164,8 +164,8 @@ def test_the_products_learners_need_no_installed_metadata():
             "from tactex_ros.core.build import make_learner; "
             "from tactex_ros.core.config import preset; "
             "from tactex_ros.core.errors import InputError; "
-            "lad = make_learner(4, preset('default', model='auto')); "
-            "d = make_learner(4, preset('default')); "
+            "lad = make_learner(4, preset('descriptor', model='auto')); "
+            "d = make_learner(4, preset('descriptor')); "
             "print(type(lad).__name__, lad.rungs, type(d).__name__)\n"
             "try: make_learner(4, preset('cnn', model='cnn_auto'))\n"
             "except InputError as e: print(e)\n"

@@ -23,11 +23,11 @@ def test_each_learner_has_its_own_fields_and_shipped_defaults() -> None:
     d = DescriptorSettings()
     assert d.model_dump() == {
         "model": "descriptor", "guards": True, "contact_flat_min": 0.35, "contact_min": 0.8,
-        "descriptor_frames": 1, "descriptor_height_map": True, "descriptor_embedding": "",
+        "descriptor_frames": 1, "descriptor_height_map": True, "descriptor_embedding": "sim",
         "match_prior_scale": 1.0,
         "match_prior_strength": 4.0,
         "descriptor_no_contact": True, "representation": "", "representation_temperature": True,
-        "match_units": "scene", "match_temperature": 0.05, "contact_region_min": 0.0,
+        "match_units": "scene", "match_temperature": 0.0251, "contact_region_min": 0.0,
         "fabric_library": True}
     assert learner_settings({}) == d == TrialSettings().learner == preset("default")
     c = CnnSettings()
@@ -225,7 +225,7 @@ def test_resume_reads_a_record_with_the_flat_learner_dump(tmp_path) -> None:
                               "trial": now.trial.model_dump()})          # accepted
     changed = now.learner.replace(match_temperature=0.1).model_dump()
     with pytest.raises(InputError, match=r"^resume: learner.match_temperature is 0.1 now but "
-                                         r"0.05 in the record"):
+                                         r"0.0251 in the record"):
         check_settings(tmp_path, {"learner": changed, "trial": now.trial.model_dump()})
 
 

@@ -79,7 +79,7 @@ def test_an_unknown_fabric_gives_todays_belief_exactly():
 
 
 def test_learner_belief_with_a_library_and_without():
-    cfg = preset("default", guards=False)
+    cfg = preset("descriptor", guards=False)
     D = descriptor_dim(cfg.descriptor_height_map)
     rng = np.random.default_rng(3)
     plain, learned = DescriptorLearner(2, cfg), DescriptorLearner(2, cfg)
@@ -125,7 +125,7 @@ def test_torn_library_file_is_refused_with_its_path(tmp_path):
         flib.load(path)
     from tactex_ros.trial.library import LibraryKeeper
     with pytest.raises(InputError, match=str(path)):
-        LibraryKeeper(path, preset("default"))
+        LibraryKeeper(path, preset("descriptor"))
 
 
 def test_a_library_of_the_other_descriptor_is_refused_by_setting():
@@ -134,7 +134,7 @@ def test_a_library_of_the_other_descriptor_is_refused_by_setting():
     for k in ("a", "b"):
         lib = lib.add(k, rng.normal(0, 1, (3, descriptor_dim(False))), [f"{k}/{i}" for i in range(3)])
     with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
-        DescriptorLearner(2, preset("default", guards=False)).use_library(lib)
-    learner = DescriptorLearner(2, preset("default", guards=False, descriptor_height_map=False))
+        DescriptorLearner(2, preset("descriptor", guards=False)).use_library(lib)
+    learner = DescriptorLearner(2, preset("descriptor", guards=False, descriptor_height_map=False))
     learner.use_library(lib)
     assert learner.library_state["used"]

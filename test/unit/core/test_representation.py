@@ -47,7 +47,7 @@ def test_the_file_records_its_descriptor_and_the_learner_checks_it(tmp_path):
     with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
         rep.check_descriptor(True, "r.npz")
     with pytest.raises(InputError, match="learner.descriptor_height_map=false"):
-        DescriptorLearner(2, preset("default", representation=str(tmp_path / "r.npz")))
+        DescriptorLearner(2, preset("descriptor", representation=str(tmp_path / "r.npz")))
     np.savez(tmp_path / "lie.npz", format=np.array(rp.FORMAT), mean=rep.mean, std=rep.std,
              whiten=rep.whiten, descriptor_dim=np.array(descriptor_dim(True)))
     with pytest.raises(InputError, match="do not fit"):
@@ -64,9 +64,9 @@ def test_the_file_records_its_frames_and_the_learner_checks_them(tmp_path):
     with pytest.raises(InputError, match="learner.descriptor_frames=1"):
         back.check_descriptor(False, "f4.npz", 1)
     with pytest.raises(InputError, match="learner.descriptor_frames=1"):
-        DescriptorLearner(2, preset("default", representation=str(tmp_path / "f4.npz"),
+        DescriptorLearner(2, preset("descriptor", representation=str(tmp_path / "f4.npz"),
                                     descriptor_height_map=False))
-    DescriptorLearner(2, preset("default", representation=str(tmp_path / "f4.npz"),
+    DescriptorLearner(2, preset("descriptor", representation=str(tmp_path / "f4.npz"),
                                 descriptor_height_map=False, descriptor_frames=4))
     # an older file without the field: not recorded, any frame count
     old = {k: v for k, v in np.load(tmp_path / "f4.npz").items() if k != "descriptor_frames"}
@@ -148,16 +148,20 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
     assert d["model"] == "descriptor" and d["truth"] == "c2"
     assert main(["trial", "--source", f"replay:{octopi_dir}", "--representation",
                  str(tmp_path / "nope.npz")]) == 2
-    assert rp.load(out).descriptor_dim == descriptor_dim(True)     # the default describes
+    # the default describes with the height map and the shipped embedding
+    assert rp.load(out).descriptor_dim == descriptor_dim(True) + 128
     # a file prepared on the other descriptor: refused (exit 2) unless the setting follows it
     old = tmp_path / "old.npz"
     assert main(["prepare", "--library", f"replay:{lib}", "--out", str(old), "--kind",
-                 "whiten", "--calibration", "off", "--height-map", "off"]) == 0
+                 "whiten", "--calibration", "off", "--height-map", "off",
+                 "--embedding", "none"]) == 0
     assert rp.load(old).descriptor_dim == descriptor_dim(False)
     trial = ["trial", "--source", f"replay:{octopi_dir}", "--classes", "basket,tissue,wires",
              "--reference", "tissue", "--seed", "1", "--representation", str(old), "--quiet"]
     assert main(trial) == 2
-    assert main(trial + ["--set", "learner.descriptor_height_map=false"]) == 0
+    assert main(trial + ["--set", "learner.descriptor_height_map=false"]) == 2   # embedding
+    assert main(trial + ["--set", "learner.descriptor_height_map=false",
+                         "--set", "learner.descriptor_embedding="]) == 0
     # prepared from 4 frames per press: recorded; a 1-frame learner refused (exit 2)
     f4 = tmp_path / "f4.npz"
     assert main(["prepare", "--library", f"replay:{lib}", "--out", str(f4), "--kind",
@@ -214,7 +218,7 @@ def test_a_representation_in_memory_runs_the_trial_its_file_runs(tmp_path):
     rep.temperature = 0.02
     path = rp.save(rep, tmp_path / "r.npz")
     trial = TrialConfig(rounds=4, stop_confidence=0.0)
-    plain = preset("default", descriptor_height_map=False, guards=False)
+    plain = preset("descriptor", descriptor_height_map=False, guards=False)
     by_file = run_trial(TrialSpec(3, plain.replace(representation=str(path)), trial, seed=2),
                         _descriptor_touches(5), truth=2)
     in_memory = TrialSpec(3, plain, trial, seed=2, representation=rp.load(path))
