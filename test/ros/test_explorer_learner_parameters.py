@@ -41,7 +41,7 @@ def test_learner_parameters_follow_the_learner(domain_id) -> None:
         "learner.model", "learner.guards", "learner.contact_flat_min", "learner.contact_min",
         "learner.contact_region_min", "learner.descriptor_frames", "learner.match_prior_scale",
         "learner.match_prior_strength", "learner.descriptor_no_contact",
-        "learner.descriptor_height_map",
+        "learner.descriptor_height_map", "learner.descriptor_embedding",
         "learner.representation", "learner.representation_temperature",
         "learner.match_units", "learner.match_temperature", "learner.fabric_library"])
     s = _declared(domain_id, {"config": "seed_faithful"})["values"]
@@ -54,5 +54,5 @@ def test_learner_parameters_follow_the_learner(domain_id) -> None:
                                           "small_inception@48,small_inception@96")
     lad = _declared(domain_id, {"learner.model": "auto"})["values"]
     assert (lad["learner.model"], lad["learner.ladder"], lad["learner.match_temperature"]) == \
-        ("auto", "descriptor,representation,cnn", 0.05)
+        ("auto", "descriptor,representation,cnn", 0.0251)
     assert "learner.lr" not in lad and "learner.auto_ladder" not in lad

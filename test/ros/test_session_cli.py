@@ -64,8 +64,11 @@ def _when(cond, deadline_s: float, then=None) -> dict:
     return got
 
 
-def _start(args: list[str], domain_id: int) -> subprocess.Popen:
-    return subprocess.Popen(_tactex(*args), env=ros_env(domain_id), stdout=subprocess.PIPE,
+def _start(args: list[str], domain_id: int, cwd: Path) -> subprocess.Popen:
+    """``tactex graph run args`` in ``cwd`` (the test's folder: the default record_dir, where a
+    session keeps its fabric library, is runs/trials under it, not the repository's)."""
+    return subprocess.Popen(_tactex(*args), env=ros_env(domain_id), cwd=cwd,
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
@@ -81,7 +84,7 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
     proc = _start(["--sim", "--scene", quick_scene, "--session", str(THREE),
                    "--session-dir", str(d), "--yes", "--seed", "3", "--set", "trial.rounds=1",
                    "--set", "trial.stop_confidence=0.0", "--set", "server_timeout_s=120",
-                   "--node-params", str(params)], listener.domain_id)
+                   "--node-params", str(params)], listener.domain_id, tmp_path)
     cut = _when(lambda: _lines(d / "trial_2" / "touches.jsonl") >= 2, DEADLINE_S,
                 lambda: proc.send_signal(signal.SIGINT))     # the operator's Ctrl-C
     try:
@@ -97,7 +100,7 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
     t_restart = time.monotonic()
     done = _when(lambda: any(e.get("event") == "session_done" for e in sess.events(d)),
                  DEADLINE_S)
-    again = _start(["--session-dir", str(d), "--yes"], listener.domain_id)
+    again = _start(["--session-dir", str(d), "--yes"], listener.domain_id, tmp_path)
     try:
         out, err = again.communicate(timeout=DEADLINE_S)
     finally:
@@ -142,7 +145,7 @@ def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
     d = tmp_path / "sess"
 
     def run(*args: str) -> tuple[int, str, str]:
-        p = _start(list(args), domain_id)
+        p = _start(list(args), domain_id, tmp_path)
         try:
             out, err = p.communicate(timeout=DEADLINE_S)
         finally:
