@@ -41,6 +41,8 @@ SHIPPED = Path(__file__).resolve().parent / "data" / "embedding_sim.npz"
 
 @dataclass
 class Layer:
+    """One convolution with its batch normalisation folded in, followed by a ReLU."""
+
     weight: np.ndarray     # (O, C, k, k) float32, the batch normalisation folded in
     bias: np.ndarray       # (O,) float32
     stride: int
@@ -48,6 +50,9 @@ class Layer:
 
 @dataclass
 class Embedding:
+    """The network: its convolutions in order, its input scale and what it was trained on;
+    called on (F, H, W, 3) contact differences it returns (F, ``dim``) embeddings."""
+
     layers: list[Layer]
     scale: float           # the training set's standard deviation of the input (norm "global")
     norm: str = "global"
@@ -84,6 +89,7 @@ class Embedding:
         return self.forward(self.prepare(differences))
 
     def save(self, path: str | Path) -> None:
+        """Write the weights file ``path`` (the module's format; ``load`` reads it)."""
         arrays = {}
         for i, layer in enumerate(self.layers):
             arrays[f"conv{i}/weight"] = layer.weight
