@@ -80,9 +80,9 @@ class DescriptorLearner:
     def __init__(self, num_classes: int, cfg: DescriptorSettings, seed: int = 0) -> None:
         self.cfg = validate(cfg)
         self.num_classes = num_classes
+        emb = embedding_of(cfg)          # a missing or foreign weights file: refused here
         rep = _load_representation(cfg.representation) if cfg.representation else None
         if rep is not None:
-            emb = embedding_of(cfg)
             rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}",
                                  cfg.descriptor_frames, emb.identity if emb else "",
                                  emb.dim if emb else 0)

@@ -108,3 +108,9 @@ def test_a_missing_or_foreign_weights_file_names_the_setting(tmp_path):
     emb = _one_layer(1)
     emb.save(tmp_path / "bad.npz")          # a first layer that sees colour: loads
     assert embedding.load(tmp_path / "bad.npz").dim == 2
+
+
+def test_a_missing_weights_file_is_refused_when_the_learner_is_built(tmp_path):
+    """Before any touch: a trial never starts with a network it cannot load."""
+    with pytest.raises(InputError, match="descriptor_embedding=.*not found"):
+        DescriptorLearner(4, preset("default", descriptor_embedding=str(tmp_path / "no.npz")))
