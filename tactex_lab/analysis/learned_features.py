@@ -275,6 +275,18 @@ def _keys(path: Path) -> list[str]:
         return list(z.files)
 
 
+def _embed_sides(out: dict, body, log: dict, stacks: dict, roots: dict[str, str],
+                 norm: str) -> float:
+    """Embed both libraries' presses with the trained ``body`` into ``out``
+    (``<library>_one`` / ``<library>_four``, ``embed``'s); returns the median ms per press."""
+    ms = float("nan")
+    for side, side_root in roots.items():
+        name = Path(side_root).name
+        out[f"{name}_one"], out[f"{name}_four"], ms = embed(body, stacks[side]["half"],
+                                                            log["scale"], norm)
+    return ms
+
+
 def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
                   cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
                   cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None,
@@ -324,10 +336,7 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
             body, log = train_cnn(train["half"], train["cls"], steps=cnn_steps, seed=cnn_seed,
                                   norm=cnn_norm)
             out = {f"net/{k}": v.numpy() for k, v in body.state_dict().items()}
-            for side, side_root in roots.items():
-                name = Path(side_root).name
-                out[f"{name}_one"], out[f"{name}_four"], ms = embed(
-                    body, stacks[side]["half"], log["scale"], cnn_norm)
+            ms = _embed_sides(out, body, log, stacks, roots, cnn_norm)
             np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
             print(f"cnn trained on the simulator's fabrics: {log}, embedding {ms:.1f} ms per "
                   "press", flush=True)
@@ -344,10 +353,7 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
             body, log = train_cnn(stacks[k]["half"], caches[k]["cls"], steps=cnn_steps,
                                   seed=cnn_seed, norm=cnn_norm)
             out = {}
-            for side, side_root in roots.items():
-                name = Path(side_root).name
-                out[f"{name}_one"], out[f"{name}_four"], ms = embed(
-                    body, stacks[side]["half"], log["scale"], cnn_norm)
+            ms = _embed_sides(out, body, log, stacks, roots, cnn_norm)
             if sim is not None:
                 out["sim_one"], out["sim_four"], _ = embed(body, sim["half"], log["scale"],
                                                            cnn_norm)
