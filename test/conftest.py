@@ -18,6 +18,13 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+# One OpenMP / BLAS thread per process, set before torch or numpy load their thread pools:
+# `make test` runs two workers on two cores beside the graph tests' node processes (which
+# inherit it), and a pool of a thread per core spins against them (measured: the CNN ladder
+# test took 117 s beside a graph test, 5 s alone). An exported value is kept.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 
 def _shared(rel: str) -> Path | None:
     """First existing of $TACTEX_SHARED/rel, <repo>/../shared/rel, /work/shared/rel."""

@@ -82,7 +82,8 @@ class Representation:
                 "setting (`tactex prepare --embedding`)")
         want = descriptor_dim(height_map) + embedding_dim
         if self.descriptor_dim != want:
-            made = "with" if self.descriptor_dim == DIM_HEIGHT_MAP else "without"
+            made = ("with" if self.descriptor_dim - embedding_dim == DIM_HEIGHT_MAP
+                    else "without")
             raise InputError(
                 f"representation {where} was prepared on descriptors of size "
                 f"{self.descriptor_dim} ({made} the height map); this learner describes touches "

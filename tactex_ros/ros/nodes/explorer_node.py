@@ -290,12 +290,18 @@ class ExplorerNode(TactexNode):
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
         gone (left the graph for 1 s, or silent for ``press_silence_s``). Time this process
         was stopped counts for neither (``goal.Silence``); after such a stall ``on_stall()`` is
-        called once the server is visible again (the answer may have been dropped meanwhile)."""
+        called once the server is visible again (the answer may have been dropped meanwhile),
+        and for ``press_silence_s`` an absent server counts as gone only after that long: a
+        stall longer than the DDS participant lease (Fast DDS: 20 s) makes this process forget
+        the other participants until they announce themselves again."""
         absent_since = None
         reask = False
+        rediscover_until = -1.0              # monotonic [s]: end of the grace after a stall
         while not ready():
             stall = self._silence.tick()     # this process was stopped: not the server's fault
             deadline += stall
+            if stall > 0:
+                rediscover_until = time.monotonic() + self.settings.press_silence_s
             reask = reask or (stall > 0 and on_stall is not None)
             if reask and self.press.server_is_ready():
                 on_stall()                   # an answer dropped while we were away: ask again
@@ -316,7 +322,8 @@ class ExplorerNode(TactexNode):
                     absent_since = None
                 elif absent_since is None:
                     absent_since = now
-                elif now - absent_since > 1.0:
+                elif now - absent_since > (self.settings.press_silence_s
+                                           if now < rediscover_until else 1.0):
                     raise PressServerLost("the press server left the ROS graph")
             time.sleep(0.01)
         return True
