@@ -46,6 +46,8 @@ FEATURES = {
     "cnn4": lambda c: c["cnn4"],
     "frame_hm_cnn": lambda c: np.concatenate([c["f0"], c["hm"], c["cnn"]], axis=1),
     "frames4_hm_cnn4": lambda c: np.concatenate([_frames4(c), c["hm"], c["cnn4"]], axis=1),
+    # the strongest frame described, the embedding averaged over 4 (the cheap multi-frame one)
+    "frame_hm_cnn4": lambda c: np.concatenate([c["f0"], c["hm"], c["cnn4"]], axis=1),
 }
 
 def build_cache(root: str | Path, out: str | Path, candidates: bool = False) -> Path:

@@ -61,24 +61,36 @@ class Probe:
         """Arrival times [s, monotonic] of ``topic``'s messages over ``window_s`` after the
         first one (which must come within ``deadline_s``), and the last message (None if
         none)."""
-        stamps: list[float] = []
-        last: list[Any] = [None]
+        return self.sample_all([(msg_type, topic, qos)], window_s, deadline_s)[0]
 
-        def got(msg: Any) -> None:
-            stamps.append(time.monotonic())
-            last[0] = msg
-        sub = self.node.create_subscription(msg_type, topic, got, qos)
+    def sample_all(self, topics: list[tuple[type, str, Any]], window_s: float,
+                   deadline_s: float) -> list[tuple[list[float], Any]]:
+        """``sample`` of every (type, topic, QoS) of ``topics`` at once: each topic's window
+        starts at its own first message; all end within ``deadline_s`` + ``window_s``."""
+        stamps: list[list[float]] = [[] for _ in topics]
+        last: list[Any] = [None] * len(topics)
+
+        def on(i: int):
+            def got(msg: Any) -> None:
+                stamps[i].append(time.monotonic())
+                last[i] = msg
+            return got
+        subs = [self.node.create_subscription(t, name, on(i), qos)
+                for i, (t, name, qos) in enumerate(topics)]
         try:
-            end = time.monotonic() + deadline_s
-            while not stamps and time.monotonic() < end:
+            start = time.monotonic()
+
+            def open_window() -> bool:
+                now = time.monotonic()
+                return any((not st and now < start + deadline_s) or
+                           (st and now < st[0] + window_s) for st in stamps)
+            while open_window():
                 self._spin()
-            if stamps:
-                end = stamps[0] + window_s
-                while time.monotonic() < end:
-                    self._spin()
         finally:
-            self.node.destroy_subscription(sub)
-        return [t for t in stamps if t <= stamps[0] + window_s] if stamps else [], last[0]
+            for sub in subs:
+                self.node.destroy_subscription(sub)
+        return [([t for t in st if t <= st[0] + window_s] if st else [], lt)
+                for st, lt in zip(stamps, last)]
 
     def call(self, srv_type: type, name: str, request: dict[str, Any], ok_field: str,
              deadline_s: float) -> Any:

@@ -52,10 +52,12 @@ def _offline(record: Path, out: Path, burst: bool = True, rounds: int | None = N
     return res
 
 
-def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener) -> None:
-    nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 1,
-                                     "learner": {"descriptor_frames": FRAMES},
-                                     "record_dir": str(tmp_path), "trial_id": "live"})
+def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener,
+                                                    quick_scene: str) -> None:
+    nodes = describe(True, quick_scene,
+                     explorer={"trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 1,
+                               "learner": {"descriptor_frames": FRAMES},
+                               "record_dir": str(tmp_path), "trial_id": "live"})
     scene = load_scene(nodes[0].parameters["scene_file"])
     assert scene.press.capture_frames == FRAMES        # the default burst: 4 frames
     run = run_graph(nodes, tmp_path / "logs", timeout_s=300, domain_id=listener.domain_id)

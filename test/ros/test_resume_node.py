@@ -31,7 +31,8 @@ def _touches(record: Path) -> int:
         return 0
 
 
-def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: int) -> None:
+def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: int,
+                                                    quick_scene: str) -> None:
     rec = tmp_path / "t"
 
     def kill_after_3_touches(graph) -> None:
@@ -44,7 +45,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
                 time.sleep(0.05)
         threading.Thread(target=watch, daemon=True).start()
 
-    first = describe(True, explorer={"trial": {"rounds": 2, "strategy": "random",
+    first = describe(True, quick_scene, explorer={"trial": {"rounds": 2, "strategy": "random",
                                                "stop_confidence": 0.0},
                                      "seed": 5, "record_dir": str(tmp_path), "trial_id": "t"})
     run = run_graph(first, tmp_path / "logs1", timeout_s=DEADLINE_S, domain_id=domain_id,
@@ -55,14 +56,14 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
     config = (rec / "config.json").read_bytes()
 
     # a parameter that contradicts the record: refused at configure, exit status 2
-    bad = describe(True, explorer={"resume": str(rec), "seed": 6})
+    bad = describe(True, quick_scene, explorer={"resume": str(rec), "seed": 6})
     run = run_graph(bad, tmp_path / "logs2", timeout_s=DEADLINE_S, domain_id=domain_id)
     assert run.result is None and run.node_exit["explorer"] == 2, run.failure
     assert "seed = 6" in (run.reason or "") and "seed = 5" in (run.reason or ""), run.reason
     assert len(read_record(rec, images=False)["touches"]) == n      # nothing pressed
 
     # only `resume`: the record's settings, the trial finished in its own folder
-    only = describe(True, explorer={"resume": str(rec)})
+    only = describe(True, quick_scene, explorer={"resume": str(rec)})
     ex = next(x for x in only if x.name == "explorer").parameters
     assert ex["seed"] == 0 and ex["trial"]["rounds"] == 20      # the node's defaults given
     run = run_graph(only, tmp_path / "logs3", timeout_s=DEADLINE_S, domain_id=domain_id)

@@ -114,12 +114,13 @@ def test_press_faults(tmp_path: Path, listener, press) -> None:
     assert xyz[:, 2].min() >= scene.platform("c1").position[2] - floor - 0.001
 
 
-def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> None:
+def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener,
+                                                  quick_scene: str) -> None:
     """The mock camera shows no texture on some presses: the motion node sees no contact in the
     captured frames and retries the press; nothing blank reaches the learner; the trial ends."""
-    nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
-                                     "record_dir": str(tmp_path),
-                                     "trial_id": "blank"},
+    nodes = describe(True, quick_scene,
+                     explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
+                               "record_dir": str(tmp_path), "trial_id": "blank"},
                      mock_image={"fault_blank": 0.2, "seed": 3})
     run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
     assert not run.timed_out and run.exit_code == 0
@@ -131,13 +132,14 @@ def test_blank_presses_retried_and_trial_goes_on(tmp_path: Path, listener) -> No
     assert run.result["prediction"] in {"c1", "c2", "c3", "c4"}
 
 
-def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener) -> None:
+def test_guard_rejected_touch_is_pressed_again(tmp_path: Path, listener,
+                                               quick_scene: str) -> None:
     """The motion node lets blank captures through (min_contact_score 0): the core's contact
     guard refuses them in the explorer, which presses the same platform again at once; the
     rejected image stays on disk, marked, and the round is not lost."""
-    nodes = describe(True, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
-                                     "record_dir": str(tmp_path),
-                                     "trial_id": "guard"},
+    nodes = describe(True, quick_scene,
+                     explorer={"trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 0,
+                               "record_dir": str(tmp_path), "trial_id": "guard"},
                      mock_image={"fault_blank": 0.3, "seed": 3},
                      motion={"min_contact_score": 0.0})
     run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)

@@ -165,16 +165,17 @@ class MotionNode(TactexNode):
                           (WrenchStamped, s.wrench_topic, prof.wrench_qos)]
             mode = None
             min_rate = s.min_state_rate_hz
-            for mtype, topic, qos in topics:
-                stamps, last = probe.sample(mtype, topic, adapter.qos_profile(qos),
-                                            s.preflight_window_s, s.preflight_deadline_s)
-                # one graph per arm, checked once the sampling gave discovery its time
-                problem = probe.other_graph(
-                    [("the arm's target", s.target_topic),
-                     ("the press action's status", f"{s.press_action}/_action/status")]
-                    + [("the robot state", t) for _, t, _ in topics])
-                if problem:
-                    raise InputError(f"pre-flight: {problem}")
+            samples = probe.sample_all([(mtype, topic, adapter.qos_profile(qos))
+                                        for mtype, topic, qos in topics],
+                                       s.preflight_window_s, s.preflight_deadline_s)
+            # one graph per arm, checked once the sampling gave discovery its time
+            problem = probe.other_graph(
+                [("the arm's target", s.target_topic),
+                 ("the press action's status", f"{s.press_action}/_action/status")]
+                + [("the robot state", t) for _, t, _ in topics])
+            if problem:
+                raise InputError(f"pre-flight: {problem}")
+            for (_, topic, _), (stamps, last) in zip(topics, samples):
                 problem = checks.state_problem(stamps, min_rate, s.preflight_window_s, topic)
                 if problem:
                     raise problem.error()       # silent robot: DeviceError (exit status 1)
