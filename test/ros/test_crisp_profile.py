@@ -60,7 +60,7 @@ def test_second_target_publisher_stops_the_arm(tmp_path: Path, listener, press) 
     listener.node.create_publisher(PoseStamped, "/target_pose", 1)   # never publishes
     # the motion node's pre-flight refuses another graph (test_two_graphs.py): off here,
     # so this is the controller's own answer (the mock's CRISP law stops the arm)
-    with Graph(_nodes(tmp_path, {"preflight": False}, approach_deadline_s=4.0),
+    with Graph(_nodes(tmp_path, {"preflight": False}, approach_deadline_s=4.0, retries=0),
                tmp_path / "logs", listener.domain_id):
         res = press("c1", timeout=60.0)
     assert not res.success and "deadline: phase approach" in res.reason, res.reason
