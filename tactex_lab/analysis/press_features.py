@@ -149,8 +149,10 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     (interleaved, the same presses) on the first ``presses`` presses of the replay folder
     ``root``: median and quartiles over presses x ``repeats``. ``growth`` includes the contact
     differences of its 4 frames; ``embedding`` is the shipped network's numpy pass on the
-    strongest frame (``core/embedding.py``), ``descriptor_embedding`` the height-map descriptor
-    and that embedding (``learner.descriptor_embedding=sim``)."""
+    strongest frame (``core/embedding.py``), ``embedding_burst`` its mean over the press's 4
+    frames, ``descriptor_embedding`` the height-map descriptor and the embedding as the
+    shipped default takes it (``learner.descriptor_embedding=sim``, over
+    ``learner.descriptor_embedding_frames`` frames)."""
     import time
     from tactex_ros.core.contact import strongest_contact
     from tactex_ros.sources.replay import ReplaySource, read_video
@@ -159,9 +161,12 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
     times: dict[str, list[float]] = {k: [] for k in ("descriptor", "descriptor_height_map",
                                                      "filter_bank_1st",
                                                      "filter_bank", "height_map", "growth",
-                                                     "embedding", "descriptor_embedding")}
+                                                     "embedding", "embedding_burst",
+                                                     "descriptor_embedding")}
     from tactex_ros.core import embedding
+    from tactex_ros.core.config import DescriptorSettings
     emb = embedding.load(embedding.SHIPPED)
+    burst = DescriptorSettings().descriptor_embedding_frames
     for path in paths:
         arr = read_video(path)
         rgb = np.ascontiguousarray(arr[..., ::-1])
@@ -178,8 +183,9 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
             # the shipped network (core/embedding.py) on the strongest frame, and the whole
             # touch as learner.descriptor_embedding=sim describes it
             "embedding": lambda: embedding.embed_touch(t, 1, emb),
+            "embedding_burst": lambda: embedding.embed_touch(t, 4, emb),
             "descriptor_embedding": lambda: (texture.describe(t.frame, t.no_contact, True),
-                                             embedding.embed_touch(t, 1, emb)),
+                                             embedding.embed_touch(t, burst, emb)),
         }
         for _ in range(repeats):
             for k, f in jobs.items():

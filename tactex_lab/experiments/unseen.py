@@ -390,7 +390,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--cnn-seed", type=int, default=None,
                    help="train the small CNN on each library with this seed and add the "
                         "embeddings to the caches (features cnn, cnn4, frame_hm_cnn, "
-                        "frames4_hm_cnn4; the test side is embedded by the other library's "
+                        "frame_hm_cnn4, frames4_hm_cnn4; the test side is embedded by the other library's "
                         "network); cached under --cache-dir per seed and steps")
     p.add_argument("--sim-family", action="store_true",
                    help="with --cnn-seed: embed the simulator's fabrics (6 presses each) with "

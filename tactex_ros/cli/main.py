@@ -127,7 +127,8 @@ def cmd_prepare(args: argparse.Namespace) -> int:
     desc: dict[str, np.ndarray] = {}
     height_map = args.height_map == "on"
     cfg = preset("default", descriptor_frames=args.frames, descriptor_height_map=height_map,
-                 descriptor_embedding="" if args.embedding == "none" else args.embedding)
+                 descriptor_embedding="" if args.embedding == "none" else args.embedding,
+                 descriptor_embedding_frames=args.embedding_frames)
     for spec in args.library:
         desc.update(library_descriptors(spec, cfg, args.sim_presses, args.seed))
     settings = PrepareSettings(**{name: getattr(args, name)
@@ -218,6 +219,10 @@ def _prepare_parser(sub: argparse._SubParsersAction, command: str | None) -> Non
                     help="the learned embedding appended to each descriptor, as "
                          "learner.descriptor_embedding: sim (the shipped network), a weights "
                          "file, or none (a trial refuses a file prepared with another)")
+    pr.add_argument("--embedding-frames", type=bounded(int, 1, 16),
+                    default=DescriptorSettings().descriptor_embedding_frames,
+                    help="contact frames per press averaged into the embedding, 1..16 (as "
+                         "learner.descriptor_embedding_frames)")
     pr.add_argument("--sim-presses", type=bounded(int, 1, 10000), default=6,
                     help="presses per simulated fabric, 1..10000")
     from ..core.preparation import PrepareSettings

@@ -59,7 +59,8 @@ def descriptor_size(cfg: DescriptorSettings) -> int:
 
 def raw_descriptor(touch: Touch, cfg: DescriptorSettings) -> np.ndarray:
     """(D,) the texture descriptor of ``touch`` as ``cfg`` describes it (``descriptor_frames``,
-    ``descriptor_no_contact``, ``descriptor_height_map``, ``descriptor_embedding``: D =
+    ``descriptor_no_contact``, ``descriptor_height_map``, ``descriptor_embedding``,
+    ``descriptor_embedding_frames``: D =
     ``descriptor_size``), before any representation; the touch's own when it has one."""
     if touch.descriptor is not None:
         return np.asarray(touch.descriptor, dtype=np.float64)
@@ -69,7 +70,7 @@ def raw_descriptor(touch: Touch, cfg: DescriptorSettings) -> np.ndarray:
     emb = embedding_of(cfg)
     if emb is None:
         return x
-    return np.concatenate([x, embed_touch(touch, cfg.descriptor_frames, emb)])
+    return np.concatenate([x, embed_touch(touch, cfg.descriptor_embedding_frames, emb)])
 
 
 class DescriptorLearner:
@@ -85,7 +86,7 @@ class DescriptorLearner:
         if rep is not None:
             rep.check_descriptor(cfg.descriptor_height_map, f"file {cfg.representation}",
                                  cfg.descriptor_frames, emb.identity if emb else "",
-                                 emb.dim if emb else 0)
+                                 emb.dim if emb else 0, cfg.descriptor_embedding_frames)
         self.match = MatchModel(num_classes, cfg.match_prior_scale, cfg.match_prior_strength,
                                 cfg.match_temperature, scene_units=cfg.match_units == "scene")
         self.representation: Representation | None = None

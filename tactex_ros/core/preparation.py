@@ -66,6 +66,7 @@ def prepare(descriptors: dict[str, "np.ndarray"], settings: PrepareSettings,
     from .descriptor import embedding_of
     emb = embedding_of(cfg)
     rep.embedding = emb.identity if emb is not None else ""
+    rep.embedding_frames = int(cfg.descriptor_embedding_frames) if emb is not None else 0
     if s.calibration != "off":
         trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
                                          scenes=s.calibration_scenes,

@@ -28,7 +28,9 @@ numpy ``.npz`` archive read with ``allow_pickle=False`` (no torch on the shipped
 temperature, what the calibration measured (JSON), the library's size and the contact frames
 per press it was prepared from (``descriptor_frames``; 0 or absent: not recorded, an older
 file), the identity of the learned embedding its descriptors carry (``descriptor_embedding``,
-``core/embedding.py``; '' or absent: none); no frames or descriptors of the library. A file without kind or temperature is a
+``core/embedding.py``; '' or absent: none) and the frames per press averaged into that
+embedding (``embedding_frames``; absent: ``descriptor_frames``, as before the setting
+existed); no frames or descriptors of the library. A file without kind or temperature is a
 whitening without calibration; one without ``descriptor_dim`` holds the size of its mean.
 """
 
@@ -59,6 +61,7 @@ class Representation:
     calibration: dict = field(default_factory=dict)   # what the calibration measured
     frames: int = 0        # contact frames per press it was prepared from; 0 = not recorded
     embedding: str = ""    # identity of the learned embedding in its descriptors ('' = none)
+    embedding_frames: int = 0   # frames per press averaged into that embedding; 0 = as frames
 
     @property
     def descriptor_dim(self) -> int:
@@ -66,12 +69,15 @@ class Representation:
         return int(self.mean.shape[0])
 
     def check_descriptor(self, height_map: bool, where: str, frames: int | None = None,
-                         embedding: str = "", embedding_dim: int = 0) -> None:
+                         embedding: str = "", embedding_dim: int = 0,
+                         embedding_frames: int | None = None) -> None:
         """InputError unless it takes the descriptors ``learner.descriptor_height_map =
         height_map`` makes, with the learned embedding of identity ``embedding`` (size
         ``embedding_dim``; '' = none: ``core/embedding.py``), and (when the file records it and
         ``frames`` is given) was prepared from as many contact frames per press as
-        ``learner.descriptor_frames = frames`` (``where``: the file, for the message)."""
+        ``learner.descriptor_frames = frames``, and (with an embedding, ``embedding_frames``
+        given) with as many frames per press averaged into the embedding as
+        ``learner.descriptor_embedding_frames`` (``where``: the file, for the message)."""
         if self.embedding != embedding:
             raise InputError(
                 f"representation {where} was prepared "
@@ -97,6 +103,14 @@ class Representation:
                 f"press; this learner describes touches from {frames} "
                 f"(learner.descriptor_frames={frames}): set learner.descriptor_frames="
                 f"{self.frames} or prepare the file again (`tactex prepare --frames {frames}`)")
+        made = self.embedding_frames or self.frames
+        if embedding and embedding_frames is not None and made and made != embedding_frames:
+            raise InputError(
+                f"representation {where} was prepared with the embedding averaged over {made} "
+                f"contact frame(s) per press; this learner averages {embedding_frames} "
+                f"(learner.descriptor_embedding_frames={embedding_frames}): set "
+                f"learner.descriptor_embedding_frames={made} or prepare the file again "
+                f"(`tactex prepare --embedding-frames {embedding_frames}`)")
 
     @property
     def dims(self) -> int:
@@ -169,6 +183,7 @@ def save(rep: Representation, path: str | Path) -> Path:
                  descriptor_dim=np.array(rep.descriptor_dim),
                  descriptor_frames=np.array(rep.frames),
                  descriptor_embedding=np.array(rep.embedding),
+                 embedding_frames=np.array(rep.embedding_frames),
                  temperature=np.array(rep.temperature),
                  calibration=np.array(json.dumps(rep.calibration)))
     return path
@@ -229,5 +244,10 @@ def load(path: str | Path) -> Representation:
     if frames != int(frames) or frames < 0:
         raise InputError(f"representation file {p}: field 'descriptor_frames' must be a whole "
                          f"number >= 0 (0: not recorded), got {frames}")
+    eframes = number("embedding_frames", 0)
+    if eframes != int(eframes) or eframes < 0:
+        raise InputError(f"representation file {p}: field 'embedding_frames' must be a whole "
+                         f"number >= 0 (0: as descriptor_frames), got {eframes}")
     return Representation(mean, std, w, int(number("classes", 0)), int(number("presses", 0)),
-                          number("shrink", 0.0), kind, temp, calib, int(frames), embedding)
+                          number("shrink", 0.0), kind, temp, calib, int(frames), embedding,
+                          int(eframes))

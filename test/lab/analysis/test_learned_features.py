@@ -77,6 +77,7 @@ def test_a_library_sees_its_own_networks_embeddings():
     assert FEATURES["frame_hm_cnn"](c)[0].tolist() == [0, 0, 0, 1, 5, 5]
     assert FEATURES["frame_hm_cnn"](lib)[0].tolist() == [0, 0, 0, 1, 7, 7]
     assert FEATURES["frames4_hm_cnn4"](lib)[0].tolist() == [0, 0, 0, 1, 8, 8]
+    assert FEATURES["frame_hm_cnn4"](c)[0].tolist() == [0, 0, 0, 1, 6, 6]
     plain = {"f0": np.zeros((2, 3))}
     assert library_view(plain) is not plain and library_view(plain).keys() == plain.keys()
 

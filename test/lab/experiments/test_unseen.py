@@ -68,7 +68,7 @@ def test_region_and_frame_features_have_the_documented_sizes():
                      "frames4_fb": 106 + fb, "frames4_hm": 106 + hm, "frames4_grow": 106 + gr,
                      "frames4_all": 106 + fb + hm + gr, "scat": 42, "frame_hm_scat": 106 + hm + 42,
                      "cnn": 128, "cnn4": 128, "frame_hm_cnn": 106 + hm + 128,
-                     "frames4_hm_cnn4": 106 + hm + 128}
+                     "frames4_hm_cnn4": 106 + hm + 128, "frame_hm_cnn4": 106 + hm + 128}
     np.testing.assert_allclose(press_cache.FEATURES["frames4"](cache)[0],
                                np.mean([cache["f0"][0], *cache["extra"][0]], axis=0))
 

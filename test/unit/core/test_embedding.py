@@ -72,12 +72,24 @@ def test_the_learner_appends_the_mean_embedding_of_its_frames():
     plain = raw_descriptor(t, preset("descriptor"))
     assert x.shape == (DIM_HEIGHT_MAP + 128,) and np.array_equal(x[:DIM_HEIGHT_MAP], plain)
     emb = embedding.load(embedding.SHIPPED)
-    one = emb(embedding.contact_difference(t.frame, t.no_contact)[None])[0]
-    assert np.allclose(x[DIM_HEIGHT_MAP:], one, atol=1e-6)       # 1 frame: the strongest
-    four = raw_descriptor(t, preset("default", descriptor_embedding="sim", descriptor_frames=4))
     diffs = np.stack([embedding.contact_difference(f, t.no_contact)
                       for f in [t.frame, *t.extra]])
-    assert np.allclose(four[DIM_HEIGHT_MAP:], emb(diffs).mean(0), atol=1e-6)
+    # the default: the descriptor of the strongest frame, the embedding's mean over 4 frames
+    assert cfg.descriptor_frames == 1 and cfg.descriptor_embedding_frames == 4
+    assert np.allclose(x[DIM_HEIGHT_MAP:], emb(diffs).mean(0), atol=1e-6)
+    one = raw_descriptor(t, preset("default", descriptor_embedding_frames=1))
+    assert np.allclose(one[DIM_HEIGHT_MAP:], emb(diffs[:1])[0], atol=1e-6)   # the strongest
+    assert np.array_equal(one[:DIM_HEIGHT_MAP], plain)
+    two = raw_descriptor(t, preset("default", descriptor_embedding_frames=2))
+    assert np.allclose(two[DIM_HEIGHT_MAP:], emb(diffs[:2]).mean(0), atol=1e-6)
+    # descriptor_frames averages the descriptor, not the embedding
+    four = raw_descriptor(t, preset("default", descriptor_frames=4,
+                                    descriptor_embedding_frames=1))
+    assert np.allclose(four[DIM_HEIGHT_MAP:], one[DIM_HEIGHT_MAP:], atol=1e-12)
+    assert not np.allclose(four[:DIM_HEIGHT_MAP], plain)
+    # a touch without its burst: the strongest frame alone
+    alone = raw_descriptor(_touch(0, extra=False), cfg)
+    assert np.allclose(alone[DIM_HEIGHT_MAP:], emb(diffs[:1])[0], atol=1e-6)
 
 
 def test_a_representation_of_another_embedding_is_refused(tmp_path):
@@ -97,6 +109,29 @@ def test_a_representation_of_another_embedding_is_refused(tmp_path):
                                 representation=str(path)))        # accepted
     with pytest.raises(InputError, match="descriptor_embedding"):
         DescriptorLearner(4, preset("descriptor", representation=str(path)))
+
+
+def test_a_representation_of_other_embedding_frames_is_refused(tmp_path):
+    rng = np.random.default_rng(2)
+    lib = {str(c): rng.normal(size=(5, DIM_HEIGHT_MAP + 128)) + c for c in range(4)}
+    rep = representation.fit(lib)
+    rep.embedding, rep.frames = embedding.load(embedding.SHIPPED).identity, 1
+    rep.embedding_frames = 1
+    path = representation.save(rep, tmp_path / "e1.npz")
+    assert representation.load(path).embedding_frames == 1
+    with pytest.raises(InputError, match="learner.descriptor_embedding_frames=1"):
+        DescriptorLearner(4, preset("default", representation=str(path)))     # 4 frames
+    DescriptorLearner(4, preset("default", representation=str(path),
+                                descriptor_embedding_frames=1))           # accepted
+    # a file made before the setting: its embedding took descriptor_frames (1)
+    old = {k: v for k, v in np.load(path).items() if k != "embedding_frames"}
+    np.savez(tmp_path / "old.npz", **old)
+    assert representation.load(tmp_path / "old.npz").embedding_frames == 0
+    with pytest.raises(InputError, match="descriptor_embedding_frames"):
+        DescriptorLearner(4, preset("default", representation=str(tmp_path / "old.npz")))
+    np.savez(tmp_path / "bad.npz", **dict(old, embedding_frames=np.array(1.5)))
+    with pytest.raises(InputError, match="embedding_frames"):
+        representation.load(tmp_path / "bad.npz")
 
 
 def test_a_missing_or_foreign_weights_file_names_the_setting(tmp_path):

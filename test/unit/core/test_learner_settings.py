@@ -24,7 +24,7 @@ def test_each_learner_has_its_own_fields_and_shipped_defaults() -> None:
     assert d.model_dump() == {
         "model": "descriptor", "guards": True, "contact_flat_min": 0.35, "contact_min": 0.8,
         "descriptor_frames": 1, "descriptor_height_map": True, "descriptor_embedding": "sim",
-        "match_prior_scale": 1.0,
+        "descriptor_embedding_frames": 4, "match_prior_scale": 1.0,
         "match_prior_strength": 4.0,
         "descriptor_no_contact": True, "representation": "", "representation_temperature": True,
         "match_units": "scene", "match_temperature": 0.0251, "contact_region_min": 0.0,
@@ -109,7 +109,8 @@ def test_fields_of_the_union() -> None:
     assert [n for n in descriptor if n.startswith("learner.")] == [
         "learner.model", "learner.guards", "learner.contact_flat_min", "learner.contact_min",
         "learner.descriptor_frames", "learner.descriptor_height_map",
-        "learner.descriptor_embedding", "learner.match_prior_scale",
+        "learner.descriptor_embedding", "learner.descriptor_embedding_frames",
+        "learner.match_prior_scale",
         "learner.match_prior_strength", "learner.descriptor_no_contact", "learner.representation",
         "learner.representation_temperature", "learner.match_units",
         "learner.match_temperature", "learner.contact_region_min", "learner.fabric_library"]
