@@ -115,12 +115,16 @@ def _one_blas_thread():
 
 def _conv_relu(x: np.ndarray, layer: Layer) -> np.ndarray:
     """(F, H, W, C) -> (F, H', W', O): the convolution (padding k // 2) and a ReLU."""
-    k = layer.weight.shape[-1]
+    o, c, k, _ = layer.weight.shape
     p = k // 2
     xp = np.pad(x, ((0, 0), (p, p), (p, p), (0, 0)))
     win = sliding_window_view(xp, (k, k), axis=(1, 2))[:, ::layer.stride, ::layer.stride]
-    # win: (F, H', W', C, k, k); the weight (O, C, k, k)
-    y = np.tensordot(win, layer.weight, axes=([3, 4, 5], [1, 2, 3])) + layer.bias
+    # win: (F, H', W', C, k, k) -> one contiguous (F H' W', k k C) copy (the channels last, as
+    # in memory: half the time of a product over the strided view), times (k k C, O)
+    f, h, w = win.shape[:3]
+    cols = np.ascontiguousarray(win.transpose(0, 1, 2, 4, 5, 3)).reshape(f * h * w, k * k * c)
+    y = (cols @ layer.weight.transpose(2, 3, 1, 0).reshape(k * k * c, o)).reshape(f, h, w, o)
+    y += layer.bias
     return np.maximum(y, 0.0, out=y)
 
 

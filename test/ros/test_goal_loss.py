@@ -53,10 +53,12 @@ def _press(client, platform: str, timeout: float = 90.0):
     return req, {bytes(m.goal_id.uuid) for m in fb}
 
 
-def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener) -> None:
+def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener,
+                                                     quick_scene: str) -> None:
     from rclpy.action import ActionClient
     from tactex.action import Press
-    nodes = [n for n in describe(True) if n.name in ("mock_arm", "mock_image", "motion")]
+    nodes = [n for n in describe(True, quick_scene)
+             if n.name in ("mock_arm", "mock_image", "motion")]
     ac = ActionClient(listener.node, Press, "/tactex/press")
     with Graph(nodes, tmp_path / "logs", listener.domain_id):
         assert ac.wait_for_server(timeout_sec=30.0)

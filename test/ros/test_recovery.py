@@ -37,9 +37,9 @@ def _profile(tmp_path: Path, recovery: dict) -> str:
     return str(path)
 
 
-def _graph(tmp_path: Path, kind: str, recovery: dict):
+def _graph(tmp_path: Path, kind: str, recovery: dict, scene: str):
     robot = _profile(tmp_path, recovery)
-    nodes = describe(True, robot=robot,
+    nodes = describe(True, scene, robot=robot,
                      motion={"recovery_timeout_s": 5.0},
                      mock_arm={"reflex_force": 2.0, "reflex_limit": 1,
                                "recovery_standin": kind,
@@ -53,12 +53,13 @@ def _graph(tmp_path: Path, kind: str, recovery: dict):
     ("service", "std_srvs/srv/Trigger", "success", True),     # the Panda's hold target first
 ])
 def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, press, kind, rtype,
-                                             ok_field, hold) -> None:
+                                             ok_field, hold, quick_scene: str) -> None:
     rec = {"kind": kind, "name": "/tactex_test/error_recovery", "type": rtype, "then": [HW, CTL],
            "hold_target": hold}
     if ok_field:
         rec["ok_field"] = ok_field
-    with Graph(_graph(tmp_path, kind, rec), tmp_path / "logs", listener.domain_id):
+    with Graph(_graph(tmp_path, kind, rec, quick_scene), tmp_path / "logs",
+               listener.domain_id):
         res = press("c1")
     assert res.success, res.reason
     # the first attempt ended in the reflex; a loaded machine may add a stale-state attempt
@@ -67,10 +68,11 @@ def test_reflex_recovered_then_pressed_again(tmp_path: Path, listener, press, ki
 
 
 def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
-                                                        press) -> None:
+                                                        press, quick_scene: str) -> None:
     rec = {"kind": "action", "name": "/tactex_test/error_recovery",
            "type": "tactex/action/Press", "then": [CTL, HW]}
-    with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
+    with Graph(_graph(tmp_path, "action", rec, quick_scene), tmp_path / "logs",
+               listener.domain_id):
         res = press("c1")
     # the reflex attempt ends the goal; a loaded machine may add a stale-state attempt first
     # (state resumed by itself: pressed again without recovery), as in the test above
@@ -80,7 +82,8 @@ def test_reactivation_in_the_wrong_order_ends_the_goal(tmp_path: Path, listener,
     assert "/tactex_test/activate_controller" in res.reason
 
 
-def test_calls_before_the_recovery_come_first(tmp_path: Path, listener, press) -> None:
+def test_calls_before_the_recovery_come_first(tmp_path: Path, listener, press,
+                                              quick_scene: str) -> None:
     """The profile's `before` calls (franka_ros2 on Humble: deactivate the controllers) are
     made before the recovery itself, and one that fails ends the goal with its service named:
     here a service nobody offers, while the recovery action would have succeeded."""
@@ -88,7 +91,8 @@ def test_calls_before_the_recovery_come_first(tmp_path: Path, listener, press) -
                "request": {"data": False}, "ok_field": "success"}
     rec = {"kind": "action", "name": "/tactex_test/error_recovery",
            "type": "tactex/action/Press", "before": [missing], "then": [HW, CTL]}
-    with Graph(_graph(tmp_path, "action", rec), tmp_path / "logs", listener.domain_id):
+    with Graph(_graph(tmp_path, "action", rec, quick_scene), tmp_path / "logs",
+               listener.domain_id):
         res = press("c1")
     assert not res.success and 1 <= res.attempts <= 2
     assert "not retried: recovery failed" in res.reason
