@@ -36,7 +36,9 @@ deps() {
         --index-url "${TORCH_INDEX:-https://download.pytorch.org/whl/cu128}" ;;
     *) echo "setup_env: TORCH=${TORCH}: choose cpu or cuda" >&2; exit 2 ;;
   esac
-  "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r "$reqs"
+  # --no-compile: no bytecode for every file of every wheel (torch's thousands); a module is
+  # compiled when first imported. Measured on this 2-core machine: 100 s instead of 167 s.
+  "$VENV/bin/python" -m pip install --disable-pip-version-check --no-compile -q -r "$reqs"
   # The ROS wheels' exported CMake files name the wheel builder's include dirs; point them at ours.
   local py_inc np_inc
   py_inc=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
