@@ -64,9 +64,6 @@ class Listener:
 
 #: [m] the scene schema's least ``press.approach_height`` (config/scene_sim.yaml: 0.02)
 QUICK_APPROACH_M = 0.005
-#: shorter waits at rest, before the tare and before the capture (the defaults: 0.3 s each;
-#: config/scene_sim.yaml's settle 0.25 s)
-QUICK_PRESS = {"rest_s": 0.15, "tare_window_s": 0.15, "settle_s": 0.1}
 
 
 @pytest.fixture(scope="session")
@@ -80,7 +77,6 @@ def quick_scene(tmp_path_factory) -> str:
     from tactex_ros.paths import config_dir
     scene = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
     scene["press"]["approach_height"] = QUICK_APPROACH_M
-    scene["press"].update(QUICK_PRESS)
     path = tmp_path_factory.mktemp("scene") / "scene_quick.yaml"
     path.write_text(yaml.safe_dump(scene, sort_keys=False))
     return str(path)
