@@ -26,7 +26,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .errors import InputError
-from .texture import contact_difference
+from .texture import contact_differences
 from .touch import Touch
 
 FORMAT = "tactex-embedding-1"
@@ -176,7 +176,7 @@ def embed_touch(touch: Touch, max_frames: int, emb: Embedding,
     nc = touch.no_contact if no_contact else None
     frames = [touch.frame] + (list(touch.extra[:max_frames - 1])
                               if touch.extra is not None and max_frames > 1 else [])
-    d = np.stack([contact_difference(f, nc) for f in frames])
+    d = contact_differences(frames, nc)
     return emb(d).mean(axis=0).astype(np.float64)
 
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -76,13 +77,22 @@ def part_slices() -> dict[str, slice]:
 
 def contact_difference(frame: np.ndarray, no_contact: np.ndarray | None) -> np.ndarray:
     """(240, 320, 3) uint8 frames -> (240 - 2B, 320 - 2B, 3) float32 difference, mean removed."""
-    c = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 0.8)
-    if no_contact is None:
-        r = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 12.0)
-    else:
-        r = cv2.GaussianBlur(no_contact.astype(np.float32), (0, 0), 0.8)
-    d = (c - r)[BORDER:-BORDER, BORDER:-BORDER]
-    return d - d.reshape(-1, 3).mean(axis=0)
+    return contact_differences([frame], no_contact)[0]
+
+
+def contact_differences(frames: Sequence[np.ndarray], no_contact: np.ndarray | None
+                        ) -> np.ndarray:
+    """(F, 240 - 2B, 320 - 2B, 3) float32: ``contact_difference`` of each of F frames of one
+    press against its no-contact frame (blurred once); None: each against its own blur."""
+    ref = None if no_contact is None else \
+        cv2.GaussianBlur(no_contact.astype(np.float32), (0, 0), 0.8)
+    out = []
+    for frame in frames:
+        c = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 0.8)
+        r = cv2.GaussianBlur(frame.astype(np.float32), (0, 0), 12.0) if ref is None else ref
+        d = (c - r)[BORDER:-BORDER, BORDER:-BORDER]
+        out.append(d - d.reshape(-1, 3).mean(axis=0))
+    return np.stack(out)
 
 
 _BANDS: dict[tuple[int, int], list[np.ndarray]] = {}

@@ -8,7 +8,7 @@ from tactex_ros.core import embedding, representation
 from tactex_ros.core.config import preset
 from tactex_ros.core.descriptor import DescriptorLearner, descriptor_size, raw_descriptor
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.texture import DIM_HEIGHT_MAP
+from tactex_ros.core.texture import DIM_HEIGHT_MAP, contact_difference
 from tactex_ros.core.touch import Touch
 
 
@@ -72,7 +72,7 @@ def test_the_learner_appends_the_mean_embedding_of_its_frames():
     plain = raw_descriptor(t, preset("descriptor"))
     assert x.shape == (DIM_HEIGHT_MAP + 128,) and np.array_equal(x[:DIM_HEIGHT_MAP], plain)
     emb = embedding.load(embedding.SHIPPED)
-    diffs = np.stack([embedding.contact_difference(f, t.no_contact)
+    diffs = np.stack([contact_difference(f, t.no_contact)
                       for f in [t.frame, *t.extra]])
     # the default: the descriptor of the strongest frame, the embedding's mean over 4 frames
     assert cfg.descriptor_frames == 1 and cfg.descriptor_embedding_frames == 4
