@@ -30,6 +30,13 @@ def config_dir() -> Path:
     raise FileNotFoundError(f"tactex config directory not found; looked in {cands}")
 
 
+def cache_dir() -> Path:
+    """Where tactex keeps what it can rebuild (the simulator's fabric tiles):
+    ``$XDG_CACHE_HOME/tactex``, by default ``~/.cache/tactex``. Not created here."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "tactex"
+
+
 def config_names(folder: str) -> list[str]:
     """Names of the YAML files in ``config/<folder>`` (without ``.yaml``)."""
     return sorted(p.stem for p in (config_dir() / folder).glob("*.yaml"))

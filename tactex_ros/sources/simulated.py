@@ -16,6 +16,7 @@ q = 1 makes them identical, q = 0 far apart; the reference is one of them.
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 from pathlib import Path
 from typing import Callable
@@ -24,8 +25,9 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.touch import Touch
+from ..paths import cache_dir
 from ..sim.fabrics import FabricParams, height_tile, load_catalogue
-from ..sim.render import GelSightRenderer
+from ..sim.render import MM_PER_PX, GelSightRenderer
 
 DIFFICULTY = {"easy": 0.2, "medium": 0.5, "hard": 0.8}
 TILE_PX = 768
@@ -48,7 +50,40 @@ def parse_difficulty(text: str) -> float:
 
 @lru_cache(maxsize=256)
 def cached_tile(fab: FabricParams, seed: int) -> np.ndarray:
-    return height_tile(fab, TILE_PX, 0.0634, seed)
+    """(TILE_PX, TILE_PX) float32 height tile [mm] of ``fab`` (``sim.fabrics.height_tile``),
+    built once per process and kept on disk between processes (``tile_file``): building one
+    takes 0.3-1 s of CPU, and every start of the simulated camera needs the scene's tiles."""
+    path = tile_file(fab, seed)
+    try:
+        tile = np.load(path, allow_pickle=False)
+        if tile.shape == (TILE_PX, TILE_PX) and tile.dtype == np.float32:
+            return tile
+    except (OSError, ValueError):
+        pass                        # not built yet, or unreadable: build it again
+    tile = height_tile(fab, TILE_PX, MM_PER_PX, seed)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
+        np.save(tmp, tile, allow_pickle=False)
+        os.replace(tmp, path)       # whole or absent: a parallel reader never sees half
+    except OSError:
+        pass                        # a read-only or full cache only costs the next build
+    return tile
+
+
+def tile_file(fab: FabricParams, seed: int) -> Path:
+    """The disk cache's file of ``cached_tile(fab, seed)`` under ``paths.cache_dir()``, named
+    by a hash of everything the tile depends on: the fabric's parameters, the seed, the size and
+    scale, the tile code (``sim/fabrics.py``'s bytes) and numpy's and OpenCV's versions."""
+    import hashlib
+
+    import cv2
+
+    from ..sim import fabrics
+    h = hashlib.sha256(repr((fab, seed, TILE_PX, MM_PER_PX, np.__version__,
+                             cv2.__version__)).encode())
+    h.update(Path(fabrics.__file__).read_bytes())
+    return cache_dir() / "tiles" / f"{h.hexdigest()[:32]}.npy"
 
 
 class SimSource:
