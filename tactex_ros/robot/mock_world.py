@@ -247,6 +247,7 @@ class Worlds:
         self.k, self.d, self.h = law.k, law.d, 1.0 / law.rate_hz
         self.centres = np.array([p.position for p in scene.platforms], dtype=float)  # (P, 3)
         self.radii = np.array([p.radius for p in scene.platforms], dtype=float)      # (P,)
+        self._centres_xy, self._radii2 = self.centres[None, :, :2], self.radii[None, :] ** 2
         self.dz = _stack(faults, "surface_offset")
         self.kp, self.dp = _stack(faults, "platform_stiffness"), _stack(faults,
                                                                          "platform_damping")
@@ -254,6 +255,7 @@ class Worlds:
         self.offset, self.drift = _stack(faults, "wrench_offset"), _stack(faults, "wrench_drift")
         self.noise = _stack(faults, "wrench_noise")
         self.fc, self.fv = _stack(faults, "coulomb_friction"), _stack(faults, "viscous_friction")
+        self._frictionless = not (np.any(self.fc) or np.any(self.fv))
         self._rngs = [np.random.default_rng(f.seed) for f in faults]
         self.gradient = np.stack([f.offset_gradient * np.linalg.qr(r.standard_normal((3, 3)))[0]
                                   for f, r in zip(faults, self._rngs)])          # (n, 3, 3)
@@ -276,8 +278,8 @@ class Worlds:
         true surface [m] (0 if none); as ``platform_under``, the first platform whose disc
         holds the sensor."""
         pos = self.position if position is None else np.asarray(position, dtype=float)
-        gap = pos[:, None, :2] - self.centres[None, :, :2]
-        inside = np.einsum("npi,npi->np", gap, gap) <= self.radii[None, :] ** 2   # (n, P)
+        gap = pos[:, None, :2] - self._centres_xy
+        inside = np.einsum("npi,npi->np", gap, gap) <= self._radii2               # (n, P)
         idx = np.where(inside.any(axis=1), inside.argmax(axis=1), -1)
         top = self.centres[np.maximum(idx, 0), 2] + self.dz
         pen = np.where(idx >= 0, np.maximum(0.0, top - pos[:, 2]), 0.0)
@@ -296,36 +298,61 @@ class Worlds:
         controller's force [N], (n, 3)."""
         law = self.law
         a, b, c = law.target_filter, law.state_filter, law.output_filter
-        self.equilibrium = (1.0 - a) * self.target + a * self.equilibrium
-        self.seen_x = (1.0 - b) * self.position + b * self.seen_x
-        self.seen_v = (1.0 - b) * self.velocity + b * self.seen_v
+        # a filter of weight 0 is the identity: skipped (the same numbers, fewer array passes)
+        self.equilibrium = ((1.0 - a) * self.target + a * self.equilibrium) if a else \
+            self.target.copy()
+        if b:
+            self.seen_x = (1.0 - b) * self.position + b * self.seen_x
+            self.seen_v = (1.0 - b) * self.velocity + b * self.seen_v
+        else:
+            self.seen_x, self.seen_v = self.position.copy(), self.velocity.copy()
         goal = self.equilibrium
         if law.activation_jump_s > 0:
             jumping = (self.time < self.jump_until)[:, None]
             goal = goal + np.where(jumping, np.asarray(law.activation_jump), 0.0)
-        err = np.clip(goal - self.seen_x, -law.error_clip, law.error_clip)
+        err = goal - self.seen_x
+        if law.error_clip != np.inf:
+            err = np.clip(err, -law.error_clip, law.error_clip)
         f = self.k * err - self.d * self.seen_v
-        f = (1.0 - c) * f + c * self.command
-        self.command = self.command + np.clip(f - self.command, -law.max_force_step,
-                                              law.max_force_step)
+        if c:
+            f = (1.0 - c) * f + c * self.command
+        step = f - self.command
+        if law.max_force_step != np.inf:
+            step = np.clip(step, -law.max_force_step, law.max_force_step)
+        self.command = self.command + step
         return self.command
 
     def cycle(self) -> None:
         """One control cycle of ``1 / rate_hz`` s (one sample)."""
         h = self.h
-        push = np.where(self.frozen[:, None], 0.0, self.control()) + self.force + self.static
-        self.command[self.frozen] = 0.0
-        fc = self.fc[:, None]
-        moving = np.abs(self.velocity) > self._STICK
-        stick = (~moving & (np.abs(push) <= fc)) | self.frozen[:, None]
-        direction = np.where(moving, np.sign(self.velocity), np.sign(push))
-        acc = np.where(stick, 0.0, (push - fc * direction - self.fv[:, None] * self.velocity)
-                       / self.m[:, None])
-        v0 = np.where(stick, 0.0, self.velocity)
-        v1 = v0 + acc * h
-        stop = (fc > 0) & (v0 * v1 < 0)     # Coulomb friction stops an axis, never reverses it
-        self.position = self.position + np.where(stop, 0.5 * v0 * h, v0 * h + 0.5 * acc * h * h)
-        self.velocity = np.where(stop, 0.0, v1)
+        frozen = self.frozen.any()
+        push = (np.where(self.frozen[:, None], 0.0, self.control()) if frozen
+                else self.control()) + self.force + self.static
+        if frozen:
+            self.command[self.frozen] = 0.0
+        if self._frictionless and not frozen:
+            # no friction, nothing frozen: an axis sticks only at rest with no push at all
+            stick = (np.abs(self.velocity) <= self._STICK) & (push == 0.0)
+            if stick.any():
+                acc = np.where(stick, 0.0, push / self.m[:, None])
+                v0 = np.where(stick, 0.0, self.velocity)
+            else:
+                acc, v0 = push / self.m[:, None], self.velocity
+            self.position = self.position + (v0 * h + 0.5 * acc * h * h)
+            self.velocity = v0 + acc * h
+        else:
+            fc = self.fc[:, None]
+            moving = np.abs(self.velocity) > self._STICK
+            stick = (~moving & (np.abs(push) <= fc)) | self.frozen[:, None]
+            direction = np.where(moving, np.sign(self.velocity), np.sign(push))
+            acc = np.where(stick, 0.0, (push - fc * direction - self.fv[:, None] * self.velocity)
+                           / self.m[:, None])
+            v0 = np.where(stick, 0.0, self.velocity)
+            v1 = v0 + acc * h
+            stop = (fc > 0) & (v0 * v1 < 0)  # Coulomb friction stops an axis, never reverses it
+            self.position = self.position + np.where(stop, 0.5 * v0 * h,
+                                                     v0 * h + 0.5 * acc * h * h)
+            self.velocity = np.where(stop, 0.0, v1)
         self.time += h
         self.force = self._contact_force()
         self.peak_force = np.maximum(self.peak_force, np.linalg.norm(self.force, axis=1))
