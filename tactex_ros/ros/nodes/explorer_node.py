@@ -58,6 +58,11 @@ class PressServerLost(TouchInterrupted):
     """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
 
+#: [s] how often ``ExplorerNode._wait`` polls a goal (a press takes seconds; a poll costs the
+#: graph query of ``server_is_ready``)
+WAIT_POLL_S = 0.05
+
+
 class ExplorerNode(TactexNode):
     settings_cls = ExplorerSettings
 
@@ -325,7 +330,7 @@ class ExplorerNode(TactexNode):
                 elif now - absent_since > (self.settings.press_silence_s
                                            if now < rediscover_until else 1.0):
                     raise PressServerLost("the press server left the ROS graph")
-            time.sleep(0.01)
+            time.sleep(WAIT_POLL_S)
         return True
 
     def _wait_running(self) -> None:

@@ -31,6 +31,8 @@ stand-in of a robot fault), WARN while targets are ignored (too many publishers)
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from geometry_msgs.msg import PoseStamped, Vector3, WrenchStamped
 from std_msgs.msg import Header
@@ -41,7 +43,7 @@ from ...robot.mock_world import ArmModel, ControlLaw, Faults
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile, with_profile
 from ...robot.scene import load_scene
-from .lifecycle import TactexNode
+from .lifecycle import RateLoop, TactexNode
 from .process import run
 
 
@@ -61,6 +63,9 @@ class MockArmNode(TactexNode):
         self.scene = scene
         self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
                             mock_law(prof.law, s), mass=s.mass, faults=mock_faults(s))
+        # the simulation runs in its own thread (RateLoop); callbacks change the arm under this
+        self.lock = threading.Lock()
+        self._loop: RateLoop | None = None
         self.max_publishers = prof.max_publishers
         self.sign = s.wrench_sign
         self.quat = np.array(scene.tool_orientation)
@@ -89,7 +94,13 @@ class MockArmNode(TactexNode):
 
     def activate(self) -> None:
         self._last = self.get_clock().now().nanoseconds * 1e-9
-        self.create_timer(1.0 / self.settings.rate_hz, self._tick)
+        self._loop = RateLoop(1.0 / self.settings.rate_hz, self._tick, "mock_arm-sim",
+                              self.context.ok)
+
+    def deactivate(self) -> None:
+        if self._loop is not None:
+            self._loop.stop()
+            self._loop = None
 
     # ------------------------------------------------------------------ recovery stand-ins
     def _serve_standins(self, s: MockArmSettings) -> None:
@@ -99,31 +110,35 @@ class MockArmNode(TactexNode):
             from tactex.action import Press
 
             def recover_action(goal_handle):
-                self.error = False
+                with self.lock:
+                    self.error = False
                 goal_handle.succeed()
                 return Press.Result(success=True)
             self._recovery_server = ActionServer(self, Press, s.recovery_name, recover_action)
         else:
             def recover_service(_req, resp):
-                resp.success, resp.message = self.error, "" if self.error else "No errors"
-                self.error = False
+                with self.lock:
+                    resp.success, resp.message = self.error, "" if self.error else "No errors"
+                    self.error = False
                 return resp
             self.create_service(Trigger, s.recovery_name, recover_service)
 
         def hardware(req, resp):
-            if self.error:
-                resp.success, resp.message = False, "robot error not cleared"
-            else:
-                self.hardware_active, resp.success = bool(req.data), True
+            with self.lock:
+                if self.error:
+                    resp.success, resp.message = False, "robot error not cleared"
+                else:
+                    self.hardware_active, resp.success = bool(req.data), True
             return resp
 
         def controller(req, resp):
-            if not self.hardware_active:
-                resp.success, resp.message = False, "hardware component not active"
-            else:
-                if req.data and not self.controller_active:
-                    self.arm.release()
-                self.controller_active, resp.success = bool(req.data), True
+            with self.lock:
+                if not self.hardware_active:
+                    resp.success, resp.message = False, "hardware component not active"
+                else:
+                    if req.data and not self.controller_active:
+                        self.arm.release()
+                    self.controller_active, resp.success = bool(req.data), True
             return resp
         self.create_service(SetBool, s.hardware_service, hardware)
         self.create_service(SetBool, s.controller_service, controller)
@@ -140,7 +155,7 @@ class MockArmNode(TactexNode):
                   "controller active": self.controller_active,
                   "reflexes injected": self.reflexes, "targets ignored": self.ignored_targets,
                   "contact force [N]": float(self.arm.normal_force()),
-                  "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position)}
+                  "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position.copy())}
         if self.error or not self.controller_active:
             return ERROR, ("reflex (injected): arm stopped, no state until recovered"
                            if self.error else "controller inactive: no state"), values
@@ -163,9 +178,14 @@ class MockArmNode(TactexNode):
         except InputError as exc:
             self.get_logger().warning(f"target ignored: {exc}")
             return
-        self.arm.target = xyz
+        with self.lock:
+            self.arm.target = xyz
 
     def _tick(self) -> None:
+        with self.lock:
+            self._step()
+
+    def _step(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
         self.arm.step(min(0.1, now - self._last))
         self._last = now

@@ -15,8 +15,9 @@ study session before each trial through the standard SetParameters service). A n
 restarts the press numbering, so a session's trial sees the same rendered presses as the same
 trial run alone with the same seed. An unknown fabric or platform is refused with the reason.
 Preparing a new placement takes seconds (each fabric's height tile): it runs in a helper thread
-while the parameter callback keeps publishing frames and /diagnostics, and the camera's status
-is meanwhile in the named state "placement change" (WARN, ERROR only past ``diag_pause_s``).
+while the frames go on (their own thread, ``RateLoop``) and the parameter callback keeps
+/diagnostics going; the camera's status is meanwhile in the named state "placement change"
+(WARN, ERROR only past ``diag_pause_s``).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
 from ..preflight import Stopped
-from .lifecycle import TactexNode
+from .lifecycle import RateLoop, TactexNode
 from .process import run
 
 
@@ -88,7 +89,8 @@ class MockImageNode(TactexNode):
         self.kind = kind
         self.ring = FrameRing(max(2, int(s.buffer_s * s.fps)))
         self.ring.set_reference(self.no_contact)
-        self.lock = threading.Lock()
+        self.lock = threading.Lock()      # the ring, the placement and the press count
+        self._loop: RateLoop | None = None
         self.position = None
         self.force = 0.0
         self.presses = PressCounter()
@@ -96,10 +98,12 @@ class MockImageNode(TactexNode):
         self._press_tick = 0
         self._blank = False
         self.pub = self.create_lifecycle_publisher(Image, s.image_topic, qos_profile_sensor_data)
-        self.create_subscription(PoseStamped, s.pose_topic, self._on_pose,
-                                 qos_profile_sensor_data)
-        self.create_subscription(WrenchStamped, s.wrench_topic, self._on_wrench,
-                                 qos_profile_sensor_data)
+        # the arm's state, read at the frame rate (each frame takes the newest pose and wrench)
+        from ..latest import LatestReader
+        self.state = LatestReader(self.context, f"{self.get_name()}_state")
+        self.pose_in = self.state.subscribe(PoseStamped, s.pose_topic, qos_profile_sensor_data)
+        self.wrench_in = self.state.subscribe(WrenchStamped, s.wrench_topic,
+                                              qos_profile_sensor_data)
         serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
         from ..diagnostics import CameraHealth, Diagnostics
         self.health = CameraHealth(s.fps, s)
@@ -144,8 +148,8 @@ class MockImageNode(TactexNode):
 
     def _prepare_live(self, fabrics: list[str]) -> None:
         """``_prepare`` in a helper thread while this thread (the executor's, blocked in the
-        parameter callback) keeps the frames and /diagnostics going; the camera's status says
-        "placement change" meanwhile (``diag_pause_s``)."""
+        parameter callback) keeps /diagnostics going (the frames go on in their own thread);
+        the camera's status says "placement change" meanwhile (``diag_pause_s``)."""
         import time
         s = self.settings
         failed: list[BaseException] = []
@@ -164,8 +168,6 @@ class MockImageNode(TactexNode):
         try:
             while worker.is_alive():
                 worker.join(1.0 / s.fps)
-                if self.active:
-                    self._tick()
                 if time.monotonic() >= next_diag:
                     next_diag += s.diag_period_s
                     self.diag.publish()
@@ -176,18 +178,32 @@ class MockImageNode(TactexNode):
             raise failed[0]
 
     def activate(self) -> None:
-        self.create_timer(1.0 / self.settings.fps, self._tick)
+        self._loop = RateLoop(1.0 / self.settings.fps, self._tick, "mock_image-frames",
+                              self.context.ok)
 
-    def _on_pose(self, msg: PoseStamped) -> None:
-        try:
-            self.position = adapter.pose_to_array(msg)[0]
-        except InputError:
-            pass
+    def deactivate(self) -> None:
+        if self._loop is not None:
+            self._loop.stop()
+            self._loop = None
 
-    def _on_wrench(self, msg: WrenchStamped) -> None:
-        self.force = abs(float(msg.wrench.force.z))   # either wrench sign convention
+    def cleanup(self) -> None:
+        state, self.state = getattr(self, "state", None), None
+        if state is not None:
+            state.close()
+
+    def _read_state(self) -> None:
+        """The newest pose and wrench since the last frame (none new: the last ones hold)."""
+        pose, wrench = self.pose_in.take(), self.wrench_in.take()
+        if pose is not None:
+            try:
+                self.position = adapter.pose_to_array(pose)[0]
+            except InputError:
+                pass
+        if wrench is not None:
+            self.force = abs(float(wrench.wrench.force.z))   # either wrench sign convention
 
     def _frame(self) -> np.ndarray:
+        self._read_state()
         idx, contact, began = self.presses.update(self.scene.ordered, self.position,
                                                   self.force)
         if began:      # a new press: its faults drawn once
@@ -211,8 +227,8 @@ class MockImageNode(TactexNode):
 
     def _tick(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
-        frame = self._frame()
-        with self.lock:
+        with self.lock:                   # a new placement is swapped in between two frames
+            frame = self._frame()
             self.ring.push(now, frame)
         self.health.observe(frame)
         self.pub.publish(adapter.array_to_image(frame, now, self.settings.frame_id))
