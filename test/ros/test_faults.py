@@ -275,6 +275,12 @@ def test_runner_signalled_leaves_no_node(tmp_path: Path, domain_id: int, sig: in
     _check_record(tmp_path / "t", [])
 
 
+#: [s] press_silence_s of the test below: above the motion node's start on a loaded machine (the
+#: explorer's first goal can reach it during its pre-flight, with no executor spinning to answer
+#: yet: with 3 s a loaded run once ended the trial before its first press)
+SILENCE_S = 6.0
+
+
 def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listener) -> None:
     """Without the runner's supervision (as under `launch`): the motion node is killed during a
     press; the explorer ends the trial within press_silence_s (not press_timeout_s, 120 s) with
@@ -282,7 +288,7 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     from tactex_ros.ros.launcher import Graph
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
                                      "record_dir": str(tmp_path), "trial_id": "gone",
-                                     "exit_when_done": True, "press_silence_s": 3.0})
+                                     "exit_when_done": True, "press_silence_s": SILENCE_S})
     record = tmp_path / "gone"
     presses = Presses(listener)
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
@@ -293,7 +299,7 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
         gone_s = time.monotonic() - t0
     assert code == 1, f"explorer still running {gone_s:.1f} s after the motion node died"
     print(f"\nexplorer: press server gone -> error result after {gone_s:.2f} s")
-    assert gone_s < 3.0 + 10.0
+    assert gone_s < SILENCE_S + 10.0
     res = read_result(record)
     assert res is not None and "error" in res
     last = read_record(record, images=False)["touches"][-1]
