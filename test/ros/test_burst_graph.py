@@ -15,6 +15,7 @@ import pytest
 
 from tactex_ros.core.config import TrialConfig, learner_class
 from tactex_ros.core.engine import TrialSpec
+from tactex_ros.ros import adapter
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
@@ -97,3 +98,28 @@ def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener,
     # touches either way) differs when the touches are described by their strongest frame
     one = _offline(run.record, tmp_path / "one_frame", burst=False, rounds=0)
     assert np.abs(np.subtract(one["final"]["probs"], live["rounds"][0]["probs"])).max() > 1e-6
+
+
+def test_a_short_hold_still_gets_the_whole_burst(tmp_path: Path, listener, press,
+                                                 quick_scene: str) -> None:
+    """No hold at all (``settle_s`` 0): when the capture is asked for, few frames of the press
+    are in contact yet. The motion node holds the press and asks again until the burst is
+    whole, within ``capture_deadline_s``."""
+    import yaml
+
+    from tactex_ros.ros.launcher import Graph
+    scene = yaml.safe_load(Path(quick_scene).read_text())
+    scene["press"]["settle_s"] = 0.0
+    path = tmp_path / "scene_no_hold.yaml"
+    path.write_text(yaml.safe_dump(scene, sort_keys=False))
+    nodes = [n for n in describe(True, str(path))
+             if n.name in ("mock_arm", "mock_image", "motion")]
+    assert load_scene(path).press.capture_frames == FRAMES
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        for pid in ("c1", "c2"):
+            res = press(pid)
+            assert res is not None and res.success, res
+            assert len(res.touch.extra_images) == FRAMES - 1, pid
+            stamps = [adapter.seconds(im.header.stamp)
+                      for im in [res.touch.image, *res.touch.extra_images]]
+            assert len(set(stamps)) == FRAMES        # four frames of their own

@@ -59,6 +59,7 @@ from .process import run
 MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
                                    expression_parameters=["2"])
 MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
+BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the press held)
 
 
 class RobotError(Exception):
@@ -563,21 +564,40 @@ class MotionNode(TactexNode):
     def _capture(self, window_s: float, deadline_s: float, frames: int):
         """Ask the camera for the strongest-contact frame of the last ``window_s`` [s] and a
         burst of ``frames`` in-contact frames in all (the scene's ``press.capture_frames``);
-        (ok, reason, the Capture response)."""
+        (ok, reason, the Capture response). The arm holds the press meanwhile: a burst with
+        fewer frames (a camera that dropped or delayed frames, a short hold) is asked for again
+        every ``BURST_RETRY_S`` until it is whole or ``deadline_s`` [s] is near; a burst still
+        short then is kept, with a warning."""
         from tactex.srv import Capture
+        end = time.monotonic() + deadline_s
         if not self.capture.wait_for_service(timeout_sec=deadline_s):
             return False, "capture service not available", None
-        fut = self.capture.call_async(Capture.Request(window_s=window_s, frames=frames))
-        if not wait_for(fut, deadline_s):
-            self.capture.remove_pending_request(fut)
-            return False, f"no image within capture_deadline_s ({deadline_s} s)", None
-        resp = fut.result()
-        if not resp.success:
-            return False, resp.reason, None
-        if resp.contact_score < self.settings.min_contact_score:
-            return False, (f"no contact in the captured frames: score {resp.contact_score:.2f} < "
-                           f"min_contact_score {self.settings.min_contact_score}"), None
-        return True, "", resp
+        while True:
+            fut = self.capture.call_async(Capture.Request(window_s=window_s, frames=frames))
+            if not wait_for(fut, max(0.0, end - time.monotonic())):
+                self.capture.remove_pending_request(fut)
+                return False, f"no image within capture_deadline_s ({deadline_s} s)", None
+            resp = fut.result()
+            if not resp.success:
+                return False, resp.reason, None
+            if resp.contact_score < self.settings.min_contact_score:
+                return False, (f"no contact in the captured frames: score "
+                               f"{resp.contact_score:.2f} < min_contact_score "
+                               f"{self.settings.min_contact_score}"), None
+            got = 1 + len(resp.extra_images)
+            if got >= frames:
+                return True, "", resp
+            # the press loop does not step while this waits: a hold that is no longer safe
+            # (force over the limit, robot fault, deactivation) ends the wait, and the loop
+            # acts on it with the frames there are
+            unsafe = (self.force > self.scene.press.max_force or self._abort.is_set()
+                      or bool(self._robot_fault(time.monotonic())))
+            if unsafe or time.monotonic() + 2 * BURST_RETRY_S > end:
+                self.get_logger().warning(
+                    f"burst of {got} in-contact frames, not press.capture_frames {frames}, "
+                    f"within capture_deadline_s ({deadline_s} s): kept")
+                return True, "", resp
+            time.sleep(BURST_RETRY_S)
 
     def _state_resumes(self) -> bool:
         """After a robot error: does fresh state (not in reflex) come back by itself within
