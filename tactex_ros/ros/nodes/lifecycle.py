@@ -138,6 +138,7 @@ class TactexNode(LifecycleNode):
         self.exit_code = 0
         self.configured = self.active = self.finalized = False
         self._made_before: dict[str, set] = {}    # entities before configure / activate
+        self._loops: list[RateLoop] = []          # started by activate (``rate_loop``)
 
     # subclasses implement these
     def configure(self) -> None:
@@ -148,7 +149,23 @@ class TactexNode(LifecycleNode):
         """Start timers and threads (publishers are enabled already)."""
 
     def deactivate(self) -> None:
-        """Stop threads; timers made by ``activate`` are destroyed by the base."""
+        """Stop threads; timers and rate loops made by ``activate`` are ended by the base."""
+
+    def rate_loop(self, period_s: float, fn: Callable[[], None], name: str) -> "RateLoop":
+        """A ``RateLoop`` of this node (``fn`` every ``period_s`` [s]); from ``activate`` only:
+        the base stops it on deactivation, as it destroys the activation's timers."""
+        loop = RateLoop(period_s, fn, f"{self.get_name()}-{name}", self.context.ok)
+        self._loops.append(loop)
+        return loop
+
+    def _deactivate(self) -> None:
+        """``deactivate``, then the rate loops stopped."""
+        try:
+            self.deactivate()
+        finally:
+            loops, self._loops = self._loops, []
+            for loop in loops:
+                loop.stop()
 
     def cleanup(self) -> None:
         """Close files and devices ``configure`` opened; entities are destroyed by the base."""
@@ -243,7 +260,7 @@ class TactexNode(LifecycleNode):
     def _undo_activate(self) -> None:
         if self.active or "activate" in self._made_before:
             self.active = False
-            self._transition("deactivation", self.deactivate)
+            self._transition("deactivation", self._deactivate)
             super().on_deactivate(None)      # publishers off (idempotent)
             self._release("activate")
 
@@ -270,7 +287,7 @@ class TactexNode(LifecycleNode):
             self.finalized = True
             if self.active:
                 self.active = False
-                self._transition("deactivation", self.deactivate)
+                self._transition("deactivation", self._deactivate)
             if self.configured:
                 self.configured = False
                 self._transition("clean-up", self.cleanup)

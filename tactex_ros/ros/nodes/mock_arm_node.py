@@ -43,7 +43,7 @@ from ...robot.mock_world import ArmModel, ControlLaw, Faults
 from ..settings import MockArmSettings
 from ...robot.robots import import_interface, load_profile, with_profile
 from ...robot.scene import load_scene
-from .lifecycle import RateLoop, TactexNode
+from .lifecycle import TactexNode
 from .process import run
 
 
@@ -63,9 +63,8 @@ class MockArmNode(TactexNode):
         self.scene = scene
         self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
                             mock_law(prof.law, s), mass=s.mass, faults=mock_faults(s))
-        # the simulation runs in its own thread (RateLoop); callbacks change the arm under this
+        # the simulation runs in its own thread (rate_loop); callbacks change the arm under this
         self.lock = threading.Lock()
-        self._loop: RateLoop | None = None
         self.max_publishers = prof.max_publishers
         self.sign = s.wrench_sign
         self.quat = np.array(scene.tool_orientation)
@@ -94,13 +93,7 @@ class MockArmNode(TactexNode):
 
     def activate(self) -> None:
         self._last = self.get_clock().now().nanoseconds * 1e-9
-        self._loop = RateLoop(1.0 / self.settings.rate_hz, self._tick, "mock_arm-sim",
-                              self.context.ok)
-
-    def deactivate(self) -> None:
-        if self._loop is not None:
-            self._loop.stop()
-            self._loop = None
+        self.rate_loop(1.0 / self.settings.rate_hz, self._tick, "sim")
 
     # ------------------------------------------------------------------ recovery stand-ins
     def _serve_standins(self, s: MockArmSettings) -> None:

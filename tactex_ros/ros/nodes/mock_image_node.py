@@ -15,7 +15,7 @@ study session before each trial through the standard SetParameters service). A n
 restarts the press numbering, so a session's trial sees the same rendered presses as the same
 trial run alone with the same seed. An unknown fabric or platform is refused with the reason.
 Preparing a new placement takes seconds (each fabric's height tile): it runs in a helper thread
-while the frames go on (their own thread, ``RateLoop``) and the parameter callback keeps
+while the frames go on (their own thread, ``TactexNode.rate_loop``) and the parameter callback keeps
 /diagnostics going; the camera's status is meanwhile in the named state "placement change"
 (WARN, ERROR only past ``diag_pause_s``).
 """
@@ -38,7 +38,7 @@ from ..settings import MockImageSettings
 from ...robot.scene import load_scene
 from .capture import serve_capture
 from ..preflight import Stopped
-from .lifecycle import RateLoop, TactexNode
+from .lifecycle import TactexNode
 from .process import run
 
 
@@ -90,7 +90,6 @@ class MockImageNode(TactexNode):
         self.ring = FrameRing(max(2, int(s.buffer_s * s.fps)))
         self.ring.set_reference(self.no_contact)
         self.lock = threading.Lock()      # the ring, the placement and the press count
-        self._loop: RateLoop | None = None
         self.position = None
         self.force = 0.0
         self.presses = PressCounter()
@@ -178,13 +177,7 @@ class MockImageNode(TactexNode):
             raise failed[0]
 
     def activate(self) -> None:
-        self._loop = RateLoop(1.0 / self.settings.fps, self._tick, "mock_image-frames",
-                              self.context.ok)
-
-    def deactivate(self) -> None:
-        if self._loop is not None:
-            self._loop.stop()
-            self._loop = None
+        self.rate_loop(1.0 / self.settings.fps, self._tick, "frames")
 
     def cleanup(self) -> None:
         state, self.state = getattr(self, "state", None), None
