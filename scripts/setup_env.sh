@@ -86,7 +86,7 @@ build() {
 
 bytecode() {
   # Every module's bytecode, compiled once here on both cores (pip --no-compile above). Where
-  # PYTHONDONTWRITEBYTECODE is set (this project's CI machines set it), no process ever writes
+  # PYTHONDONTWRITEBYTECODE is set (this project's machines set it), no process ever writes
   # it, and each one compiles every module it imports from source: `import torch` 4.6 s
   # instead of 1.8 s, and every node of every test graph pays the same for numpy, rclpy and
   # the rest. Measured on a fresh clone: 34 s for the whole .venv. An up-to-date file is
