@@ -19,6 +19,25 @@ from ..robot.robots import fill_message
 SPIN_S = 0.02     # [s] longest single wait of the probe's executor
 
 
+def other_graph(node: Node, topics: list[tuple[str, str]]) -> str | None:
+    """One graph per arm: each of ``topics`` ((what, topic)) must have at most one publisher
+    on this ROS domain as ``node`` sees the graph (this graph's: the arm's target and the press
+    action's status are this motion node's, the robot state the robot's). A second one is
+    another tactex graph, or another program driving or playing the arm; the problem names the
+    topic and the publishing nodes, None when there is none. Discovery takes an unbounded
+    time, so the motion node asks during its pre-flight and again until it takes a goal."""
+    for what, topic in topics:
+        name = node.resolve_topic_name(topic)
+        pubs = node.get_publishers_info_by_topic(name)
+        if len(pubs) > 1:
+            nodes = sorted({f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in pubs})
+            return (f"{len(pubs)} publishers of {what} {name} on ROS_DOMAIN_ID "
+                    f"{node.context.get_domain_id()} (nodes {', '.join(nodes)}): another "
+                    "tactex graph or program drives this arm; stop it, or give each graph "
+                    "its own ROS_DOMAIN_ID (docs/hardware.md)")
+    return None
+
+
 class Stopped(Exception):
     """The context was shut down (SIGINT, SIGTERM) during the pre-flight."""
 
@@ -39,22 +58,8 @@ class Probe:
         self.executor.spin_once(timeout_sec=SPIN_S)
 
     def other_graph(self, topics: list[tuple[str, str]]) -> str | None:
-        """One graph per arm: each of ``topics`` ((what, topic)) must have at most one
-        publisher on this ROS domain (this graph's: the arm's target and the press action's
-        status are this motion node's, the robot state the robot's). A second one is another
-        tactex graph, or another program driving or playing the arm; the problem names the
-        topic and the publishing nodes, None when there is none. Called after the state was
-        sampled, so discovery has had that long."""
-        for what, topic in topics:
-            name = self.node.resolve_topic_name(topic)
-            pubs = self.node.get_publishers_info_by_topic(name)
-            if len(pubs) > 1:
-                nodes = sorted({f"{p.node_namespace.rstrip('/')}/{p.node_name}" for p in pubs})
-                return (f"{len(pubs)} publishers of {what} {name} on ROS_DOMAIN_ID "
-                        f"{self.context.get_domain_id()} (nodes {', '.join(nodes)}): another "
-                        "tactex graph or program drives this arm; stop it, or give each graph "
-                        "its own ROS_DOMAIN_ID (docs/hardware.md)")
-        return None
+        """``other_graph`` as this probe's node sees the ROS graph."""
+        return other_graph(self.node, topics)
 
     def sample(self, msg_type: type, topic: str, qos: Any, window_s: float,
                deadline_s: float) -> tuple[list[float], Any]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import os
 import threading
+import time
 
 import pytest
 
@@ -143,6 +144,32 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
 def press(listener):
     """``press(platform_id, timeout=90.0)``: :func:`press_goal` through the test's listener."""
     return lambda platform_id, timeout=90.0: press_goal(listener, platform_id, timeout)
+
+
+@pytest.fixture
+def active(listener):
+    """``active(node, deadline_s)``: True once lifecycle node ``node`` reports the active state
+    (its get_state service, asked through the test's listener), False at the deadline."""
+    from lifecycle_msgs.msg import State
+    from lifecycle_msgs.srv import GetState
+
+    def wait(node: str, deadline_s: float) -> bool:
+        client = listener.node.create_client(GetState, f"/{node}/get_state")
+        end = time.monotonic() + deadline_s
+        try:
+            while time.monotonic() < end:
+                if client.wait_for_service(timeout_sec=1.0):
+                    fut = client.call_async(GetState.Request())
+                    while not fut.done() and time.monotonic() < end:
+                        time.sleep(0.05)
+                    if (fut.done() and
+                            fut.result().current_state.id == State.PRIMARY_STATE_ACTIVE):
+                        return True
+                time.sleep(0.2)
+            return False
+        finally:
+            listener.node.destroy_client(client)
+    return wait
 
 
 @pytest.fixture

@@ -91,32 +91,12 @@ def test_collision_thresholds_unsettable_refuse_with_the_command(tmp_path: Path,
             "franka_msgs/srv/SetForceTorqueCollisionBehavior") in log
 
 
-def _active(listener, node: str, deadline_s: float) -> bool:
-    """True once lifecycle node ``node`` reports the active state (its get_state service)."""
-    from lifecycle_msgs.msg import State
-    from lifecycle_msgs.srv import GetState
-    client = listener.node.create_client(GetState, f"/{node}/get_state")
-    end = time.monotonic() + deadline_s
-    try:
-        while time.monotonic() < end:
-            if client.wait_for_service(timeout_sec=1.0):
-                fut = client.call_async(GetState.Request())
-                while not fut.done() and time.monotonic() < end:
-                    time.sleep(0.05)
-                if fut.done() and fut.result().current_state.id == State.PRIMARY_STATE_ACTIVE:
-                    return True
-            time.sleep(0.2)
-        return False
-    finally:
-        listener.node.destroy_client(client)
-
-
-def test_collision_thresholds_set_by_hand_let_the_start_go_on(tmp_path: Path,
-                                                              listener) -> None:
+def test_collision_thresholds_set_by_hand_let_the_start_go_on(tmp_path: Path, listener,
+                                                              active) -> None:
     prof = str(_collision_profile(tmp_path))
     with Graph([_arm(), _motion(robot=prof, collision_set_by_hand=True)], tmp_path / "logs",
                listener.domain_id) as g:
-        assert _active(listener, "motion", 90.0)
+        assert active("motion", 90.0)
         assert g.wait("motion", 0.1) is None
 
 
@@ -173,7 +153,7 @@ def _frames_folder(folder: Path, frames) -> Path:
 
 
 @pytest.mark.parametrize("start", ["contact", "no_contact"])
-def test_gelsight_refuses_a_start_in_contact(octopi_press, tmp_path: Path, listener,
+def test_gelsight_refuses_a_start_in_contact(octopi_press, tmp_path: Path, listener, active,
                                              start: str) -> None:
     frames = octopi_press("steel_wool", 1)
     i, _ = strongest_contact(frames)
@@ -187,7 +167,7 @@ def test_gelsight_refuses_a_start_in_contact(octopi_press, tmp_path: Path, liste
             assert g.wait("gelsight", 60.0) == 2
             assert "pre-flight contact:" in _log(tmp_path, "gelsight")
         else:
-            assert _active(listener, "gelsight", 60.0)
+            assert active("gelsight", 60.0)
 
 
 def _check_wrench(listener, push_fz: float | None, extra: list[str], robot: str = "sim",

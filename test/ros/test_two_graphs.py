@@ -34,3 +34,21 @@ def test_a_second_graph_on_the_domain_is_refused(tmp_path: Path, domain_id, pres
         assert press_as("c2", "run-b", START_S) is None
         res = press_as("c2", "run-a", START_S)
         assert res is not None and res.success, res
+
+
+def test_another_graph_seen_after_the_preflight_ends_a_node_without_a_goal(
+        tmp_path: Path, listener, active) -> None:
+    """Discovery has no deadline: another publisher of the arm's target that appears after the
+    pre-flight (here the test's node, with the controller's QoS depth) ends a motion node that
+    has taken no goal yet, with exit status 2 and the topic named."""
+    from geometry_msgs.msg import PoseStamped
+    prof = load_profile("sim")
+    graph = [n for n in describe(True, motion={"preflight_deadline_s": 30.0})
+             if n.name in ("mock_arm", "motion")]
+    with Graph(graph, tmp_path / "logs", listener.domain_id) as g:
+        assert active("motion", START_S)
+        listener.node.create_publisher(PoseStamped, prof.target_topic, 10)
+        assert g.wait("motion", START_S) == 2
+        assert g.wait("mock_arm", 0.1) is None              # the arm's node runs on
+    log = (tmp_path / "logs" / "motion.log").read_text(errors="replace")
+    assert prof.target_topic in log                         # the shared topic named

@@ -26,7 +26,9 @@ faster, franka's ``robot_mode`` (where it is
 read) is move, and franka's collision thresholds are set to what the press needs through the
 profile's collision service (or the start is refused with the ``ros2 service call`` to run).
 Any failure refuses the configuration with the reason: exit status 2
-(``robot/preflight.py``, docs/hardware_checks.md).
+(``robot/preflight.py``, docs/hardware_checks.md). One graph per arm (no second publisher of
+the target, the action's status or the robot state) is checked in the pre-flight and again
+until the node takes its first goal, since DDS discovery has no deadline: exit status 2.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from .. import adapter
 from ...core.errors import InputError, TrialError
 from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
-from ..preflight import Probe
+from ..preflight import Probe, other_graph
 from ..settings import MotionSettings
 from ...robot.robots import (fill_message, hold_target, import_interface, load_profile,
                              with_profile)
@@ -60,6 +62,7 @@ MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
                                    expression_parameters=["2"])
 MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
 BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the press held)
+GRAPH_CHECK_S = 0.5   # [s] one graph per arm is checked this often until the first goal
 
 
 class RobotError(Exception):
@@ -92,6 +95,7 @@ class MotionNode(TactexNode):
         self.wrench_t = -1.0
         self.robot_mode = 0
         self.busy = threading.Lock()
+        self.took_goal = False      # a press goal was taken: this graph drives the arm
         self._setup_diagnostics()
         # every state subscription asks for its upstream publisher's QoS (the profile's)
         if prof.franka_state:
@@ -169,11 +173,9 @@ class MotionNode(TactexNode):
             samples = probe.sample_all([(mtype, topic, adapter.qos_profile(qos))
                                         for mtype, topic, qos in topics],
                                        s.preflight_window_s, s.preflight_deadline_s)
-            # one graph per arm, checked once the sampling gave discovery its time
-            problem = probe.other_graph(
-                [("the arm's target", s.target_topic),
-                 ("the press action's status", f"{s.press_action}/_action/status")]
-                + [("the robot state", t) for _, t, _ in topics])
+            # one graph per arm, checked once the sampling gave discovery its time (and
+            # again until the first goal: ``_watch_graph``)
+            problem = probe.other_graph(self._graph_topics())
             if problem:
                 raise InputError(f"pre-flight: {problem}")
             for (_, topic, _), (stamps, last) in zip(topics, samples):
@@ -328,8 +330,40 @@ class MotionNode(TactexNode):
             self.recovery_client, self.reactivate, self.prepare = None, [], []
             self.get_logger().warning(self.recovery_off)
 
+    def _graph_topics(self) -> list[tuple[str, str]]:
+        """(what, topic) that only this graph publishes: ``preflight.other_graph``."""
+        s = self.settings
+        state = ([s.state_topic] if self.profile.franka_state
+                 else [s.pose_topic, s.wrench_topic])
+        return ([("the arm's target", s.target_topic),
+                 ("the press action's status", f"{s.press_action}/_action/status")]
+                + [("the robot state", t) for t in state])
+
+    def _newcomer_refused(self) -> bool:
+        """One graph per arm after the pre-flight: discovery may show the other graph only
+        later. Until this node takes its first goal it is the newcomer: if another graph is
+        seen, the node ends with exit status 2 (the reason logged) and True is returned. A
+        node that took a goal drives the arm; the other graph's motion node refuses."""
+        if self.took_goal or self.finished.is_set():
+            return False
+        problem = other_graph(self, self._graph_topics())
+        if not problem:
+            return False
+        self.get_logger().error(f"refused after the pre-flight: {problem}")
+        self.exit_code = 2
+        self.finished.set()
+        return True
+
+    def _watch_graph(self) -> None:
+        if self.took_goal:
+            self._graph_timer.cancel()
+            return
+        self._newcomer_refused()
+
     def activate(self) -> None:
         self._abort.clear()
+        if self.settings.preflight:
+            self._graph_timer = self.create_timer(GRAPH_CHECK_S, self._watch_graph)
 
     def deactivate(self) -> None:
         """A running press is aborted: it retracts (targets still published) and ends; wait
@@ -408,10 +442,13 @@ class MotionNode(TactexNode):
         if self.busy.locked():
             self.get_logger().warning("press goal rejected: a press is running")
             return GoalResponse.REJECT
+        if self.settings.preflight and self._newcomer_refused():
+            return GoalResponse.REJECT
         why = self._serves(goal.run_id)
         if why:
             self.get_logger().error(f"press goal rejected: {why}")
             return GoalResponse.REJECT
+        self.took_goal = True
         return GoalResponse.ACCEPT
 
     def _serves(self, run_id: str) -> str | None:
