@@ -198,13 +198,41 @@ def _normalise(x: np.ndarray, norm: str, scale: float) -> np.ndarray:
     raise InputError(f"norm {norm!r}: use global or image")
 
 
-def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 32,
-              seed: int = 0, threads: int = 1, norm: str = "global") -> tuple[object, dict]:
-    """Train the embedding on a library ((n, frames, 3, h, w) half-resolution differences,
-    (n,) class names): cross-entropy over the library's classes, AdamW, cosine schedule.
-    Returns (the embedding network in eval mode, {steps, seconds, final loss, scale, norm})."""
+AUGS = ("geometric", "photometric")
+
+
+def _photometric(xb, rng: np.random.Generator):
+    """The sensor's look varied per crop ((B, 3, h, w) scaled differences, in place of a new
+    tensor): contrast x 0.5-2 (log-uniform), each channel's gain x exp(N(0, 0.15)), a 3 x 3 blur
+    for half of the crops, Gaussian noise of 0-0.15 standard deviations: a real gel's contrast,
+    LEDs, focus and noise differ from the simulator's."""
     import torch
     import torch.nn.functional as F
+    b = xb.shape[0]
+    gain = np.exp(rng.uniform(np.log(0.5), np.log(2.0), (b, 1, 1, 1))
+                  + rng.normal(0.0, 0.15, (b, 3, 1, 1)))
+    xb = xb * torch.from_numpy(gain.astype(np.float32))
+    blur = torch.from_numpy(rng.random(b) < 0.5)
+    if bool(blur.any()):
+        xb = torch.where(blur[:, None, None, None], F.avg_pool2d(xb, 3, 1, 1,
+                                                                 count_include_pad=False), xb)
+    sigma = torch.from_numpy(rng.uniform(0.0, 0.15, (b, 1, 1, 1)).astype(np.float32))
+    noise = torch.from_numpy(rng.standard_normal(xb.shape).astype(np.float32))
+    return xb + sigma * noise
+
+
+def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 32,
+              seed: int = 0, threads: int = 1, norm: str = "global",
+              aug: str = "geometric") -> tuple[object, dict]:
+    """Train the embedding on a library ((n, frames, 3, h, w) half-resolution differences,
+    (n,) class names): cross-entropy over the library's classes, AdamW, cosine schedule; each
+    crop turned and mirrored (``aug`` "geometric"), and its look varied too ("photometric":
+    ``_photometric``). Returns (the embedding network in eval mode, {steps, seconds, final
+    loss, scale, norm, aug})."""
+    import torch
+    import torch.nn.functional as F
+    if aug not in AUGS:
+        raise InputError(f"aug {aug!r}: use one of {', '.join(AUGS)}")
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
@@ -229,6 +257,8 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
         xb = torch.rot90(xb, k, (2, 3))
         if rng.random() < 0.5:
             xb = torch.flip(xb, (3,))
+        if aug == "photometric":
+            xb = _photometric(xb, rng)
         out = head(body(xb))
         loss = F.cross_entropy(out, torch.from_numpy(y[i]), label_smoothing=0.1)
         opt.zero_grad()
@@ -237,7 +267,7 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
         sched.step()
     body.eval()
     return body, {"steps": steps, "seconds": time.perf_counter() - t0,
-                  "loss": float(loss.detach()), "scale": scale, "norm": norm}
+                  "loss": float(loss.detach()), "scale": scale, "norm": norm, "aug": aug}
 
 
 def embed(body, half: np.ndarray, scale: float,
@@ -290,7 +320,8 @@ def _embed_sides(out: dict, body, log: dict, stacks: dict, roots: dict[str, str]
 def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
                   cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
                   cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None,
-                  cnn_train: str = "other", cnn_norm: str = "global") -> None:
+                  cnn_train: str = "other", cnn_norm: str = "global",
+                  cnn_variants: int = SIM_VARIANTS, cnn_aug: str = "geometric") -> None:
     """Add the learned candidates to ``experiment unseen``'s two caches ({"a", "b"}: press
     caches of the replay folders ``roots``), in place: ``scat`` (the scattering of each press)
     with ``scattering``; with ``cnn_seed``, a network trained on each library and ``cnn`` /
@@ -302,7 +333,8 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
     frame per press: its 4-frame features repeat it). ``cnn_train`` "sim": one network trained
     on the simulator's fabrics (``sim_training_set``) embeds both libraries, so the test and the
     library view are the same, and its weights are kept in the cache file (``net/...``);
-    ``cnn_norm``: ``train_cnn``'s ``norm``."""
+    ``cnn_norm``, ``cnn_aug``: ``train_cnn``'s ``norm`` and ``aug``; ``cnn_variants``: the sim
+    training set's ``variants``."""
     d = Path(cache_dir)
     stacks = {}
     for k, root in roots.items():
@@ -328,13 +360,14 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
         return
     if cnn_train not in ("other", "sim"):
         raise InputError(f"cnn_train {cnn_train!r}: use other or sim")
-    tag = "" if cnn_norm == "global" else f"_{cnn_norm}"
+    tag = ("" if cnn_norm == "global" else f"_{cnn_norm}") + (
+        "" if cnn_aug == "geometric" else f"_{cnn_aug}")
     if cnn_train == "sim":
-        path = d / f"cnn_sim_v{SIM_VARIANTS}_s{cnn_seed}_n{cnn_steps}{tag}.npz"
+        path = d / f"cnn_sim_v{cnn_variants}_s{cnn_seed}_n{cnn_steps}{tag}.npz"
         if not path.is_file():
-            train = sim_training_set(d, variants=SIM_VARIANTS, per_class=SIM_PER_CLASS)
+            train = sim_training_set(d, variants=cnn_variants, per_class=SIM_PER_CLASS)
             body, log = train_cnn(train["half"], train["cls"], steps=cnn_steps, seed=cnn_seed,
-                                  norm=cnn_norm)
+                                  norm=cnn_norm, aug=cnn_aug)
             out = {f"net/{k}": v.numpy() for k, v in body.state_dict().items()}
             ms = _embed_sides(out, body, log, stacks, roots, cnn_norm)
             np.savez(path, **out, log=np.array(str(dict(log, embed_ms=ms))))
@@ -351,7 +384,7 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
         path = d / f"cnn_{Path(root).name}_s{cnn_seed}_n{cnn_steps}{tag}.npz"
         if not path.is_file() or (sim is not None and "sim_one" not in _keys(path)):
             body, log = train_cnn(stacks[k]["half"], caches[k]["cls"], steps=cnn_steps,
-                                  seed=cnn_seed, norm=cnn_norm)
+                                  seed=cnn_seed, norm=cnn_norm, aug=cnn_aug)
             out = {}
             ms = _embed_sides(out, body, log, stacks, roots, cnn_norm)
             if sim is not None:

@@ -46,7 +46,7 @@ from tactex_ros.core.preparation import PrepareSettings
 from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, curve
-from tactex_lab.analysis.learned_features import library_view
+from tactex_lab.analysis.learned_features import AUGS, SIM_VARIANTS, library_view
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
                                                 load_cache)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
@@ -320,7 +320,8 @@ def run_unseen(args: argparse.Namespace) -> dict:
         learned_features.add_to_caches(caches, {"a": args.a, "b": args.b}, args.cache_dir,
                                        scattering=args.scattering, cnn_seed=args.cnn_seed,
                                        cnn_steps=args.cnn_steps, sim=sim,
-                                       cnn_train=args.cnn_train, cnn_norm=args.cnn_norm)
+                                       cnn_train=args.cnn_train, cnn_norm=args.cnn_norm,
+                                       cnn_variants=args.cnn_variants, cnn_aug=args.cnn_aug)
     wanted = set(args.features) if args.screen_features else {s.feature for s in settings}
     for f in sorted(wanted):
         try:
@@ -404,6 +405,13 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--cnn-norm", choices=("global", "image"), default="global",
                    help="with --cnn-seed: the CNN's input scale: the training set's standard "
                         "deviation (global) or each frame's own (image)")
+    p.add_argument("--cnn-aug", choices=AUGS, default="geometric",
+                   help="with --cnn-seed: the CNN's training augmentation: crops turned and "
+                        "mirrored (geometric), and their look varied too (photometric: "
+                        "contrast, channel gains, blur, noise)")
+    p.add_argument("--cnn-variants", type=int, default=SIM_VARIANTS,
+                   help="with --cnn-train sim: simulated fabrics drawn beside the 25 catalogue "
+                        "ones for the training set")
     p.add_argument("--screen-features", action="store_true",
                    help="only the screening proxy of per-press features (--features), with no "
                         "metric and whitened, both directions, exact McNemar against the frame "

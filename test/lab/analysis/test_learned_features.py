@@ -111,3 +111,24 @@ def test_the_numpy_forward_pass_equals_the_trained_network():
         back = embedding.load(path)
         assert back.norm == "image" and back.trained_on == {"test": True} and back.dim == lf.EMBED
         assert np.array_equal(back(d), emb(d))
+
+
+def test_the_photometric_augmentation_varies_the_look_not_the_layout():
+    import pytest
+    import torch
+    from tactex_ros.core.errors import InputError
+    rng = np.random.default_rng(0)
+    xb = torch.from_numpy(np.stack([np.repeat(_stripes(0.14, 0.3, 32, rng)[None], 3, 0)
+                                    for _ in range(64)]))
+    out = lf._photometric(xb, np.random.default_rng(1))
+    assert out.shape == xb.shape and out.dtype == torch.float32
+    ratio = (out.std(dim=(1, 2, 3)) / xb.std(dim=(1, 2, 3))).numpy()
+    # contrast x 0.5-2 with a channel jitter, some crops blurred (less contrast), noise added
+    assert 0.3 < ratio.min() and ratio.max() < 3.0 and ratio.max() / ratio.min() > 2.0
+    # the texture stays where it was: each crop still correlates with its source
+    corr = [np.corrcoef(a.ravel(), b.ravel())[0, 1] for a, b in zip(xb.numpy(), out.numpy())]
+    assert min(corr) > 0.5
+    assert torch.equal(out, lf._photometric(xb, np.random.default_rng(1)))   # seeded
+    with pytest.raises(InputError, match="geometric, photometric"):
+        lf.train_cnn(xb[:4, None].numpy().astype(np.float16), np.array(list("abab")), steps=1,
+                     aug="colour")
