@@ -51,19 +51,33 @@ THETAS = (0.8, 0.9, 0.95)
 SEPARATIONS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
 #: The issue's goal for wrong stops at the shipped stop 0.9.
 GOAL = 0.03
-#: ``--feature``: the descriptor each press is described by -> whether it has the height map.
-FEATURE_HEIGHT_MAP = {"frame_hm": True, "frame": False}
+#: ``--feature``: the descriptor each press is described by -> (preset, overrides) of the
+#: learner settings that describe it (``feature_settings``).
+FEATURES = {"frame_hm": ("descriptor", {"descriptor_height_map": True}),
+            "frame": ("descriptor", {"descriptor_height_map": False}),
+            "default": ("default", {})}
 
 
-def sim_presses(per_class: int, seed: int = 0, height_map: bool = True
+def feature_settings(feature: str):
+    """The learner settings whose ``raw_descriptor`` is ``feature`` and whose
+    ``match_temperature`` is its temperature: ``frame_hm`` the 129-number descriptor, ``frame``
+    the 106 numbers of earlier releases (both 0.05), ``default`` the shipped default (the 129
+    numbers and the shipped network's embedding of the 4-frame burst: 257 numbers, 0.0251)."""
+    if feature not in FEATURES:
+        raise InputError(f"feature {feature!r}: use one of {', '.join(FEATURES)}")
+    name, over = FEATURES[feature]
+    return preset(name, **over)
+
+
+def sim_presses(per_class: int, seed: int = 0, feature: str = "frame_hm"
                 ) -> dict[str, np.ndarray]:
     """{fabric: (per_class, D) descriptors} of the catalogue fabrics, pressed by the sim touch
-    source in one live session (``SimSource.trial``: one no-contact frame for every press);
-    D = 129 with the height map, 106 without."""
+    source in one live session (``SimSource.trial``: one no-contact frame for every press),
+    described as ``feature`` (``feature_settings``)."""
     from tactex_ros import sources
     from tactex_ros.core.descriptor import raw_descriptor
     src = sources.open_source("sim")
-    cfg = preset("descriptor", descriptor_height_map=height_map)
+    cfg = feature_settings(feature)
     names = src.classes
     touch = src.trial(names, seed)
     return {n: np.stack([raw_descriptor(touch(i), cfg) for _ in range(per_class)])
@@ -73,25 +87,45 @@ def sim_presses(per_class: int, seed: int = 0, height_map: bool = True
 def family_presses(spec: str, cache_dir: Path, per_class: int, feature: str = "frame"
                    ) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of family ``spec`` (``sim`` or a replay folder) described
-    by ``feature`` (``FEATURE_HEIGHT_MAP``), cached (replay folders: ``press_cache``'s
-    ``<folder>.npz``, with the height map ``<folder>_candidates.npz``, as ``experiment
-    unseen``)."""
-    hm = FEATURE_HEIGHT_MAP[feature]
+    by ``feature`` (``FEATURES``), cached (replay folders: ``press_cache``'s ``<folder>.npz``,
+    with the height map ``<folder>_candidates.npz``, as ``experiment unseen``; the shipped
+    default, described by the product's own ``raw_descriptor``, ``<folder>_default.npz``)."""
+    feature_settings(feature)
+    tag = {"frame": "", "frame_hm": "_hm", "default": "_default"}[feature]
     if spec == "sim":
-        path = cache_dir / f"sim_{per_class}{'_hm' * hm}.npz"
+        path = cache_dir / f"sim_{per_class}{tag}.npz"
         if not path.is_file():
-            x = sim_presses(per_class, height_map=hm)
+            x = sim_presses(per_class, feature=feature)
             np.savez(path, **x)
         with np.load(path) as z:
             return {k: z[k] for k in z.files}
     root = Path(spec)
     if not root.is_dir():
         raise InputError(f"family {spec!r}: 'sim' or a replay folder")
+    if feature == "default":
+        path = cache_dir / f"{root.name}_default.npz"
+        if not path.is_file():
+            print(f"describing every press of {root} as the shipped default -> {path}",
+                  flush=True)
+            np.savez(path, **replay_presses(root, feature_settings(feature)))
+        with np.load(path) as z:
+            return {k: z[k] for k in z.files}
+    hm = feature == "frame_hm"
     path = cache_dir / f"{root.name}{'_candidates' * hm}.npz"
     if not path.is_file():
         print(f"describing every press of {root} -> {path}", flush=True)
         build_cache(root, path, candidates=hm)
     return by_class(load_cache(path), feature)
+
+
+def replay_presses(root: Path, cfg) -> dict[str, np.ndarray]:
+    """{class: (n, D) descriptors} of every press of the replay folder ``root`` as the
+    product describes a touch with learner settings ``cfg`` (``raw_descriptor``)."""
+    from tactex_ros.core.descriptor import raw_descriptor
+    from tactex_ros.sources.replay import ReplaySource
+    src = ReplaySource(root)
+    return {c: np.stack([raw_descriptor(src.touch(p), cfg) for p in src.presses(c)])
+            for c in src.classes}
 
 
 def outcome(trajs: list[cal.Trajectory], beta: float, theta: float,
@@ -162,7 +196,7 @@ def run_family(name: str, presses: dict[str, np.ndarray], seeds: list[int],
         path = Path(args.cache_dir) / (f"trials_{name}{tag}_b{beta:.6g}_s{s}_f{args.folds}"
                                        f"_n{args.scenes}_k{args.budget}.npz")
         if not path.is_file():
-            ts = cal.trajectories(presses, None, preset("descriptor"), folds=args.folds,
+            ts = cal.trajectories(presses, None, feature_settings(feature), folds=args.folds,
                                   scenes=args.scenes, budget=args.budget, temperature0=beta,
                                   seed=s)
             np.savez(path, **{f"{k}_{i}": getattr(t, k) for i, t in enumerate(ts)
@@ -182,7 +216,7 @@ def run_families(args: argparse.Namespace) -> dict:
         raise InputError(f"--family: >= 3 distinct families, got {names}")
     out = results_dir(args.out, "families", {k: v for k, v in vars(args).items()
                                              if k != "func"})
-    beta0 = preset("descriptor").match_temperature
+    beta0 = feature_settings(args.feature).match_temperature
     fams, base = {}, {}
     for name, spec in zip(names, args.family):
         fams[name] = family_presses(spec, cache, args.per_class, args.feature)
@@ -285,9 +319,11 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="'sim' (the catalogue fabrics) or a replay folder; >= 3 (repeat)")
     p.add_argument("--cache-dir", required=True,
                    help="per-press descriptors, e.g. under /tmp (never the repository)")
-    p.add_argument("--feature", choices=list(FEATURE_HEIGHT_MAP), default="frame_hm",
-                   help="each press's descriptor: frame_hm = today's (129 numbers, the height "
-                        "map), frame = the 106 numbers of earlier releases")
+    p.add_argument("--feature", choices=list(FEATURES), default="frame_hm",
+                   help="each press's descriptor: default = the shipped default's (257 numbers: "
+                        "the height map and the shipped network's embedding of the burst), "
+                        "frame_hm = the 129-number descriptor, frame = the 106 numbers of "
+                        "earlier releases")
     p.add_argument("--per-class", type=int, default=6, help="sim presses per fabric")
     p.add_argument("--scenes", type=int, default=40, help="scenes per class fold and seed")
     p.add_argument("--folds", type=int, default=3)

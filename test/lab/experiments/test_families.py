@@ -69,3 +69,17 @@ def test_choices_follow_their_definitions(tmp_path):
     assert sc["0.9"]["not_sure"] == 1 - np.mean(o["sure"])
     p = fam.paired(fams[0], 0.05, fams[0], 0.05)
     assert p["0.9"]["mcnemar_p"] == 1.0 and p["0.9"]["wilcoxon_p"] == 1.0
+
+
+def test_each_feature_is_described_and_tempered_as_its_preset():
+    import pytest
+    from tactex_ros.core.descriptor import descriptor_size as size
+    from tactex_ros.core.errors import InputError
+    default = fam.feature_settings("default")
+    assert (size(default), default.match_temperature) == (257, 0.0251)
+    assert default.descriptor_embedding_frames == 4
+    hm, old = fam.feature_settings("frame_hm"), fam.feature_settings("frame")
+    assert (size(hm), hm.match_temperature) == (129, 0.05)
+    assert (size(old), old.match_temperature) == (106, 0.05)
+    with pytest.raises(InputError, match="default"):
+        fam.feature_settings("frames4")
