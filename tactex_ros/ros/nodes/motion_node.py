@@ -65,6 +65,59 @@ BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the pre
 GRAPH_CHECK_S = 0.5   # [s] one graph per arm is checked this often until the first goal
 
 
+class Burst:
+    """One capture of a press, asked for without blocking the press loop (which goes on
+    stepping, so its force limit holds at every sample): the strongest-contact frame of the
+    last ``window_s`` [s] and ``frames`` in-contact frames in all. A burst with fewer frames (a
+    camera that dropped or delayed frames, a short hold) is asked for again every
+    ``BURST_RETRY_S`` until it is whole or ``deadline_s`` [s] is near; a burst still short then
+    is kept (``short``: its frame count). ``poll`` returns None while it runs, then
+    (ok, reason, the Capture response or None)."""
+
+    def __init__(self, client, window_s: float, frames: int, deadline_s: float,
+                 min_contact_score: float, now: float) -> None:
+        self.client, self.window_s, self.frames = client, window_s, frames
+        self.deadline_s, self.min_score = deadline_s, min_contact_score
+        self.end, self.fut, self.next_t, self.short = now + deadline_s, None, now, 0
+
+    def poll(self, now: float):
+        from tactex.srv import Capture
+        if self.fut is None:
+            if now < self.next_t:
+                return None
+            if not self.client.service_is_ready():
+                return ((False, "capture service not available", None) if now > self.end
+                        else None)
+            self.fut = self.client.call_async(Capture.Request(window_s=self.window_s,
+                                                              frames=self.frames))
+            return None
+        if not self.fut.done():
+            if now <= self.end:
+                return None
+            self.cancel()
+            return False, f"no image within capture_deadline_s ({self.deadline_s} s)", None
+        resp, self.fut = self.fut.result(), None
+        if not resp.success:
+            return False, resp.reason, None
+        if resp.contact_score < self.min_score:
+            return False, (f"no contact in the captured frames: score {resp.contact_score:.2f}"
+                           f" < min_contact_score {self.min_score}"), None
+        got = 1 + len(resp.extra_images)
+        if got >= self.frames:
+            return True, "", resp
+        if now + 2 * BURST_RETRY_S > self.end:
+            self.short = got
+            return True, "", resp
+        self.next_t = now + BURST_RETRY_S
+        return None
+
+    def cancel(self) -> None:
+        """Forget the request in flight (its answer, if any, is dropped)."""
+        if self.fut is not None:
+            self.client.remove_pending_request(self.fut)
+            self.fut = None
+
+
 class RobotError(Exception):
     """The robot stopped (reflex, controllers down): recovery is needed before a retry."""
 
@@ -559,30 +612,47 @@ class MotionNode(TactexNode):
             time.sleep(period)
         ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
                                stiffness=self.k)
-        cap, pose_xyz, fb = None, None, Press.Feedback()
-        while not ctrl.done:
-            now = time.monotonic()
-            fault = self._robot_fault(now)
-            if fault:   # nothing more to command: the robot does not follow
-                raise RobotError(f"{fault} (during {ctrl.phase})")
-            if goal_handle.is_cancel_requested:
-                ctrl.abort("canceled", now)
-            elif self._abort.is_set():
-                ctrl.abort("the motion node was deactivated", now)
-            target = ctrl.step(now, self.position, self.force, self.force_mag)
-            self.target_pub.publish(adapter.target_msg(
-                self.target_type, target, self.quat, self.get_clock().now().nanoseconds * 1e-9,
-                self.scene.frame_id))
-            if ctrl.capture_requested:
-                ok, reason, cap = self._capture(ctrl.s.capture_window_s,
-                                                  ctrl.s.capture_deadline_s,
-                                                  ctrl.s.capture_frames)
-                pose_xyz = self.position.copy()
-                ctrl.captured(ok, reason, time.monotonic())
-            fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
-            fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
-            goal_handle.publish_feedback(fb)
-            time.sleep(period)
+        cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
+        try:
+            while not ctrl.done:
+                now = time.monotonic()
+                fault = self._robot_fault(now)
+                if fault:   # nothing more to command: the robot does not follow
+                    raise RobotError(f"{fault} (during {ctrl.phase})")
+                if goal_handle.is_cancel_requested:
+                    ctrl.abort("canceled", now)
+                elif self._abort.is_set():
+                    ctrl.abort("the motion node was deactivated", now)
+                # every tick, the capture's too: the force limit holds at every sample
+                target = ctrl.step(now, self.position, self.force, self.force_mag)
+                self.target_pub.publish(adapter.target_msg(
+                    self.target_type, target, self.quat,
+                    self.get_clock().now().nanoseconds * 1e-9, self.scene.frame_id))
+                if ctrl.capture_requested:
+                    if burst is None:
+                        burst = Burst(self.capture, ctrl.s.capture_window_s,
+                                      ctrl.s.capture_frames, ctrl.s.capture_deadline_s,
+                                      self.settings.min_contact_score, now)
+                    got = burst.poll(time.monotonic())
+                    if got is not None:
+                        ok, reason, cap = got
+                        if ok and burst.short:
+                            self.get_logger().warning(
+                                f"burst of {burst.short} in-contact frames, not "
+                                f"press.capture_frames {ctrl.s.capture_frames}, within "
+                                f"capture_deadline_s ({ctrl.s.capture_deadline_s} s): kept")
+                        burst, pose_xyz = None, self.position.copy()
+                        ctrl.captured(ok, reason, time.monotonic())
+                elif burst is not None:     # the press ended the capture (limit, deadline)
+                    burst.cancel()
+                    burst = None
+                fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
+                fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
+                goal_handle.publish_feedback(fb)
+                time.sleep(period)
+        finally:
+            if burst is not None:
+                burst.cancel()
         out = ctrl.outcome()
         if not out.success:
             return False, out.reason, None
@@ -597,44 +667,6 @@ class MotionNode(TactexNode):
             self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose
         return True, "", touch
-
-    def _capture(self, window_s: float, deadline_s: float, frames: int):
-        """Ask the camera for the strongest-contact frame of the last ``window_s`` [s] and a
-        burst of ``frames`` in-contact frames in all (the scene's ``press.capture_frames``);
-        (ok, reason, the Capture response). The arm holds the press meanwhile: a burst with
-        fewer frames (a camera that dropped or delayed frames, a short hold) is asked for again
-        every ``BURST_RETRY_S`` until it is whole or ``deadline_s`` [s] is near; a burst still
-        short then is kept, with a warning."""
-        from tactex.srv import Capture
-        end = time.monotonic() + deadline_s
-        if not self.capture.wait_for_service(timeout_sec=deadline_s):
-            return False, "capture service not available", None
-        while True:
-            fut = self.capture.call_async(Capture.Request(window_s=window_s, frames=frames))
-            if not wait_for(fut, max(0.0, end - time.monotonic())):
-                self.capture.remove_pending_request(fut)
-                return False, f"no image within capture_deadline_s ({deadline_s} s)", None
-            resp = fut.result()
-            if not resp.success:
-                return False, resp.reason, None
-            if resp.contact_score < self.settings.min_contact_score:
-                return False, (f"no contact in the captured frames: score "
-                               f"{resp.contact_score:.2f} < min_contact_score "
-                               f"{self.settings.min_contact_score}"), None
-            got = 1 + len(resp.extra_images)
-            if got >= frames:
-                return True, "", resp
-            # the press loop does not step while this waits: a hold that is no longer safe
-            # (force over the limit, robot fault, deactivation) ends the wait, and the loop
-            # acts on it with the frames there are
-            unsafe = (self.force > self.scene.press.max_force or self._abort.is_set()
-                      or bool(self._robot_fault(time.monotonic())))
-            if unsafe or time.monotonic() + 2 * BURST_RETRY_S > end:
-                self.get_logger().warning(
-                    f"burst of {got} in-contact frames, not press.capture_frames {frames}, "
-                    f"within capture_deadline_s ({deadline_s} s): kept")
-                return True, "", resp
-            time.sleep(BURST_RETRY_S)
 
     def _state_resumes(self) -> bool:
         """After a robot error: does fresh state (not in reflex) come back by itself within
