@@ -74,11 +74,10 @@ QUICK_DESCEND_M_S = 0.02
 def quick_scene(tmp_path_factory) -> str:
     """config/scene_sim.yaml with a shorter press: the descent starts ``QUICK_APPROACH_M``
     above the surface (5 mm instead of 20) at ``QUICK_DESCEND_M_S``. In the mock world, five
-    presses of the lab scene take 11.9 s instead of 22 (14.3 with only the shorter approach).
-    The hold (``settle_s``) stays: the 4-frame burst is taken from the frames in contact
-    (test_burst_graph.py; at 0.15 s a touch came with fewer frames under load). For the long graph tests whose
-    property is not the press itself (sessions, faults, resumes); the press through its whole
-    approach: test_sim_graph.py and others."""
+    presses of the lab scene take 11.9 s instead of 22. The hold (``settle_s``) stays, so the
+    4-frame burst is taken from frames in contact (test_burst_graph.py). For the long graph
+    tests whose property is not the press itself (sessions, faults, resumes); the press through
+    its whole approach: test_sim_graph.py and others."""
     import yaml
 
     from tactex_ros.paths import config_dir
