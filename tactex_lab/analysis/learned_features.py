@@ -317,6 +317,25 @@ def _embed_sides(out: dict, body, log: dict, stacks: dict, roots: dict[str, str]
     return ms
 
 
+def _add_shipped(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
+                 d: Path) -> None:
+    """``cnn`` / ``cnn4`` (and their library views) of every press as the product embeds it:
+    the shipped network (``core.embedding``, ``descriptor_embedding`` "sim") on the strongest
+    frame and on up to 4 in-contact frames (``embed_touch``), cached per network identity."""
+    from tactex_ros.core import embedding
+    from tactex_ros.sources.replay import ReplaySource
+    emb = embedding.load(embedding.resolve("sim"))
+    for k, root in roots.items():
+        path = d / f"cnn_shipped_{emb.identity}_{Path(root).name}.npz"
+        if not path.is_file():
+            src = ReplaySource(root)
+            touches = [src.touch(Path(p)) for p in caches[k]["path"]]
+            np.savez(path, one=np.stack([embedding.embed_touch(t, 1, emb) for t in touches]),
+                     four=np.stack([embedding.embed_touch(t, 4, emb) for t in touches]))
+        with np.load(path) as z:
+            caches[k].update(cnn=z["one"], cnn4=z["four"], cnn_lib=z["one"], cnn4_lib=z["four"])
+
+
 def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str],
                   cache_dir: str | Path, scattering: bool = False, cnn_seed: int | None = None,
                   cnn_steps: int = 800, sim: dict[str, np.ndarray] | None = None,
@@ -334,7 +353,8 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
     on the simulator's fabrics (``sim_training_set``) embeds both libraries, so the test and the
     library view are the same, and its weights are kept in the cache file (``net/...``);
     ``cnn_norm``, ``cnn_aug``: ``train_cnn``'s ``norm`` and ``aug``; ``cnn_variants``: the sim
-    training set's ``variants``."""
+    training set's ``variants``. ``cnn_train`` "shipped": no training, the product's shipped
+    network embeds both libraries (``_add_shipped``; no ``cnn_seed`` needed)."""
     d = Path(cache_dir)
     stacks = {}
     for k, root in roots.items():
@@ -356,10 +376,13 @@ def add_to_caches(caches: dict[str, dict[str, np.ndarray]], roots: dict[str, str
                       flush=True)
             with np.load(path) as z:
                 caches[k]["scat"] = z["scat"]
+    if cnn_train == "shipped":
+        _add_shipped(caches, roots, d)
+        return
     if cnn_seed is None:
         return
     if cnn_train not in ("other", "sim"):
-        raise InputError(f"cnn_train {cnn_train!r}: use other or sim")
+        raise InputError(f"cnn_train {cnn_train!r}: use other, sim or shipped")
     tag = ("" if cnn_norm == "global" else f"_{cnn_norm}") + (
         "" if cnn_aug == "geometric" else f"_{cnn_aug}")
     if cnn_train == "sim":

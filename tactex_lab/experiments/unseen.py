@@ -311,10 +311,10 @@ def run_unseen(args: argparse.Namespace) -> dict:
         caches[name] = load_cache(path)
     if args.sim_family and args.cnn_seed is None:
         raise InputError("--sim-family needs --cnn-seed (the networks that embed it)")
-    if args.sim_family and args.cnn_train == "sim":
+    if args.sim_family and args.cnn_train in ("sim", "shipped"):
         raise InputError("--sim-family with --cnn-train sim: the simulator's fabrics are that "
                          "network's training set, not a held-out family")
-    if args.scattering or args.cnn_seed is not None:
+    if args.scattering or args.cnn_seed is not None or args.cnn_train == "shipped":
         from tactex_lab.analysis import learned_features
         sim = (learned_features.sim_family(args.cache_dir) if args.sim_family else None)
         learned_features.add_to_caches(caches, {"a": args.a, "b": args.b}, args.cache_dir,
@@ -398,10 +398,12 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "each library's network, for settings with temperature:sim_target")
     p.add_argument("--cnn-steps", type=int, default=800,
                    help="training steps of the small CNN (--cnn-seed)")
-    p.add_argument("--cnn-train", choices=("other", "sim"), default="other",
+    p.add_argument("--cnn-train", choices=("other", "sim", "shipped"), default="other",
                    help="with --cnn-seed: what the small CNN is trained on: each library's "
                         "network embeds the other (other), or one network trained on the "
-                        "simulator's fabrics embeds both (sim: weights a product may carry)")
+                        "simulator's fabrics embeds both (sim: weights a product may carry); "
+                        "shipped (no --cnn-seed): the product's shipped network embeds both, as "
+                        "the default learner does")
     p.add_argument("--cnn-norm", choices=("global", "image"), default="global",
                    help="with --cnn-seed: the CNN's input scale: the training set's standard "
                         "deviation (global) or each frame's own (image)")
