@@ -397,8 +397,10 @@ class MotionNode(TactexNode):
         later. Until this node takes its first goal it is the newcomer: if another graph is
         seen, the node ends with exit status 2 (the reason logged) and True is returned. A
         node that took a goal drives the arm; the other graph's motion node refuses."""
-        if self.took_goal or self.finished.is_set():
+        if self.took_goal:
             return False
+        if self.finished.is_set():
+            return True            # refused already: no goal is taken on the way out
         problem = other_graph(self, self._graph_topics())
         if not problem:
             return False
