@@ -246,14 +246,9 @@ class PressController:
     """
 
     def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
-                 stiffness: float = 1e5, capture: bool = True, period_s: float = 0.02) -> None:
+                 stiffness: float = 1e5, capture: bool = True) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
-        if not period_s > 0:
-            raise ValueError("period_s must be positive [s]")
-        # a late tick moves the target at most two periods' worth: a stalled loop must not
-        # jump it (a step makes an impedance-controlled arm overshoot)
-        self.max_move_dt = 2.0 * period_s
         self.scene, self.platform, self.s, self.k = scene, platform, scene.press, stiffness
         self.wants_capture = capture
         surface = np.asarray(platform.position, dtype=float)
@@ -312,7 +307,7 @@ class PressController:
 
     def _move_towards(self, goal: np.ndarray, speed: float, dt: float) -> bool:
         """Advance the target towards ``goal`` at ``speed`` [m/s]; True when it is there."""
-        step = min(speed, self.s.max_speed) * min(dt, self.max_move_dt)
+        step = min(speed, self.s.max_speed) * dt
         d = goal - self.target
         dist = float(np.linalg.norm(d))
         self.target = goal.copy() if dist <= step else self.target + d * (step / dist)
