@@ -8,7 +8,7 @@ commands the equilibrium *below* the surface, and trusts neither the scene's sur
 ``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
-``approach_height`` above its surface, braking into it at ``APPROACH_BRAKE_M_S2``) -> ``tare`` (at the approach point and at rest, the
+``approach_height`` above its surface) -> ``tare`` (at the approach point and at rest, the
 normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
 window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
 above ``tare_max_offset_n``, refuses the press with that reason; the arm's height above its
@@ -105,12 +105,6 @@ class Workspace(Protocol):
 def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
     """Position [m] clipped into the workspace box."""
     return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
-
-
-#: [m/s^2] the target's deceleration into the approach point. The mock's 3 kg arm under the
-#: sim profile's law (1000 N/m, 2 sqrt(K) N s/m) overshoots a target that stops from 0.4 m/s by
-#: 4.7 mm (6 kg: 12 mm); braking at 1 m/s^2 leaves 1.5 mm (docs/simulated_world.md).
-APPROACH_BRAKE_M_S2 = 1.0
 
 
 @dataclass
@@ -405,14 +399,8 @@ class PressController:
             off <= self.s.rest_tolerance and self._at_rest(self._now))
 
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
-        """Through the waypoints (lift, travel, approach point); then tare. Into the approach
-        point the target slows at ``APPROACH_BRAKE_M_S2``: an impedance-controlled arm lags
-        its moving target and overshoots where the target stops, towards the surface."""
-        speed = self.s.travel_speed
-        if len(self._waypoints) == 1:
-            left = float(np.linalg.norm(self._waypoints[0] - self.target))
-            speed = min(speed, math.sqrt(2.0 * APPROACH_BRAKE_M_S2 * left))
-        if self._arrive(self._waypoints[0], speed, position, dt):
+        """Through the waypoints (lift, travel, approach point); then tare."""
+        if self._arrive(self._waypoints[0], self.s.travel_speed, position, dt):
             self._waypoints.pop(0)
             if not self._waypoints:
                 self._enter(TARE, now)

@@ -174,20 +174,6 @@ def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
     assert sum(results) >= 8, results
 
 
-def test_the_approach_from_high_above_stops_short_of_a_close_surface() -> None:
-    """A 0.22 m descent to an approach point 5 mm above the fabric at 0.4 m/s, a 6 kg arm
-    under the sim profile's law: the arm lags its target and overshoots where it stops. The
-    target brakes into the approach point (``APPROACH_BRAKE_M_S2``), so the sensor never
-    reaches the fabric before the tare: the tare reads no contact and the contact force stays
-    at the press's own (without the brake: 50.9 N at the approach, the press refused)."""
-    scene = _scene(approach_height=0.005, travel_speed=0.4)
-    s = scene.press
-    out, pos, peaks, *_ = _simulate(scene, "reference", law=load_profile("sim").law, mass=6.0)
-    assert out.success, out.reason
-    assert abs(out.tare.offset_n) < 0.05
-    assert peaks.max() < s.force_threshold + s.force_tolerance_n + 1.0
-
-
 def test_platform_under_is_the_one_answer_of_mock_arm_and_camera() -> None:
     sc = _scene()
     p1 = sc.platforms[1]
