@@ -28,7 +28,7 @@ from tactex_lab.analysis.learned_features import library_view
 from tactex_lab.analysis.metric_screen import scene_hits
 from tactex_lab.analysis.stats import mcnemar_exact
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.press_cache import FEATURES, build_cache, load_cache
+from tactex_lab.experiments.press_cache import FEATURES, cached
 
 FEATURE = "frame_hm_cnn4"
 
@@ -61,12 +61,8 @@ def pick(rows: list[dict], chosen_on: str, judged_on: str, kind: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> dict:
-    caches = {}
-    for k, root in (("a", args.a), ("b", args.b)):
-        path = Path(args.cache_dir) / f"{Path(root).name}_candidates.npz"
-        if not path.is_file():
-            build_cache(root, path, candidates=True)
-        caches[k] = load_cache(path)
+    caches = {k: cached(root, args.cache_dir, candidates=True)
+              for k, root in (("a", args.a), ("b", args.b))}
     grid = list(itertools.product(args.augs, args.variants, args.steps))
     directions = {"a": f"{Path(args.a).name}_with_{Path(args.b).name}",
                   "b": f"{Path(args.b).name}_with_{Path(args.a).name}"}

@@ -44,7 +44,7 @@ from tactex_ros.core.errors import InputError
 from tactex_ros.core.match import softmax
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import results_dir, write_json
-from tactex_lab.experiments.press_cache import build_cache, by_class, load_cache
+from tactex_lab.experiments.press_cache import by_class, cached
 
 THETAS = (0.8, 0.9, 0.95)
 #: The "not sure" rule's thresholds tried (0 = off).
@@ -110,12 +110,7 @@ def family_presses(spec: str, cache_dir: Path, per_class: int, feature: str = "f
             np.savez(path, **replay_presses(root, feature_settings(feature)))
         with np.load(path) as z:
             return {k: z[k] for k in z.files}
-    hm = feature == "frame_hm"
-    path = cache_dir / f"{root.name}{'_candidates' * hm}.npz"
-    if not path.is_file():
-        print(f"describing every press of {root} -> {path}", flush=True)
-        build_cache(root, path, candidates=hm)
-    return by_class(load_cache(path), feature)
+    return by_class(cached(root, cache_dir, candidates=feature == "frame_hm"), feature)
 
 
 def replay_presses(root: Path, cfg) -> dict[str, np.ndarray]:

@@ -103,6 +103,18 @@ def load_cache(path: str | Path) -> dict[str, np.ndarray]:
         return {k: z[k] for k in z.files}
 
 
+def cached(root: str | Path, cache_dir: str | Path, candidates: bool = False,
+           rebuild: bool = False) -> dict[str, np.ndarray]:
+    """The presses of the replay folder ``root`` as ``load_cache`` returns them, from
+    ``<cache_dir>/<folder>[_candidates].npz``; built first (``build_cache``) when the file is
+    missing or ``rebuild``. The one cache naming every experiment shares."""
+    path = Path(cache_dir) / f"{Path(root).name}{'_candidates' * candidates}.npz"
+    if rebuild or not path.is_file():
+        print(f"describing every press of {root} -> {path}", flush=True)
+        build_cache(root, path, candidates=candidates)
+    return load_cache(path)
+
+
 def by_class(cache: dict[str, np.ndarray], feature: str) -> dict[str, np.ndarray]:
     """{class: (n_c, D') feature vectors} (of a library: pass ``library_view(cache)``)."""
     x = FEATURES[feature](cache)

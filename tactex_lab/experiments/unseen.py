@@ -47,8 +47,7 @@ from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.analysis.learned_features import AUGS, SIM_VARIANTS, library_view
-from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache, by_class,
-                                                load_cache)
+from tactex_lab.experiments.press_cache import FEATURES, CachedPresses, by_class, cached
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
@@ -302,13 +301,8 @@ def run_unseen(args: argparse.Namespace) -> dict:
     labels = [s.label for s in settings]
     if len(set(labels)) != len(labels):
         raise InputError(f"--setting labels must be unique, got {labels}")
-    caches = {}
-    for name, root in (("a", args.a), ("b", args.b)):
-        path = Path(args.cache_dir) / f"{Path(root).name}{'_candidates' * args.candidates}.npz"
-        if args.build_cache or not path.is_file():
-            print(f"describing every press of {root} -> {path}")
-            build_cache(root, path, candidates=args.candidates)
-        caches[name] = load_cache(path)
+    caches = {name: cached(root, args.cache_dir, args.candidates, rebuild=args.build_cache)
+              for name, root in (("a", args.a), ("b", args.b))}
     if args.sim_family and args.cnn_seed is None:
         raise InputError("--sim-family needs --cnn-seed (the networks that embed it)")
     if args.sim_family and args.cnn_train in ("sim", "shipped"):

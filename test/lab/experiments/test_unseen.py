@@ -36,6 +36,19 @@ def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
         np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
 
 
+@pytest.mark.slow
+def test_a_cache_is_built_once_under_the_folders_name(small_library, tmp_path):
+    first = press_cache.cached(small_library, tmp_path)
+    path = tmp_path / f"{small_library.name}.npz"
+    made = path.stat().st_mtime_ns
+    again = press_cache.cached(small_library, tmp_path)
+    assert path.stat().st_mtime_ns == made            # loaded, not described again
+    assert sorted(again) == sorted(first) and (again["f0"] == first["f0"]).all()
+    assert not (tmp_path / f"{small_library.name}_candidates.npz").exists()
+    press_cache.cached(small_library, tmp_path, rebuild=True)
+    assert path.stat().st_mtime_ns > made
+
+
 def test_settings_parse_and_name_what_is_wrong():
     s = unseen.Setting.parse("x=feature:regions,kind:lda,dims:12,calibration:stop")
     assert (s.label, s.feature, s.prepare.kind, s.prepare.dims, s.prepare.calibration) == (
