@@ -63,6 +63,47 @@ class Listener:
         rclpy.shutdown(context=self.ctx)
 
 
+class ForceTrace:
+    """What the mock arm reports and what it is told, as the listener receives them: the
+    normal force (``f``, N), the pose's height (``z``, m) and the equilibrium target's height
+    (``target``, m), each row ``(arrival time [s, monotonic], kind, value)``. ``check`` holds
+    the force limit at every sample and, where it is broken, names when, with the rows around
+    the peak. Topics and QoS: the sim profile's (config/robots/sim.yaml)."""
+
+    def __init__(self, listener: Listener) -> None:
+        from geometry_msgs.msg import PoseStamped, WrenchStamped
+        from rclpy.qos import qos_profile_sensor_data
+
+        from tactex_ros.ros.settings import POSE_TOPIC, TARGET_TOPIC, WRENCH_TOPIC
+        self.rows: list[tuple[float, str, float]] = []
+        add = self.rows.append
+        node = listener.node
+        node.create_subscription(WrenchStamped, WRENCH_TOPIC, lambda m: add(
+            (time.monotonic(), "f", m.wrench.force.z)), qos_profile_sensor_data)
+        node.create_subscription(PoseStamped, POSE_TOPIC, lambda m: add(
+            (time.monotonic(), "z", m.pose.position.z)), qos_profile_sensor_data)
+        node.create_subscription(PoseStamped, TARGET_TOPIC, lambda m: add(
+            (time.monotonic(), "target", m.pose.position.z)), 10)
+
+    def forces(self, since: float = 0.0) -> list[float]:
+        """[N] every normal force received at or after ``since`` (monotonic s)."""
+        return [v for t, k, v in list(self.rows) if k == "f" and t >= since]
+
+    def check(self, limit: float, since: float = 0.0, label: str = "") -> None:
+        """Every force since ``since`` at most ``limit`` [N]; else an AssertionError naming the
+        peak, its time after ``since`` and the rows of the second before it."""
+        rows = [r for r in list(self.rows) if r[0] >= since]
+        forces = [r for r in rows if r[1] == "f"]
+        assert forces, f"{label}: no force received"
+        t, _, peak = max(forces, key=lambda r: r[2])
+        if peak <= limit:
+            return
+        near = "\n".join(f"  {r[0] - since:8.3f} s {r[1]:>6} {r[2]:+.4f}" for r in rows
+                         if t - 1.0 <= r[0] <= t + 0.2)
+        raise AssertionError(f"{label}: force {peak:.2f} N > {limit} N at {t - since:.3f} s "
+                             f"after the start; the rows around it:\n{near}")
+
+
 #: [m] the scene schema's least ``press.approach_height`` (config/scene_sim.yaml: 0.02)
 QUICK_APPROACH_M = 0.005
 #: [m/s] twice config/scene_sim.yaml's ``press.descend_speed``: the contact force then
@@ -143,6 +184,12 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
 def press(listener):
     """``press(platform_id, timeout=90.0)``: :func:`press_goal` through the test's listener."""
     return lambda platform_id, timeout=90.0: press_goal(listener, platform_id, timeout)
+
+
+@pytest.fixture
+def force_trace(listener) -> ForceTrace:
+    """The test's :class:`ForceTrace`, subscribed from the start."""
+    return ForceTrace(listener)
 
 
 @pytest.fixture

@@ -16,15 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import WrenchStamped
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from tactex_ros.ros import adapter
 from tactex_ros.ros.bag import TOUCH_TOPIC, read_bag
 from tactex_ros.cli.graph_commands import summarise_bag
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC, WRENCH_TOPIC
+from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC
 from tactex_ros.trial.record import read_record, read_result
 from tactex_ros.ros.launcher import ros_env, run_graph
 from tactex_ros.robot.scene import load_scene
@@ -147,7 +145,7 @@ def _check_record(record: Path, used: list[np.ndarray]) -> dict:
 
 
 def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | None = None,
-         scene: str | None = None, **explorer) -> tuple:
+         scene: str | None = None, trace=None, **explorer) -> tuple:
     ex = {"trial": {"rounds": ROUNDS, "stop_confidence": 0.0}, "seed": 0,
           "record_dir": str(tmp), "trial_id": "trial", **explorer}
     if resume is not None:
@@ -158,6 +156,8 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     run = run_graph(nodes, tmp / f"logs_{name}", timeout_s=DEADLINE_S,
                     domain_id=listener.domain_id, on_start=fault)
     t_end = time.monotonic()
+    if trace is not None:                 # the force limit held at every sample of this run
+        trace.check(load_scene(nodes[0].parameters["scene_file"]).press.max_force, t0, name)
     assert not run.timed_out, run.failure
     assert run.left_running == []
     assert len(run.pids) == 4 and not any(_alive(p) for p in run.pids.values())
@@ -171,14 +171,14 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     return run, rec, clear
 
 
-def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_scene: str
-                                              ) -> None:
+def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_scene: str,
+                                              force_trace) -> None:
     """One trial, interrupted four times and resumed each time: kill -9 of the motion node
     (after the mock arm was frozen for 5 s), of the mock camera, of the mock arm, SIGINT of
     the explorer mid-round; the last resume finishes it. No touch lost, none twice."""
     scene = load_scene(quick_scene)
     truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
-    wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
+    trace = force_trace
     presses = Presses(listener)
     record = tmp_path / "trial"
 
@@ -186,17 +186,16 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
     # kill -9 of the motion node
     def freeze_then_kill(g) -> None:
         freeze("mock_arm", 5.0)(g)
-        n, end = len(wrenches), time.monotonic() + 30.0
-        while len(wrenches) == n and time.monotonic() < end:
+        n, end = len(trace.forces()), time.monotonic() + 30.0
+        while len(trace.forces()) == n and time.monotonic() < end:
             time.sleep(0.02)
         f.t = time.monotonic()
         kill("motion")(g)
     f = Fault(record, 2, freeze_then_kill, presses)
     run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f,
-                           scene=quick_scene)
+                           scene=quick_scene, trace=trace)
     assert run.failed_node == "motion" and run.node_exit["motion"] == -signal.SIGKILL
     assert run.result is None and clear is not None and clear < CLEAR_S
-    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
     n = len(rec["touches"])
 
     steps = [("kill_mock_camera", "mock_image", kill("mock_image")),
@@ -204,7 +203,8 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
              ("sigint_explorer", "explorer", kill("explorer", signal.SIGINT))]
     for name, node, act in steps:
         f = Fault(record, n + 1, act, presses)
-        run, rec, clear = _run(tmp_path, listener, name, f, resume=record, scene=quick_scene)
+        run, rec, clear = _run(tmp_path, listener, name, f, resume=record, scene=quick_scene,
+                               trace=trace)
         if run.result is not None:            # the trial ended before the fault could land
             break
         assert run.failed_node == node, run.failure
@@ -214,7 +214,7 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
 
     if run.result is None:
         run, rec, _ = _run(tmp_path, listener, "resume_to_the_end", None, resume=record,
-                           scene=quick_scene)
+                           scene=quick_scene, trace=trace)
     res = run.result
     assert res is not None and "error" not in res, res
     assert res["prediction"] == truth and res["stop_reason"] == "rounds"
@@ -225,7 +225,6 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
     assert len(res["resumed"]) >= 2
     last = max(record.glob("topics*.mcap"), key=lambda f: f.stat().st_mtime)   # the last run
     assert summarise_bag(read_bag(last))["prediction"] == truth
-    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
 
 
 def _node_pids(tag: str) -> list[int]:

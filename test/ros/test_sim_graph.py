@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import PoseStamped, WrenchStamped
+from geometry_msgs.msg import PoseStamped
 from rclpy.qos import qos_profile_sensor_data
 from visualization_msgs.msg import MarkerArray
 
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC
+from tactex_ros.ros.settings import POSE_TOPIC
 from tactex_ros.trial.record import read_record
 from tactex_ros.ros.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
@@ -20,7 +20,7 @@ from tactex_ros.robot.scene import load_scene
 pytestmark = pytest.mark.ros
 
 
-def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
+def test_short_trial_on_easy_scene(tmp_path: Path, listener, force_trace) -> None:
     from tactex.msg import ExplorationState
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 0,
                                      "record_dir": str(tmp_path),
@@ -29,7 +29,6 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
     states = listener.collect(ExplorationState, "/tactex/state")
     marks = listener.collect(MarkerArray, "/tactex/markers")
     poses = listener.collect(PoseStamped, POSE_TOPIC, qos_profile_sensor_data)
-    wrenches = listener.collect(WrenchStamped, WRENCH_TOPIC, qos_profile_sensor_data)
 
     run = run_graph(nodes, tmp_path / "logs", timeout_s=240, domain_id=listener.domain_id)
 
@@ -47,11 +46,11 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener) -> None:
                     for m in marks)
     assert np.diff(stamps).max() < 3.0
     # safety: force and workspace, over everything the mock arm reported
-    assert len(poses) > 100 and len(wrenches) > 100
+    assert len(poses) > 100 and len(force_trace.forces()) > 100
     xyz = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in poses])
     assert np.all(xyz >= np.array(scene.workspace_min) - 1e-6)
     assert np.all(xyz <= np.array(scene.workspace_max) + 1e-6)
-    assert max(w.wrench.force.z for w in wrenches) <= scene.press.max_force
+    force_trace.check(scene.press.max_force, label="the trial")
     # the record holds every touch, image and metadata, and the result
     rec = read_record(run.record)
     accepted = [t for t in rec["touches"] if t["accepted"]]
