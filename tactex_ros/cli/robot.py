@@ -173,7 +173,8 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
         for pid in wanted:
             p = scene.platform(pid)
             ctrl = PressController(scene, p, state["xyz"], time.monotonic(),
-                                   stiffness=prof.stiffness, capture=False)
+                                   stiffness=prof.stiffness, capture=False,
+                                   period_s=period)
             while not ctrl.done:
                 tick = time.monotonic() + period
                 target = ctrl.step(time.monotonic(), state["xyz"], *state["f"])

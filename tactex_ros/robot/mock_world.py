@@ -479,7 +479,7 @@ def press_in_worlds(scene: Workspace, law: ControlLaw, faults: Sequence[Faults],
         start = p0 + [0.0, 0.0, scene.press.approach_height + 0.1]
     w = Worlds(scene, start, law, faults, mass)
     k = law.stiffness if stiffness is None else stiffness
-    ctrls = [PressController(scene, p, w.position[i], 0.0, stiffness=k)
+    ctrls = [PressController(scene, p, w.position[i], 0.0, stiffness=k, period_s=1.0 / rate_hz)
              for i, p in enumerate(plats)]
     true_force = np.full(w.n, np.nan)
     peak = np.zeros(w.n)

@@ -8,7 +8,7 @@ commands the equilibrium *below* the surface, and trusts neither the scene's sur
 ``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
-``approach_height`` above its surface) -> ``tare`` (at the approach point and at rest, the
+``approach_height`` above its surface, braking into it at ``APPROACH_BRAKE_M_S2``) -> ``tare`` (at the approach point and at rest, the
 normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
 window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
 above ``tare_max_offset_n``, refuses the press with that reason; the arm's height above its
@@ -105,6 +105,12 @@ class Workspace(Protocol):
 def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
     """Position [m] clipped into the workspace box."""
     return np.clip(np.asarray(xyz, dtype=float), scene.workspace_min, scene.workspace_max)
+
+
+#: [m/s^2] the target's deceleration into the approach point. The mock's 3 kg arm under the
+#: sim profile's law (1000 N/m, 2 sqrt(K) N s/m) overshoots a target that stops from 0.4 m/s by
+#: 4.7 mm (6 kg: 12 mm); braking at 1 m/s^2 leaves 1.5 mm (docs/simulated_world.md).
+APPROACH_BRAKE_M_S2 = 1.0
 
 
 @dataclass
@@ -240,9 +246,14 @@ class PressController:
     """
 
     def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
-                 stiffness: float = 1e5, capture: bool = True) -> None:
+                 stiffness: float = 1e5, capture: bool = True, period_s: float = 0.02) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
+        if not period_s > 0:
+            raise ValueError("period_s must be positive [s]")
+        # a late tick moves the target at most two periods' worth: a stalled loop must not
+        # jump it (a step makes an impedance-controlled arm overshoot)
+        self.max_move_dt = 2.0 * period_s
         self.scene, self.platform, self.s, self.k = scene, platform, scene.press, stiffness
         self.wants_capture = capture
         surface = np.asarray(platform.position, dtype=float)
@@ -301,7 +312,7 @@ class PressController:
 
     def _move_towards(self, goal: np.ndarray, speed: float, dt: float) -> bool:
         """Advance the target towards ``goal`` at ``speed`` [m/s]; True when it is there."""
-        step = min(speed, self.s.max_speed) * dt
+        step = min(speed, self.s.max_speed) * min(dt, self.max_move_dt)
         d = goal - self.target
         dist = float(np.linalg.norm(d))
         self.target = goal.copy() if dist <= step else self.target + d * (step / dist)
@@ -399,8 +410,14 @@ class PressController:
             off <= self.s.rest_tolerance and self._at_rest(self._now))
 
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
-        """Through the waypoints (lift, travel, approach point); then tare."""
-        if self._arrive(self._waypoints[0], self.s.travel_speed, position, dt):
+        """Through the waypoints (lift, travel, approach point); then tare. Into the approach
+        point the target slows at ``APPROACH_BRAKE_M_S2``: an impedance-controlled arm lags
+        its moving target and overshoots where the target stops, towards the surface."""
+        speed = self.s.travel_speed
+        if len(self._waypoints) == 1:
+            left = float(np.linalg.norm(self._waypoints[0] - self.target))
+            speed = min(speed, math.sqrt(2.0 * APPROACH_BRAKE_M_S2 * left))
+        if self._arrive(self._waypoints[0], speed, position, dt):
             self._waypoints.pop(0)
             if not self._waypoints:
                 self._enter(TARE, now)

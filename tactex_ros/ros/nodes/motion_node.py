@@ -613,7 +613,7 @@ class MotionNode(TactexNode):
                 raise RobotError(self._robot_fault(time.monotonic()))
             time.sleep(period)
         ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
-                               stiffness=self.k)
+                               stiffness=self.k, period_s=period)
         cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
         try:
             while not ctrl.done:

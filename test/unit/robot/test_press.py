@@ -40,7 +40,7 @@ def _simulate(scene, platform_id: str, *, stiffness: float = 1000.0,
                                  platform_damping=platform_damping,
                                  surface_offset=surface_offset))
     ctrl = PressController(scene, scene.platform(platform_id), arm.position, 0.0,
-                           stiffness=law.stiffness)
+                           stiffness=law.stiffness, period_s=1.0 / rate_hz)
     t, dt = 0.0, 1.0 / rate_hz
     pos, peaks, targets, forces = [], [], [], []
     while not ctrl.done and t < t_max:
@@ -172,6 +172,45 @@ def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
             assert 0.5 * s.force_threshold <= out.force_n <= s.max_force
         results.append(out.success)
     assert sum(results) >= 8, results
+
+
+def test_the_approach_from_high_above_stops_short_of_a_close_surface() -> None:
+    """A 0.22 m descent to an approach point 5 mm above the fabric at 0.4 m/s, a 6 kg arm
+    under the sim profile's law: the arm lags its target and overshoots where it stops. The
+    target brakes into the approach point (``APPROACH_BRAKE_M_S2``), so the sensor never
+    reaches the fabric before the tare: the tare reads no contact and the contact force stays
+    at the press's own (without the brake: 50.9 N at the approach, the press refused)."""
+    scene = _scene(approach_height=0.005, travel_speed=0.4)
+    s = scene.press
+    out, pos, peaks, *_ = _simulate(scene, "reference", law=load_profile("sim").law, mass=6.0)
+    assert out.success, out.reason
+    assert abs(out.tare.offset_n) < 0.05
+    assert peaks.max() < s.force_threshold + s.force_tolerance_n + 1.0
+
+
+def test_a_stalled_loop_does_not_jump_the_target_into_the_surface() -> None:
+    """The loop meant to tick every 20 ms stalls for 0.2 s after every 4 ticks (a loaded machine), on
+    the same descent to 5 mm above the fabric with a 3 kg arm: a late tick moves the target at
+    most two periods' worth, so the arm never reaches the fabric before the tare (seen in a
+    graph test: 23.9 N at the approach; here 25.5 N when a late tick moved the target by its
+    whole lateness)."""
+    scene = _scene(approach_height=0.005, travel_speed=0.4)
+    s = scene.press
+    law = load_profile("sim").law
+    arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), law, mass=3.0, faults=Faults())
+    ctrl = PressController(scene, scene.platform("reference"), arm.position, 0.0,
+                           stiffness=law.stiffness, period_s=0.02)
+    t, peak, k = 0.0, 0.0, 0
+    while not ctrl.done and t < 60.0:
+        arm.target = ctrl.step(t, arm.position, arm.normal_force())
+        if ctrl.capture_requested:
+            ctrl.captured(True, "", t)
+        dt = 0.2 if k % 5 == 4 else 0.02
+        arm.step(dt)
+        peak, t, k = max(peak, arm.peak_force), t + dt, k + 1
+    out = ctrl.outcome()
+    assert out.success, out.reason
+    assert abs(out.tare.offset_n) < 0.05 and peak < s.max_force
 
 
 def test_platform_under_is_the_one_answer_of_mock_arm_and_camera() -> None:
