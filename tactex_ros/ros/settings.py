@@ -146,6 +146,9 @@ class MotionSettings(Schema):
                                           "retried (0 = no check)", 0.0, 50.0)
     state_timeout_s: float = param(1.0, "robot state older than this aborts a press [s]",
                                    0.05, 30.0)
+    state_hold_s: float = param(0.1, "robot state older than this holds the press: the "
+                                     "target stays where it is until fresh state arrives "
+                                     "(state_timeout_s aborts the press) [s]", 0.01, 30.0)
     preflight: bool = param(True, "check the robot at configuration, before the arm moves "
                                   "(state rate, robot mode, franka's collision thresholds) "
                                   "and refuse the start on a problem "

@@ -146,6 +146,7 @@ class MotionNode(TactexNode):
         self.force = 0.0            # signed normal force [N]
         self.force_mag = 0.0        # force magnitude [N]
         self.wrench_t = -1.0
+        self.held_ticks = 0         # press-loop ticks that held the target on stale state
         self.robot_mode = 0
         self.busy = threading.Lock()
         self.took_goal = False      # a press goal was taken: this graph drives the arm
@@ -351,6 +352,7 @@ class MotionNode(TactexNode):
                   "last press time [s]": lp.get("duration_s"),
                   "last press attempts": lp.get("attempts"),
                   "last press at": lp.get("at"), "busy": self.busy.locked(),
+                  "ticks held on stale state": self.held_ticks,
                   "capture service": ("ready" if self.capture.service_is_ready()
                                       else "not available")}
         if age is not None and self.arm_startup.active:
@@ -471,6 +473,16 @@ class MotionNode(TactexNode):
         lim = self.settings.state_timeout_s
         return (self.position is not None and now - self.pose_t <= lim and
                 now - self.wrench_t <= lim)
+
+    def _state_age(self, now: float) -> float:
+        """[s] the age of the older of the newest pose and the newest wrench."""
+        return now - min(self.pose_t, self.wrench_t)
+
+    def _publish_target(self, xyz: np.ndarray) -> None:
+        """Command the equilibrium ``xyz`` [m] (3,) on the profile's target topic."""
+        self.target_pub.publish(adapter.target_msg(
+            self.target_type, xyz, self.quat, self.get_clock().now().nanoseconds * 1e-9,
+            self.scene.frame_id))
 
     def _robot_fault(self, now: float) -> str:
         """Why the robot cannot be commanded now ("" when it can)."""
@@ -625,11 +637,15 @@ class MotionNode(TactexNode):
                     ctrl.abort("canceled", now)
                 elif self._abort.is_set():
                     ctrl.abort("the motion node was deactivated", now)
+                if self._state_age(now) > self.settings.state_hold_s:
+                    # no fresh force or pose: a target moved on old feedback would press on
+                    # unseen; it stays where it is until state returns (or state_timeout_s)
+                    self._publish_target(ctrl.target)
+                    self.held_ticks += 1
+                    time.sleep(period)
+                    continue
                 # every tick, the capture's too: the force limit holds at every sample
-                target = ctrl.step(now, self.position, self.force, self.force_mag)
-                self.target_pub.publish(adapter.target_msg(
-                    self.target_type, target, self.quat,
-                    self.get_clock().now().nanoseconds * 1e-9, self.scene.frame_id))
+                self._publish_target(ctrl.step(now, self.position, self.force, self.force_mag))
                 if ctrl.capture_requested:
                     if burst is None:
                         burst = Burst(self.capture, ctrl.s.capture_window_s,
@@ -739,9 +755,7 @@ class MotionNode(TactexNode):
         sc = self.scene
         xyz = np.array(hold_target(self.position, platform.position[2], sc.workspace_min,
                                    sc.workspace_max))
-        self.target_pub.publish(adapter.target_msg(
-            self.target_type, xyz, self.quat, self.get_clock().now().nanoseconds * 1e-9,
-            sc.frame_id))
+        self._publish_target(xyz)
         self.get_logger().info(f"recovery: hold target {np.round(xyz, 4).tolist()} m published")
 
     def _call(self, client, request, ok_field: str, name: str, deadline_s: float) -> None:
