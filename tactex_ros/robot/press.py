@@ -8,11 +8,12 @@ commands the equilibrium *below* the surface, and trusts neither the scene's sur
 ``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
-``approach_height`` above its surface, braking into it at ``APPROACH_BRAKE_M_S2``) -> ``tare`` (at the approach point and at rest, the
-normal force's offset is the median over ``tare_window_s``; it settles when the spread over the
-window is small and the arm does not move; not settled within ``tare_deadline_s``, or an offset
-above ``tare_max_offset_n``, refuses the press with that reason; the arm's height above its
-target there, times ``K``, is the *lift*: a static force that holds it up) -> ``descend`` (a
+``approach_height`` above its surface, braking into it at ``APPROACH_BRAKE_M_S2``) -> ``tare``
+(at the approach point and at rest, the normal force's offset is the median over
+``tare_window_s``; it settles when the spread over the window is small and the arm does not
+move; not settled within ``tare_deadline_s``, or an offset above ``tare_max_offset_n``,
+refuses the press with that reason; the arm's height above its target there, times ``K``, is
+the *lift*: a static force that holds it up) -> ``descend`` (a
 guarded descent: the equilibrium goes straight down at ``descend_speed``, on past the scene's
 surface, until the smoothed tared force reaches ``contact_force_n``: the surface is *found*
 there, with a warning when it lies more than ``surface_warn_m`` from the scene's; then on until
