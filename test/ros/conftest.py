@@ -42,14 +42,21 @@ class Listener:
         self.node = rclpy.create_node("test_listener", context=self.ctx)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
+        self.errors: list[str] = []     # exceptions raised in the listener's callbacks
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
     def _spin(self) -> None:
-        try:
-            self.ex.spin()
-        except Exception:  # noqa: BLE001 - context shut down at teardown
-            pass
+        """Spin until the context shuts down. A callback's exception is kept in ``errors`` and
+        the spin goes on: a listener that stopped silently would leave every later future of
+        the test unanswered."""
+        while self.ctx.ok():
+            try:
+                self.ex.spin_once(timeout_sec=0.1)
+            except Exception as exc:  # noqa: BLE001 - kept for the test's failure message
+                if not self.ctx.ok():
+                    return          # the context shut down at teardown
+                self.errors.append(repr(exc))
 
     def collect(self, msg_type, topic: str, qos=10) -> list:
         """Subscribe and return the list that receives every message."""
@@ -170,7 +177,8 @@ def press_goal(listener: Listener, platform_id: str, timeout: float = 90.0,
     while not req.finished() and time.monotonic() < end:
         time.sleep(0.02)
     if not req.answered():
-        pytest.fail(f"press goal for {platform_id} not answered within {timeout} s")
+        pytest.fail(f"press goal for {platform_id} not answered within {timeout} s "
+                    f"(listener callback errors: {listener.errors or 'none'})")
     if req.refused:
         return None
     if not req.finished():
