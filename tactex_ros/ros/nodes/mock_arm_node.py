@@ -1,7 +1,8 @@
 """mock_arm_node: stands in for the robot, franka_robot_state_broadcaster and a Cartesian
 impedance controller at the robot profile's topics (``robot``, default ``sim``).
 
-Reads equilibrium targets (PoseStamped, or multipanda_ros2's Float64MultiArray), publishes the
+Reads equilibrium targets (PoseStamped, or multipanda_ros2's Float64MultiArray; the newest at
+each simulation cycle, as a controller reads its realtime buffer), publishes the
 current pose (PoseStamped) and the external wrench in the base frame (WrenchStamped, z =
 ``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel`` running
 the control law of the controller the profile names (``robot.press.ControlLaw``: stiffness,
@@ -74,9 +75,14 @@ class MockArmNode(TactexNode):
             WrenchStamped, s.wrench_topic,
             adapter.qos_profile(prof.wrench_qos))
         self.target_topic = s.target_topic
-        # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts
-        self.create_subscription(import_interface(prof.target_type), self.target_topic,
-                                 self._on_target, 1)
+        # keep last 1, reliable: CRISP's rclcpp::QoS(1); only the latest target counts. Read
+        # by the simulation's own thread at every cycle, as a controller reads its realtime
+        # buffer: a callback on the executor's thread came up to 0.3 s late on a loaded
+        # machine (the two threads share the GIL) and the arm then jumped to the newest target
+        from ..latest import LatestReader
+        self.target_reader = LatestReader(self.context, f"{self.get_name()}_target")
+        self.target_in = self.target_reader.subscribe(import_interface(prof.target_type),
+                                                      self.target_topic, 1)
         self.ignored_targets = 0      # targets dropped for too many publishers
         self.error = False            # reflex not yet cleared by the recovery
         self.hardware_active = True
@@ -175,8 +181,16 @@ class MockArmNode(TactexNode):
             self.arm.target = xyz
 
     def _tick(self) -> None:
+        msg = self.target_in.take()        # the newest target since the last cycle
+        if msg is not None:
+            self._on_target(msg)
         with self.lock:
             self._step()
+
+    def cleanup(self) -> None:
+        reader, self.target_reader = getattr(self, "target_reader", None), None
+        if reader is not None:
+            reader.close()
 
     def _step(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
