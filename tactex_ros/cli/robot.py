@@ -143,9 +143,11 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
 
     def on_pose(msg) -> None:
         state["xyz"], _ = adapter.pose_to_array(msg.pose)
+        state["pose_t"] = time.monotonic()
 
     def on_wrench(msg) -> None:
         state["f"] = adapter.force_components(msg.wrench.force, prof.force_sign)
+        state["wrench_t"] = time.monotonic()
 
     rclpy.init()
     probe = None
@@ -175,16 +177,31 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
             ctrl = PressController(scene, p, state["xyz"], time.monotonic(),
                                    stiffness=prof.stiffness, capture=False,
                                    period_s=period)
+            stopped = ""
             while not ctrl.done:
-                tick = time.monotonic() + period
-                target = ctrl.step(time.monotonic(), state["xyz"], *state["f"])
+                now = time.monotonic()
+                tick = now + period
+                age = now - min(state["pose_t"], state["wrench_t"])
+                if age > args.state_timeout_s:       # the robot does not follow: stop here
+                    stopped = (f"robot state stopped: the newest is {age:.2f} s old, over "
+                               f"--state-timeout-s {args.state_timeout_s} s")
+                    break
+                # stale state: the target stays where it is (as the motion node's press)
+                target = (ctrl.target if age > args.state_hold_s else
+                          ctrl.step(now, state["xyz"], *state["f"]))
                 pub.publish(adapter.target_msg(prof.target_type, target, quat,
                                                node.get_clock().now().nanoseconds * 1e-9,
                                                scene.frame_id))
                 while time.monotonic() < tick:
                     probe._spin()
             out = ctrl.outcome()
-            entry = {"scene_z": p.position[2], "success": out.success}
+            entry = {"scene_z": p.position[2], "success": out.success and not stopped}
+            if stopped:
+                entry["reason"] = stopped
+                report["platforms"][pid] = entry
+                print(f"{pid}: {json.dumps(entry)}", file=sys.stderr, flush=True)
+                print(json.dumps({**report, "result": stopped}, indent=2))
+                return 1
             if out.success and out.surface_z is not None:
                 found[pid] = out.surface_z
                 entry.update(found_z=round(out.surface_z, 5),
@@ -229,4 +246,14 @@ def add_measure_scene(rsub) -> None:
                    help="control loop rate [Hz] (5..500)")
     m.add_argument("--state-deadline-s", type=bounded(float, 0.5, 60.0), default=5.0,
                    help="the robot state must arrive within this [s] (0.5..60)")
+    from ..ros.settings import MotionSettings
+    motion = MotionSettings.model_fields
+    m.add_argument("--state-hold-s", type=bounded(float, 0.01, 30.0),
+                   default=motion["state_hold_s"].default,
+                   help="robot state older than this holds the target where it is [s] "
+                        "(0.01..30; the motion node's state_hold_s)")
+    m.add_argument("--state-timeout-s", type=bounded(float, 0.05, 30.0),
+                   default=motion["state_timeout_s"].default,
+                   help="robot state older than this ends the measurement, exit 1 [s] "
+                        "(0.05..30; the motion node's state_timeout_s)")
     m.set_defaults(func=cmd_measure_scene)

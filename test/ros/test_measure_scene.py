@@ -61,3 +61,46 @@ def test_measure_scene_refuses_an_unknown_platform(tmp_path: Path) -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "nope" in proc.stderr
     assert not (tmp_path / "o.yaml").exists()
+
+
+def test_measure_scene_holds_the_target_on_stale_state_then_stops(tmp_path: Path, listener,
+                                                                   force_trace) -> None:
+    """The robot state stops in the light press's descent (mock arm SIGSTOP, 4 s): from
+    ``--state-hold-s`` on the command publishes the same target; after ``--state-timeout-s``
+    (2 s) it ends with exit 1, nothing written."""
+    import os
+    import signal
+    import time
+    nodes = [n for n in describe(True) if n.name == "mock_arm"]
+    scene_file = nodes[0].parameters["scene_file"]
+    scene = load_scene(scene_file)
+    # 2 mm into the descent (config/scene_sim.yaml: 20 mm above the surface)
+    descending = scene.platform("c3").position[2] + scene.press.approach_height - 0.002
+    out = tmp_path / "measured.yaml"
+    cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
+           "sys.exit(main())", "robot", "measure-scene", "--robot", "sim", "--scene",
+           str(scene_file), "--out", str(out), "--platforms", "c3",
+           "--state-deadline-s", "30", "--state-timeout-s", "2.0"]
+    with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env=ros_env(listener.domain_id))
+        end = time.monotonic() + 200.0
+        while time.monotonic() < end and proc.poll() is None and not any(
+                k == "target" and v < descending for _, k, v in list(force_trace.rows)):
+            time.sleep(0.01)
+        assert proc.poll() is None, proc.communicate()
+        pid = g.procs["mock_arm"].pid
+        os.kill(pid, signal.SIGSTOP)
+        t_stop = time.monotonic()
+        time.sleep(4.0)
+        os.kill(pid, signal.SIGCONT)
+        stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1, stdout + stderr
+    report = json.loads(stdout)
+    assert report["platforms"]["c3"]["success"] is False
+    assert not out.exists()
+    held = [v for t, k, v in list(force_trace.rows)
+            if k == "target" and t_stop + 0.5 <= t <= t_stop + 1.5]
+    assert held and max(held) == min(held), (min(held, default=None), max(held, default=None))
+    # nothing commanded once the state was older than the timeout (2 s, plus delivery)
+    assert not [t for t, k, _ in list(force_trace.rows) if k == "target" and t > t_stop + 3.0]
