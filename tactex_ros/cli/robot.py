@@ -176,7 +176,7 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
             p = scene.platform(pid)
             ctrl = PressController(scene, p, state["xyz"], time.monotonic(),
                                    stiffness=prof.stiffness, capture=False,
-                                   period_s=period)
+                                   period_s=period, hold_s=args.state_hold_s)
             stopped = ""
             while not ctrl.done:
                 now = time.monotonic()
@@ -186,9 +186,7 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
                     stopped = (f"robot state stopped: the newest is {age:.2f} s old, over "
                                f"--state-timeout-s {args.state_timeout_s} s")
                     break
-                # stale state: the target stays where it is (as the motion node's press)
-                target = (ctrl.target if age > args.state_hold_s else
-                          ctrl.step(now, state["xyz"], *state["f"]))
+                target = ctrl.step(now, state["xyz"], *state["f"], state_age_s=age)
                 pub.publish(adapter.target_msg(prof.target_type, target, quat,
                                                node.get_clock().now().nanoseconds * 1e-9,
                                                scene.frame_id))

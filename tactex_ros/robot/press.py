@@ -244,14 +244,22 @@ class PressController:
     position-controlled robot: a large value such as 1e5, the equilibrium is then the pose);
     the press needs it only roughly (the hold closes the loop on the force). ``capture``:
     False for a light press that only finds the surface and the force (no frame).
+    ``period_s``: the loop's period [s] (a late tick moves the target at most two periods'
+    worth). ``hold_s``: measurements older than this [s] (``step``'s ``state_age_s``) hold the
+    target where it is and step nothing (``held``).
     """
 
     def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
-                 stiffness: float = 1e5, capture: bool = True, period_s: float = 0.02) -> None:
+                 stiffness: float = 1e5, capture: bool = True, period_s: float = 0.02,
+                 hold_s: float = math.inf) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
         if not period_s > 0:
             raise ValueError("period_s must be positive [s]")
+        if not hold_s > 0:
+            raise ValueError("hold_s must be positive [s]")
+        self.hold_s = hold_s
+        self.held = False      # the last step held the target: its measurements were stale
         # a late tick moves the target at most two periods' worth: a stalled loop must not
         # jump it (a step makes an impedance-controlled arm overshoot)
         self.max_move_dt = 2.0 * period_s
@@ -355,12 +363,17 @@ class PressController:
             self._enter(RETRACT, now)
 
     def step(self, now: float, position: np.ndarray, force_n: float,
-             force_magnitude: float | None = None) -> np.ndarray:
+             force_magnitude: float | None = None, state_age_s: float = 0.0) -> np.ndarray:
         """Advance to time ``now`` [s] given the measured position [m], the signed normal force
-        [N] (positive = pressing) and the force magnitude [N] (default ``|force_n|``).
+        [N] (positive = pressing) and the force magnitude [N] (default ``|force_n|``), measured
+        ``state_age_s`` [s] ago. Older than ``hold_s``: nothing is stepped and the target stays
+        where it is (``held``); a target moved on a force not seen could press on unseen.
 
         Returns the equilibrium position to command (always inside the workspace).
         """
+        self.held = state_age_s > self.hold_s
+        if self.held:
+            return self.target
         dt = max(0.0, min(now - self._last, 0.2))  # a stalled loop must not jump the target
         self._last = self._now = now
         position = np.asarray(position, dtype=float)

@@ -625,7 +625,7 @@ class MotionNode(TactexNode):
                 raise RobotError(self._robot_fault(time.monotonic()))
             time.sleep(period)
         ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
-                               stiffness=self.k, period_s=period)
+                               stiffness=self.k, period_s=period, hold_s=s.state_hold_s)
         cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
         try:
             while not ctrl.done:
@@ -637,15 +637,14 @@ class MotionNode(TactexNode):
                     ctrl.abort("canceled", now)
                 elif self._abort.is_set():
                     ctrl.abort("the motion node was deactivated", now)
-                if self._state_age(now) > self.settings.state_hold_s:
-                    # no fresh force or pose: a target moved on old feedback would press on
-                    # unseen; it stays where it is until state returns (or state_timeout_s)
-                    self._publish_target(ctrl.target)
+                # every tick, the capture's too: the force limit holds at every sample; on
+                # stale state the target stays where it is until state returns (or the fault)
+                self._publish_target(ctrl.step(now, self.position, self.force, self.force_mag,
+                                               state_age_s=self._state_age(now)))
+                if ctrl.held:
                     self.held_ticks += 1
                     time.sleep(period)
                     continue
-                # every tick, the capture's too: the force limit holds at every sample
-                self._publish_target(ctrl.step(now, self.position, self.force, self.force_mag))
                 if ctrl.capture_requested:
                     if burst is None:
                         burst = Burst(self.capture, ctrl.s.capture_window_s,

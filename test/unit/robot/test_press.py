@@ -361,3 +361,24 @@ def test_torque_rate_limit_ramps_the_force() -> None:
     for n in range(1, 6):
         arm.cycle()
         assert arm.command[2] == pytest.approx(-0.625 * n, abs=1e-12)
+
+
+def test_stale_measurements_hold_the_target_and_step_nothing() -> None:
+    """Measurements older than ``hold_s``: the same target back, ``held``, no phase or time
+    advanced; the next fresh step moves the target at most two periods' worth."""
+    scene = _scene(travel_speed=0.4)
+    start = np.array([0.5, 0.0, 0.3])
+    ctrl = PressController(scene, scene.platform("c4"), start, 0.0, stiffness=1000.0,
+                           period_s=0.02, hold_s=0.1)
+    for t in (0.02, 0.04, 0.06):                     # the lift, then on the travel
+        first = ctrl.step(t, start, 0.0, state_age_s=0.01).copy()
+        assert not ctrl.held
+    for t in (0.08, 0.5, 2.0):
+        held = ctrl.step(t, start + [0.0, 0.0, -0.05], 9.0, state_age_s=0.11)
+        assert ctrl.held and np.array_equal(held, first) and ctrl.phase == "approach"
+    assert ctrl.max_force == 0.0                     # the stale force was not taken either
+    fresh = ctrl.step(2.02, start, 0.0, state_age_s=0.0)
+    assert not ctrl.held
+    assert np.linalg.norm(fresh - first) == pytest.approx(0.4 * 2 * 0.02)
+    with pytest.raises(ValueError, match="hold_s"):
+        PressController(scene, scene.platform("reference"), start, 0.0, hold_s=0.0)
