@@ -7,7 +7,9 @@ current pose (PoseStamped) and the external wrench in the base frame (WrenchStam
 ``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel`` running
 the control law of the controller the profile names (``robot.press.ControlLaw``: stiffness,
 damping as the controller computes it, its target filter, error clip and force rate limit, one
-control cycle at the profile's ``rate_hz``) on an apparent mass against platforms of
+control cycle at the profile's ``rate_hz``; the physics keeps the wall clock, as a real arm
+does, whenever this process is starved: up to ``CATCH_UP_S`` of missed cycles are run at the
+next simulation cycle, with the newest target) on an apparent mass against platforms of
 ``platform_stiffness``, so the mock behaves as that controller does: it pushes with
 K (x_eq - x), not as a position follower. Like CRISP, it ignores targets while more publishers
 than the profile's ``target.max_publishers`` are on the target topic.
@@ -194,7 +196,7 @@ class MockArmNode(TactexNode):
 
     def _step(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
-        self.arm.step(min(0.1, now - self._last))
+        self.arm.step(min(CATCH_UP_S, now - self._last))
         self._last = now
         rf = self.settings.reflex_force
         if (rf and self.controller_active and self.arm.peak_force > rf and
@@ -213,6 +215,13 @@ class MockArmNode(TactexNode):
         fx, fy, fz = (float(v) for v in self.sign * self.arm.wrench())
         w.wrench.force = Vector3(x=fx, y=fy, z=fz)
         self.wrench_pub.publish(w)
+
+
+#: Most simulated time [s] one simulation cycle catches up after this process was starved or
+#: stopped: a real arm moves on in real time while nobody reads its state (a starved mock
+#: that ran slower than the wall clock let the press's target run ahead of it), and beyond a
+#: second the arm stands, as a controller that missed its cycles stops the robot.
+CATCH_UP_S = 1.0
 
 
 def mock_law(law: ControlLaw, s: MockArmSettings) -> ControlLaw:
