@@ -132,6 +132,11 @@ class MotionSettings(Schema):
                                   "(0 = the profile's)", 0.0, 1e6)
     capture_service: str = param(CAPTURE_SERVICE, "GelSight capture service")
     press_action: str = param(PRESS_ACTION, "the press action this node serves")
+    result_timeout: int = param(900, "how long a press's result is kept for a client that has "
+                                     "not fetched it yet [s] (rclpy ActionServer's "
+                                     "result_timeout: Humble's default 900; Kilted's 10 drops "
+                                     "the result of an explorer stopped longer than that)",
+                                1, 86400)
     run_id: str = param("", "serve only the press goals of this run (the explorer's run_id) "
                             "('' = the run of the first goal taken; another run's are "
                             "rejected)")

@@ -76,3 +76,41 @@ def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener,
         assert req.resent == 1 and req.result.status == GoalStatus.STATUS_SUCCEEDED
         assert req.result.result.success, req.result.result.reason
         assert fb_ids == {bytes(req.sent[1].gid.uuid)}
+
+
+#: rclpy's ActionServer keeps a result this long by default on Kilted (Humble: 900 s)
+KILTED_RESULT_TIMEOUT_S = 10.0
+
+
+def test_a_result_fetched_after_kilteds_timeout_is_kept(tmp_path: Path, listener,
+                                                       quick_scene: str) -> None:
+    """The explorer may fetch a press's result late (it was stopped while the press ended:
+    test_faults' stalled explorer). The motion node keeps it for ``result_timeout`` (900 s),
+    not rclpy's Kilted default of 10 s, after which a result request is answered UNKNOWN."""
+    from rclpy.action import ActionClient
+    from tactex.action import Press
+    nodes = [n for n in describe(True, quick_scene)
+             if n.name in ("mock_arm", "mock_image", "motion")]
+    ac = ActionClient(listener.node, Press, "/tactex/press")
+    with Graph(nodes, tmp_path / "logs", listener.domain_id):
+        assert ac.wait_for_server(timeout_sec=30.0)
+        req = GoalRequest(ac, Press.Goal(platform_id="c1"), answer_s=2.0)
+        end = time.monotonic() + 60.0
+        while not req.answered() and time.monotonic() < end:
+            time.sleep(0.02)
+        assert req.handle is not None, "press goal not answered within 60 s"
+        handle, end = req.handle, time.monotonic() + 90.0
+        while handle.status != GoalStatus.STATUS_SUCCEEDED and time.monotonic() < end:
+            time.sleep(0.05)        # the goal's status topic: the press ended, result unread
+        assert handle.status == GoalStatus.STATUS_SUCCEEDED, handle.status
+        ended = time.monotonic()
+        time.sleep(KILTED_RESULT_TIMEOUT_S + 2.0)   # the duration under test, not a deadline
+        fut = handle.get_result_async()
+        end = time.monotonic() + 30.0
+        while not fut.done() and time.monotonic() < end:
+            time.sleep(0.02)
+        assert fut.done(), "no answer to the late result request within 30 s"
+        assert time.monotonic() - ended > KILTED_RESULT_TIMEOUT_S
+        res = fut.result()
+        assert res.status == GoalStatus.STATUS_SUCCEEDED, res.status
+        assert res.result.success and res.result.touch.image.width == 320

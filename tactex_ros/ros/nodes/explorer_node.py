@@ -54,6 +54,12 @@ from .process import run
 from ..goal import GoalRequest, Silence
 
 
+#: Times the explorer asks again for a result after it was stopped (``goal_answer_s`` apart):
+#: enough to outlast the few seconds a server takes to find a process again after the DDS
+#: lease dropped it.
+STALL_REASKS = 4
+
+
 class PressServerLost(TouchInterrupted):
     """The press action server is gone (left the graph, or silent): the trial cannot go on."""
 
@@ -295,23 +301,28 @@ class ExplorerNode(TactexNode):
         True or ``deadline``; with ``watch``, raise PressServerLost once the press server is
         gone (left the graph for 1 s, or silent for ``press_silence_s``). Time this process
         was stopped counts for neither (``goal.Silence``); after such a stall ``on_stall()`` is
-        called once the server is visible again (the answer may have been dropped meanwhile),
+        called once the server is visible again and up to ``STALL_REASKS`` times in all,
+        ``goal_answer_s`` apart, until ready (the answer may have been dropped meanwhile),
         and for ``press_silence_s`` an absent server counts as gone only after that long: a
         stall longer than the DDS participant lease (Fast DDS: 20 s) makes this process forget
         the other participants until they announce themselves again."""
         absent_since = None
-        reask = False
+        reasks, reask_at = 0, 0.0            # re-asks left after the last stall, next one at
         rediscover_until = -1.0              # monotonic [s]: end of the grace after a stall
         while not ready():
             stall = self._silence.tick()     # this process was stopped: not the server's fault
             deadline += stall
-            if stall > 0:
-                rediscover_until = time.monotonic() + self.settings.press_silence_s
-            reask = reask or (stall > 0 and on_stall is not None)
-            if reask and self.press.server_is_ready():
-                on_stall()                   # an answer dropped while we were away: ask again
-                reask = False
             now = time.monotonic()
+            if stall > 0:
+                rediscover_until = now + self.settings.press_silence_s
+                if on_stall is not None:
+                    reasks, reask_at = STALL_REASKS, now
+            if reasks and now >= reask_at and self.press.server_is_ready():
+                # an answer dropped while we were away: ask again, and again goal_answer_s
+                # later, since a request sent before the server has found this process
+                # again (after the DDS lease) is answered into the void
+                on_stall()
+                reasks, reask_at = reasks - 1, now + self.settings.goal_answer_s
             if absent_since is not None:
                 absent_since += stall
             if now > deadline:

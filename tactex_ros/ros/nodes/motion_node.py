@@ -199,7 +199,8 @@ class MotionNode(TactexNode):
         # created once; goals are accepted only while the node is active (``_on_goal``)
         self.server = ActionServer(
             self, Press, s.press_action, execute_callback=self._execute_async,
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            result_timeout=s.result_timeout)
         if s.preflight:
             self._preflight()
         else:
