@@ -21,7 +21,8 @@ from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import write_json
 from tactex_lab.experiments.curves import BeliefCurve, paired_at_budgets, paired_at_thresholds
-from tactex_lab.experiments.protocol import DEFAULT_THRESHOLDS, band_rows, score_pairs
+from tactex_lab.experiments.protocol import (DEFAULT_THRESHOLDS, band_rows, per_class,
+                                             score_pairs)
 
 
 def load_runs(folders: list[str | Path], settings: list[str] | None = None
@@ -59,15 +60,21 @@ def load_runs(folders: list[str | Path], settings: list[str] | None = None
 
 
 def pooled_figures(curves: dict[str, list[BeliefCurve]], thresholds: list[float],
-                   against: list[str]) -> dict:
+                   against: list[str], class_theta: float | None = None) -> dict:
     """The pooled scenes' figures: every (setting, theta) at the stop (``score_pairs``) and the
-    paired tests against each setting of ``against`` at fixed budgets and thresholds."""
+    paired tests against each setting of ``against`` at fixed budgets and thresholds; with
+    ``class_theta``, each setting's outcome per reference class at that stop (``per_class``)."""
     budgets = (0, 1, 3, 5, 10)
-    return {"scenes": {lab: len(cs) for lab, cs in curves.items()},
-            "report_rows": score_pairs(curves, thresholds),
-            "paired": {ref: {"budgets": paired_at_budgets(curves, ref, budgets),
-                             "thresholds": paired_at_thresholds(curves, ref, thresholds)}
-                       for ref in against}}
+    out = {"scenes": {lab: len(cs) for lab, cs in curves.items()},
+           "report_rows": score_pairs(curves, thresholds),
+           "paired": {ref: {"budgets": paired_at_budgets(curves, ref, budgets),
+                            "thresholds": paired_at_thresholds(curves, ref, thresholds)}
+                      for ref in against}}
+    if class_theta is not None:
+        out["per_class"] = {"theta": class_theta,
+                            "rows": {lab: per_class(cs, class_theta)
+                                     for lab, cs in curves.items()}}
+    return out
 
 
 def register(esub: argparse._SubParsersAction) -> None:
@@ -86,6 +93,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--paired-against", nargs="+", metavar="LABEL",
                    help="paired tests in pooled.json against these settings (default: the "
                         "first)")
+    p.add_argument("--per-class", type=float, metavar="THETA",
+                   help="also each setting's outcome per reference class at this stop "
+                        "threshold (pooled.json; the 5 most often wrong printed)")
     p.add_argument("--out", required=True,
                    help="folder for the two PNG files and pooled.json (the pooled scenes' "
                         "figures at the stop and paired tests)")
@@ -93,6 +103,8 @@ def register(esub: argparse._SubParsersAction) -> None:
     def func(args: argparse.Namespace) -> int:
         if not args.press_s > 0:
             raise InputError(f"--press-s must be > 0, got {args.press_s}")
+        if args.per_class is not None and not 0.0 < args.per_class <= 1.0:
+            raise InputError(f"--per-class must be in (0, 1], got {args.per_class}")
         curves, budget, comparisons = load_runs(args.runs, args.settings)
         against = args.paired_against or [next(iter(curves))]
         unknown = [a for a in against if a not in curves]
@@ -102,11 +114,15 @@ def register(esub: argparse._SubParsersAction) -> None:
         for path in charts.touches_and_time(Path(args.out), rows, comparisons + 1,
                                             args.press_s, args.title, args.press_note):
             print(path)
-        print(write_json(Path(args.out) / "pooled.json", pooled_figures(
-            curves, sorted(args.thresholds or DEFAULT_THRESHOLDS), against)))
+        figures = pooled_figures(curves, sorted(args.thresholds or DEFAULT_THRESHOLDS),
+                                 against, args.per_class)
+        print(write_json(Path(args.out) / "pooled.json", figures))
         for lab, (right, dec) in rows.items():
             print(f"  {lab:>14}: n = {len(right)}, +0 {right[:, 0].mean():.3f}, "
                   f"+{budget} {right[:, -1].mean():.3f}, decision {dec:.4f} s")
+            for r in figures.get("per_class", {}).get("rows", {}).get(lab, [])[:5]:
+                print(f"  {'':>14}  {r['class']}: wrong {r['wrong']} / {r['scenes']} "
+                      f"({r['wrong_stops']} sure), {r['touches']:.2f} touches")
         return 0
 
     p.set_defaults(func=func)

@@ -46,6 +46,21 @@ def score_pairs(curves: dict[str, list[BeliefCurve]], thresholds: list[float]) -
     return rows
 
 
+def per_class(cs: list[BeliefCurve], theta: float) -> list[dict]:
+    """Per reference class of the scenes ``cs`` (their ``classes[0]``; curves without classes
+    are left out), the outcome at the stop ``theta`` (``at_stop``): scenes, wrong (the stop's
+    platform is not the match, sure or at the budget's end), wrong stops (sure and wrong), mean
+    touches; sorted by wrong share, then scenes (most first), then class name."""
+    by: dict[str, list] = {}
+    for c in cs:
+        if c.classes:
+            by.setdefault(c.classes[0], []).append(at_stop(c, theta))
+    rows = [{"class": k, "scenes": len(st), "wrong": sum(not s[0] for s in st),
+             "wrong_stops": sum(s[2] and not s[0] for s in st),
+             "touches": float(np.mean([s[1] for s in st]))} for k, st in by.items()]
+    return sorted(rows, key=lambda r: (-r["wrong"] / r["scenes"], -r["scenes"], r["class"]))
+
+
 def choose(rows: list[dict], target: float, settings: list[str] | None = None) -> dict:
     """Best (setting, theta) row: highest accuracy with mean touches <= target; ties fewer
     touches. If no row meets the target, the one with the fewest touches."""

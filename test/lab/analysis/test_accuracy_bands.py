@@ -90,3 +90,28 @@ def test_command_writes_both_charts_and_refuses_bad_input(tmp_path):
                  "--press-s", "15.5", "--out", str(out)]) == 2
     assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "0",
                  "--out", str(out)]) == 2
+    assert main(["experiment", "accuracy-charts", "--runs", str(a), "--press-s", "15.5",
+                 "--per-class", "1.5", "--out", str(out)]) == 2
+
+
+def test_outcome_per_reference_class_at_the_stop():
+    from tactex_lab.experiments.curves import BeliefCurve
+    from tactex_lab.experiments.protocol import per_class
+
+    def c(ref: str, correct: list[bool], conf: list[float]) -> BeliefCurve:
+        n = len(correct)
+        return BeliefCurve(tuple(range(n)), tuple(correct), tuple(conf), (0.01,) * n,
+                           classes=(ref, "x", "y", "z", "w"))
+    cs = [c("a", [False, True], [0.95, 0.99]),     # stops sure and wrong at 0
+          c("a", [True, True], [0.5, 0.92]),       # stops right at 1
+          c("b", [True, False], [0.5, 0.6]),       # never sure: wrong at its last decision
+          c("b", [True], [0.91]),
+          c("b", [True], [0.91]),
+          BeliefCurve((0,), (False,), (0.99,), (0.01,))]   # no classes: left out
+    rows = per_class(cs, 0.9)
+    assert rows == [
+        {"class": "a", "scenes": 2, "wrong": 1, "wrong_stops": 1, "touches": 0.5},
+        {"class": "b", "scenes": 3, "wrong": 1, "wrong_stops": 0, "touches": 1 / 3}]
+    # at 0.96 the first scene goes on and ends right: class a drops below b
+    assert [(r["class"], r["wrong"], r["touches"]) for r in per_class(cs, 0.96)] == [
+        ("b", 1, 1 / 3), ("a", 0, 1.0)]
