@@ -61,11 +61,12 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
             return ""
         hist = [f"{t - since:7.3f} s level {s.level[0]} {s.message}" for t, m in got
                 if t >= since - 1.0 for s in m.status if s.name == "motion: arm"]
-        arr = [t for t in poses if t >= since - 1.0]
+        arr = [t for t in poses if t >= since - 1.0] + [time.monotonic()]   # now: the tail
         gaps = [f"{a - since:7.3f} s +{b - a:.3f} s" for a, b in zip(arr, arr[1:])
                 if b - a > 0.1]
         return ("motion: arm ERROR; its statuses:\n" + "\n".join(hist) +
-                "\nposes received: " + str(len(arr)) + ", gaps over 0.1 s:\n" + "\n".join(gaps))
+                "\nposes received: " + str(len(arr) - 1) + ", gaps over 0.1 s (the last "
+                "one ends now):\n" + "\n".join(gaps))
 
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
         # every node reports, named "<node>: <task>", with a hardware id
