@@ -90,10 +90,13 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
                         seed: int = 0) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of a library, described as the learner settings ``cfg``
     describe a touch (``core.descriptor.raw_descriptor``: frames, height map, embedding): every
-    press of ``replay:DIR``, or ``sim_presses`` simulated presses of every catalogue fabric for
+    press of ``replay:DIR`` that the contact guard accepts (``cfg.guards``; checked against the
+    press's own no-contact frame, ``core.guards.press_verdict``: a trial never describes a
+    press without contact), or ``sim_presses`` simulated presses of every catalogue fabric for
     ``sim``."""
     import numpy as np
     from ..core.descriptor import raw_descriptor
+    from ..core.guards import press_verdict
     from ..core.touch import Touch
     from ..sources import open_source
     src = open_source(spec)
@@ -103,7 +106,13 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
             xs = []
             for path in src.presses(cls):
                 try:
-                    xs.append(raw_descriptor(src.touch(path), cfg))
+                    touch = src.touch(path)
+                    ok, reason = (press_verdict(touch, cfg.contact_flat_min, cfg.contact_min)
+                                  if cfg.guards else (True, ""))
+                    if not ok:
+                        print(f"tactex prepare: skipped {path}: {reason}", file=sys.stderr)
+                        continue
+                    xs.append(raw_descriptor(touch, cfg))
                 except InputError as exc:
                     print(f"tactex prepare: skipped {path}: {exc}", file=sys.stderr)
             if xs:

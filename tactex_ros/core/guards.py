@@ -26,6 +26,10 @@
   a touch is kept, flagged, and described over its contact region only
   (``texture.describe_difference(d, region)``), as if the contact filled the frame.
 
+- **A recorded press** (``press_verdict``): the guard's check of one press against its own
+  no-contact frame, for presses that reach a descriptor without a trial (``tactex prepare``'s
+  library, the lab's cached replays), so they keep only what a trial on the robot would keep.
+
 - **Degenerate scores**: handled where the choice is made (``strategies.break_ties``); the engine
   flags rounds whose scores are all equal (``RoundRecord.degenerate``).
 - **Diverging training**: handled in the learner (gradient clipping, non-finite steps skipped,
@@ -114,3 +118,12 @@ class ContactGuard:
                                 self.with_height_map)
         return True, (f"partial contact: region {share:.2f} < {self.region_min:g} of the "
                       "frame, described over the region"), replace(touch, descriptor=x)
+
+
+def press_verdict(touch: Touch, flat_min: float = 0.35, contact_min: float = 0.8
+                  ) -> tuple[bool, str]:
+    """``ContactGuard.check`` of a recorded press's frame with the press's own no-contact frame
+    as the reference (the flatness check only when it has none): (ok, reason or '')."""
+    guard = ContactGuard(flat_min, contact_min)
+    guard.set_reference(touch.no_contact)
+    return guard.check(touch.frame)

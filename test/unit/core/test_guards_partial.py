@@ -7,7 +7,7 @@ import pytest
 from tactex_ros.core.config import preset
 from tactex_ros.core.engine import TrialConfig, TrialEngine
 from tactex_ros.core.errors import InputError
-from tactex_ros.core.guards import ContactGuard, contact_region
+from tactex_ros.core.guards import ContactGuard, contact_region, press_verdict
 from tactex_ros.core.texture import (DIM, PARTS, contact_difference, describe_difference,
                                      height_map)
 from tactex_ros.core.touch import Touch
@@ -92,3 +92,21 @@ def test_engine_stores_the_partial_touch_described_over_its_region():
     assert np.array_equal(want[DIM:], height_map(d))
     assert stored["off"][0].descriptor is None                    # the guard's test is off
     assert engines["on"].touches.tolist() == [1, 0] and engines["on"].failed == []
+
+
+def test_press_verdict_checks_a_press_against_its_own_no_contact_frame():
+    """A recorded press is judged as a trial would judge it, with its own no-contact frame as
+    the guard's reference: the no-contact frame itself has score 0 (rejected), a press 2 grey
+    levels brighter with texture on the whole gel is accepted, a flat frame is blank."""
+    t = _half_touch()
+    nc = t.no_contact
+    assert press_verdict(Touch(frame=nc, no_contact=nc))[0] is False
+    whole = Touch(frame=_half_touch().frame[:, list(range(160)) * 2], no_contact=nc)
+    assert press_verdict(whole) == (True, "")
+    flat = np.full((240, 320, 3), 100, np.uint8)
+    ok, reason = press_verdict(Touch(frame=flat, no_contact=nc))
+    assert not ok and reason.startswith("blank frame")
+    # without a no-contact frame only the flatness check runs
+    assert press_verdict(Touch(frame=nc)) == (True, "")
+    # the thresholds are the caller's (the learner settings' contact_min)
+    assert press_verdict(Touch(frame=nc, no_contact=nc), contact_min=0.0) == (True, "")

@@ -173,6 +173,30 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
 
 
 @pytest.mark.slow
+def test_prepare_skips_a_press_the_contact_guard_rejects(octopi_dir, tmp_path, capsys):
+    """A library press without contact (a real press's first frame, held) is left out of the
+    representation, as a trial's contact guard refuses it on the robot; the real presses stay."""
+    import cv2
+    from tactex_ros.sources.replay import read_video
+    lib = tmp_path / "lib"
+    for cls in ("rice", "millet", "sponge"):
+        (lib / cls).mkdir(parents=True)
+        for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
+            (lib / cls / f.name).symlink_to(f)
+    first = read_video(sorted((octopi_dir / "rice").glob("*.mov"))[0])[0]
+    w = cv2.VideoWriter(str(lib / "rice" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                        (320, 240))
+    for _ in range(9):
+        w.write(first)
+    w.release()
+    out = tmp_path / "rep.npz"
+    assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--kind",
+                 "whiten", "--calibration", "off", "--embedding", "none"]) == 0
+    assert rp.load(out).presses == 6 and rp.load(out).classes == 3
+    assert "held.avi" in capsys.readouterr().err
+
+
+@pytest.mark.slow
 def test_prepare_calibrates_the_temperature_with_classes_left_out(octopi_dir, tmp_path):
     """`tactex prepare --calibration target` on 12 real classes (2 presses each): the file holds
     a temperature and what the left-out trials measured; a trial uses it."""
