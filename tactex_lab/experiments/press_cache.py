@@ -115,19 +115,52 @@ def cached(root: str | Path, cache_dir: str | Path, candidates: bool = False,
     return load_cache(path)
 
 
+def add_contact_verdicts(cache: dict[str, np.ndarray], root: str | Path,
+                         cache_dir: str | Path) -> None:
+    """``cache["contact_ok"]`` (n,) bool: the product's contact guard on each press, against
+    its own no-contact frame (``core.guards.press_verdict`` at the shipped learner's
+    ``contact_flat_min`` / ``contact_min``), as a trial on the robot judges it. Kept in
+    ``<cache_dir>/<folder>_contact.npz`` beside the feature cache (checked against its paths)."""
+    from tactex_ros.core.config import preset
+    from tactex_ros.core.guards import press_verdict
+    from tactex_ros.sources.replay import ReplaySource
+    cfg = preset("default")
+    path = Path(cache_dir) / f"{Path(root).name}_contact.npz"
+    if path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            if (z["path"].shape == cache["path"].shape and (z["path"] == cache["path"]).all()
+                    and float(z["contact_min"]) == cfg.contact_min
+                    and float(z["flat_min"]) == cfg.contact_flat_min):
+                cache["contact_ok"] = z["ok"]
+                return
+    src = ReplaySource(root)
+    ok = np.array([press_verdict(src.touch(Path(p)), cfg.contact_flat_min, cfg.contact_min)[0]
+                   for p in cache["path"]])
+    np.savez(path, path=cache["path"], ok=ok, contact_min=cfg.contact_min,
+             flat_min=cfg.contact_flat_min)
+    cache["contact_ok"] = ok
+
+
 def by_class(cache: dict[str, np.ndarray], feature: str) -> dict[str, np.ndarray]:
-    """{class: (n_c, D') feature vectors} (of a library: pass ``library_view(cache)``)."""
+    """{class: (n_c, D') feature vectors} (of a library: pass ``library_view(cache)``); with
+    ``contact_ok`` in the cache (``add_contact_verdicts``) only the presses the guard accepts."""
     x = FEATURES[feature](cache)
-    return {c: x[cache["cls"] == c] for c in sorted(set(cache["cls"].tolist()))}
+    keep = cache.get("contact_ok", np.ones(len(x), bool))
+    return {c: x[(cache["cls"] == c) & keep] for c in sorted(set(cache["cls"].tolist()))}
 
 
 class CachedPresses:
-    """A ReplaySource look-alike whose touches carry their cached feature vector."""
+    """A ReplaySource look-alike whose touches carry their cached feature vector; a press
+    marked ``rejected`` ((n,) bool, e.g. ``~contact_ok``) fails when touched, as a press the
+    contact guard refuses on the robot: the engine records it and presses again (its retries
+    draw another press of the class)."""
 
     one_session = False
 
-    def __init__(self, x: np.ndarray, cls: np.ndarray) -> None:
+    def __init__(self, x: np.ndarray, cls: np.ndarray, rejected: np.ndarray | None = None
+                 ) -> None:
         self.x = x
+        self.rejected = np.zeros(len(x), bool) if rejected is None else np.asarray(rejected)
         self.rows = {c: list(np.flatnonzero(cls == c)) for c in set(cls.tolist())}
 
     def check_class(self, c: str) -> None:
@@ -138,4 +171,7 @@ class CachedPresses:
         return self.rows[c]
 
     def touch(self, row: int) -> Touch:
+        if self.rejected[row]:
+            from tactex_ros.core.engine import TouchFailed
+            raise TouchFailed(f"cached press {row}: no contact (the contact guard)")
         return Touch(belief_calibration.PLACEHOLDER_FRAME, None, None, self.x[row])

@@ -47,7 +47,8 @@ from tactex_lab.analysis import metric_screen
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.analysis.learned_features import AUGS, SIM_VARIANTS, library_view
-from tactex_lab.experiments.press_cache import FEATURES, CachedPresses, by_class, cached
+from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, add_contact_verdicts,
+                                                by_class, cached)
 from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
 
 
@@ -181,7 +182,8 @@ def scene_curves(setting: Setting, rep: representation.Representation | None,
     ``match_temperature`` (None: the preset's)."""
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources.replay import ReplayTrial
-    src = CachedPresses(FEATURES[setting.feature](cache), cache["cls"])
+    src = CachedPresses(FEATURES[setting.feature](cache), cache["cls"],
+                        None if "contact_ok" not in cache else ~cache["contact_ok"])
     cfg = preset("descriptor", guards=False,
                  **({} if temperature is None else {"match_temperature": temperature}))
     tcfg = TrialConfig(strategy="infogain", rounds=budget, stop_confidence=0.0)
@@ -345,6 +347,13 @@ def run_unseen(args: argparse.Namespace) -> dict:
         write_json(out / "metric_screen.json", rows)
         return {"metric_screen": rows}
     families = read_families(args.families) if args.families else None
+    if args.contact_guard == "on":
+        for name, root in (("a", args.a), ("b", args.b)):
+            add_contact_verdicts(caches[name], root, args.cache_dir)
+            off = caches[name]["path"][~caches[name]["contact_ok"]]
+            print(f"{root}: {len(off)} of {len(caches[name]['path'])} presses without contact "
+                  f"(the contact guard; re-pressed in a trial, not in the library): "
+                  f"{', '.join(off.tolist()) or 'none'}", flush=True)
     both = {}
     for test, lib in (("a", "b"), ("b", "a")):
         name = f"{Path(getattr(args, test)).name}_with_{Path(getattr(args, lib)).name}"
@@ -353,6 +362,9 @@ def run_unseen(args: argparse.Namespace) -> dict:
         summary = run_direction(settings, caches[test], caches[lib], args,
                                 Path(getattr(args, test)).name, families)
         summary.update(test=getattr(args, test), library=getattr(args, lib),
+                       contact_rejected={getattr(args, side): caches[side]["path"][~caches[side]["contact_ok"]]
+                                         .tolist() for side in (test, lib)
+                                         if "contact_ok" in caches[side]},
                        settings={s.label: s.to_dict() for s in settings})
         print(f"== test {getattr(args, test)}, library {getattr(args, lib)}")
         write_outputs(d, summary, labels, args)
@@ -434,6 +446,11 @@ def register(esub: argparse._SubParsersAction) -> None:
                    help="summary.json of tactex experiment families (several: one per "
                         "--held-out run): the temperatures of settings with temperature:"
                    + "|".join(FAMILY_CHOICES))
+    p.add_argument("--contact-guard", choices=("on", "off"), default="on",
+                   help="on: a press the product's contact guard rejects (no contact against its "
+                        "own no-contact frame) is re-pressed in a trial and left out of the "
+                        "library, as on the robot; off: every press counts (the figures before "
+                        "this option)")
     p.add_argument("--comparisons", type=int, default=4)
     p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")

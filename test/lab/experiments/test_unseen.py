@@ -168,3 +168,73 @@ def test_a_temperature_chosen_on_the_sim_family_is_the_calibrations_target():
     assert report["wrong_stop"]["0.9"] <= unseen.SIM_GOAL
     sharp, _ = unseen.sim_temperature(s, rep, family(0.05), seed=0)
     assert sharp >= beta
+
+
+def test_a_press_without_contact_is_pressed_again_and_left_out_of_the_library():
+    """A cached press the contact guard rejects (``contact_ok`` False) fails when touched, the
+    engine presses again (another press of the class), and the library leaves it out. Its
+    vector is NaN: had the trial or the library used it, the belief would not be finite."""
+    from tactex_ros.core.config import TrialConfig, preset
+    from tactex_ros.core.engine import TouchFailed, TrialSpec, run_trial
+    from tactex_ros.sources.replay import ReplayTrial
+    rng = np.random.default_rng(3)
+    cls = np.repeat(np.array(["a", "b", "c", "d", "e"]), 3)
+    x = rng.normal(0, 1, (15, 106)) + np.repeat(rng.normal(0, 3, (5, 106)), 3, axis=0)
+    bad = 4                                           # the second press of class "b"
+    x[bad] = np.nan
+    ok = np.ones(15, bool)
+    ok[bad] = False
+    cache = {"cls": cls, "f0": x, "contact_ok": ok}
+    lib = press_cache.by_class(cache, "frame")
+    assert [len(v) for v in lib.values()] == [3, 2, 3, 3, 3]
+    assert np.isfinite(lib["b"]).all()
+    src = press_cache.CachedPresses(x, cls, ~ok)
+    with pytest.raises(TouchFailed):
+        src.touch(bad)
+    plat = ["b", "a", "b", "c", "d"]
+    draws = ReplayTrial(src, plat, 1)
+    got, failed = [], 0
+    for _ in range(3):                                # every press of "b", the bad one once
+        try:
+            got.append(draws(0 if not got else 2).descriptor)
+        except TouchFailed:
+            failed += 1
+    assert failed == 1 and len(got) == 2 and all(np.isfinite(g).all() for g in got)
+    # a whole trial: the failed press is recorded, the belief stays finite
+    cfg = preset("descriptor", guards=False, descriptor_height_map=False)
+    tcfg = TrialConfig(strategy="infogain", rounds=6, stop_confidence=0.0)
+    hit = False
+    for seed in range(6):
+        res = run_trial(TrialSpec(4, cfg, tcfg, seed=seed), ReplayTrial(src, plat, seed),
+                        truth=2)
+        assert np.isfinite(res.final.probs).all()
+        hit |= len(res.failed_touches) > 0
+    assert hit
+
+
+@pytest.mark.slow
+def test_contact_verdicts_are_the_guards_on_each_press(octopi_dir, tmp_path):
+    """``add_contact_verdicts``: real presses pass, a press whose frames are all its first
+    (no-contact) frame fails; the verdicts are kept beside the cache and reused."""
+    import cv2
+    from tactex_ros.sources.replay import read_video
+    lib = tmp_path / "lib"
+    for cls in ("rice", "tissue"):
+        (lib / cls).mkdir(parents=True)
+        for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
+            (lib / cls / f.name).symlink_to(f)
+    first = read_video(sorted((octopi_dir / "rice").glob("*.mov"))[0])[0]
+    w = cv2.VideoWriter(str(lib / "rice" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                        (320, 240))
+    for _ in range(9):
+        w.write(first)
+    w.release()
+    cache = {"path": np.array([str(p) for c in ("rice", "tissue")
+                               for p in sorted((lib / c).iterdir())])}
+    press_cache.add_contact_verdicts(cache, lib, tmp_path)
+    assert cache["contact_ok"].tolist() == [True, True, False, True, True]
+    kept = tmp_path / "lib_contact.npz"
+    made = kept.stat().st_mtime_ns
+    again = {"path": cache["path"]}
+    press_cache.add_contact_verdicts(again, lib, tmp_path)
+    assert kept.stat().st_mtime_ns == made and (again["contact_ok"] == cache["contact_ok"]).all()
