@@ -33,8 +33,8 @@ from tactex_lab.analysis import charts
 from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired, wilson
 from tactex_lab.experiments.common import results_dir, write_json
 from tactex_lab.experiments.curves import BeliefCurve, at_stop, curve
-from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, build_cache,
-                                                load_cache)
+from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses,
+                                                add_contact_verdicts, build_cache, load_cache)
 
 def arm_names(weights: list[float]) -> list[str]:
     """'off' (today's belief) and one learning arm per evidence weight: 'on' for the shipped
@@ -55,11 +55,13 @@ def study_scenes(classes: list[str], trials: int, comparisons: int, seed: int
 
 
 def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, budget: int,
-                  library: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT
+                  library: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT,
+                  rejected: np.ndarray | None = None
                   ) -> tuple[BeliefCurve, list[tuple[int, str]]]:
     """One trial on the cached presses (no stop rule, ``budget`` touches after the baseline):
-    its belief curve and the (platform, press row) it touched. With ``library`` the belief asks
-    it, less the videos touched so far."""
+    its belief curve and the (platform, press row) it touched (a ``rejected`` press included:
+    it failed and was pressed again, ``CachedPresses``). With ``library`` the belief asks it,
+    less the videos touched so far."""
     from tactex_ros.core.engine import TrialSpec
     from tactex_ros.sources.replay import ReplayTrial
     # the cached "frame" feature: the descriptor without the height map (the study's)
@@ -69,7 +71,7 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
                                                       stop_confidence=0.0),
                      seed=seed, library=library)
     eng = spec.engine()
-    replay = ReplayTrial(CachedPresses(x, cls), scene, seed)
+    replay = ReplayTrial(CachedPresses(x, cls, rejected), scene, seed)
     touched: set[str] = set()
 
     def touch(platform: int):
@@ -86,9 +88,11 @@ def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, b
 
 
 def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namespace,
-                log: Callable[[str], None] = print) -> list[dict]:
+                log: Callable[[str], None] = print, rejected: np.ndarray | None = None
+                ) -> list[dict]:
     """One replayed session of ``args.trials`` trials, learning off and on with each of
-    ``args.weights`` (paired: the same touches)."""
+    ``args.weights`` (paired: the same touches). A ``rejected`` press (the contact guard's)
+    fails when touched and never joins the library, as a refused touch on the robot."""
     classes = sorted(set(cls.tolist()))
     lib = FabricLibrary()
     rows = []
@@ -101,7 +105,8 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
         logs = {}
         for arm, w in zip(arm_names(args.weights), [None] + list(args.weights)):
             c, logs[arm] = run_trial_arm(x, cls, scene, seed * 1000 + t, args.budget,
-                                         None if w is None else lib, w or EVIDENCE_WEIGHT)
+                                         None if w is None else lib, w or EVIDENCE_WEIGHT,
+                                         rejected)
             ok, extra, sure = at_stop(c, args.stop)
             row[arm] = {"correct": bool(ok), "touches_after_baseline": int(extra),
                         "stopped": bool(sure), "wrong_stop": bool(sure and not ok),
@@ -109,7 +114,8 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
         if any(v != logs["off"] for v in logs.values()):
             raise RuntimeError(f"trial {t + 1}: the arms touched different presses")
         for platform, video in logs["off"]:
-            lib = lib.add(scene[platform], x[int(video)], [video])
+            if rejected is None or not rejected[int(video)]:
+                lib = lib.add(scene[platform], x[int(video)], [video])
         rows.append(row)
         log(f"seed {seed} trial {t + 1:2d} ref known {row['reference_known']!s:5} "
             + "  ".join(f"{a} {row[a]['correct']!s:5} {row[a]['touches_after_baseline']:2d}"
@@ -171,12 +177,18 @@ def run(args: argparse.Namespace) -> dict:
             build_cache(root, path)
         cache = load_cache(path)
         x, cls = FEATURES["frame"](cache), cache["cls"]
+        rejected = None
+        if args.contact_guard == "on":
+            add_contact_verdicts(cache, root, args.cache_dir)
+            rejected = ~cache["contact_ok"]
         rows = []
         for s in range(args.sessions):
-            rows += run_session(x, cls, args.seed + s, args)
+            rows += run_session(x, cls, args.seed + s, args, rejected=rejected)
         arms = arm_names(args.weights)
         results[Path(root).name] = {"sessions": args.sessions, "classes": len(set(cls.tolist())),
                                     "presses": int(len(cls)), "arms": arms,
+                                    "contact_rejected": ([] if rejected is None else
+                                                         cache["path"][rejected].tolist()),
                                     "weights": list(args.weights),
                                     "summary": summarise(rows, args.blocks, arms),
                                     "trials": rows}
@@ -207,6 +219,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--sessions", type=int, default=3, help="replayed sessions per library")
     p.add_argument("--trials", type=int, default=32, help="trials per session (the thesis's)")
     p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--contact-guard", choices=("on", "off"), default="on",
+                   help="on: a press the product's contact guard rejects is pressed again and "
+                        "never joins the library, as on the robot; off: every press counts")
     p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
     p.add_argument("--stop", type=float, default=SHIPPED_STOP,
                    help="stop threshold applied to the belief after every decision")

@@ -59,3 +59,22 @@ def test_a_replayed_session_learns_and_its_arms_are_paired():
     s = fl.summarise(rows, 1, fl.arm_names(args.weights))
     assert s["all"]["n"] == 5 and s["reference_new"]["n"] + s["reference_known"]["n"] == 5
     assert "mcnemar_vs_off" in s["all"]["on"] and "mcnemar_vs_off" not in s["all"]["off"]
+
+
+
+def test_a_press_without_contact_never_joins_the_library():
+    """A press the contact guard rejects is pressed again in the session's trials and never
+    filed in the library; every other press a trial touched is."""
+    x, cls = _presses()
+    rejected = np.zeros(len(x), bool)
+    rejected[[1, 9, 13, 17]] = True                  # one press of c0, c2, c3 and c4
+    args = argparse.Namespace(trials=6, comparisons=4, budget=3, stop=0.9, weights=[0.25])
+    rows = fl.run_session(x, cls, seed=2, args=args, log=lambda text: None, rejected=rejected)
+    filed: set[str] = set()
+    touched_bad = 0
+    for t, (row, scene) in enumerate(zip(rows, fl.study_scenes(CLASSES, 6, 4, 2))):
+        assert row["library"]["presses"] == len(filed)
+        log = fl.run_trial_arm(x, cls, scene, 2 * 1000 + t, 3, None, rejected=rejected)[1]
+        touched_bad += sum(bool(rejected[int(v)]) for _, v in log)
+        filed |= {v for _, v in log if not rejected[int(v)]}
+    assert touched_bad > 0                            # the scenes did touch a rejected press
