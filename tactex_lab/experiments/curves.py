@@ -147,11 +147,14 @@ def at_stop(c: BeliefCurve, theta: float) -> tuple[bool, int, bool]:
 
 def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, seed: int,
                   budget: int, tag: str, backend: Backend = Backend(), threads: int = 1,
-                  quiet: bool = False) -> dict[str, list[BeliefCurve]]:
+                  quiet: bool = False, contact_guard: bool = False
+                  ) -> dict[str, list[BeliefCurve]]:
     """Run every scene (``[reference, comparisons...]`` classes) with every setting of
     ``parse_setting`` on ``source``, no stop rule, ``budget`` touches after the baseline; scene
     i has seed ``seed + i`` for every setting (paired). Returns {label: [curve per scene]}
-    (``BeliefCurve``s with their scene's ``classes``)."""
+    (``BeliefCurve``s with their scene's ``classes``). ``contact_guard``: a press without
+    contact against its own no-contact frame is refused and pressed again, as on the robot
+    (``TrialJob.contact_guard``)."""
     jobs = []
     for i, classes in enumerate(scenes):
         for label, pre, strategy, over in settings:
@@ -160,7 +163,7 @@ def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, s
                                                     stop_confidence=0.0), preset=pre,
                                  overrides=over, platform_classes=classes,
                                  comparisons=len(classes) - 1, catch_errors=True,
-                                 no_contact_reference=False,
+                                 no_contact_reference=False, contact_guard=contact_guard,
                                  trial_id=f"{tag}{i}", tags={"setting": label, "set": tag}))
     res = run_jobs(jobs, backend, threads=threads, description=f"{tag} scenes x settings",
                    quiet=quiet)

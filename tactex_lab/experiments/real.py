@@ -53,7 +53,8 @@ DEFAULT_SETTINGS = ("default=default", "random=default:trial.strategy=random",
 
 def _run(scenes, settings, args, tag) -> dict[str, list[BeliefCurve]]:
     return belief_curves(scenes, settings, args.source, args.seed, args.budget, tag,
-                         backend_of(args), args.threads, args.quiet)
+                         backend_of(args), args.threads, args.quiet,
+                         contact_guard=args.contact_guard == "on")
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -78,6 +79,10 @@ def register(esub: argparse._SubParsersAction) -> None:
                                      "(class-disjoint folds)")
     p.add_argument("--source", required=True, help="replay:DIR of recorded presses")
     p.add_argument("--comparisons", type=int, default=4)
+    p.add_argument("--contact-guard", choices=("on", "off"), default="on",
+                   help="on: a press the contact guard rejects against its own no-contact frame "
+                        "is refused and pressed again, as on the robot; off: every press counts "
+                        "(the figures before this option)")
     p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
     p.add_argument("--folds", type=int, default=3, help="class folds (1 = no choosing)")

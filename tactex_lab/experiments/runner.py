@@ -172,11 +172,14 @@ class TrialJob:
     tags: dict[str, Any] = field(default_factory=dict)   # free labels carried to the result
     catch_errors: bool = False    # a trial that raises gives a result with "error" (not a crash)
     no_contact_reference: bool = True   # give the engine a no-contact frame when the source can
+    # judge every touch with the contact guard against its own no-contact frame, as on the
+    # robot (a recorded press without contact fails and is pressed again; core.guards)
+    contact_guard: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """The file form (results, caches): the job's fields with its trial settings in their
         place, ``JOB_TRIAL_FIELDS`` always and any other ``TrialConfig`` field that is not the
-        default."""
+        default; ``contact_guard`` only when on (a file of an earlier job reads the same)."""
         given, shipped = self.trial.model_dump(), TrialConfig().model_dump()
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
@@ -184,7 +187,7 @@ class TrialJob:
                 out.update({k: given[k] for k in JOB_TRIAL_FIELDS})
                 out.update({k: v for k, v in given.items()
                             if k not in JOB_TRIAL_FIELDS and v != shipped[k]})
-            else:
+            elif f.name != "contact_guard" or self.contact_guard:   # new: named when on
                 out[f.name] = copy.deepcopy(getattr(self, f.name))
         return out
 
@@ -235,7 +238,9 @@ def apply_perturbation(img: np.ndarray, perturb: dict[str, Any],
 
 
 def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
-    """The job's touch function: its source's, perturbed as ``job.perturb`` says. Keys:
+    """The job's touch function: its source's, perturbed as ``job.perturb`` says, and with
+    ``job.contact_guard`` refused (``TouchFailed``: the engine presses again) where the
+    learner's contact guard finds no contact against the touch's own no-contact frame. Keys:
     ``depth_spread`` (the source's), ``touch`` = [kind, severity] (every touch of the trial
     through ``sources.perturb.Perturbation``, seeded by the job's seed), and the frame
     perturbations of ``apply_perturbation``."""
@@ -249,15 +254,31 @@ def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
         def whole(p: int) -> Touch:
             return per(as_touch(base(p)))
     keys = {k for k, v in job.perturb.items() if k not in ("depth_spread", "touch") and v}
-    if not keys:
-        return whole
-    rng = np.random.default_rng([job.seed, 31])
+    out = whole
+    if keys:
+        rng = np.random.default_rng([job.seed, 31])
 
-    def perturbed(p: int) -> Touch:
-        t = as_touch(whole(p))
-        return replace(t, frame=apply_perturbation(t.frame, job.perturb, rng))
+        def out(p: int) -> Touch:
+            t = as_touch(whole(p))
+            return replace(t, frame=apply_perturbation(t.frame, job.perturb, rng))
+    if not job.contact_guard:
+        return out
+    from tactex_ros.core.config import preset
+    from tactex_ros.core.engine import TouchFailed
+    from tactex_ros.core.guards import press_verdict
+    cfg = preset(job.preset, **job.overrides)
+    if not getattr(cfg, "guards", False):
+        return out
+    made = out
 
-    return perturbed
+    def guarded(p: int) -> Touch:
+        t = as_touch(made(p))
+        ok, reason = press_verdict(t, cfg.contact_flat_min, cfg.contact_min)
+        if not ok:
+            raise TouchFailed(f"touch of platform {p} refused: {reason}")
+        return t
+
+    return guarded
 
 
 @dataclass

@@ -238,3 +238,42 @@ def test_contact_verdicts_are_the_guards_on_each_press(octopi_dir, tmp_path):
     again = {"path": cache["path"]}
     press_cache.add_contact_verdicts(again, lib, tmp_path)
     assert kept.stat().st_mtime_ns == made and (again["contact_ok"] == cache["contact_ok"]).all()
+
+
+@pytest.mark.slow
+def test_cached_and_replayed_trials_refuse_the_same_press_without_contact(small_library,
+                                                                          tmp_path):
+    """With a press without contact in a class, the cached trials (its verdict in the cache)
+    and the replayed trials (``contact_guard``: each touch judged against its own no-contact
+    frame) press again the same way and give the same curves; without the guard the replayed
+    trials differ in some scene (the bad press was drawn and counted)."""
+    import cv2
+    from tactex_ros.sources.replay import read_video
+    lib = tmp_path / "lib"
+    for d in sorted(small_library.iterdir()):
+        (lib / d.name).mkdir(parents=True)
+        for f in sorted(d.iterdir()):
+            (lib / d.name / f.name).symlink_to(f.resolve())
+    first = read_video(sorted((lib / "rice").iterdir())[0])[0]
+    w = cv2.VideoWriter(str(lib / "rice" / "0held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                        (320, 240))
+    for _ in range(9):
+        w.write(first)
+    w.release()
+    cache = press_cache.load_cache(press_cache.build_cache(lib, tmp_path / "c.npz"))
+    press_cache.add_contact_verdicts(cache, lib, tmp_path)
+    assert (~cache["contact_ok"]).sum() == 1
+    classes = sorted(set(cache["cls"].tolist()))
+    scenes = [["rice"] + s for s in (["rice", "millet", "sponge", "tissue"],
+                                     ["basket", "rice", "tissue", "sponge"],
+                                     ["millet", "tissue", "rice", "basket"])]
+    scenes += draw_scenes(classes, 2, 3, 7)
+    mine = unseen.scene_curves(unseen.Setting("d"), None, cache, scenes, seed=5, budget=4)
+    setting = [parse_setting("d=descriptor:learner.descriptor_height_map=false")]
+    theirs = belief_curves(scenes, setting, f"replay:{lib}", 5, 4, "t", quiet=True,
+                           contact_guard=True)["d"]
+    for a, b in zip(mine, theirs):
+        assert a.extra == b.extra and a.correct == b.correct
+        np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
+    counted = belief_curves(scenes, setting, f"replay:{lib}", 5, 4, "t", quiet=True)["d"]
+    assert any(not np.allclose(a.conf, b.conf) for a, b in zip(theirs, counted))
