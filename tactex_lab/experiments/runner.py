@@ -264,21 +264,8 @@ def _touch_fn(job: TrialJob, classes: list[str]) -> Callable[[int], Touch]:
     if not job.contact_guard:
         return out
     from tactex_ros.core.config import preset
-    from tactex_ros.core.engine import TouchFailed
-    from tactex_ros.core.guards import press_verdict
-    cfg = preset(job.preset, **job.overrides)
-    if not getattr(cfg, "guards", False):
-        return out
-    made = out
-
-    def guarded(p: int) -> Touch:
-        t = as_touch(made(p))
-        ok, reason = press_verdict(t, cfg.contact_flat_min, cfg.contact_min)
-        if not ok:
-            raise TouchFailed(f"touch of platform {p} refused: {reason}")
-        return t
-
-    return guarded
+    from tactex_ros.core.engine import refusing_no_contact
+    return refusing_no_contact(out, preset(job.preset, **job.overrides))
 
 
 @dataclass

@@ -35,7 +35,7 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights", "learner.
 def cmd_trial(args: argparse.Namespace) -> int:
     from ..core.config import TrialSettings
     from ..core.schema import merge, overrides
-    from ..core.engine import TrialSpec, default_platform_ids, run_trial
+    from ..core.engine import TrialSpec, default_platform_ids, refusing_no_contact, run_trial
     from ..sources import open_source, trial_scene
     given = merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
                   overrides(TrialSettings, args.set, "--set"))
@@ -59,7 +59,9 @@ def cmd_trial(args: argparse.Namespace) -> int:
     n = len(platform_classes) - 1
     ids = default_platform_ids(n)
     spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
-    touch = src.trial(platform_classes, args.seed)
+    # each touch judged against its own no-contact frame: a replay's presses come from
+    # separate sensor sessions (on the robot, one camera's frame serves every touch)
+    touch = refusing_no_contact(src.trial(platform_classes, args.seed), cfg)
 
     import numpy as np
 

@@ -548,6 +548,27 @@ class TrialEngine:
         return False
 
 
+def refusing_no_contact(touch_fn: Callable[[int], "Touch | np.ndarray"],
+                        cfg: LearnerSettings) -> Callable[[int], Touch]:
+    """``touch_fn`` whose touches the learner's contact guard judges against the no-contact
+    frame each one carries (``guards.press_verdict``; ``cfg.guards`` off: ``touch_fn`` as
+    is): a touch without contact raises ``TouchFailed`` and the engine presses again. For
+    touches recorded in separate sensor sessions (a replay), where the trial's one no-contact
+    reference would not be theirs; on the robot every touch carries the camera's one."""
+    if not getattr(cfg, "guards", False):
+        return touch_fn
+    from .guards import press_verdict
+
+    def judged(platform: int) -> Touch:
+        t = as_touch(touch_fn(platform))
+        ok, reason = press_verdict(t, cfg.contact_flat_min, cfg.contact_min)
+        if not ok:
+            raise TouchFailed(f"touch of platform {platform} refused: {reason}")
+        return t
+
+    return judged
+
+
 #: Layout of ``TrialEngine.checkpoint``'s state (a reader refuses another one).
 CHECKPOINT_VERSION = 1
 

@@ -197,6 +197,38 @@ def test_prepare_skips_a_press_the_contact_guard_rejects(octopi_dir, tmp_path, c
 
 
 @pytest.mark.slow
+def test_a_replayed_trial_presses_again_where_a_recording_has_no_contact(octopi_dir, tmp_path):
+    """`tactex trial --source replay:DIR` judges every press against its own no-contact frame
+    (recordings of separate sessions): a held frame of another class's press is refused and
+    pressed again (a failed touch in the result), as the robot refuses a press without contact.
+    """
+    import cv2
+    from tactex_ros.sources.replay import read_video
+    lib = tmp_path / "lib"
+    for cls in ("rice", "millet", "sponge"):
+        (lib / cls).mkdir(parents=True)
+        for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
+            (lib / cls / f.name).symlink_to(f)
+    first = read_video(sorted((octopi_dir / "tissue").glob("*.mov"))[0])[0]
+    w = cv2.VideoWriter(str(lib / "millet" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
+                        (320, 240))
+    for _ in range(9):
+        w.write(first)
+    w.release()
+    refused = 0
+    for seed in range(4):
+        js = tmp_path / f"t{seed}.json"
+        assert main(["trial", "--source", f"replay:{lib}", "--classes", "rice,millet,sponge",
+                     "--reference", "millet", "--seed", str(seed), "--set",
+                     "trial.rounds=4", "--set", "trial.stop_confidence=1.0", "--json", str(js),
+                     "--quiet"]) == 0
+        d = json.loads(js.read_text())
+        refused += sum("no contact" in f["reason"] for f in d["failed_touches"])
+        assert all("no contact" in f["reason"] for f in d["failed_touches"])
+    assert refused >= 1
+
+
+@pytest.mark.slow
 def test_prepare_calibrates_the_temperature_with_classes_left_out(octopi_dir, tmp_path):
     """`tactex prepare --calibration target` on 12 real classes (2 presses each): the file holds
     a temperature and what the left-out trials measured; a trial uses it."""
