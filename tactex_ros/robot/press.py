@@ -8,7 +8,7 @@ commands the equilibrium *below* the surface, and trusts neither the scene's sur
 ``K``:
 
 ``approach`` (lift to a safe height, travel above the platform, go to the approach point
-``approach_height`` above its surface, braking into it at ``APPROACH_BRAKE_M_S2``) -> ``tare``
+``approach_height`` above its surface, braking into it at ``approach_brake``) -> ``tare``
 (at the approach point and at rest, the normal force's offset is the median over
 ``tare_window_s``; it settles when the spread over the window is small and the arm does not
 move; not settled within ``tare_deadline_s``, or an offset above ``tare_max_offset_n``,
@@ -112,6 +112,18 @@ def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
 #: sim profile's law (1000 N/m, 2 sqrt(K) N s/m) overshoots a target that stops from 0.4 m/s by
 #: 4.7 mm (6 kg: 12 mm); braking at 1 m/s^2 leaves 1.5 mm (docs/simulated_world.md).
 APPROACH_BRAKE_M_S2 = 1.0
+#: [kg] the heaviest apparent mass the brake is sized for (the heaviest arm of the simulated
+#: world's measurements): braking at a, an arm of mass m leads its target by m a / K.
+BRAKE_MASS_KG = 6.0
+
+
+def approach_brake(stiffness: float, approach_height: float) -> float:
+    """The target's deceleration into the approach point [m/s^2] for controller stiffness
+    ``stiffness`` [N/m] and the scene's ``approach_height`` [m]: ``APPROACH_BRAKE_M_S2``, or
+    less where an arm of ``BRAKE_MASS_KG`` braking at it would lead its target by more than
+    half the approach height (with 1 m/s^2, a 6 kg arm 5 mm above the fabric under 1000 N/m
+    hit it at 31.9 N after a 0.1 m descent)."""
+    return min(APPROACH_BRAKE_M_S2, stiffness * approach_height / (2.0 * BRAKE_MASS_KG))
 
 
 @dataclass
@@ -264,6 +276,7 @@ class PressController:
         # jump it (a step makes an impedance-controlled arm overshoot)
         self.max_move_dt = 2.0 * period_s
         self.scene, self.platform, self.s, self.k = scene, platform, scene.press, stiffness
+        self.brake = approach_brake(stiffness, self.s.approach_height)   # [m/s^2]
         self.wants_capture = capture
         surface = np.asarray(platform.position, dtype=float)
         self.surface_z = surface[2]
@@ -425,12 +438,12 @@ class PressController:
 
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
         """Through the waypoints (lift, travel, approach point); then tare. Into the approach
-        point the target slows at ``APPROACH_BRAKE_M_S2``: an impedance-controlled arm lags
+        point the target slows at ``approach_brake``: an impedance-controlled arm lags
         its moving target and overshoots where the target stops, towards the surface."""
         speed = self.s.travel_speed
         if len(self._waypoints) == 1:
             left = float(np.linalg.norm(self._waypoints[0] - self.target))
-            speed = min(speed, math.sqrt(2.0 * APPROACH_BRAKE_M_S2 * left))
+            speed = min(speed, math.sqrt(2.0 * self.brake * left))
         if self._arrive(self._waypoints[0], speed, position, dt):
             self._waypoints.pop(0)
             if not self._waypoints:

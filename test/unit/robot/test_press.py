@@ -13,8 +13,10 @@ import pytest
 
 from tactex_ros.core.errors import InputError
 from tactex_ros.paths import config_dir, config_names
-from tactex_ros.robot.mock_world import ArmModel, ControlLaw, Faults, platform_under
-from tactex_ros.robot.press import DONE, SETTLE, PressController, check_press, equilibrium_floor
+from tactex_ros.robot.mock_world import (ArmModel, ControlLaw, Faults, platform_under,
+                                        press_in_worlds)
+from tactex_ros.robot.press import (DONE, SETTLE, PressController, approach_brake, check_press,
+                                    equilibrium_floor)
 from tactex_ros.robot.robots import load_profile
 from tactex_ros.robot.scene import load_scene
 
@@ -177,7 +179,7 @@ def test_force_limit_holds_at_every_sample_over_stiffnesses() -> None:
 def test_the_approach_from_high_above_stops_short_of_a_close_surface() -> None:
     """A 0.22 m descent to an approach point 5 mm above the fabric at 0.4 m/s, a 6 kg arm
     under the sim profile's law: the arm lags its target and overshoots where it stops. The
-    target brakes into the approach point (``APPROACH_BRAKE_M_S2``), so the sensor never
+    target brakes into the approach point (``approach_brake``), so the sensor never
     reaches the fabric before the tare: the tare reads no contact and the contact force stays
     at the press's own (without the brake: 50.9 N at the approach, the press refused)."""
     scene = _scene(approach_height=0.005, travel_speed=0.4)
@@ -186,6 +188,34 @@ def test_the_approach_from_high_above_stops_short_of_a_close_surface() -> None:
     assert out.success, out.reason
     assert abs(out.tare.offset_n) < 0.05
     assert peaks.max() < s.force_threshold + s.force_tolerance_n + 1.0
+
+
+def test_the_brake_is_sized_so_a_heavy_arm_leads_its_target_by_half_the_approach() -> None:
+    # lead of a 6 kg arm braking at a under K: 6 a / K <= approach_height / 2
+    assert approach_brake(1000.0, 0.005) == pytest.approx(1000.0 * 0.005 / 12.0)   # 0.4167
+    assert approach_brake(1000.0, 0.02) == 1.0          # 1.67 capped at APPROACH_BRAKE_M_S2
+    assert approach_brake(300.0, 0.02) == pytest.approx(0.5)
+    ctrl = PressController(_scene(approach_height=0.005), _scene().platform("reference"),
+                           np.zeros(3), 0.0, stiffness=1000.0)
+    assert ctrl.brake == pytest.approx(5.0 / 12.0)
+
+
+def test_a_short_descent_to_a_close_approach_point_keeps_a_heavy_arm_off_the_fabric() -> None:
+    """A 0.1 m descent to 5 mm above the fabric at 0.4 m/s, a 6 kg arm under the sim profile's
+    law, in three worlds (none, a soft platform, a 2.5 N pull with 1 N friction): braking at
+    1 m/s^2 the arm, still catching up with its target when the brake began, hit the fabric
+    at 24.5 / 5.1 / 31.9 N (two presses refused at the force limit). Braking at
+    ``approach_brake`` (0.42 m/s^2 here), every press succeeds under the force limit."""
+    scene = _scene(approach_height=0.005, travel_speed=0.4, descend_speed=0.02)
+    p0 = np.asarray(scene.platforms[0].position, dtype=float)
+    worlds = [Faults(), Faults(platform_stiffness=1500.0),
+              Faults(static_force=(0.0, 0.0, -2.5), coulomb_friction=1.0)]
+    out = press_in_worlds(scene, load_profile("sim").law, worlds, [scene.platforms[0].id] * 3,
+                          mass=6.0, start=p0 + [0.0, 0.0, 0.005 + 0.1])
+    for r in out:
+        assert r.outcome.success, r.outcome.reason
+        assert r.peak_force_n < scene.press.max_force
+    assert max(r.peak_force_n for r in out) < 8.5        # 7.9 N measured
 
 
 def test_a_stalled_loop_does_not_jump_the_target_into_the_surface() -> None:
