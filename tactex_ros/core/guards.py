@@ -27,8 +27,10 @@
   (``texture.describe_difference(d, region)``), as if the contact filled the frame.
 
 - **A recorded press** (``press_verdict``): the guard's check of one press against its own
-  no-contact frame, for presses that reach a descriptor without a trial (``tactex prepare``'s
-  library, the lab's cached replays), so they keep only what a trial on the robot would keep.
+  no-contact frame, for recordings of separate sensor sessions: presses that reach a
+  descriptor without a trial (``tactex prepare``'s library, the lab's cached replays) and the
+  touches of a replayed trial (``engine.refusing_no_contact``), so they keep only what a trial
+  on the robot would keep.
 
 - **Degenerate scores**: handled where the choice is made (``strategies.break_ties``); the engine
   flags rounds whose scores are all equal (``RoundRecord.degenerate``).
@@ -45,7 +47,8 @@ import numpy as np
 
 from .contact import blur, contact_score
 from .texture import BORDER, contact_difference, describe_difference
-from .touch import Touch
+from .errors import InputError
+from .touch import Touch, validate_frame
 
 REGION_SIGMA = 6.0          # px: smoothing of the contact difference before the region test
 REGION_LEVEL = 3.0          # grey levels (sum over channels): the region's threshold
@@ -123,7 +126,18 @@ class ContactGuard:
 def press_verdict(touch: Touch, flat_min: float = 0.35, contact_min: float = 0.8
                   ) -> tuple[bool, str]:
     """``ContactGuard.check`` of a recorded press's frame with the press's own no-contact frame
-    as the reference (the flatness check only when it has none): (ok, reason or '')."""
+    as the reference (the flatness check only when it has none, or an unusable one): (ok,
+    reason or ''). A frame that is not a sensor frame (``validate_frame``) is refused with
+    the validation's reason."""
+    try:
+        frame = validate_frame(touch.frame, "touch frame")
+    except InputError as exc:
+        return False, str(exc)
+    try:
+        reference = (None if touch.no_contact is None
+                     else validate_frame(touch.no_contact, "no-contact frame"))
+    except InputError:
+        reference = None
     guard = ContactGuard(flat_min, contact_min)
-    guard.set_reference(touch.no_contact)
-    return guard.check(touch.frame)
+    guard.set_reference(reference)
+    return guard.check(frame)

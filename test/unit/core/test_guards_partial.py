@@ -103,9 +103,13 @@ def test_press_verdict_checks_a_press_against_its_own_no_contact_frame():
     assert press_verdict(Touch(frame=nc, no_contact=nc))[0] is False
     whole = Touch(frame=_half_touch().frame[:, list(range(160)) * 2], no_contact=nc)
     assert press_verdict(whole) == (True, "")
-    flat = np.full((240, 320, 3), 100, np.uint8)
-    ok, reason = press_verdict(Touch(frame=flat, no_contact=nc))
+    ramp = np.repeat(np.linspace(60, 160, 320)[None, :, None], 240, 0).repeat(3, 2)
+    ok, reason = press_verdict(Touch(frame=ramp.astype(np.uint8), no_contact=nc))
     assert not ok and reason.startswith("blank frame")
+    # not a sensor frame: refused with the validation's reason; an unusable no-contact frame
+    # leaves the flatness check only
+    assert press_verdict(Touch(frame=nc[:100], no_contact=nc))[0] is False
+    assert press_verdict(Touch(frame=nc, no_contact=nc[:100])) == (True, "")
     # without a no-contact frame only the flatness check runs
     assert press_verdict(Touch(frame=nc)) == (True, "")
     # the thresholds are the caller's (the learner settings' contact_min)
