@@ -82,3 +82,21 @@ def octopi_press(octopi_dir):
             pytest.skip(f"octopi-dev press {material}/{index}.mov not found")
         return read_video(path)[..., ::-1].copy()
     return load
+
+
+@pytest.fixture(scope="session")
+def held_press(octopi_dir):
+    """``held_press(path, material)``: write a press video without contact at ``path`` (.avi):
+    the first frame of ``material``'s first octopi-dev press, held for 9 frames."""
+    import cv2
+
+    from tactex_ros.sources.replay import read_video
+
+    def write(path: Path, material: str) -> Path:
+        first = read_video(sorted((octopi_dir / material).glob("*.mov"))[0])[0]
+        w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25, (320, 240))
+        for _ in range(9):
+            w.write(first)
+        w.release()
+        return path
+    return write

@@ -213,22 +213,15 @@ def test_a_press_without_contact_is_pressed_again_and_left_out_of_the_library():
 
 
 @pytest.mark.slow
-def test_contact_verdicts_are_the_guards_on_each_press(octopi_dir, tmp_path):
+def test_contact_verdicts_are_the_guards_on_each_press(octopi_dir, tmp_path, held_press):
     """``add_contact_verdicts``: real presses pass, a press whose frames are all its first
     (no-contact) frame fails; the verdicts are kept beside the cache and reused."""
-    import cv2
-    from tactex_ros.sources.replay import read_video
     lib = tmp_path / "lib"
     for cls in ("rice", "tissue"):
         (lib / cls).mkdir(parents=True)
         for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
             (lib / cls / f.name).symlink_to(f)
-    first = read_video(sorted((octopi_dir / "rice").glob("*.mov"))[0])[0]
-    w = cv2.VideoWriter(str(lib / "rice" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                        (320, 240))
-    for _ in range(9):
-        w.write(first)
-    w.release()
+    held_press(lib / "rice" / "held.avi", "rice")
     cache = {"path": np.array([str(p) for c in ("rice", "tissue")
                                for p in sorted((lib / c).iterdir())])}
     press_cache.add_contact_verdicts(cache, lib, tmp_path)
@@ -242,24 +235,17 @@ def test_contact_verdicts_are_the_guards_on_each_press(octopi_dir, tmp_path):
 
 @pytest.mark.slow
 def test_cached_and_replayed_trials_refuse_the_same_press_without_contact(small_library,
-                                                                          tmp_path):
+                                                                          tmp_path, held_press):
     """With a press without contact in a class, the cached trials (its verdict in the cache)
     and the replayed trials (``contact_guard``: each touch judged against its own no-contact
     frame) press again the same way and give the same curves; without the guard the replayed
     trials differ in some scene (the bad press was drawn and counted)."""
-    import cv2
-    from tactex_ros.sources.replay import read_video
     lib = tmp_path / "lib"
     for d in sorted(small_library.iterdir()):
         (lib / d.name).mkdir(parents=True)
         for f in sorted(d.iterdir()):
             (lib / d.name / f.name).symlink_to(f.resolve())
-    first = read_video(sorted((lib / "rice").iterdir())[0])[0]
-    w = cv2.VideoWriter(str(lib / "rice" / "0held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                        (320, 240))
-    for _ in range(9):
-        w.write(first)
-    w.release()
+    held_press(lib / "rice" / "0held.avi", "rice")
     cache = press_cache.load_cache(press_cache.build_cache(lib, tmp_path / "c.npz"))
     press_cache.add_contact_verdicts(cache, lib, tmp_path)
     assert (~cache["contact_ok"]).sum() == 1

@@ -173,22 +173,16 @@ def test_prepare_then_trial_with_the_file(octopi_dir, tmp_path):
 
 
 @pytest.mark.slow
-def test_prepare_skips_a_press_the_contact_guard_rejects(octopi_dir, tmp_path, capsys):
+def test_prepare_skips_a_press_the_contact_guard_rejects(octopi_dir, tmp_path, capsys,
+                                                         held_press):
     """A library press without contact (a real press's first frame, held) is left out of the
     representation, as a trial's contact guard refuses it on the robot; the real presses stay."""
-    import cv2
-    from tactex_ros.sources.replay import read_video
     lib = tmp_path / "lib"
     for cls in ("rice", "millet", "sponge"):
         (lib / cls).mkdir(parents=True)
         for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
             (lib / cls / f.name).symlink_to(f)
-    first = read_video(sorted((octopi_dir / "rice").glob("*.mov"))[0])[0]
-    w = cv2.VideoWriter(str(lib / "rice" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                        (320, 240))
-    for _ in range(9):
-        w.write(first)
-    w.release()
+    held_press(lib / "rice" / "held.avi", "rice")
     out = tmp_path / "rep.npz"
     assert main(["prepare", "--library", f"replay:{lib}", "--out", str(out), "--kind",
                  "whiten", "--calibration", "off", "--embedding", "none"]) == 0
@@ -197,24 +191,18 @@ def test_prepare_skips_a_press_the_contact_guard_rejects(octopi_dir, tmp_path, c
 
 
 @pytest.mark.slow
-def test_a_replayed_trial_presses_again_where_a_recording_has_no_contact(octopi_dir, tmp_path):
+def test_a_replayed_trial_presses_again_where_a_recording_has_no_contact(octopi_dir, tmp_path,
+                                                                         held_press):
     """`tactex trial --source replay:DIR` judges every press against its own no-contact frame
     (recordings of separate sessions): a held frame of another class's press is refused and
     pressed again (a failed touch in the result), as the robot refuses a press without contact.
     """
-    import cv2
-    from tactex_ros.sources.replay import read_video
     lib = tmp_path / "lib"
     for cls in ("rice", "millet", "sponge"):
         (lib / cls).mkdir(parents=True)
         for f in sorted((octopi_dir / cls).glob("*.mov"))[:2]:
             (lib / cls / f.name).symlink_to(f)
-    first = read_video(sorted((octopi_dir / "tissue").glob("*.mov"))[0])[0]
-    w = cv2.VideoWriter(str(lib / "millet" / "held.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25,
-                        (320, 240))
-    for _ in range(9):
-        w.write(first)
-    w.release()
+    held_press(lib / "millet" / "held.avi", "tissue")
     refused = 0
     for seed in range(4):
         js = tmp_path / f"t{seed}.json"
