@@ -406,7 +406,9 @@ class ExplorerNode(TactexNode):
                           "samples": int(touch.tare_samples)},
                     surface={"z_m": touch.surface_z, "error_m": touch.surface_error_m,
                              "warning": touch.warning},
-                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
+                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z],
+                    press_s=touch.press_s,
+                    phase_s=dict(zip(touch.phase_names, touch.phase_s)))
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
         except InputError as exc:
