@@ -293,13 +293,6 @@ def _command_profiles(command: str) -> dict[str, str]:
             "sensor": opt("--sensor") or ("mock camera" if sim else "gelsight_mini (default)")}
 
 
-def _config(d: Path) -> dict:
-    try:
-        return json.loads((d / "config.json").read_text())
-    except (OSError, json.JSONDecodeError):
-        return {}
-
-
 def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
     """Platform ids (scene order, reference first) and their fabric where the record says."""
     import yaml
