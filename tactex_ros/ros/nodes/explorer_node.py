@@ -41,7 +41,7 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
 from ...core.engine import TouchFailed, TrialSpec
-from ...core.errors import InputError, TrialError
+from ...core.errors import DeviceError, InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
@@ -457,8 +457,8 @@ class ExplorerNode(TactexNode):
         self._t_trial = time.monotonic()
         if not self.press.server_is_ready() and \
                 not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
-            raise InputError(f"press action {s.press_action!r} not available within "
-                             f"server_timeout_s ({s.server_timeout_s} s)")
+            raise DeviceError(f"press action {s.press_action!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
         st = self.session_trial
         out = self.trial.run(on_decision=self._publish_state, t0=self._t_trial,
                              extra=None if st is None else lambda r: trial_outcome(st, r))
