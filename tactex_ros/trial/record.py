@@ -28,6 +28,7 @@ import hashlib
 import json
 import os
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +68,18 @@ def check_trial_id(trial_id: str) -> None:
     """A trial id is a plain folder name: non-empty, no '/', not '.' or '..'."""
     if not trial_id or "/" in trial_id or "\\" in trial_id or trial_id in (".", ".."):
         raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+
+
+def free_trial_id(root: str | Path) -> str:
+    """A new record's name in ``root`` when none is given: ``trial_<date>_<time>``, with
+    ``_2``, ``_3``, ... when a record of that name is there already (two trials started in
+    the same second)."""
+    stem = time.strftime("trial_%Y%m%d_%H%M%S")
+    name, k = stem, 1
+    while (Path(root) / name).exists():
+        k += 1
+        name = f"{stem}_{k}"
+    return name
 
 
 def check_new_record(root: str | Path, trial_id: str) -> Path:

@@ -171,7 +171,7 @@ def test_an_image_written_just_before_a_crash_is_not_an_orphan(tmp_path):
 
 
 def test_runner_ignores_a_result_that_was_there_before(tmp_path):
-    from tactex_ros.ros.launcher import _result_stamp, new_result
+    from tactex_ros.ros.devrun.launcher import _result_stamp, new_result
     d = _finished(tmp_path)
     before = _result_stamp(d / "result.json")
     assert new_result(d / "result.json", before) == (None, None)
@@ -182,14 +182,14 @@ def test_runner_ignores_a_result_that_was_there_before(tmp_path):
 
 
 def test_runner_names_a_torn_result(tmp_path):
-    from tactex_ros.ros.launcher import new_result
+    from tactex_ros.ros.devrun.launcher import new_result
     (tmp_path / "result.json").write_text("{")
     got, why = new_result(tmp_path / "result.json", None)
     assert got is None and "result.json" in why
 
 
 def test_node_reason_is_the_first_error_line(tmp_path):
-    from tactex_ros.ros.launcher import node_reason
+    from tactex_ros.ros.devrun.launcher import node_reason
     log = tmp_path / "n.log"
     log.write_text("[INFO] [1.0] [mock_image]: starting\n"
                    "[ERROR] [1.2] [mock_image]: configuration refused: source 'sim:7': bad\n"
@@ -299,7 +299,7 @@ def test_graph_summary_refuses_what_is_not_a_record(tmp_path, capsys, what):
 
 
 def test_idle_deadline_counts_from_the_last_progress(tmp_path):
-    from tactex_ros.ros.launcher import Deadlines
+    from tactex_ros.ros.devrun.launcher import Deadlines
     now = [0.0]
     d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0])
     for _ in range(10):                  # a decision every 90 s: 900 s in all, never idle
@@ -317,7 +317,7 @@ def test_idle_deadline_counts_from_the_last_progress(tmp_path):
 def test_idle_deadline_waits_for_an_explorer_that_is_working(tmp_path):
     """A decision longer than the idle deadline (the thesis CNN on a loaded machine) is not
     idle while the explorer uses CPU; a stopped explorer (no CPU) is, after idle_s."""
-    from tactex_ros.ros.launcher import BUSY_WINDOW_S, Deadlines, process_cpu_s
+    from tactex_ros.ros.devrun.launcher import BUSY_WINDOW_S, Deadlines, process_cpu_s
     now, cpu = [0.0], [0.0]
     d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0], cpu=lambda: cpu[0])
     for _ in range(20):                  # 600 s of training at a third of a core, no new line

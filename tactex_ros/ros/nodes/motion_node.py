@@ -25,8 +25,10 @@ the robot state arrives at the profile's ``state.min_rate_hz`` (or ``min_state_r
 faster, franka's ``robot_mode`` (where it is
 read) is move, and franka's collision thresholds are set to what the press needs through the
 profile's collision service (or the start is refused with the ``ros2 service call`` to run).
-Any failure refuses the configuration with the reason: exit status 2
-(``robot/preflight.py``, docs/hardware_checks.md). One graph per arm (no second publisher of
+Any failure refuses the configuration with the reason (``robot/preflight.py``,
+docs/hardware_checks.md): exit status 1 for a robot whose state is silent or too slow
+(``DeviceError``) or not in move mode (``DeviceNotReady``), 2 for collision thresholds that
+do not fit the press (``InputError``). One graph per arm (no second publisher of
 the target, the action's status or the robot state) is checked in the pre-flight and again
 until the node takes its first goal, since DDS discovery has no deadline: exit status 2.
 """
@@ -221,7 +223,9 @@ class MotionNode(TactexNode):
                                       "mode and collision thresholds not checked")
 
     def _preflight(self) -> None:
-        """The robot's pre-flight (module doc); InputError names the first problem."""
+        """The robot's pre-flight (module doc): the first problem raised as DeviceError (state
+        silent or slow), DeviceNotReady (not in move mode) or InputError (another graph,
+        collision thresholds, no robot_mode message)."""
         s, prof, press = self.settings, self.profile, self.scene.press
         if prof.collision is not None:
             problem = checks.collision_problem(prof.collision.request, press.max_force,
