@@ -63,10 +63,33 @@ def _last_seq(d: Path) -> int:
 RECORD_FILES = ("touches.jsonl", "config.json", "result.json", "decisions.jsonl")
 
 
+def name_problem(name: str, folder: bool = True) -> str | None:
+    """Why ``name`` is not a plain name for a trial (None: it is): empty or only spaces,
+    spaces around it, a control character (a newline, a tab); a ``folder`` name also '/' or
+    '\\', '.' or '..' (a trial file's id is not: its record folder is ``session.record_name``)."""
+    import unicodedata
+    if not name.strip():
+        return "empty or only spaces"
+    if name != name.strip():
+        return "spaces around it"
+    bad = next((c for c in name if unicodedata.category(c).startswith("C")), None)
+    if bad is not None:
+        return f"a control character ({bad!r})"
+    if not folder:
+        return None
+    if "/" in name or "\\" in name:
+        return "a '/' or '\\'"
+    if name in (".", ".."):
+        return "'.' or '..'"
+    return None
+
+
 def check_trial_id(trial_id: str) -> None:
-    """A trial id is a plain folder name: non-empty, no '/', not '.' or '..'."""
-    if not trial_id or "/" in trial_id or "\\" in trial_id or trial_id in (".", ".."):
-        raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+    """A trial id is a plain folder name (``name_problem``); InputError naming it otherwise."""
+    why = name_problem(trial_id)
+    if why:
+        raise InputError(f"trial_id {trial_id!r}: {why}; a trial id is a plain name (letters, "
+                          "digits, spaces inside, punctuation other than '/' and '\\')")
 
 
 def check_new_record(root: str | Path, trial_id: str) -> Path:

@@ -151,10 +151,14 @@ def select_trials(session: Session, text: str) -> list[str] | None:
     """The trial ids ``text`` asks for (``ID[,ID...]``, the explorer's ``trials``; spaces
     around an id are ignored), in the session's order; None for '' (every trial). InputError
     names an unknown id and the session's ids."""
-    asked = [t.strip() for t in str(text or "").split(",")]
-    if not any(asked):
+    if not str(text or "").strip():
         return None
+    asked = [t.strip() for t in str(text).split(",")]
     ids = [t.id for t in session.trials]
+    if not all(asked):
+        raise InputError(f"trials {text!r}: an empty id (a ',' with nothing on one side); "
+                         f"give ID[,ID...] of session {session.name} (its ids: "
+                         f"{', '.join(ids)}), or '' for every trial")
     for t in asked:
         if t not in ids:
             raise InputError(f"trials {text!r}: {t!r} is not a trial of session "
