@@ -275,6 +275,8 @@ OUTPUTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
     ("prepare", "out"): ("file", ()),
     ("sim", "out"): ("file", IMAGE_SUFFIXES),
     ("graph", "log_dir"): ("dir", ()),
+    ("robot", "out"): ("file", (".yaml", ".yml")),      # measure-scene: before the arm moves
+    ("export", "out"): ("dir", ()),
 }
 
 

@@ -26,6 +26,14 @@ def _file(tmp_path: Path) -> Path:
 
 
 # ---------------------------------------------------------------- output paths (exit 2, named)
+def _measure_scene(out: str) -> list[str]:
+    """``tactex robot measure-scene`` on the simulated scene; no robot state arrives here (the
+    command would give up after 0.5 s with exit status 1)."""
+    from tactex_ros.paths import config_dir
+    return ["robot", "measure-scene", "--robot", "sim", "--scene",
+            str(config_dir() / "scene_sim.yaml"), "--state-deadline-s", "0.5", "--out", out]
+
+
 @pytest.mark.parametrize("argv_of, option", [
     (lambda f: ["trial", "--source", "sim", "--quiet", "--json", f"{f}/out.json"], "--json"),
     (lambda f: ["trial", "--source", "sim", "--quiet", "--json", str(f.parent)], "--json"),
@@ -35,6 +43,13 @@ def _file(tmp_path: Path) -> Path:
     (lambda f: ["graph", "run", "--sim", "--log-dir", f"{f}/logs"], "--log-dir"),
     (lambda f: ["prepare", "--library", "sim", "--out", f"{f}/rep.pt"], "--out"),
     (lambda f: ["bench", "sim", "--json", f"{f}/b.json"], "--json"),
+    # issue 49: measure-scene's --out before the first press (was: after pressing every
+    # platform, exit 1, no report), export's before reading anything (was: a raw error late)
+    (lambda f: _measure_scene(f"{f}/scene.yaml"), "--out"),
+    (lambda f: _measure_scene(str(f.parent)), "--out"),
+    (lambda f: _measure_scene(str(f.parent / "scene.txt")), "--out"),
+    (lambda f: ["export", str(f.parent), "--out", f"{f}/dataset"], "--out"),
+    (lambda f: ["export", str(f.parent), "--out", str(f)], "--out"),
 ])
 def test_unwritable_output_refused_before_any_work(tmp_path, capsys, argv_of, option):
     f = _file(tmp_path)
