@@ -205,10 +205,10 @@ def events(session_dir: str | Path) -> list[dict]:
 
 def add_event(session_dir: str | Path, event: dict[str, Any]) -> None:
     """Append one line to ``session_events.jsonl`` (fsync'ed)."""
-    from .record import _fsync_write
+    from .record import append_line
     d = Path(session_dir)
     d.mkdir(parents=True, exist_ok=True)
-    _fsync_write(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), True)
+    append_line(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), d / EVENTS_FILE)
 
 
 def read_session_file(session_dir: str | Path) -> dict[str, Any] | None:
