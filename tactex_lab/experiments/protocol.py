@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tactex_ros.cli.options import bounded
 from tactex_ros.core.config import SHIPPED_STOP
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
@@ -220,6 +221,13 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
 #: lab scene (config/scene.yaml's speeds), median of `tactex graph summary` over one simulated
 #: trial (docs/research/unseen_materials.md); the faster simulated scene takes about 4.4 s.
 PRESS_S = 15.5
+
+#: ``--thresholds``: stop thresholds on the leading belief, 0..1 (up to 1.01: above 1 never
+#: stops, the whole budget, as the default sweep's last); a value outside is refused (exit 2)
+THRESHOLD = bounded(float, 0.0, 1.01)
+THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
+#: ``--press-s``: seconds per press for the time axis, 0.1..3600
+PRESS_SECONDS = bounded(float, 0.1, 3600.0)
 
 
 def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],

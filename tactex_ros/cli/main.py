@@ -190,6 +190,12 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
     from ..sources import open_source
     src = open_source(spec)
     out = {}
+    most = press_frames(src, spec)
+    if cfg.descriptor_frames > most:
+        raise InputError(f"--frames {cfg.descriptor_frames}: a press of {spec} gives at most "
+                         f"{most} contact frame(s) (a recorded video: the strongest and "
+                         "core.contact.EXTRA_FRAMES more; an image or a simulated press: 1): "
+                         f"use --frames 1..{most}")
     if spec.startswith("replay:"):
         for cls in src.classes:
             xs = []
@@ -213,6 +219,18 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
         out[f"{spec}/{cls}"] = np.stack([raw_descriptor(Touch(src.press(cls, rng), nc), cfg)
                                          for _ in range(sim_presses)])
     return out
+
+
+def press_frames(src, spec: str) -> int:
+    """The most contact frames a press of the library ``spec`` (its source ``src``) gives:
+    a recorded video the strongest and ``core.contact.EXTRA_FRAMES`` more, an image press or
+    a simulated one 1."""
+    from ..core.contact import EXTRA_FRAMES
+    from ..sources.replay import VIDEO_EXT
+    if not spec.startswith("replay:"):
+        return 1
+    videos = any(f.suffix.lower() in VIDEO_EXT for c in src.classes for f in src.presses(c))
+    return 1 + EXTRA_FRAMES if videos else 1
 
 
 def cmd_prepare(args: argparse.Namespace) -> int:
@@ -356,6 +374,8 @@ OUTPUTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
     ("prepare", "out"): ("file", ()),
     ("sim", "out"): ("file", IMAGE_SUFFIXES),
     ("graph", "log_dir"): ("dir", ()),
+    ("robot", "out"): ("file", (".yaml", ".yml")),      # measure-scene: before the arm moves
+    ("export", "out"): ("dir", ()),
 }
 
 

@@ -250,6 +250,15 @@ class SceneFile(Schema):
             if p.id in seen:
                 raise FieldError(f"platforms.{i}.id", f"duplicate platform id {p.id!r}")
             seen.add(p.id)
+            for q in plats[:i]:      # each fabric its own place: a press finds one platform
+                apart = float(np.hypot(p.position[0] - q.position[0],
+                                       p.position[1] - q.position[1]))
+                if apart < p.radius + q.radius:
+                    raise FieldError(f"platforms.{i}.position",
+                                     f"{list(p.position)} overlaps platform {q.id!r} at "
+                                     f"{list(q.position)}: their centres are {apart:.3f} m "
+                                     f"apart in x-y, less than their radii "
+                                     f"({q.radius} + {p.radius} m)")
             for high in (0.0, press.approach_height):
                 probe = np.asarray(p.position) + [0.0, 0.0, high]
                 if not (np.all(probe >= ws.min) and np.all(probe <= ws.max)):
