@@ -2,8 +2,8 @@
 # pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests;
 # `make lint`: ruff, which `make test` and `make test-fast` run first).
 # Each first installs what is missing into .venv (pinned: requirements.txt, the product's;
-# requirements-lab.txt, the lab's) and builds the ROS 2 package with colcon into it; a second
-# run finds the stamps and installs nothing.
+# requirements-lab.txt, the lab's; requirements-test.txt, the test tools) and builds the ROS 2
+# package with colcon into it; a second run finds the stamps and installs nothing.
 SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -23,7 +23,7 @@ BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.
 
 setup: $(BUILD_STAMP)
 
-$(DEPS_STAMP): requirements.txt requirements-lab.txt scripts/setup_env.sh
+$(DEPS_STAMP): requirements.txt requirements-lab.txt requirements-test.txt scripts/setup_env.sh
 	bash scripts/setup_env.sh deps
 	touch $@
 

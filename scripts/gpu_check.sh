@@ -2,14 +2,17 @@
 # The two done-when checks of the CNN learners on a GPU (docs/research/speed_stability.md, "On a GPU"),
 # about five minutes on one GPU with 16 CPU cores; prints the figures and PASS / FAIL per check.
 #
-#   scripts/gpu_check.sh [RECORDINGS_DIR] [DEVICE]
+#   scripts/gpu_check.sh RECORDINGS_DIR [DEVICE]
 #
-# RECORDINGS_DIR: recorded presses replayed by the trials (default ../shared/datasets/octopi-dev);
-# DEVICE: the torch device (default cuda). Needs torch's CUDA wheel (`make setup TORCH=cuda`,
-# docs/install.md). Environment: ROUNDS (decisions after the baseline per trial, default 2: the
-# thesis setting trains 10 epochs at 299 px per decision, so the CPU side of 10 seeded trials is
-# the expensive part), SEEDS (default 10), JOBS (CPU trials run side by side, default 4, each with
-# 16/JOBS threads), OUT (folder of the JSON outputs, default a new temporary folder).
+# RECORDINGS_DIR (required): recorded presses replayed by the trials, an octopi-dev folder
+# (material/N.mov; none ships with the repository); DEVICE: the torch device (default cuda).
+# Needs torch's CUDA wheel (`make setup TORCH=cuda`, docs/install.md). Environment: ROUNDS
+# (decisions after the baseline per trial, default 2: the thesis setting trains 10 epochs at
+# 299 px per decision, so the CPU side of 10 seeded trials is the expensive part), SEEDS
+# (default 10), JOBS (CPU trials run side by side, default 4, each with 16/JOBS threads), OUT
+# (folder of the JSON outputs, default a new temporary folder), TACTEX (the command, default
+# .venv/bin/tactex, else the tactex on PATH), PYTHON (the summary's interpreter, standard
+# library only; default python3).
 #
 # 1. latency: `tactex bench latency --device DEVICE --touches 25` for the thesis setting with
 #    small_inception and with inception_v3, and `cnn`, side by side with the CPU (the CPU's
@@ -19,7 +22,8 @@
 #    over SEEDS seeds; target: the same prediction in >= 9 of 10.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-DATA=${1:-../shared/datasets/octopi-dev}
+[ $# -ge 1 ] || { echo "usage: scripts/gpu_check.sh RECORDINGS_DIR [DEVICE]" >&2; exit 2; }
+DATA=$1
 DEV=${2:-cuda}
 ROUNDS=${ROUNDS:-2}
 SEEDS=${SEEDS:-10}
@@ -56,7 +60,7 @@ done
 for p in "${pids[@]}"; do wait "$p"; done
 cpu_s=$((SECONDS - start))
 
-OUT="$OUT" DEV="$DEV" SEEDS="$SEEDS" GPU_S="$gpu_s" CPU_S="$cpu_s" .venv/bin/python - <<'EOF'
+OUT="$OUT" DEV="$DEV" SEEDS="$SEEDS" GPU_S="$gpu_s" CPU_S="$cpu_s" "${PYTHON:-python3}" - <<'EOF'
 import json, os
 from pathlib import Path
 out, dev, n = Path(os.environ["OUT"]), os.environ["DEV"].replace(":", "_"), int(os.environ["SEEDS"])

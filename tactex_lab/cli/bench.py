@@ -50,7 +50,6 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
     labels = [s[0] for s in settings]
     if len(set(labels)) != len(labels):
         raise InputError(f"--agent labels must be unique, got {labels}")
-    env = TouchEnv(args.source, args.comparisons, args.budget)
     stop = SHIPPED_STOP if args.stop is None else args.stop
     agents = {}
     for label, pre, strategy, over in settings:
@@ -58,7 +57,7 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
         st = strategy or trial_preset(pre).strategy
         agents[label] = (lambda learner=learner, st=st:
                          EngineAgent(args.comparisons, learner, st, stop, args.budget))
-    out = evaluate(env, agents, seeds)
+    out = evaluate(lambda: TouchEnv(args.source, args.comparisons, args.budget), agents, seeds)
     print(f"{args.source}: {len(seeds)} scenes (seeds {args.seeds}), {args.comparisons} "
           f"comparisons, budget {args.budget}, stop at belief {stop:g}")
     for label, r in out.items():

@@ -2,7 +2,8 @@
 and the stop rule), and ``evaluate``, the seeded evaluation of any agent.
 
 An agent is an object with ``reset(obs, info)`` and ``act(obs) -> action`` (the env's action
-dict). ``EngineAgent`` feeds every touch it observes to a ``TrialEngine`` built as
+dict). Each agent plays in its own environment (``evaluate`` takes a factory): nothing one
+agent's episodes leave in an environment reaches another's. ``EngineAgent`` feeds every touch it observes to a ``TrialEngine`` built as
 ``experiment real`` builds it (``TrialSpec(C, learner, TrialConfig(strategy, rounds=budget,
 stop_confidence=theta), seed)``): it presses the platforms still missing their baseline touch
 in order, then whatever the engine's decision chooses, and STOPs when the engine is done,
@@ -87,26 +88,31 @@ class EngineAgent:
 
 
 def run_episode(env: TouchEnv, agent: Agent, seed: int) -> dict[str, Any]:
-    """One seeded episode: the end's ``info`` plus the summed reward."""
+    """One seeded episode: the end's ``info`` plus the summed base reward (``reward``: the
+    touch costs and the end's 1 for the right match, the prediction losses left out) and the
+    summed prediction loss (``prediction_loss``)."""
     obs, info = env.reset(seed=seed)
     agent.reset(obs, info)
-    total = 0.0
+    total = loss = 0.0
     while True:
-        obs, reward, terminated, truncated, info = env.step(agent.act(obs))
-        total += reward
+        obs, _, terminated, truncated, info = env.step(agent.act(obs))
+        total += info["base_reward"]
+        loss += info["prediction"]["loss"]
         if terminated or truncated:
-            return dict(info, reward=total, truncated=bool(truncated))
+            return dict(info, reward=total, prediction_loss=loss, truncated=bool(truncated))
 
 
-def evaluate(env: TouchEnv, agents: dict[str, Callable[[], Agent]], seeds: list[int]
-             ) -> dict[str, dict[str, Any]]:
-    """Every agent (a factory: a fresh agent per call) on the episodes of ``seeds``:
-    {label: {accuracy, touches (mean touches after the baseline), presses (mean), reward
-    (mean), episodes: [per seed]}}."""
+def evaluate(make_env: Callable[[], TouchEnv], agents: dict[str, Callable[[], Agent]],
+             seeds: list[int]) -> dict[str, dict[str, Any]]:
+    """Every agent (a factory: a fresh agent per call) on the episodes of ``seeds``, each
+    agent in its own environment (``make_env()``): {label: {accuracy, touches (mean touches
+    after the baseline), presses (mean), reward (mean summed base reward), episodes: [per
+    seed]}}."""
     if not seeds:
         raise InputError("evaluate: no seeds")
     out = {}
     for label, make in agents.items():
+        env = make_env()
         eps = []
         for s in seeds:
             r = run_episode(env, make(), s)

@@ -6,9 +6,17 @@ source's classes exactly as ``tactex experiment real`` draws the scene of seed `
 scene as ``tactex trial --seed s``), and the presses of that trial's touch function
 (``source.trial(classes, s)``: recorded presses drawn without repetition, seeded).
 
-The interface follows ap_gym's active-perception environments (an action is a dict of the
-inner action and a prediction, ``info["prediction"]["target"]`` the class to predict), with
-what they lack: a STOP action.
+The interface is ap_gym's active-perception environment's (``ActivePerceptionEnv``, ap_gym
+0.7): ``inner_action_space`` (the platform to press, or STOP, which ap_gym's environments
+lack), ``prediction_space`` (logits over the comparisons), ``action_space`` the dict of the two,
+``prediction_target_space`` (the match, 0..C-1, a numpy integer as ap_gym's loss functions
+take it), ``loss_fn`` (the cross-entropy of the logits
+at the match over log C: 1 for a uniform guess; ap_gym's ``CrossEntropyLossFn(C).normalized``
+where ap_gym is installed, whose torch and jax forms its agents train with), and every step's
+reward ``info["base_reward"] - info["prediction"]["loss"]``. Where ap_gym is installed the
+class is registered as an ap_gym ``BaseActivePerceptionEnv``, so ap_gym's wrappers and agents
+take it as an active-perception task (``ap_gym.ensure_active_perception_env`` returns it as it
+is).
 
 - ``reset(seed=s)`` presses the reference (platform 0) and returns its observation.
 - ``action = {"action": a, "prediction": logits}``: ``a`` in 0..C presses that platform
@@ -22,9 +30,12 @@ what they lack: a STOP action.
 - Budget: ``C + 1 + budget`` presses in all (the baseline, every platform once, then
   ``budget`` more, as ``experiment real --budget``). Once spent, any action ends the episode
   (``truncated``) scored on its prediction.
-- Reward: ``-touch_cost`` per press; at the end 1 for the right match, 0 otherwise.
+- Base reward (``info["base_reward"]``): ``-touch_cost`` per press; at the end 1 for the right
+  match, 0 otherwise. The reward is the base reward minus the prediction's loss
+  (``info["prediction"]``: ``target``, ``loss``, ``metrics``; ``reset``'s info: ``target``).
 - At the end ``info``: ``correct``, ``presses``, ``touches_after_baseline`` (presses - (C+1),
   the touches ``experiment real`` reports), ``truth`` (1..C), ``classes``.
+- Every observation is new arrays: changing one changes no later observation.
 """
 
 from __future__ import annotations
@@ -37,6 +48,11 @@ import numpy as np
 from ..core.engine import TouchFailed
 from ..core.errors import InputError
 from ..core.touch import as_touch
+
+try:        # optional: ap_gym's active-perception tools (requirements-test.txt)
+    import ap_gym
+except ImportError:
+    ap_gym = None
 
 H, W = 240, 320
 EXTRA = 3                    # in-contact frames per press besides the strongest (replay's)
@@ -66,6 +82,36 @@ def parse_seeds(text: str) -> list[int]:
     return out
 
 
+class CrossEntropyLoss:
+    """The prediction loss without ap_gym (its ``LossFn``'s numpy side): the cross-entropy of
+    logits (..., C) at the targets (...,) (ints 0..C-1), over log C."""
+
+    def __init__(self, num_classes: int) -> None:
+        self.num_classes = num_classes
+
+    def numpy(self, prediction: np.ndarray, target: np.ndarray, batch_shape: tuple = (),
+              rng: np.random.Generator | None = None) -> np.ndarray:
+        from scipy.special import log_softmax
+        logp = log_softmax(np.asarray(prediction, np.float64), axis=-1)
+        picked = np.take_along_axis(logp, np.asarray(target)[..., None], axis=-1)[..., 0]
+        return -picked / np.log(self.num_classes)
+
+    __call__ = numpy
+
+    def numpy_loss_and_metrics(self, prediction: np.ndarray, target: np.ndarray,
+                               batch_shape: tuple = (), rng: np.random.Generator | None = None
+                               ) -> tuple[np.ndarray, dict]:
+        return self.numpy(prediction, target, batch_shape, rng), {}
+
+
+def loss_fn(num_classes: int):
+    """The prediction loss of ``num_classes`` comparisons: ap_gym's normalized cross-entropy
+    where ap_gym is installed, else ``CrossEntropyLoss`` (the same numbers)."""
+    if ap_gym is not None:
+        return ap_gym.CrossEntropyLossFn(num_classes=num_classes).normalized
+    return CrossEntropyLoss(num_classes)
+
+
 class TouchEnv(gym.Env):
     """Active texture matching on a touch source (module docstring)."""
 
@@ -93,9 +139,12 @@ class TouchEnv(gym.Env):
             "platform": gym.spaces.Discrete(comparisons + 1), "ok": gym.spaces.Discrete(2),
             "touches": gym.spaces.Box(0, 10**6, (comparisons + 1,), np.int64),
             "budget_left": gym.spaces.Box(0, 10**6, (1,), np.int64)})
-        self.action_space = gym.spaces.Dict({
-            "action": gym.spaces.Discrete(comparisons + 2),
-            "prediction": gym.spaces.Box(-np.inf, np.inf, (comparisons,), np.float64)})
+        self.inner_action_space = gym.spaces.Discrete(comparisons + 2)
+        self.prediction_space = gym.spaces.Box(-np.inf, np.inf, (comparisons,), np.float64)
+        self.action_space = gym.spaces.Dict({"action": self.inner_action_space,
+                                             "prediction": self.prediction_space})
+        self.prediction_target_space = gym.spaces.Discrete(comparisons)
+        self.loss_fn = loss_fn(comparisons)
         self._fn = None
         self._over = True
 
@@ -118,7 +167,8 @@ class TouchEnv(gym.Env):
         self.touches = np.zeros(self.C + 1, dtype=np.int64)
         self._over = False
         return self._press(0), {"seed": self.seed_, "comparisons": self.C,
-                                "budget": self.budget}
+                                "budget": self.budget,
+                                "prediction": {"target": np.int64(self.truth - 1)}}
 
     def _press(self, platform: int) -> dict[str, Any]:
         self.touches[platform] += 1
@@ -127,9 +177,12 @@ class TouchEnv(gym.Env):
             t = as_touch(self._fn(platform))
         except TouchFailed:
             return obs
-        obs.update(image=t.frame, ok=1)
+        # copies: the source keeps its frames (a replay's cache), the caller may change these
+        obs["image"][:] = t.frame
+        obs["ok"] = 1
         if t.no_contact is not None:
-            obs.update(no_contact=t.no_contact, has_no_contact=1)
+            obs["no_contact"][:] = t.no_contact
+            obs["has_no_contact"] = 1
         if t.extra is not None and len(t.extra):
             k = min(len(t.extra), EXTRA)
             obs["extra"][:k] = t.extra[:k]
@@ -147,28 +200,38 @@ class TouchEnv(gym.Env):
         a = int(a)
         if not 0 <= a <= self.STOP:
             raise InputError(f"action {a}: 0..{self.C} presses a platform, {self.STOP} is STOP")
-        spent = int(self.touches.sum()) >= self.max_presses
-        if a == self.STOP or spent:
-            return self._end(np.asarray(action["prediction"], dtype=np.float64),
-                             truncated=a != self.STOP)
-        obs = self._press(a)
-        return obs, -self.touch_cost, False, False, {}
-
-    def _end(self, logits: np.ndarray, truncated: bool) -> tuple[dict, float, bool, bool, dict]:
+        logits = np.asarray(action["prediction"], dtype=np.float64)
         if logits.shape != (self.C,):
             raise InputError(f"prediction: {self.C} logits over the comparisons, got shape "
                              f"{logits.shape}")
         if np.isnan(logits).any():
             raise InputError(f"prediction {logits.tolist()}: NaN among the logits (its argmax "
                              "would be a guess); give numbers, -inf allowed")
+        spent = int(self.touches.sum()) >= self.max_presses
+        if a == self.STOP or spent:
+            return self._end(logits, truncated=a != self.STOP)
+        obs = self._press(a)
+        return self._scored(obs, -self.touch_cost, logits, False, False, {})
+
+    def _scored(self, obs: dict, base: float, logits: np.ndarray, terminated: bool,
+                truncated: bool, info: dict) -> tuple[dict, float, bool, bool, dict]:
+        """A step's result in ap_gym's terms: the reward is ``base`` minus the loss of the
+        prediction ``logits`` at the match, both in ``info``."""
+        target = np.int64(self.truth - 1)
+        loss, metrics = self.loss_fn.numpy_loss_and_metrics(logits, target)
+        info.update(base_reward=base, prediction={"target": target, "loss": float(loss),
+                                                  "metrics": metrics})
+        return obs, base - float(loss), terminated, truncated, info
+
+    def _end(self, logits: np.ndarray, truncated: bool) -> tuple[dict, float, bool, bool, dict]:
         self._over = True
         pred = int(np.argmax(logits)) + 1
         presses = int(self.touches.sum())
         info = {"correct": pred == self.truth, "prediction_index": pred, "truth": self.truth,
                 "presses": presses, "touches_after_baseline": presses - (self.C + 1),
-                "classes": list(self.classes), "seed": self.seed_,
-                "prediction": {"target": self.truth - 1}}
-        return self._blank(0), float(info["correct"]), not truncated, truncated, info
+                "classes": list(self.classes), "seed": self.seed_}
+        return self._scored(self._blank(0), float(info["correct"]), logits, not truncated,
+                            truncated, info)
 
     def _blank(self, platform: int) -> dict[str, Any]:
         """An observation without a touch (zero frames, ``ok`` 0): a failed press's, and the
@@ -179,3 +242,7 @@ class TouchEnv(gym.Env):
                 "platform": platform, "ok": 0, "touches": self.touches.copy(),
                 "budget_left": np.array([max(self.max_presses - int(self.touches.sum()), 0)],
                                         np.int64)}
+
+
+if ap_gym is not None:      # ap_gym's wrappers and agents take it as an active-perception task
+    ap_gym.BaseActivePerceptionEnv.register(TouchEnv)

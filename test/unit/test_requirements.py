@@ -1,7 +1,9 @@
 """Two products on disk: the product's pinned requirements (``requirements.txt``) hold, with
-what they pull in, every third-party module ``tactex_ros`` and its unit tests import, and never
-torch, captum, Ray or matplotlib; those are the lab's (``requirements-lab.txt``, which includes
-the product's). Read from the installed distributions' metadata."""
+what they pull in, every third-party module ``tactex_ros`` imports, and never torch, captum, Ray
+or matplotlib; those are the lab's (``requirements-lab.txt``, which includes the product's).
+The test tools (pytest, ruff, selenium, ...) are neither's: ``requirements-test.txt`` holds
+them, and with the product's every module the unit tests import. Read from the installed
+distributions' metadata."""
 
 from __future__ import annotations
 
@@ -15,7 +17,10 @@ from packaging.utils import canonicalize_name
 
 ROOT = Path(__file__).resolve().parents[2]
 LAB_ONLY = {"torch", "captum", "ray", "matplotlib", "scikit-learn", "joblib"}
-OPTIONAL = {"digit_interface"}     # the DIGIT sensor's driver, installed by hand (README)
+TEST_ONLY = {"pytest", "ruff", "pytest-xdist", "execnet", "selenium", "mcap-ros2-support"}
+# the DIGIT sensor's driver, installed by hand (README); ap_gym, the touch environment's
+# optional active-perception interface (requirements-test.txt)
+OPTIONAL = {"digit_interface", "ap_gym"}
 
 
 def _pins(path: Path) -> list[Requirement]:
@@ -64,15 +69,36 @@ def test_the_products_requirements_have_no_torch_and_the_lab_includes_them():
     assert lab >= LAB_ONLY and "torch==2.13.0" in lab_text.splitlines()
 
 
-def test_every_module_the_product_imports_comes_with_its_requirements():
-    have = _closure(_pins(ROOT / "requirements.txt"))
+def _missing(folders: list[Path], requirements: list[Path]) -> list[str]:
+    """Third-party modules imported under ``folders`` that no distribution of
+    ``requirements`` (with what they pull in) provides."""
+    have = _closure([r for path in requirements for r in _pins(path)])
     owners = metadata.packages_distributions()
     missing = []
-    for top in sorted(_third_party(ROOT / "tactex_ros") | _third_party(ROOT / "test" / "unit")):
+    for top in sorted(set().union(*(_third_party(f) for f in folders))):
         dists = {canonicalize_name(d) for d in owners.get(top, [])}
         if top not in OPTIONAL and not dists & have:
             missing.append(f"{top} ({', '.join(sorted(dists)) or 'no distribution'})")
-    assert missing == []
+    return missing
+
+
+def test_every_module_the_product_imports_comes_with_its_requirements():
+    assert _missing([ROOT / "tactex_ros"], [ROOT / "requirements.txt"]) == []
+
+
+def test_every_module_the_unit_tests_import_comes_with_the_test_requirements():
+    assert _missing([ROOT / "test" / "unit"],
+                    [ROOT / "requirements.txt", ROOT / "requirements-test.txt"]) == []
+    # the product's alone do not: selenium is a test tool
+    assert "selenium (selenium)" in _missing([ROOT / "test" / "unit"], [ROOT / "requirements.txt"])
+
+
+def test_the_runtime_requirements_pin_no_test_tool():
+    runtime = {canonicalize_name(r.name) for path in ("requirements.txt", "requirements-lab.txt")
+               for r in _pins(ROOT / path)}
+    test = {canonicalize_name(r.name) for r in _pins(ROOT / "requirements-test.txt")}
+    assert not runtime & TEST_ONLY and test >= TEST_ONLY
+    assert not test & runtime                    # each pin in one file
 
 
 def test_package_xml_names_the_products_ros_imports_and_no_lab_dependency():
