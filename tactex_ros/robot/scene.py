@@ -55,7 +55,7 @@ class PressSettings(Schema):
              "surface plus its tolerance): it slows to descend_speed into the band; 0 = "
              "descend_speed all the way [m/s]", 0.0, 0.3)
     surface_tolerance: float = param(
-        0.005, "the scene's surface heights are right to within this (a hand-guided "
+        0.002, "the scene's surface heights are right to within this (a hand-guided "
                "measurement; tactex robot measure-scene: about 1 mm): the contact may come "
                "this far above the scene's surface [m]", 0.0, 0.05)
     found_tolerance: float = param(
