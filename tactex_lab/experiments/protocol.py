@@ -234,6 +234,7 @@ def _in_range(lo: float, hi: float):
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"{text} is outside {lo}..{hi}")
         return v
+    parse.__name__ = "float"     # as the reference and argparse's messages name the type
     return parse
 
 #: ``--thresholds``: stop thresholds on the leading belief, 0..1 (up to 1.01: above 1 never

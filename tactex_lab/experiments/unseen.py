@@ -461,8 +461,8 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--paired-against", nargs="+", metavar="LABEL")
     p.add_argument("--press-s", type=PRESS_SECONDS, default=PRESS_S,
-                   help="seconds per press for the time axis (protocol.PRESS_S: the mock arm on "
-                        "the lab scene)")
+                   help="seconds per press for the time axis (protocol.PRESS_S: the press "
+                        "benchmark's median on the lab scene)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
 

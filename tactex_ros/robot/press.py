@@ -263,18 +263,22 @@ def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
 
 
 FORCE_SMOOTH_S = 0.05   # time constant of the smoothed force the press decides on [s]
-HOLD_TAU_S = 0.07       # the hold closes the force error with this time constant [s]
+HOLD_TAU_S = 0.06       # the hold closes the force error with this time constant [s]
 #: the hold captures within this fraction of ``force_tolerance_n`` (the measured force): the
 #: rest of the band is left for the reading's own error (drift, a bias that changes with the
 #: pose: the true force must be within ``force_tolerance_n``)
 CAPTURE_BAND = 0.5
 #: [s] after contact the descent's speed is the force error over (K x RAMP_TAU_S), at least
 #: descend_speed and at most descend_fast_speed: the force rises fast, then eases into the hold
-RAMP_TAU_S = 0.1
+RAMP_TAU_S = 0.08
 #: [m/s^2] the fast descent slows to descend_speed at this deceleration, reaching it
 #: DESCENT_MARGIN_M above the band where the surface may be
 DESCENT_BRAKE_M_S2 = 0.5
 DESCENT_MARGIN_M = 0.001
+#: [s] how long an arm moving faster than its target takes to fall back to it (the mock's
+#: heaviest arm, 5 kg under 1000 N/m and 2 sqrt(K) N s/m: 1 / (zeta omega) = 0.14 s, and
+#: more: 0.15 s left 16 cycles over 12 N in 400 worlds, 0.25 s none)
+ARM_SETTLE_S = 0.25
 #: [m] the retract ends at least this far above the highest the surface may be
 RETRACT_CLEAR_M = 0.005
 #: [s] time constant of the static sag estimate on the travel leg (the arm's height below its
@@ -678,7 +682,10 @@ class PressController:
             err = s.force_threshold - self.force_avg
             return float(np.clip(err / (self.k * RAMP_TAU_S), s.descend_speed, fast))
         low = min(float(position[2]), float(self.target[2]) + self.lift_n / self.k)
-        gap = low - (self.expected_z + self.tolerance) - DESCENT_MARGIN_M
+        # an arm moving faster than the contact speed (catching up its target's lag, an
+        # underdamped heavy arm) slows later than its target: slow that much earlier
+        lead = max(0.0, self.speed - s.descend_speed) * ARM_SETTLE_S
+        gap = low - (self.expected_z + self.tolerance) - DESCENT_MARGIN_M - lead
         if gap <= 0.0:
             return s.descend_speed
         return min(fast, s.descend_speed + math.sqrt(2.0 * DESCENT_BRAKE_M_S2 * gap))
@@ -696,7 +703,11 @@ class PressController:
         self._guard(position)
         if self._stalled(now, position):
             return
-        if abs(err) <= CAPTURE_BAND * s.force_tolerance_n and self.speed <= s.rest_speed:
+        band = CAPTURE_BAND * s.force_tolerance_n
+        # the smoothed force and the tick's own (its samples' mean: a ringing arm's force
+        # swings about the smoothed one) both in the band, at rest
+        if (abs(err) <= band and abs(s.force_threshold - self.force_n) <= band
+                and self.speed <= s.rest_speed):
             self._band_since = now if self._band_since is None else self._band_since
         else:
             self._band_since = None

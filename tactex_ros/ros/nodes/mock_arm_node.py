@@ -66,6 +66,9 @@ class MockArmNode(TactexNode):
         self.scene = scene
         self.arm = ArmModel(scene, np.array([s.start_x, s.start_y, s.start_z]),
                             mock_law(prof.law, s), mass=s.mass, faults=mock_faults(s))
+        # the true contact force is checked at every physics cycle (1 kHz), not only at the
+        # published samples: /diagnostics counts the cycles above the scene's max_force
+        self.arm.world.limit = scene.press.max_force
         # the simulation runs in its own thread (rate_loop); callbacks change the arm under this
         self.lock = threading.Lock()
         self.max_publishers = prof.max_publishers
@@ -156,12 +159,17 @@ class MockArmNode(TactexNode):
                   "controller active": self.controller_active,
                   "reflexes injected": self.reflexes, "targets ignored": self.ignored_targets,
                   "contact force [N]": float(self.arm.normal_force()),
+                  "cycles over max_force (true force)": int(self.arm.world.over_limit[0]),
                   "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position.copy())}
         if self.error or not self.controller_active:
             return ERROR, ("reflex (injected): arm stopped, no state until recovered"
                            if self.error else "controller inactive: no state"), values
         if not self.active:
             return OK, "configured, not active yet: no state published", values
+        over = int(self.arm.world.over_limit[0])
+        if over:
+            return ERROR, (f"the simulated contact force was above max_force "
+                           f"({self.scene.press.max_force} N) for {over} physics cycle(s)"), values
         if newly:
             return WARN, (f"{newly} target(s) ignored since the last status: more than "
                           f"{self.max_publishers} publisher(s) on {self.target_topic}"), values

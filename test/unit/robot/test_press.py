@@ -295,10 +295,10 @@ def test_profiles_name_their_controllers_law() -> None:
     for name in ("fr3_crisp", "panda_crisp"):
         law = load_profile(name).law
         assert (law.stiffness, law.rate_hz, law.target_filter, law.error_clip) == (
-            1000.0, 1000.0, 0.1, 0.01)
+            1000.0, 1000.0, 0.1, 0.012)
         assert law.d == pytest.approx(2.0 * math.sqrt(1000.0), abs=1e-4)
         assert law.max_force_step == pytest.approx(0.5 / 0.8)
-        assert law.max_static_force == pytest.approx(10.0)
+        assert law.max_static_force == pytest.approx(12.0)
     sim = load_profile("sim").law
     assert (sim.target_filter, sim.error_clip, sim.max_force_step) == (0.0, math.inf, math.inf)
 
@@ -370,13 +370,14 @@ def test_step_response_matches_the_closed_form() -> None:
 def test_static_contact_force_is_the_law_at_rest() -> None:
     """At rest on a platform of stiffness kp with the target e below the surface: unclipped,
     the springs in series give K kp / (K + kp) e (1000 N/m, 2e4 N/m, 5 mm: 4.7619 N); clipped
-    at 10 mm with the target 100 mm deep, K x error_clip = 10 N whatever the depth."""
+    at 10 mm (fr3_crisp: 12 mm) with the target 100 mm deep, K x error_clip = 10 N (12 N)
+    whatever the depth."""
     scene = _scene()
     p = scene.platform("c1")
     surface = np.array(p.position, dtype=float)
     cases = ((ControlLaw(stiffness=1000.0), 0.005, 1000.0 * 2e4 / (1000.0 + 2e4) * 0.005),
              (ControlLaw(stiffness=1000.0, error_clip=0.01), 0.1, 10.0),
-             (load_profile("fr3_crisp").law, 0.1, 10.0))
+             (load_profile("fr3_crisp").law, 0.1, 12.0))
     for law, depth, force in cases:
         arm = ArmModel(scene, surface.copy(), law, faults=Faults(platform_stiffness=2e4))
         arm.target = surface - [0.0, 0.0, depth]
