@@ -13,7 +13,8 @@ shutdown), SIGKILL after a grace period. Children run in their own sessions, so 
 Ctrl-C reaches only the runner, which stops them in order; and each child asks the kernel for
 SIGTERM when the runner dies (``PR_SET_PDEATHSIG`` on Linux), so even a runner killed with
 SIGKILL leaves no node behind. What ended the trial is appended to the record's
-``events.jsonl``.
+``events.jsonl`` when the record is this run's (``is_this_runs``: the explorer gets the run's
+``run_id``), never to another run's record.
 """
 
 from __future__ import annotations
