@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from tactex_ros.cli.options import bounded
 from tactex_ros.core.config import SHIPPED_STOP
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
@@ -222,12 +221,21 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
 #: trial (docs/research/unseen_materials.md); the faster simulated scene takes about 4.4 s.
 PRESS_S = 15.5
 
-#: ``--thresholds``: stop thresholds on the leading belief, 0..1 (up to 1.01: above 1 never
-#: stops, the whole budget, as the default sweep's last); a value outside is refused (exit 2)
-THRESHOLD = bounded(float, 0.0, 1.01)
 THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
-#: ``--press-s``: seconds per press for the time axis, 0.1..3600
-PRESS_SECONDS = bounded(float, 0.1, 3600.0)
+PRESS_S_HELP = "seconds per press for the time axis, 0.1..3600"
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Before any work: ``--thresholds`` are stop thresholds on the leading belief, 0..1 (up
+    to 1.01: above 1 never stops, the whole budget, as the default sweep's last);
+    ``--press-s`` seconds per press, 0.1..3600. InputError (exit status 2) naming the option,
+    the value and the range otherwise (NaN included)."""
+    for th in getattr(args, "thresholds", None) or []:
+        if not 0.0 <= th <= 1.01:
+            raise InputError(f"--thresholds {th:g}: outside 0..1.01 ({THRESHOLD_HELP})")
+    ps = getattr(args, "press_s", PRESS_S)
+    if not 0.1 <= ps <= 3600.0:
+        raise InputError(f"--press-s {ps:g}: outside 0.1..3600 ({PRESS_S_HELP})")
 
 
 def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],
