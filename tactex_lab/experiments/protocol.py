@@ -221,28 +221,21 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
 #: docs/results/press_bench/scene.json: approach start to lift-off, the travel included)
 PRESS_S = 3.10
 
-
-def _in_range(lo: float, hi: float):
-    """argparse type: a number in [lo, hi] (nan refused); the error names the range."""
-    import argparse
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{text} is outside {lo}..{hi}")
-        return v
-    parse.__name__ = "float"     # as the reference and argparse's messages name the type
-    return parse
-
-#: ``--thresholds``: stop thresholds on the leading belief, 0..1 (up to 1.01: above 1 never
-#: stops, the whole budget, as the default sweep's last); a value outside is refused (exit 2)
-THRESHOLD = _in_range(0.0, 1.01)
 THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
-#: ``--press-s``: seconds per press for the time axis, 0.1..3600
-PRESS_SECONDS = _in_range(0.1, 3600.0)
+PRESS_S_HELP = "seconds per press for the time axis, 0.1..3600"
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Before any work: ``--thresholds`` are stop thresholds on the leading belief, 0..1 (up
+    to 1.01: above 1 never stops, the whole budget, as the default sweep's last);
+    ``--press-s`` seconds per press, 0.1..3600. InputError (exit status 2) naming the option,
+    the value and the range otherwise (NaN included)."""
+    for th in getattr(args, "thresholds", None) or []:
+        if not 0.0 <= th <= 1.01:
+            raise InputError(f"--thresholds {th:g}: outside 0..1.01 ({THRESHOLD_HELP})")
+    ps = getattr(args, "press_s", PRESS_S)
+    if not 0.1 <= ps <= 3600.0:
+        raise InputError(f"--press-s {ps:g}: outside 0.1..3600 ({PRESS_S_HELP})")
 
 
 def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],

@@ -44,7 +44,7 @@ import argparse
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import results_dir
 from tactex_lab.experiments.curves import BeliefCurve, belief_curves, parse_setting
-from tactex_lab.experiments.protocol import (PRESS_S, PRESS_SECONDS, THRESHOLD, THRESHOLD_HELP,
+from tactex_lab.experiments.protocol import (PRESS_S, THRESHOLD_HELP, check_options,
                                              protocol, write_outputs)
 from tactex_lab.experiments.runner import add_runner_args, backend_of
 
@@ -90,7 +90,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--setting", action="append",
                    help="label=preset[:PATH=value,...] (repeat); default: "
                         + " ".join(DEFAULT_SETTINGS))
-    p.add_argument("--thresholds", type=THRESHOLD, nargs="+", help=THRESHOLD_HELP)
+    p.add_argument("--thresholds", type=float, nargs="+", help=THRESHOLD_HELP)
     p.add_argument("--target-touches", type=float, default=5.0,
                    help="choose the most accurate (setting, theta) with at most this many "
                         "touches after the baseline on average")
@@ -100,13 +100,14 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--paired-against", nargs="+", metavar="LABEL",
                    help="paired tests of every setting against these settings (default: the "
                         "first --setting)")
-    p.add_argument("--press-s", type=PRESS_SECONDS, default=PRESS_S,
+    p.add_argument("--press-s", type=float, default=PRESS_S,
                    help="seconds per touch for the time axis of accuracy_vs_time.png")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
     add_runner_args(p)
 
     def func(args: argparse.Namespace) -> int:
+        check_options(args)
         for name in ("comparisons", "scenes", "budget", "folds"):
             if getattr(args, name) < (2 if name == "comparisons" else 1):
                 raise InputError(f"--{name} too small: {getattr(args, name)}")

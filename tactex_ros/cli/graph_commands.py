@@ -209,14 +209,17 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     run = run_session(nodes, logs, d, confirm=confirm,
                       timeout_s=args.timeout if args.timeout is not None else 86400.0,
                       domain_id=args.domain_id)
-    if run.result is None:
-        print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
-              file=sys.stderr)
+    if run.result is None or run.failure is not None:
+        how = ("before its last trial" if run.result is None else
+               "with its result, but the run failed")
+        print(f"tactex: session ended {how}: {run.failure}; logs in {logs}", file=sys.stderr)
         from ..ros.devrun.launcher import node_reason
         refused = [n for n, c in run.node_exit.items() if c == 2]
-        for n in refused:            # a refusal's reason on the console, not only in its log
-            print(f"tactex: {n}: {node_reason(Path(logs) / f'{n}.log')} (from "
-                  f"{Path(logs) / f'{n}.log'})", file=sys.stderr)
+        failed = [n for n, c in run.node_exit.items() if c == 1]
+        for n in refused + failed:   # the node's reason on the console, not only in its log
+            why = node_reason(Path(logs) / f"{n}.log")
+            if why:
+                print(f"tactex: {n}: {why} (from {Path(logs) / f'{n}.log'})", file=sys.stderr)
         if refused:
             return 2                 # a refusal: continuing the same way would fail again
         import shlex
@@ -261,6 +264,20 @@ def cmd_run(args: argparse.Namespace) -> int:
     if run.left_running:
         print(f"tactex: nodes still running after the stop: {run.left_running}",
               file=sys.stderr)
+    if run.not_noted:
+        print(f"tactex: the end of the run is not in the record's events: {run.not_noted}",
+              file=sys.stderr)
+    if run.result is not None and "error" not in run.result and run.failure is not None:
+        # the trial has its result, but the run did not end well: a file that completes the
+        # trial (its MCAP copy, report.html, an event) not written, or another node's exit
+        print(f"tactex: trial {run.record.name if run.record else ''} has its result "
+              f"({run.record / 'result.json' if run.record else ''}: reference matches "
+              f"{run.result.get('prediction')}) but the run failed: {run.failure}; logs in "
+              f"{logs}", file=sys.stderr)
+        if run.reason:
+            print(f"tactex: {run.failed_node}: {run.reason} (from "
+                  f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
+        return 128 + run.signal if run.signal else (2 if 2 in run.node_exit.values() else 1)
     if run.result is None or "error" in run.result:
         why = (run.failure or (run.result or {}).get("error")
                or f"explorer ended without a result ({exit_text(run.exit_code)})")

@@ -121,11 +121,11 @@ class DescriptorSettings(LearnerBase):
                                            "described over its region only (0 = off; "
                                            "core/guards.py)", 0.0, 1.0)
     fabric_library: bool = param(
-        True, "model 'descriptor': in a session, the belief also asks the lab's fabric library "
-              "(record_dir/fabric_library.npz: the presses of every earlier trial whose "
-              "placement was known, under their fabric names) which known fabric each platform "
-              "holds, and each finished trial's presses join it (core/library.py; off: the "
-              "scene-only belief, the thesis protocol)")
+        True, "model 'descriptor': in a session, the belief also asks the session's fabric "
+              "library (<session folder>/fabric_library.npz: the presses of every earlier trial "
+              "whose placement was known, under their fabric names) which known fabric each "
+              "platform holds, and each finished trial's presses join it (core/library.py; "
+              "off: the scene-only belief, the thesis protocol)")
     # match_temperature 0.05, match_prior_scale 1.0, descriptor_frames 1 and the stop at 0.9
     # were chosen in every one of 3 class folds of octopi-dev (docs/research/real_presses.md);
     # descriptor_height_map on: fewer touches at equal accuracy on classes the settings never

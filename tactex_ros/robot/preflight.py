@@ -64,7 +64,8 @@ class Problem:
 
     def error(self) -> Exception:
         """The exception to raise: DeviceError when the device is absent, DeviceNotReady when
-        it is in a state that forbids the work (robot mode), else InputError."""
+        it (or the machine) is in a state that forbids the work (robot mode, a slow state
+        stream: exit status 1), else InputError (exit status 2: a setting to change)."""
         if self.absent:
             return DeviceError(str(self))
         if self.check in NOT_READY:
@@ -74,8 +75,10 @@ class Problem:
 
 #: Pre-flight checks that fail when the device is absent rather than unfit.
 ABSENT = ("state", "no_frame")
-#: Pre-flight checks that fail on a run-time state of the device, not on a setting.
-NOT_READY = ("robot_mode",)
+#: Pre-flight checks that fail on a run-time state of the device or of the machine, not on a
+#: setting: the robot's mode, and a state stream measured slower than its floor (what the
+#: machine did: a busy machine, a slow link or broadcaster; the same command can pass later)
+NOT_READY = ("robot_mode", "state_rate")
 
 
 def rate_hz(stamps: Sequence[float]) -> float:
@@ -94,10 +97,11 @@ def state_problem(stamps: Sequence[float], min_rate_hz: float, window_s: float,
                 f"({window_s} s): is the robot's bring-up (state broadcaster) running?")
     r = rate_hz(stamps)
     if r < min_rate_hz:
-        return Problem("state_rate", f"{what} arrives at {r:.1f} Hz, below the minimum "
+        return Problem("state_rate", f"{what} arrived at {r:.1f} Hz, below the minimum "
                 f"{min_rate_hz} Hz (robot profile state.min_rate_hz, or min_state_rate_hz; "
-                f"{len(stamps)} messages in {window_s} s): set the state broadcaster's rate as "
-                "the shipped bring-up does (docs/hardware.md)")
+                f"{len(stamps)} messages in {window_s} s): the robot's state stream was slow "
+                "(a busy machine, a slow network link, or a state broadcaster publishing "
+                "slower than the shipped bring-up: docs/hardware.md)")
     return None
 
 

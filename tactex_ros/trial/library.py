@@ -22,6 +22,7 @@ import numpy as np
 
 from ..core import library as flib
 from ..core.config import DescriptorSettings
+from ..core.errors import TrialError
 from ..core.descriptor import raw_descriptor
 from ..core.touch import Touch
 from .record import read_record
@@ -89,10 +90,13 @@ class LibraryKeeper:
                                    f"{lib.presses} presses of {len(lib.fabrics)} fabrics")
         except Exception as exc:  # noqa: BLE001 - the trial's record is the ground truth
             self.last_update = {"trial": tag, "error": f"{type(exc).__name__}: {exc}"}
-            self.log(logging.WARNING, f"fabric library not updated from trial {tag}: {exc}")
+            self.log(logging.ERROR, f"fabric library not updated from trial {tag}: {exc}")
 
     def current(self) -> flib.FabricLibrary:
-        """The library after the update under way (waited for up to ``wait_s``)."""
+        """The library after the update under way (waited for up to ``wait_s``). TrialError
+        naming the file when that update failed (the file not written, a record unreadable):
+        the session ends with a run-time failure (exit status 1) rather than go on with a
+        library that silently lacks a trial; a continued session files it again."""
         th = self._thread
         if th is not None:
             th.join(self.wait_s)
@@ -101,4 +105,8 @@ class LibraryKeeper:
                                           f"{self.wait_s:g} s: this trial uses the state before")
             else:
                 self._thread = None
+                last = self.last_update or {}
+                if "error" in last:
+                    raise TrialError(f"fabric library {str(self.path)!r} not updated with the "
+                                     f"presses of trial {last['trial']}: {last['error']}")
         return self.library

@@ -88,6 +88,9 @@ class TrialRun:
         self._decisions = 0
         self._warned: set[str] = set()
         self.result: dict | None = None
+        #: what of the finished trial could not be written beside its result (report.html):
+        #: the caller ends with a run-time failure naming each file (exit status 1)
+        self.write_failures: list[str] = []
         if resume:
             self._open_resume(Path(resume).resolve(), inputs, check_record)
         else:
@@ -115,7 +118,8 @@ class TrialRun:
                          "touches_replayed": len(self.replay.recorded),
                          "decisions_on_disk": len(rec["decisions"]),
                          "checkpoint_round": len(self.engine.records), "how": how,
-                         "time": time.time(), "command": os.environ.get("TACTEX_COMMAND", "")})
+                         "time": time.time(), "command": os.environ.get("TACTEX_COMMAND", ""),
+                         "run_id": str(inputs.get("explorer", {}).get("run_id", ""))})
 
     @property
     def dir(self) -> Path:
@@ -261,11 +265,15 @@ class TrialRun:
         return self.result
 
     def _write_report(self) -> None:
-        """``report.html`` beside the result; a failure there never loses the trial."""
+        """``report.html`` beside the result; a failure there never loses the trial (the
+        result is on disk) but is one of ``write_failures``."""
         try:
             from .report import write_trial_report
             write_trial_report(self.record.dir)
         except Exception as exc:  # noqa: BLE001 - the record is the ground truth
+            why = (str(exc) if str(self.record.dir / "report.html") in str(exc) else
+                   f"{str(self.record.dir / 'report.html')!r} not written: {exc}")
+            self.write_failures.append(why)
             self.log(logging.WARNING, f"report.html not written: {exc}")
 
     def close(self) -> None:

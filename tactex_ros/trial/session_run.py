@@ -106,7 +106,23 @@ class SessionRun:
         """Every trial not yet done, in order; then the session's result and report.
         ``run_trial(trial, resume)``: the trial's result (None: the process is being stopped,
         the trial stays resumable); ``resume``: its record folder when it was started before.
-        Returns the exit status: 0, or 1 when the session ended without its result."""
+        Returns the exit status: 0, or 1 when the session ended without its result or its
+        report could not be written (the file named on the log)."""
+        code = self._trials(operator, run_trial, stopping)
+        if not stopping():
+            try:
+                from .report import write_session_report
+                write_session_report(self.dir)
+            except Exception as exc:  # noqa: BLE001 - the records are the ground truth
+                self.log(logging.ERROR, f"session report {str(self.dir / 'report.html')!r} "
+                                        f"not written: {exc}")
+                return 1
+        return code
+
+    def _trials(self, operator: Operator,
+                run_trial: Callable[[sess.SessionTrial, str | None], dict | None],
+                stopping: Callable[[], bool]) -> int:
+        """``run`` without the report: the trials, the result; the exit status."""
         d, trials = self.dir, self.session.trials
         try:
             for k, trial in enumerate(trials, 1):
@@ -165,13 +181,6 @@ class SessionRun:
             except TrialError as why:   # a full disk may refuse the event too
                 self.log(logging.ERROR, f"session end not recorded: {why}")
             return 1
-        finally:
-            if not stopping():
-                try:
-                    from .report import write_session_report
-                    write_session_report(d)
-                except Exception as exc:  # noqa: BLE001 - the records are the ground truth
-                    self.log(logging.WARNING, f"session report not written: {exc}")
 
     def _learn(self, trial: sess.SessionTrial) -> None:
         """A finished trial's presses join the fabric library (background; its placement is

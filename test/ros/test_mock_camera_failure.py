@@ -16,7 +16,7 @@ import yaml
 
 from tactex_ros.paths import config_dir
 from tactex_ros.ros.graph import NodeSpec
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC
 
 pytestmark = [pytest.mark.ros]

@@ -69,9 +69,11 @@ def test_scripted_session_runs_every_trial_with_its_truth(session_run) -> None:
         assert (rec / "report.html").stat().st_size > 10_000
     assert run.result["accuracy"] == sum(correct) / 2
     assert (d / "report.html").is_file()
-    # the fabric library (record_dir): trial 1 saw it empty, trial 2 saw trial 1's presses
+    # the fabric library (in the session folder, not record_dir: issue 49): trial 1 saw it
+    # empty, trial 2 saw trial 1's presses
     from tactex_ros.core import library as flib
-    lib = flib.load(tmp / flib.LIBRARY_FILE)
+    lib = flib.load(d / flib.LIBRARY_FILE)
+    assert not (tmp / flib.LIBRARY_FILE).exists()
     seen = [json.loads((d / t.record_name / "result.json").read_text())["fabric_library"]
             for t in trials]
     accepted = [sum(x["accepted"] for x in read_record(d / t.record_name,

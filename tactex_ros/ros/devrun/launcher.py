@@ -13,7 +13,8 @@ shutdown), SIGKILL after a grace period. Children run in their own sessions, so 
 Ctrl-C reaches only the runner, which stops them in order; and each child asks the kernel for
 SIGTERM when the runner dies (``PR_SET_PDEATHSIG`` on Linux), so even a runner killed with
 SIGKILL leaves no node behind. What ended the trial is appended to the record's
-``events.jsonl``.
+``events.jsonl`` when the record is this run's (``is_this_runs``: the explorer gets the run's
+``run_id``), never to another run's record.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ...core.errors import InputError
+from ...core.errors import InputError, TrialError
 from ..graph import NodeSpec, params_file
 
 _PR_SET_PDEATHSIG = 1
@@ -67,6 +68,7 @@ class GraphRun:
     left_running: list[str] = field(default_factory=list)  # nodes alive after stop (goal: none)
     pids: dict[str, int] = field(default_factory=dict)     # process id of every node
     reason: str | None = None          # the failed node's first error line (its log)
+    not_noted: str | None = None       # why the end could not be noted in the record's events
 
 
 def node_command(n: NodeSpec, params: Path) -> list[str]:
@@ -384,6 +386,10 @@ def run_graph(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     ex.parameters["exit_when_done"] = True
     if not ex.parameters.get("trial_id"):
         ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
+    if not ex.parameters.get("run_id"):      # this run's identity: its record says it is its
+        import uuid
+        ex.parameters["run_id"] = uuid.uuid4().hex
+    run_id = str(ex.parameters["run_id"])
     ex.parameters["record_dir"] = str(Path(ex.parameters["record_dir"]).resolve())
     # a resume writes into its record whatever record_dir and trial_id say (the explorer
     # takes them from the record: trial.resume.settings_from_record)
@@ -419,14 +425,44 @@ def run_graph(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
         failure, failed_node = unreadable, ex.name
     code = exits.get(ex.name)
     reason = node_reason(g.log_dir / f"{failed_node}.log") if failed_node else None
-    if failure is not None:
-        append_event(record, {"event": "trial_ended", "reason": failure, "node": failed_node,
-                              "signal": run.signal, "node_exit": exits,
-                              "time": time.time()})
+    not_noted = None
+    if failure is not None and is_this_runs(record, run_id):
+        try:
+            append_event(record, {"event": "trial_ended", "reason": failure,
+                                  "node": failed_node, "signal": run.signal, "node_exit": exits,
+                                  "run_id": run_id, "time": time.time()})
+        except TrialError as exc:      # a full disk: said on the console, not lost silently
+            not_noted = str(exc)
     return GraphRun(exit_code=-1 if code is None else code, result=result,
                     record=record if record.exists() else None, logs=g.log_dir,
                     timed_out=failure is not None and failure.startswith("trial not finished"),
                     node_exit=exits, failure=failure, failed_node=failed_node,
                     signal=run.signal, elapsed_s=run.elapsed_s, stop_s=run.stop_s,
                     left_running=left,
-                    pids=g.pids, reason=reason)
+                    pids=g.pids, reason=reason, not_noted=not_noted)
+
+
+def is_this_runs(record: Path, run_id: str) -> bool:
+    """Whether the record folder ``record`` belongs to the run ``run_id`` (the explorer's
+    ``run_id``): its ``config.json`` was written by that run (a new trial), a resume by that
+    run is in its events, or nothing is recorded there yet. A run refused because the record
+    is another run's (the same trial id) must not write into it."""
+    import json
+    from ..trial.record import RECORD_FILES
+    cfg = record / "config.json"
+    if not cfg.is_file():
+        return record.is_dir() and not any((record / f).exists() for f in RECORD_FILES)
+    try:
+        if json.loads(cfg.read_text()).get("explorer", {}).get("run_id") == run_id:
+            return True
+        lines = (record / "events.jsonl").read_text().splitlines()
+    except (OSError, ValueError, AttributeError):
+        return False
+    for line in lines:
+        try:
+            e = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(e, dict) and e.get("event") == "resumed" and e.get("run_id") == run_id:
+            return True
+    return False

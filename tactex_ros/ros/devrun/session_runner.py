@@ -211,9 +211,10 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         progress.poll()
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
-        if name == ex.name and (fresh_result() or (code == 0 and part_done())):
+        if name == ex.name and code == 0 and (fresh_result() or part_done()):
             return None
-        last = [e for e in sess.events(d) if e.get("event") == "session_ended"]
+        evs, _ = tail_jsonl(events_path, start_offset)       # this run's, not an earlier one's
+        last = [e for e in evs if e.get("event") == "session_ended"]
         return (last[-1]["reason"] if last and name == ex.name else
                 f"node {name} ended ({exit_text(code)}) {elapsed:.1f} s into the session")
 

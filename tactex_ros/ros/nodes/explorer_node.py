@@ -114,6 +114,7 @@ class ExplorerNode(TactexNode):
         self.diag = Diagnostics(self, s.diag_period_s)
         self.diag.add("trial", "tactex explorer", self._health)
         self.result: dict | None = None
+        self.incomplete: str | None = None     # a finished trial's missing files (``_trial``)
         self.session_trial = None
         self._t_trial = None
         self._silence = Silence()        # of the press server, since the last message
@@ -181,6 +182,8 @@ class ExplorerNode(TactexNode):
                               log=self._log, min_free_mb=s.min_free_mb)
         self.trial_id = self.trial.trial_id
         self.bag = self._open_bag()
+        self._bag_warned = False
+        self._not_written: list[str] = []    # the trial's writes besides its record's that failed
         self.last_state = None
 
     def _check_scene(self, d: Path) -> None:
@@ -213,14 +216,14 @@ class ExplorerNode(TactexNode):
             self.bag.write_all(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
             if not self._bag_warned:
-                self._bag_warned = True
+                self._bag_warned = True    # the trial goes on; it ends with exit status 1
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
                 try:
                     from ...trial.record import append_event
                     append_event(self.record.dir, {"event": "mcap_failed", "reason": str(exc),
                                                    "time": time.time()})
-                except TrialError:
-                    pass           # the disk is full: the next touch ends the trial
+                except TrialError as why:  # the disk is full: the next touch ends the trial
+                    self._not_written.append(str(why))
 
     def activate(self) -> None:
         """Start the trial (first activation) or let a paused one press again."""
@@ -460,8 +463,28 @@ class ExplorerNode(TactexNode):
             self.exit_code = 1
         finally:
             self.bag.close()              # never raises (ros/bag.py)
+            self.incomplete = self._incomplete()
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()
+
+    def _incomplete(self) -> str | None:
+        """A trial that has its result but not every file that completes it (its MCAP copy,
+        report.html, an event): why, naming each file, logged as an error; the node then ends
+        with exit status 1 (a run-time failure: ``tactex graph run`` prints it and no
+        success). None when the trial failed (its error is the result) or nothing is missing."""
+        if self.result is None or "error" in self.result:
+            return None
+        missing = list(self.trial.write_failures) + self._not_written
+        if self.bag.failed:
+            missing.insert(0, f"the MCAP copy {str(self.bag.path)!r} stopped: {self.bag.failed} "
+                              "(whole messages before stay readable)")
+        if not missing:
+            return None
+        why = (f"trial {self.trial_id}: its result is in {str(self.record.dir / 'result.json')!r}"
+               f" but not every file was written: {'; '.join(missing)}")
+        self.get_logger().error(why)
+        self.exit_code = 1
+        return why
 
     def _run_trial(self) -> None:
         s = self.settings
@@ -491,9 +514,9 @@ class ExplorerNode(TactexNode):
                  f"{session.name}_{time.strftime('%Y%m%d_%H%M%S')}").resolve()
         keeper = None
         if getattr(s.learner, "fabric_library", False):     # a lab session learns its fabrics
-            from ...core.library import LIBRARY_FILE
+            from ...core.library import LIBRARY_FILE        # in its own folder, with the rest
             from ...trial.library import LibraryKeeper
-            keeper = LibraryKeeper(Path(s.record_dir) / LIBRARY_FILE, s.learner, log=self._log)
+            keeper = LibraryKeeper(d / LIBRARY_FILE, s.learner, log=self._log)
         self.session = SessionRun(session, d, {
             "seed": s.seed, "config": s.config, "strategy": s.trial.strategy,
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
@@ -511,6 +534,8 @@ class ExplorerNode(TactexNode):
                          **self.session.trial_inputs(trial, self.settings.scene_file))
         self.session.trial_started(trial, resume is not None, self.record.n_touches)
         self._trial(finish_node=False)
+        if self.incomplete:              # the session ends: exit status 1, the file named
+            raise TrialError(self.incomplete)
         return self.result
 
     def _run_session(self) -> None:

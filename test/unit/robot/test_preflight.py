@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.contact import strongest_contact
-from tactex_ros.core.errors import DeviceError, InputError
+from tactex_ros.core.errors import DeviceError, DeviceNotReady, InputError
 from tactex_ros.robot import preflight as pf
 from tactex_ros.robot.scene import PressSettings
 
@@ -54,10 +54,12 @@ def test_rates() -> None:
     assert pf.state_problem(t, 50.0, 1.0, "/s") is None
     assert pf.state_problem(t, 200.0, 1.0, "/s").check == "state_rate"
     assert pf.state_problem([], 50.0, 1.0, "/s").check == "state"
-    # nothing at all is a device absent (exit status 1), a slow one a refused start (2)
+    # nothing at all is a device absent (exit status 1); a slow stream is what the machine
+    # did, not what the user wrote (issue 49): a run-time state, exit status 1 too
     assert isinstance(pf.state_problem([], 50.0, 1.0, "/s").error(), DeviceError)
     slow = pf.state_problem(t, 200.0, 1.0, "/s").error()
-    assert isinstance(slow, InputError) and not isinstance(slow, DeviceError)
+    assert isinstance(slow, DeviceNotReady) and not isinstance(slow, InputError)
+    assert "state stream was slow" in str(slow) and "100.0 Hz" in str(slow)
     assert isinstance(pf.frame_problem([], LIMITS).error(), DeviceError)
     assert pf.fps_problem(list(np.arange(25) / 25.0), 25.0, 0.8) is None
     assert pf.fps_problem(list(np.arange(25) / 15.0), 25.0, 0.8).check == "fps"
@@ -140,8 +142,9 @@ def test_push_sign() -> None:
 
 
 def test_each_problem_raises_the_error_of_its_meaning() -> None:
-    """A device absent (no state) or not ready (robot mode) is a run-time state (exit status
-    1); an unfit setting is bad input (exit status 2)."""
+    """A device absent (no state), not ready (robot mode) or measured slow (state rate: what
+    the machine did) is a run-time state (exit status 1); an unfit setting is bad input (exit
+    status 2)."""
     from tactex_ros.core.errors import DeviceError, DeviceNotReady, InputError, TrialError
     not_ready = pf.mode_problem(4).error()
     assert isinstance(not_ready, DeviceNotReady) and isinstance(not_ready, TrialError)
@@ -149,4 +152,4 @@ def test_each_problem_raises_the_error_of_its_meaning() -> None:
     absent = pf.state_problem([], 100.0, 1.0, "/robot_state").error()
     assert isinstance(absent, DeviceError) and not isinstance(absent, DeviceNotReady)
     slow = pf.state_problem([0.0, 1.0], 100.0, 1.0, "/robot_state").error()
-    assert isinstance(slow, InputError)
+    assert isinstance(slow, DeviceNotReady) and not isinstance(slow, InputError)
