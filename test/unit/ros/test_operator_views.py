@@ -147,6 +147,13 @@ def test_foxglove_layouts_use_only_keys_foxglove_reads() -> None:
     assert cfg["Image!touch"]["imageMode"]["imageTopic"] == TOUCH_IMAGE_TOPIC
     sim = json.loads(shipped["layouts/sim"].read_text())["configById"]
     assert POSE_TOPIC in sim["3D!tactex"]["topics"]
+    # a trial's MCAP played in the layout: every plot has a line on a topic the file holds
+    from tactex_ros.ros.bag import WRENCH_VIEW
+    recorded = {STATE_TOPIC, WRENCH_VIEW}
+    for name, panel in cfg.items():
+        if name.startswith("Plot!"):
+            assert {p["value"].split(".")[0] for p in panel["paths"]} & recorded, name
+    assert cfg["Plot!wrench"]["paths"][1]["value"] == f"{WRENCH_VIEW}.wrench.force.z"
 
 
 def test_foxglove_layout_check_names_a_key_foxglove_ignores() -> None:
