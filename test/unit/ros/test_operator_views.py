@@ -306,7 +306,8 @@ def test_unfinished_trial_report_says_why_and_how_to_continue(tmp_path: Path) ->
 def test_session_report_has_n_wilson_bands_duration_and_links_both_ways(tmp_path: Path
                                                                         ) -> None:
     from tactex_ros.trial import session as sess
-    from tactex_ros.trial.report import session_html, wilson
+    from tactex_ros.core.stats import wilson
+    from tactex_ros.trial.report import session_html
     d = tmp_path / "s"
     trials = []
     for k, truth in ((1, "c2"), (2, "c2"), (3, "c3")):
