@@ -20,7 +20,7 @@ def main(argv: list[str] | None = None) -> int:
     from tactex_ros.trial import session as sess
     from tactex_ros.trial.record import read_result
     from tactex_ros.ros.graph import describe
-    from tactex_ros.ros.launcher import run_graph
+    from tactex_ros.ros.devrun.launcher import run_graph
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("session_dir")

@@ -100,3 +100,16 @@ def held_press(octopi_dir):
         w.release()
         return path
     return write
+
+
+@pytest.fixture(scope="session")
+def _trial_record_root(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("trial_records")
+
+
+@pytest.fixture(autouse=True)
+def _trial_records_in_tmp(monkeypatch, _trial_record_root):
+    """``tactex trial`` without ``--record-dir`` records under runs/trials of the working
+    folder (the checkout, in a test run): a test's records go to a temporary folder instead."""
+    import tactex_ros.cli.main as cli
+    monkeypatch.setattr(cli, "DEFAULT_RECORD_DIR", str(_trial_record_root))

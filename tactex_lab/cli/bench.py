@@ -69,6 +69,16 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_press(args: argparse.Namespace) -> int:
+    from tactex_ros.robot import press_bench
+    out = press_bench.run(args.scene, args.worlds, args.seed, heavy=args.heavy,
+                          approach_height=args.approach_height,
+                          surface_tolerance=args.surface_tolerance, robot=args.robot)
+    print(press_bench.report(out))
+    write_json(args.json, out)
+    return 0
+
+
 def add_commands(sub: argparse._SubParsersAction, command: str | None = None) -> None:
     b = sub.add_parser("bench", help="benchmarks (print figures)")
     if not builds(command, "bench"):
@@ -96,6 +106,22 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
     bs.add_argument("--repeats", type=bounded(int, 1, 1000), default=5)
     bs.add_argument("--json")
     bs.set_defaults(func=cmd_bench_sim)
+
+    bp = bsub.add_parser("press", help="the press controller in seeded faulty mock worlds "
+                                        "(ROS-free): capture share, refusals, force, time")
+    bp.add_argument("--scene", required=True, help="scene file (e.g. config/scene.yaml)")
+    bp.add_argument("--worlds", type=bounded(int, 1, 100000), default=1000)
+    bp.add_argument("--seed", type=bounded(int, 0, 2 ** 31 - 1), default=0)
+    bp.add_argument("--robot", help="robot profile whose law presses (default: by the "
+                                    "scene's frame_id: fr3_crisp, panda_crisp)")
+    bp.add_argument("--heavy", action="store_true",
+                    help="heavy-arm worlds: 6 kg apparent mass, 2-4 N static force down")
+    bp.add_argument("--approach-height", type=bounded(float, 0.001, 0.3),
+                    help="the scene's approach_height changed [m]")
+    bp.add_argument("--surface-tolerance", type=bounded(float, 0.0, 0.05),
+                    help="the scene's surface_tolerance changed [m] (a measured scene)")
+    bp.add_argument("--json")
+    bp.set_defaults(func=cmd_bench_press)
 
     be = bsub.add_parser("env", help="tactex's agents in the touch environment (seeded scenes "
                                      "of experiment real)")

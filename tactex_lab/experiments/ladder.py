@@ -218,8 +218,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--comparisons", type=int, default=4)
     p.add_argument("--scenes", type=int, default=40)
     p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
-    p.add_argument("--thresholds", type=float, nargs="+")
-    p.add_argument("--press-s", type=float, default=protocol.PRESS_S)
+    p.add_argument("--thresholds", type=protocol.THRESHOLD, nargs="+",
+                   help=protocol.THRESHOLD_HELP)
+    p.add_argument("--press-s", type=protocol.PRESS_SECONDS, default=protocol.PRESS_S)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out")

@@ -216,10 +216,32 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
     return rows
 
 
-#: Seconds per press for the time axis when no --press-s is given: the mock arm's press on the
-#: lab scene (config/scene.yaml's speeds), median of `tactex graph summary` over one simulated
-#: trial (docs/research/unseen_materials.md); the faster simulated scene takes about 4.4 s.
-PRESS_S = 15.5
+#: Seconds per press for the time axis when no --press-s is given: the press benchmark's median
+#: on the lab scene as shipped (`tactex bench press --scene config/scene.yaml --worlds 1000`,
+#: docs/results/press_bench/scene.json: approach start to lift-off, the travel included)
+PRESS_S = 3.10
+
+
+def _in_range(lo: float, hi: float):
+    """argparse type: a number in [lo, hi] (nan refused); the error names the range."""
+    import argparse
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{text} is outside {lo}..{hi}")
+        return v
+    return parse
+
+#: ``--thresholds``: stop thresholds on the leading belief, 0..1 (up to 1.01: above 1 never
+#: stops, the whole budget, as the default sweep's last); a value outside is refused (exit 2)
+THRESHOLD = _in_range(0.0, 1.01)
+THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
+#: ``--press-s``: seconds per press for the time axis, 0.1..3600
+PRESS_SECONDS = _in_range(0.1, 3600.0)
 
 
 def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],

@@ -44,7 +44,8 @@ import argparse
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import results_dir
 from tactex_lab.experiments.curves import BeliefCurve, belief_curves, parse_setting
-from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
+from tactex_lab.experiments.protocol import (PRESS_S, PRESS_SECONDS, THRESHOLD, THRESHOLD_HELP,
+                                             protocol, write_outputs)
 from tactex_lab.experiments.runner import add_runner_args, backend_of
 
 DEFAULT_SETTINGS = ("default=default", "random=default:trial.strategy=random",
@@ -89,7 +90,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--setting", action="append",
                    help="label=preset[:PATH=value,...] (repeat); default: "
                         + " ".join(DEFAULT_SETTINGS))
-    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--thresholds", type=THRESHOLD, nargs="+", help=THRESHOLD_HELP)
     p.add_argument("--target-touches", type=float, default=5.0,
                    help="choose the most accurate (setting, theta) with at most this many "
                         "touches after the baseline on average")
@@ -99,7 +100,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--paired-against", nargs="+", metavar="LABEL",
                    help="paired tests of every setting against these settings (default: the "
                         "first --setting)")
-    p.add_argument("--press-s", type=float, default=PRESS_S,
+    p.add_argument("--press-s", type=PRESS_SECONDS, default=PRESS_S,
                    help="seconds per touch for the time axis of accuracy_vs_time.png")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")

@@ -49,7 +49,8 @@ from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.analysis.learned_features import AUGS, SIM_VARIANTS, library_view
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, add_contact_verdicts,
                                                 by_class, cached)
-from tactex_lab.experiments.protocol import PRESS_S, protocol, write_outputs
+from tactex_lab.experiments.protocol import (PRESS_S, PRESS_SECONDS, THRESHOLD, THRESHOLD_HELP,
+                                             protocol, write_outputs)
 
 
 #: The lab's preparation where it differs from the product's (``PrepareSettings``'s defaults,
@@ -455,11 +456,11 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenes", type=int, default=40, help="scenes per fold and set")
     p.add_argument("--budget", type=int, default=15, help="touches after the baseline")
     p.add_argument("--folds", type=int, default=3)
-    p.add_argument("--thresholds", type=float, nargs="+")
+    p.add_argument("--thresholds", type=THRESHOLD, nargs="+", help=THRESHOLD_HELP)
     p.add_argument("--target-touches", type=float, default=3.0)
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--paired-against", nargs="+", metavar="LABEL")
-    p.add_argument("--press-s", type=float, default=PRESS_S,
+    p.add_argument("--press-s", type=PRESS_SECONDS, default=PRESS_S,
                    help="seconds per press for the time axis (protocol.PRESS_S: the mock arm on "
                         "the lab scene)")
     p.add_argument("--seed", type=int, default=0)

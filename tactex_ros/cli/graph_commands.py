@@ -198,7 +198,7 @@ def default_logs(args: argparse.Namespace, nodes: list) -> Path:
 
 def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     """``tactex graph run --session FILE``: the session's trials in one graph start."""
-    from ..ros.session_runner import run_session
+    from ..ros.devrun.session_runner import run_session
     if getattr(args, "resume", None):
         raise InputError("--resume continues one trial; a session continues with "
                           "--session-dir <its folder>")
@@ -212,7 +212,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     if run.result is None:
         print(f"tactex: session ended before its last trial: {run.failure}; logs in {logs}",
               file=sys.stderr)
-        from ..ros.launcher import node_reason
+        from ..ros.devrun.launcher import node_reason
         refused = [n for n, c in run.node_exit.items() if c == 2]
         for n in refused:            # a refusal's reason on the console, not only in its log
             print(f"tactex: {n}: {node_reason(Path(logs) / f'{n}.log')} (from "
@@ -237,7 +237,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from ..ros.launcher import exit_text, run_graph
+    from ..ros.devrun.launcher import exit_text, run_graph
     nodes = _nodes(args)
     logs = Path(args.log_dir) if args.log_dir else default_logs(args, nodes)
     if args.session:

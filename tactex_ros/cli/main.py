@@ -32,59 +32,146 @@ TRIAL_OPTIONS = ("trial.strategy", "learner.model", "learner.weights", "learner.
                  "learner.representation", "trial.rounds", "trial.stop_confidence")
 
 
-def cmd_trial(args: argparse.Namespace) -> int:
+# what `tactex trial` takes of a trial's own (its ``cli`` section of config.json): a resume
+# takes them from the record
+CLI_TRIAL_OPTIONS = ("source", "comparisons", "classes", "reference", "seed")
+DEFAULT_COMPARISONS = 4
+DEFAULT_RECORD_DIR = "runs/trials"      # as the explorer's record_dir (config/explorer.yaml)
+
+
+def _trial_request(args: argparse.Namespace) -> tuple[dict, str | None]:
+    """``tactex trial``'s options and settings, flat (``source`` ... ``seed``, ``config``,
+    ``learner.*``, ``trial.*``): those given, or for ``--resume`` the record's with the given
+    ones checked against them (``trial.resume.settings_from_record``; a contradiction is
+    refused, both values named). Returns them and the record folder to continue (None: a
+    new trial)."""
+    from ..core.schema import flatten, merge, overrides
     from ..core.config import TrialSettings
-    from ..core.schema import merge, overrides
-    from ..core.engine import TrialSpec, default_platform_ids, refusing_no_contact, run_trial
+    given = flatten(merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
+                          overrides(TrialSettings, args.set, "--set")))
+    classes = args.classes.split(",") if args.classes else None
+    given.update({k: v for k, v in (("source", args.source), ("comparisons", args.comparisons),
+                                    ("classes", classes), ("reference", args.reference),
+                                    ("seed", args.seed)) if v is not None})
+    if not args.resume:
+        if args.source is None:
+            raise InputError("--source is required (replay:DIR or sim[:difficulty]), unless "
+                             "--resume continues a recorded trial")
+        return given, None
+    from pathlib import Path
+    from ..trial.resume import settings_from_record
+    if args.record_dir is not None or args.trial_id is not None:
+        raise InputError("--resume names the record; --record-dir and --trial-id do not "
+                         "apply")
+    d = Path(args.resume)
+    flat = settings_from_record(d, given)
+    if "source" not in flat:
+        raise InputError(f"resume {str(d)!r}: not a record of `tactex trial` (the graph's "
+                         "records continue with `tactex graph run --resume`)")
+    return flat, str(d.resolve())
+
+
+def cmd_trial(args: argparse.Namespace) -> int:
+    """One trial through ``trial.run.TrialRun``: its record (``--record-dir``/``--trial-id``),
+    report and result as the graph's; ``--resume RECORD`` continues an interrupted one (the
+    recorded touches are replayed, the source is brought to where it stopped)."""
+    from ..core.config import TrialSettings
+    from ..core.schema import nest
+    from ..core.engine import TrialSpec, default_platform_ids, refusing_no_contact
     from ..sources import open_source, trial_scene
-    given = merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
-                  overrides(TrialSettings, args.set, "--set"))
-    settings = TrialSettings.check(given, "tactex trial")
-    src = open_source(args.source)
+    from ..trial.report import run_info
+    from ..trial.run import TrialRun
+    flat, resume = _trial_request(args)
+    opts = {k: flat.get(k) for k in CLI_TRIAL_OPTIONS}
+    opts["comparisons"] = opts["comparisons"] or DEFAULT_COMPARISONS
+    opts["seed"] = opts["seed"] or 0
+    nested = nest({k: v for k, v in flat.items() if k == "config"
+                   or k.startswith(("learner.", "trial."))})
+    settings = TrialSettings.check(nested, "tactex trial")
+    src = open_source(opts["source"])
     cfg, tcfg = settings.learner, settings.trial
-    chosen = args.classes.split(",") if args.classes else None
+    chosen = opts["classes"]
     if chosen is not None:
         dup = sorted({c for c in chosen if chosen.count(c) > 1})
         if dup or "" in chosen:
-            raise InputError(f"--classes {args.classes!r}: "
+            raise InputError(f"--classes {','.join(chosen)!r}: "
                               + (f"{', '.join(dup)} given more than once (each comparison "
                                  "platform holds another class)" if dup else "an empty name"))
     if chosen is not None and len(chosen) > MAX_COMPARISONS:
         raise InputError(f"--classes: {len(chosen)} comparison classes; at most "
                          f"{MAX_COMPARISONS}")
-    if chosen is None and args.comparisons < 2:
-        raise InputError(f"--comparisons must be >= 2, got {args.comparisons}")
-    platform_classes, truth = trial_scene(src, args.comparisons, args.seed, chosen,
-                                          args.reference)
+    if chosen is None and opts["comparisons"] < 2:
+        raise InputError(f"--comparisons must be >= 2, got {opts['comparisons']}")
+    seed = opts["seed"]
+    platform_classes, truth = trial_scene(src, opts["comparisons"], seed, chosen,
+                                          opts["reference"])
     n = len(platform_classes) - 1
     ids = default_platform_ids(n)
-    spec = TrialSpec(n, cfg, tcfg, seed=args.seed, platform_ids=tuple(ids))
+    spec = TrialSpec(n, cfg, tcfg, seed=seed, platform_ids=tuple(ids))
     # each touch judged against its own no-contact frame: a replay's presses come from
     # separate sensor sessions (on the robot, one camera's frame serves every touch)
-    touch = refusing_no_contact(src.trial(platform_classes, args.seed), cfg)
+    touch = refusing_no_contact(src.trial(platform_classes, seed), cfg)
+
+    def press(platform: int, meta: dict):
+        from ..core.touch import as_touch
+        meta["requested"] = time.time()
+        got = as_touch(touch(platform))
+        meta["stamp"] = time.time()
+        return got
+
+    record_dir = args.record_dir or DEFAULT_RECORD_DIR       # a resume: the record's own
+    inputs = {"cli": dict(opts, config=settings.config,
+                          platforms=dict(zip(ids, platform_classes)), truth=ids[truth]),
+              "learner": cfg.model_dump(), "trial": tcfg.model_dump(), "run": run_info()}
+    run = TrialRun(spec, record_dir, args.trial_id or "", press=press, inputs=inputs,
+                   resume=resume, guard_reference=False,
+                   log=lambda level, text: print(f"tactex: {text}", file=sys.stderr))
+    if resume:
+        from ..trial.resume import catch_up
+        catch_up(resume, touch)          # the source's next touch: the one the trial needs
 
     import numpy as np
 
-    def progress(rec) -> None:
+    def progress(rec, line) -> None:
         if not args.quiet:
             nxt = ids[rec.platform] if rec.platform is not None else "-"
             print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
                   f"decision {rec.decision_s:.2f}s", file=sys.stderr)
 
-    res = run_trial(spec, touch, truth=truth, on_round=progress)
-    out = res.to_dict()
-    out.update(classes={i: c for i, c in zip(ids, platform_classes)},
-               prediction_class=platform_classes[res.prediction],
-               truth_class=platform_classes[truth], strategy=tcfg.strategy,
-               model=cfg.model, config=settings.config, seed=args.seed, source=args.source)
+    def outcome(out: dict) -> dict:
+        pred = ids.index(out["prediction"])
+        return {"truth": ids[truth], "correct": pred == truth, "truth_platforms": [ids[truth]],
+                "classes": dict(zip(ids, platform_classes)),
+                "prediction_class": platform_classes[pred],
+                "truth_class": platform_classes[truth], "config": settings.config,
+                "source": opts["source"]}
+
+    try:
+        out = run.run(on_decision=progress, extra=outcome, t0=time.monotonic())
+    except KeyboardInterrupt:        # Ctrl-C: the record stays resumable, its report says how
+        run.close()
+        from ..trial.report import write_trial_report
+        try:
+            write_trial_report(run.dir)
+        except Exception as exc:  # noqa: BLE001 - the record is the ground truth
+            print(f"tactex: report.html not written: {exc}", file=sys.stderr)
+        import shlex
+        print(f"tactex: trial interrupted; {run.record.n_touches} touches on disk in "
+              f"{run.dir}; continue with: tactex trial --resume "
+              f"{shlex.quote(str(run.dir))}", file=sys.stderr)
+        return 130
+    except Exception as exc:        # the trial ends in an explicit result
+        run.fail(exc)
+        raise
     write_json(args.json, out)
-    verdict = "correct" if res.correct else "wrong"
-    if res.sure is False:
-        print(f"not sure: the belief ended at {res.confidence:.2f} < {tcfg.stop_confidence:g}; "
-              f"best guess {ids[res.prediction]} ({platform_classes[res.prediction]})")
-    print(f"reference ({platform_classes[0]}) matches {ids[res.prediction]} "
-          f"({platform_classes[res.prediction]}); truth {ids[truth]}: {verdict}; "
-          f"{res.touches} touches; stopped: {res.stop_reason}")
+    pred = ids.index(out["prediction"])
+    verdict = "correct" if out["correct"] else "wrong"
+    if out["sure"] is False:
+        print(f"not sure: the belief ended at {out['confidence']:.2f} < "
+              f"{tcfg.stop_confidence:g}; best guess {ids[pred]} ({platform_classes[pred]})")
+    print(f"reference ({platform_classes[0]}) matches {ids[pred]} "
+          f"({platform_classes[pred]}); truth {ids[truth]}: {verdict}; "
+          f"{out['touches']} touches; stopped: {out['stop_reason']}; record {run.dir}")
     return 0
 
 
@@ -103,6 +190,12 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
     from ..sources import open_source
     src = open_source(spec)
     out = {}
+    most = press_frames(src, spec)
+    if cfg.descriptor_frames > most:
+        raise InputError(f"--frames {cfg.descriptor_frames}: a press of {spec} gives at most "
+                         f"{most} contact frame(s) (a recorded video: the strongest and "
+                         "core.contact.EXTRA_FRAMES more; an image or a simulated press: 1): "
+                         f"use --frames 1..{most}")
     if spec.startswith("replay:"):
         for cls in src.classes:
             xs = []
@@ -126,6 +219,18 @@ def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int =
         out[f"{spec}/{cls}"] = np.stack([raw_descriptor(Touch(src.press(cls, rng), nc), cfg)
                                          for _ in range(sim_presses)])
     return out
+
+
+def press_frames(src, spec: str) -> int:
+    """The most contact frames a press of the library ``spec`` (its source ``src``) gives:
+    a recorded video the strongest and ``core.contact.EXTRA_FRAMES`` more, an image press or
+    a simulated one 1."""
+    from ..core.contact import EXTRA_FRAMES
+    from ..sources.replay import VIDEO_EXT
+    if not spec.startswith("replay:"):
+        return 1
+    videos = any(f.suffix.lower() in VIDEO_EXT for c in src.classes for f in src.presses(c))
+    return 1 + EXTRA_FRAMES if videos else 1
 
 
 def cmd_prepare(args: argparse.Namespace) -> int:
@@ -194,9 +299,11 @@ def _trial_parser(sub: argparse._SubParsersAction, command: str | None) -> None:
     if not builds(command, "trial"):
         return
     from ..core.config import TrialSettings
-    t.add_argument("--source", required=True, help="replay:DIR or sim[:difficulty]")
-    t.add_argument("--comparisons", type=bounded(int, 2, MAX_COMPARISONS), default=4,
-                   help=f"comparison platforms, 2..{MAX_COMPARISONS}")
+    t.add_argument("--source", help="replay:DIR or sim[:difficulty] (required unless "
+                                    "--resume)")
+    t.add_argument("--comparisons", type=bounded(int, 2, MAX_COMPARISONS), default=None,
+                   help=f"comparison platforms, 2..{MAX_COMPARISONS} (default "
+                        f"{DEFAULT_COMPARISONS})")
     t.add_argument("--classes", help="comparison classes, comma-separated, in platform order")
     t.add_argument("--reference", help="class of the reference platform")
     add_schema_options(t, TrialSettings, ("config",) + TRIAL_OPTIONS)
@@ -204,7 +311,17 @@ def _trial_parser(sub: argparse._SubParsersAction, command: str | None) -> None:
                    help="any learner or trial setting by its dotted path, e.g. "
                         "learner.match_temperature=0.1 or trial.max_touches=8 (repeatable; "
                         "after the options above; docs/reference.md lists them)")
-    t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=0)
+    t.add_argument("--seed", type=bounded(int, 0, 2**31 - 1), default=None,
+                   help="seed of the scene, the touches and the learner (default 0)")
+    t.add_argument("--record-dir", metavar="DIR",
+                   help=f"folder that receives the trial record (default {DEFAULT_RECORD_DIR}; "
+                        "a resume: the record's folder)")
+    t.add_argument("--trial-id", metavar="NAME",
+                   help="the record's sub-folder (default trial_<date>_<time>)")
+    t.add_argument("--resume", metavar="RECORD",
+                   help="continue the interrupted trial recorded in folder RECORD with the "
+                        "options and settings it keeps (config.json); an option given with "
+                        "another value is refused")
     t.add_argument("--json")
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=cmd_trial)
@@ -257,6 +374,8 @@ OUTPUTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
     ("prepare", "out"): ("file", ()),
     ("sim", "out"): ("file", IMAGE_SUFFIXES),
     ("graph", "log_dir"): ("dir", ()),
+    ("robot", "out"): ("file", (".yaml", ".yml")),      # measure-scene: before the arm moves
+    ("export", "out"): ("dir", ()),
 }
 
 

@@ -117,6 +117,7 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
     from rclpy.qos import qos_profile_sensor_data
 
     from ..core.errors import InputError
+    from ..core.outputs import write_bytes
     import yaml
 
     from ..paths import read_yaml
@@ -215,10 +216,9 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
         if probe is not None:
             probe.close()
         rclpy.try_shutdown()
-    if found:
-        with open(args.out, "w") as fh:
-            yaml.safe_dump(corrected_scene(read_yaml(args.scene, "scene file"), found), fh,
-                           sort_keys=False)
+    if found:          # --out was checked before the first press (cli.main.check_outputs)
+        write_bytes(args.out, yaml.safe_dump(corrected_scene(read_yaml(args.scene, "scene file"),
+                                                             found), sort_keys=False).encode())
         load_scene(args.out)      # what was written is a valid scene
         report["written"] = str(args.out)
     missing = [pid for pid in wanted if pid not in found]
@@ -232,7 +232,8 @@ def add_measure_scene(rsub) -> None:
     m = rsub.add_parser("measure-scene", help="measure the platforms' surfaces with light "
                                               "presses and write the corrected scene")
     m.add_argument("--scene", required=True, help="scene YAML to measure")
-    m.add_argument("--out", required=True, help="where the corrected scene YAML is written")
+    m.add_argument("--out", required=True, help="where the corrected scene YAML is written "
+                                                "(.yaml; checked before the first press)")
     m.add_argument("--robot", default="fr3_crisp", help="robot profile (name or file)")
     m.add_argument("--platforms", default="", help="comma-separated platform ids (default: "
                                                    "all)")

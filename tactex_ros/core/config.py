@@ -326,8 +326,9 @@ class TrialConfig(Schema):
 
 
 # The thesis's setting, kept by name for reproductions; the CNN setting chosen by
-# `tactex bench latency` / `tactex experiment pareto` on the simulator (see README, "Speed");
-# and the default, chosen on real presses (`tactex evaluate`, docs/research/real_presses.md).
+# `tactex bench latency` / `tactex experiment pareto` on the simulator
+# (docs/research/speed_stability.md); and the default, chosen on real presses (`tactex
+# experiment real`, docs/research/real_presses.md).
 PRESETS: dict[str, dict[str, Any]] = {
     "default": dict(),          # the class defaults (DescriptorSettings) are the shipped method
     # the 129-number descriptor alone, no network (the default before the embedding, issue 33):

@@ -109,8 +109,8 @@ class DescriptorLearner:
             temperature = (rep.temperature if rep is not None
                            and self.cfg.representation_temperature
                            and np.isfinite(rep.temperature) else self.cfg.match_temperature)
-        if not temperature > 0:
-            raise InputError(f"belief temperature must be > 0, got {temperature}")
+        if not (np.isfinite(temperature) and temperature > 0):
+            raise InputError(f"belief temperature must be > 0 and finite, got {temperature}")
         self.representation = rep
         self.match.beta = float(temperature)
 

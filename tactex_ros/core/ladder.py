@@ -242,7 +242,18 @@ def parse_rungs(text: str) -> list[str]:
                              f"preset with a trained model ({', '.join(cands)})[@px]")
         if px and not (px.isdigit() and 32 <= int(px) <= 512):
             raise InputError(f"ladder rung {r!r}: input size must be 32..512 px")
+    _no_repeat(rungs, f"ladder {text!r}")
     return rungs
+
+
+def _no_repeat(rungs: list[str], what: str) -> None:
+    """InputError naming ``what`` and the rung given twice: a rung is climbed once."""
+    seen = set()
+    for r in rungs:
+        if r in seen:
+            raise InputError(f"{what}: rung {r!r} given twice; each rung once, cheapest "
+                             "first")
+        seen.add(r)
 
 
 def parse_cnn_rungs(text: str, default_size: int) -> list[str]:
@@ -267,6 +278,7 @@ def parse_cnn_rungs(text: str, default_size: int) -> list[str]:
         out.append(f"{name}@{px}")
     if not out:
         raise InputError("auto_ladder is empty")
+    _no_repeat(out, f"auto_ladder {text!r}")
     return out
 
 

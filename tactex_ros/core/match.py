@@ -16,7 +16,7 @@ touch, reference touches included:
   l_h = -D/2 log v_h - 1/2 sum_j (r_j - x_hj)^2 / (sigma_j^2 v_h),  v_h = 1/k + 1/n_h.
 - belief = softmax(``temperature`` * l): descriptor dimensions are correlated, so the raw
   likelihood is over-confident; the temperature is calibrated on real presses
-  (``tactex evaluate``, docs/research/real_presses.md).
+  (``tactex experiment real``, docs/research/real_presses.md).
 
 ``separation`` (the "not sure" rule of the stop, ``core/engine.py``): how far apart the two
 best comparisons' means are against what repeated touches of one platform give, t =

@@ -228,8 +228,9 @@ def load(path: str | Path) -> Representation:
     if not (np.all(np.isfinite(w)) and np.all(std > 0) and np.all(np.isfinite(mean))):
         raise InputError(f"representation file {p}: non-finite map or mean, or std <= 0")
     temp = number("temperature", float("nan"))
-    if np.isfinite(temp) and not temp > 0:
-        raise InputError(f"representation file {p}: temperature {temp} must be > 0")
+    if not np.isnan(temp) and not (np.isfinite(temp) and temp > 0):    # NaN: not calibrated
+        raise InputError(f"representation file {p}: temperature {temp} must be > 0 and "
+                         "finite (or NaN: not calibrated)")
     kind = str(d.get("kind", "whiten"))
     if kind not in KINDS:
         raise InputError(f"representation file {p}: unknown kind {kind!r}")

@@ -161,6 +161,10 @@ class TouchEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None
               ) -> tuple[dict, dict]:
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))
+                                 or not 0 <= int(seed) <= MAX_SEED):
+            raise InputError(f"seed {seed!r}: an integer 0..{MAX_SEED} (the trial seeds of "
+                             "tactex trial and experiment real)")
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, MAX_SEED))
@@ -195,13 +199,21 @@ class TouchEnv(gym.Env):
     def step(self, action: dict) -> tuple[dict, float, bool, bool, dict]:
         if self._over:
             raise InputError("step() after the episode ended: call reset()")
-        a = int(action["action"])
+        a = action["action"]
+        if isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer)) and not (
+                isinstance(a, np.ndarray) and a.shape == () and a.dtype.kind in "iu"):
+            raise InputError(f"action {a!r}: an integer 0..{self.STOP} (0..{self.C} presses a "
+                             f"platform, {self.STOP} is STOP), not {type(a).__name__}")
+        a = int(a)
         if not 0 <= a <= self.STOP:
             raise InputError(f"action {a}: 0..{self.C} presses a platform, {self.STOP} is STOP")
         logits = np.asarray(action["prediction"], dtype=np.float64)
         if logits.shape != (self.C,):
             raise InputError(f"prediction: {self.C} logits over the comparisons, got shape "
                              f"{logits.shape}")
+        if np.isnan(logits).any():
+            raise InputError(f"prediction {logits.tolist()}: NaN among the logits (its argmax "
+                             "would be a guess); give numbers, -inf allowed")
         spent = int(self.touches.sum()) >= self.max_presses
         if a == self.STOP or spent:
             return self._end(logits, truncated=a != self.STOP)

@@ -20,13 +20,17 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform as _platform
 import re
+import shutil
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.outputs import WriteError, write_bytes
 from .rows import FIELDS, Trial, collect
 
 BATCH = 64          # rows per parquet row group (images are held in memory one batch at a time)
@@ -59,7 +63,11 @@ def _image(b: bytes | None) -> dict | None:
 
 def export(source: str, out: str | Path) -> dict[str, Any]:
     """Write the dataset of ``source`` (a record, a session, a folder of them, ``replay:DIR``)
-    into the new folder ``out``; returns what the card says (kind, trials, rows)."""
+    into the new (or empty) folder ``out``; returns what the card says (kind, trials, rows).
+
+    The dataset is written into a temporary folder beside ``out`` and renamed to ``out`` once
+    whole: a write that fails (a full disk, a file-size limit) leaves nothing in ``out`` and
+    no temporary folder, so the same command can run again (WriteError naming the file)."""
     try:
         import datasets
         import pyarrow.parquet as pq
@@ -67,15 +75,51 @@ def export(source: str, out: str | Path) -> dict[str, Any]:
         raise InputError(f"tactex export needs the datasets package ({exc}); pip install "
                          "-r requirements.txt") from None
     out = Path(out)
-    if out.exists() and any(out.iterdir()):
-        raise InputError(f"--out {str(out)!r} is not empty: an export goes into a new folder")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InputError(f"--out {str(out)!r} is not an empty folder: an export goes into a "
+                         "new folder")
     kind, trials = collect(source)
     rows_n = sum(len(t.rows) for t in trials)
     if rows_n == 0:
         raise InputError(f"export: {source!r} holds no touch")
     materials = sorted({r["material"] for t in trials for r in t.rows if r["material"]})
     feats = features(materials)
-    (out / "data").mkdir(parents=True, exist_ok=True)
+    info: dict[str, Any] = {"kind": kind, "source": _public(source), "trials": len(trials),
+                            "rows": rows_n, "datasets": datasets.__version__,
+                            "materials": materials}
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    except OSError as exc:
+        raise WriteError(f"could not write in {str(out.parent)!r}: {exc.strerror or exc}") \
+            from None
+    what = out / DATA_FILE
+    try:
+        info["num_bytes"] = _write_rows(trials, tmp / DATA_FILE, feats, pq, datasets)
+        with open(tmp / DATA_FILE, "rb") as f:
+            info["fingerprint"] = hashlib.file_digest(f, "sha256").hexdigest()[:16]
+        info["download_size"] = (tmp / DATA_FILE).stat().st_size
+        info["config"] = f"tactex-{info['fingerprint']}"
+        what = out / "README.md"
+        write_bytes(tmp / "README.md", card(info, trials, feats).encode())
+        what = out
+        if out.exists():
+            out.rmdir()                     # empty (checked above): the dataset takes its place
+        os.replace(tmp, out)
+    except BaseException as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, (OSError, WriteError)):
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            raise WriteError(f"could not write {str(what)!r}: {why}; nothing was left in "
+                             f"{str(out)!r}") from None
+        raise
+    return info
+
+
+def _write_rows(trials: list[Trial], path: Path, feats, pq, datasets) -> int:
+    """Every trial's rows into the parquet file ``path`` (``BATCH`` rows per row group);
+    returns their size in memory (arrow bytes, the card's ``num_bytes``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     writer = None
     nbytes = 0
     try:
@@ -86,22 +130,16 @@ def export(source: str, out: str | Path) -> dict[str, Any]:
                               extra=[_image(b) for b in row["extra"]],
                               material=row["material"] or -1))
             if len(batch) == BATCH:
-                writer, n = _write(writer, batch, feats, out / DATA_FILE, pq, datasets)
+                writer, n = _write(writer, batch, feats, path, pq, datasets)
                 nbytes += n
                 batch = []
         if batch:
-            writer, n = _write(writer, batch, feats, out / DATA_FILE, pq, datasets)
+            writer, n = _write(writer, batch, feats, path, pq, datasets)
             nbytes += n
     finally:
         if writer is not None:
             writer.close()
-    info = {"kind": kind, "source": _public(source), "trials": len(trials), "rows": rows_n,
-            "datasets": datasets.__version__, "materials": materials, "num_bytes": nbytes,
-            "download_size": (out / DATA_FILE).stat().st_size,
-            "fingerprint": hashlib.sha256((out / DATA_FILE).read_bytes()).hexdigest()[:16]}
-    info["config"] = f"tactex-{info['fingerprint']}"
-    (out / "README.md").write_text(card(info, trials, feats))
-    return info
+    return nbytes
 
 
 def _write(writer, batch: list[dict], feats, path: Path, pq, datasets) -> tuple[Any, int]:

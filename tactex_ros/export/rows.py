@@ -96,7 +96,9 @@ def _json(p: Path) -> dict:
 
 
 def record_rows(d: Path, session: str = "") -> Trial:
-    """The rows of one trial record folder ``d`` (every touch line, refused ones too)."""
+    """The rows of one trial record folder ``d`` (every touch line, refused ones too). A
+    damaged line or a field of another type than the record's (``record.FIELDS``) is an
+    InputError naming the file, the line and the field (``read_record``)."""
     rec = read_record(d, images=False)
     mats = _materials(d)
     res = rec["result"] or {}
@@ -127,11 +129,12 @@ def record_rows(d: Path, session: str = "") -> Trial:
             "image": _bytes(d, t.get("image")), "no_contact": _bytes(d, t.get("no_contact")),
             "extra": [_bytes(d, n) for n in t.get("extra") or []],
             "force_n": _num(t.get("force_n")), "depth_m": _num(t.get("depth_m")),
-            "pose": [float(v) for v in pose] if isinstance(pose, list) else None,
+            "pose": [_num(v) for v in pose] if isinstance(pose, list) else None,
             "press_time": _num(t.get("stamp")), "accepted": used,
             "reason": str(t.get("reason") or ""),
             "next_platform": (decision.get("next") or "") if decision else None,
-            "belief": [float(b) for b in decision["belief"]] if decision.get("belief") else None,
+            "belief": ([_num(b) for b in decision["belief"]] if decision.get("belief")
+                       else None),
             "belief_platforms": (belief_ids if decision.get("belief") and
                                  len(belief_ids) == len(decision["belief"]) else None),
             "prediction": pred, "prediction_material": pred_mat,
@@ -146,6 +149,8 @@ def _platform_order(pid: str) -> tuple[int, str]:
 
 
 def _num(v: Any) -> float | None:
+    """A number of the record (its type checked by ``read_record``: a number or null, NaN
+    written as null) as a float, None for null."""
     return None if v is None else float(v)
 
 

@@ -101,8 +101,9 @@ class ControlLaw:
        moving average; 0 = none; CRISP ``filter.target_pose``);
     2. state filter: the controller's x, v are the measured ones through the same kind of
        moving average with weight ``state_filter`` (CRISP 2.3 ``filter.q`` / ``filter.dq``);
-    3. error: ``e = clip(x_f - x, -error_clip, error_clip)`` (CRISP ``task.error_clip`` with
-       ``limit_error``; inf = none);
+    3. error: ``e = clip(x_f - x, -clip, clip)`` with ``clip`` = (``lateral_error_clip``,
+       ``lateral_error_clip``, ``error_clip``) (CRISP ``task.error_clip.x/y/z`` with
+       ``limit_error``; inf = none; ``lateral_error_clip`` 0 = ``error_clip``);
     4. force: ``F = K e - D v`` with ``K = min(stiffness, max_stiffness)`` (CRISP 2.3 clamps
        the translational stiffness at ``variable_max_stiffness.translational``) and
        ``D = damping`` if > 0, else ``2 sqrt(stiffness)`` (from the *requested* stiffness:
@@ -124,6 +125,7 @@ class ControlLaw:
     rate_hz: float = 1000.0
     target_filter: float = 0.0
     error_clip: float = float("inf")
+    lateral_error_clip: float = 0.0
     max_force_step: float = float("inf")
     max_stiffness: float = float("inf")
     state_filter: float = 0.0
@@ -141,6 +143,8 @@ class ControlLaw:
                 raise ValueError(f"{name} must be in [0, 1), got {getattr(self, name)}")
         if not self.error_clip > 0 or not self.max_force_step > 0:
             raise ValueError("error_clip and max_force_step must be positive (inf = none)")
+        if not self.lateral_error_clip >= 0:
+            raise ValueError("lateral_error_clip must be >= 0 (0 = error_clip)")
         if self.activation_jump_s < 0:
             raise ValueError("activation_jump_s must be >= 0")
 
@@ -153,6 +157,12 @@ class ControlLaw:
     def d(self) -> float:
         """The damping the controller computes [N s/m]."""
         return self.damping if self.damping > 0 else 2.0 * float(np.sqrt(self.stiffness))
+
+    @property
+    def clip(self) -> np.ndarray:
+        """The pose error clip per axis x, y, z [m] (inf: none)."""
+        xy = self.lateral_error_clip or self.error_clip
+        return np.array([xy, xy, self.error_clip])
 
     @property
     def max_static_force(self) -> float:
@@ -268,6 +278,8 @@ class Worlds:
         self.command = np.zeros((n, 3))            # the controller's force on the arm [N]
         self.force = np.zeros((n, 3))              # contact force on the sensor [N]
         self.peak_force = np.zeros(n)              # largest contact force over the last step
+        self.limit = float("inf")                  # a contact force above it counts [N]
+        self.over_limit = np.zeros(n, dtype=int)   # control cycles with the force above it
         self.frozen = np.zeros(n, dtype=bool)      # a reflex stopped the arm
         self.time = 0.0                            # simulated time [s]
         self.jump_until = np.full(n, -1.0)         # activation transient until then [s]
@@ -311,8 +323,9 @@ class Worlds:
             jumping = (self.time < self.jump_until)[:, None]
             goal = goal + np.where(jumping, np.asarray(law.activation_jump), 0.0)
         err = goal - self.seen_x
-        if law.error_clip != np.inf:
-            err = np.clip(err, -law.error_clip, law.error_clip)
+        if law.error_clip != np.inf or law.lateral_error_clip not in (0.0, np.inf):
+            clip = law.clip
+            err = np.clip(err, -clip, clip)
         f = self.k * err - self.d * self.seen_v
         if c:
             f = (1.0 - c) * f + c * self.command
@@ -355,24 +368,40 @@ class Worlds:
             self.velocity = np.where(stop, 0.0, v1)
         self.time += h
         self.force = self._contact_force()
-        self.peak_force = np.maximum(self.peak_force, np.linalg.norm(self.force, axis=1))
+        mag = np.linalg.norm(self.force, axis=1)
+        self.peak_force = np.maximum(self.peak_force, mag)
+        if self.limit != np.inf:
+            self.over_limit += mag > self.limit
 
-    def step(self, dt: float) -> None:
+    def step(self, dt: float, sampled: bool = False) -> np.ndarray | None:
         """Advance ``dt`` [s] in whole control cycles (a remainder is carried to the next
-        step); ``peak_force`` = largest contact force among them."""
+        step); ``peak_force`` = largest contact force among them. ``sampled``: return what the
+        robot reports at every cycle, (n, cycles, 3) [N] (``wrench`` per cycle, the full-rate
+        stream), else None."""
         self._due += max(0.0, dt)
         self.peak_force = np.linalg.norm(self.force, axis=1)
         n = int(np.floor(self._due / self.h + 1e-9))
         self._due -= n * self.h
-        for _ in range(n):
+        out = np.empty((self.n, n, 3)) if sampled else None
+        for j in range(n):
             self.cycle()
+            if out is not None:
+                out[:, j] = self._bias_read()
+        if out is not None and n and np.any(self.noise > 0):
+            out += self.noise[:, None, None] * np.stack([r.standard_normal((n, 3))
+                                                         for r in self._rngs])
+        return out
+
+    def _bias_read(self) -> np.ndarray:
+        """The reported force without the noise [N], (n, 3)."""
+        return (self.force + self.static + self.offset + self.drift * self.time
+                + np.einsum("nij,nj->ni", self.gradient, self.position - self.origin))
 
     def wrench(self) -> np.ndarray:
         """The external force each robot reports (base frame, + z where a contact pushes)
         [N], (n, 3): contact + static force + offset (with its configuration part and drift)
         + noise."""
-        read = (self.force + self.static + self.offset + self.drift * self.time
-                + np.einsum("nij,nj->ni", self.gradient, self.position - self.origin))
+        read = self._bias_read()
         if np.any(self.noise > 0):
             read = read + self.noise[:, None] * np.stack(
                 [r.standard_normal(3) for r in self._rngs])
@@ -457,48 +486,114 @@ class ArmModel:
 class WorldPress:
     """One press in one simulated world: the press's ``outcome``, the true contact normal
     force when it asked for the frame [N] (nan: it never did), the largest true contact force
-    over every control cycle [N], and the true surface z under the press [m]."""
+    over every control cycle [N], the true surface z under the press [m], and the control
+    cycles at which the true contact force was above ``max_force``."""
 
     outcome: PressOutcome
     true_force_n: float
     peak_force_n: float
     true_surface_z: float
+    over_limit_samples: int = 0
+
+
+#: [N] the gel image shows contact from this true normal force on (the GelSight Mini's
+#: markers and shading move visibly at a fraction of a newton; assumed)
+IMAGE_CONTACT_N = 0.3
+
+
+class Camera:
+    """The mock camera of ``press_in_worlds``: a frame every ``1 / fps`` s, in contact when the
+    true normal force is at least ``IMAGE_CONTACT_N``, seen by the press one frame later (the
+    stream's latency). ``burst(t, window_s)``: the in-contact frames ending at the newest seen
+    frame, at most ``window_s`` old, consecutive (the capture's burst)."""
+
+    def __init__(self, n: int, fps: float | None) -> None:
+        self.period = None if not fps else 1.0 / fps
+        self.next_t = 0.0
+        self.frames: list[tuple[float, np.ndarray]] = []   # (stamp, in contact (n,))
+
+    def update(self, t: float, force_z: np.ndarray) -> None:
+        if self.period is None:
+            return
+        while self.next_t <= t + 1e-9:
+            self.frames.append((self.next_t, force_z >= IMAGE_CONTACT_N))
+            self.next_t += self.period
+        del self.frames[:-64]
+
+    def _seen(self, t: float) -> list[tuple[float, np.ndarray]]:
+        return [f for f in self.frames if f[0] + self.period <= t + 1e-9]
+
+    def contact(self, t: float, i: int) -> bool | None:
+        if self.period is None:
+            return None
+        seen = self._seen(t)
+        return bool(seen[-1][1][i]) if seen else False
+
+    def burst(self, t: float, i: int, window_s: float) -> int:
+        if self.period is None:
+            return 1 << 30
+        count = 0
+        for stamp, flags in reversed(self._seen(t)):
+            if t - stamp > window_s + 1e-9 or not flags[i]:
+                break
+            count += 1
+        return count
 
 
 def press_in_worlds(scene: Workspace, law: ControlLaw, faults: Sequence[Faults],
                     platform_ids: Sequence[str], *, start: np.ndarray | None = None,
                     mass: Sequence[float] | float = 3.0, stiffness: float | None = None,
-                    rate_hz: float = 50.0, t_max: float = 120.0) -> list[WorldPress]:
+                    rate_hz: float = 50.0, t_max: float = 120.0,
+                    camera_fps: float | None = None,
+                    surface_hints: Sequence[float | None] | None = None) -> list[WorldPress]:
     """Press ``platform_ids[i]`` in world ``faults[i]`` for every i, the press ticked at
-    ``rate_hz`` [Hz] on what the robot reports (pose, ``wrench()``), assuming the controller
-    stiffness ``stiffness`` (default the law's requested one, as the motion node does), from
-    ``start`` (default 0.1 m above the first platform's approach point)."""
+    ``rate_hz`` [Hz] on what the robot reports (pose, and every wrench sample since the last
+    tick: the full-rate stream), assuming the controller stiffness ``stiffness`` (default the
+    law's requested one, as the motion node does), from ``start`` (default 0.1 m above the
+    first platform's approach point; (n, 3) one per world). ``camera_fps``: a camera
+    (``Camera``) streams its contact verdict to the press and the capture waits for a burst
+    of ``capture_frames`` in-contact frames within ``capture_window_s`` (None: no camera, the
+    capture is immediate). ``surface_hints[i]``: the surface an earlier press found (None:
+    the scene's)."""
     plats = [next(p for p in scene.platforms if p.id == pid) for pid in platform_ids]
     if start is None:
         p0 = np.asarray(scene.platforms[0].position, dtype=float)
         start = p0 + [0.0, 0.0, scene.press.approach_height + 0.1]
     w = Worlds(scene, start, law, faults, mass)
+    w.limit = scene.press.max_force
     k = law.stiffness if stiffness is None else stiffness
-    ctrls = [PressController(scene, p, w.position[i], 0.0, stiffness=k, period_s=1.0 / rate_hz)
+    hints = surface_hints or [None] * w.n
+    ctrls = [PressController(scene, p, w.position[i], 0.0, stiffness=k, period_s=1.0 / rate_hz,
+                             surface_hint=hints[i])
              for i, p in enumerate(plats)]
+    cam = Camera(w.n, camera_fps)
+    s = scene.press
     true_force = np.full(w.n, np.nan)
     peak = np.zeros(w.n)
     t, dt = 0.0, 1.0 / rate_hz
+    samples = w.wrench()[:, None, :]
     while t < t_max and not all(c.done for c in ctrls):
-        read = w.wrench()
+        read = samples[:, -1]
+        cam.update(t, w.force[:, 2])
         for i, c in enumerate(ctrls):
             if c.done:
                 continue
+            mags = np.linalg.norm(samples[i], axis=1)
             w.target[i] = c.step(t, w.position[i], float(read[i, 2]),
-                                 float(np.linalg.norm(read[i])))
-            if c.capture_requested:
+                                 float(np.linalg.norm(read[i])),
+                                 samples=np.stack([samples[i, :, 2], mags], axis=1),
+                                 contact=cam.contact(t, i))
+            if c.capture_requested and cam.burst(t, i, s.capture_window_s) >= s.capture_frames:
                 true_force[i] = w.force[i, 2]
                 c.captured(True, "", t)
-        w.step(dt)
+        got = w.step(dt, sampled=True)
+        if got is not None and got.shape[1]:
+            samples = got
         peak = np.maximum(peak, w.peak_force)
         t += dt
     for c in ctrls:
         if not c.done:
             c.abort(f"simulation ended at t_max {t_max} s in phase {c.phase}", t)
     return [WorldPress(c.outcome(), float(true_force[i]), float(peak[i]),
-                       float(plats[i].position[2] + w.dz[i])) for i, c in enumerate(ctrls)]
+                       float(plats[i].position[2] + w.dz[i]), int(w.over_limit[i]))
+            for i, c in enumerate(ctrls)]

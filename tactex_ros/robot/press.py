@@ -50,7 +50,7 @@ lateral part of the magnitude is left as measured. Units: m, s, N.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol, Sequence
 
 import numpy as np
@@ -67,6 +67,9 @@ class PressSettings(Protocol):
     approach_height: float
     travel_speed: float
     descend_speed: float
+    descend_fast_speed: float
+    surface_tolerance: float
+    found_tolerance: float
     max_speed: float
     force_threshold: float
     max_force: float
@@ -112,6 +115,9 @@ def clamp(scene: Workspace, xyz: np.ndarray) -> np.ndarray:
 #: sim profile's law (1000 N/m, 2 sqrt(K) N s/m) overshoots a target that stops from 0.4 m/s by
 #: 4.7 mm (6 kg: 12 mm); braking at 1 m/s^2 leaves 1.5 mm (docs/simulated_world.md).
 APPROACH_BRAKE_M_S2 = 1.0
+#: [m/s^2] the target's deceleration at the end of the lift and of the travel (sideways or up:
+#: an overshoot there presses nothing, but an arm that lags a target stopped at once rings)
+TRAVEL_BRAKE_M_S2 = 2.0
 #: [kg] the heaviest apparent mass the brake is sized for (the heaviest arm of the simulated
 #: world's measurements): braking at a, an arm of mass m leads its target by m a / K.
 BRAKE_MASS_KG = 6.0
@@ -136,6 +142,9 @@ class PressOutcome:
     tare: "TareResult | None" = None   # the tare before the descent (None: not reached)
     surface_z: float | None = None     # z where the descent found the surface [m] (None: not)
     warning: str = ""                  # e.g. the surface moved more than surface_warn_m
+    phase_s: dict[str, float] = field(default_factory=dict)   # time spent in each phase [s]
+    press_s: float = float("nan")      # from the approach's start to lift-off (the capture
+                                       # done, the retract begins) [s]; nan: never lifted off
 
 
 @dataclass(frozen=True)
@@ -192,6 +201,14 @@ def tared(force_n: float, magnitude: float, offset_n: float) -> tuple[float, flo
     return fn, float(np.sqrt(lateral2 + fn * fn))
 
 
+def peak_tared(samples: np.ndarray, offset_n: float) -> float:
+    """Largest force magnitude [N] of ``samples`` (k, 2) of (normal force, magnitude) [N] with
+    the normal offset ``offset_n`` [N] removed (``tared``, row by row)."""
+    fn, mag = samples[:, 0], samples[:, 1]
+    lateral2 = np.maximum(0.0, mag * mag - fn * fn)
+    return float(np.sqrt(np.max(lateral2 + (fn - offset_n) ** 2)))
+
+
 def equilibrium_floor(press: PressSettings, stiffness: float) -> float:
     """Deepest equilibrium below the scene's surface [m] for controller stiffness
     ``stiffness`` [N/m]: the search past the scene's surface, the sensor's ``max_depth`` below
@@ -246,7 +263,23 @@ def check_press(scene: Workspace, stiffness: float, origin: str = "scene",
 
 
 FORCE_SMOOTH_S = 0.05   # time constant of the smoothed force the press decides on [s]
-HOLD_TAU_S = 0.25       # the hold closes the force error with this time constant [s]
+HOLD_TAU_S = 0.07       # the hold closes the force error with this time constant [s]
+#: the hold captures within this fraction of ``force_tolerance_n`` (the measured force): the
+#: rest of the band is left for the reading's own error (drift, a bias that changes with the
+#: pose: the true force must be within ``force_tolerance_n``)
+CAPTURE_BAND = 0.5
+#: [s] after contact the descent's speed is the force error over (K x RAMP_TAU_S), at least
+#: descend_speed and at most descend_fast_speed: the force rises fast, then eases into the hold
+RAMP_TAU_S = 0.1
+#: [m/s^2] the fast descent slows to descend_speed at this deceleration, reaching it
+#: DESCENT_MARGIN_M above the band where the surface may be
+DESCENT_BRAKE_M_S2 = 0.5
+DESCENT_MARGIN_M = 0.001
+#: [m] the retract ends at least this far above the highest the surface may be
+RETRACT_CLEAR_M = 0.005
+#: [s] time constant of the static sag estimate on the travel leg (the arm's height below its
+#: target times K: a payload error or a cable's pull)
+SAG_SMOOTH_S = 0.1
 
 
 class PressController:
@@ -258,12 +291,15 @@ class PressController:
     False for a light press that only finds the surface and the force (no frame).
     ``period_s``: the loop's period [s] (a late tick moves the target at most two periods'
     worth). ``hold_s``: measurements older than this [s] (``step``'s ``state_age_s``) hold the
-    target where it is and step nothing (``held``).
+    target where it is and step nothing (``held``). ``surface_hint``: the surface z [m] an
+    earlier press of this platform found (None: the scene's, known to ``surface_tolerance``);
+    the approach point and the slow band then sit lower by ``surface_tolerance -
+    found_tolerance``.
     """
 
     def __init__(self, scene: Workspace, platform: Platform, start: np.ndarray, now: float,
                  stiffness: float = 1e5, capture: bool = True, period_s: float = 0.02,
-                 hold_s: float = math.inf) -> None:
+                 hold_s: float = math.inf, surface_hint: float | None = None) -> None:
         if not stiffness > 0:
             raise ValueError("stiffness must be positive [N/m]")
         if not period_s > 0:
@@ -280,8 +316,15 @@ class PressController:
         self.wants_capture = capture
         surface = np.asarray(platform.position, dtype=float)
         self.surface_z = surface[2]
-        self.approach_point = surface + [0.0, 0.0, self.s.approach_height]
-        self.bottom = clamp(scene, surface - [0.0, 0.0, equilibrium_floor(self.s, stiffness)])
+        known = surface_hint is not None and math.isfinite(surface_hint)
+        #: where the surface is expected [m] and how far above it the contact may come [m]
+        self.expected_z = float(surface_hint) if known else float(surface[2])
+        self.tolerance = self.s.found_tolerance if known else self.s.surface_tolerance
+        lower = self.s.surface_tolerance - self.tolerance
+        self.approach_point = np.array([surface[0], surface[1],
+                                        self.expected_z + self.s.approach_height - lower])
+        self.bottom = clamp(scene, np.array([surface[0], surface[1], self.expected_z])
+                            - [0.0, 0.0, equilibrium_floor(self.s, stiffness)])
         start = clamp(scene, start)
         safe_z = max(start[2], self.approach_point[2])
         self._waypoints = [np.array([start[0], start[1], safe_z]),
@@ -289,6 +332,12 @@ class PressController:
         self.target = start.copy()
         self.phase = APPROACH
         self.phase_start = now
+        self.start_t = now
+        self.phase_s: dict[str, float] = {}
+        self.lift_off_t: float | None = None
+        self.sag_m = 0.0                   # the arm's height below its target on the travel [m]
+        self.raised_m = 0.0                # the approach point raised by the sag [m]
+        self.image_contact: bool | None = None   # the camera's latest verdict (None: unknown)
         self._last = now
         self._now = now
         self.failure = ""
@@ -313,6 +362,9 @@ class PressController:
 
     # ------------------------------------------------------------------ helpers
     def _enter(self, phase: str, now: float) -> None:
+        self.phase_s[self.phase] = self.phase_s.get(self.phase, 0.0) + (now - self.phase_start)
+        if phase == RETRACT and self.lift_off_t is None and self.phase in (SETTLE, CAPTURE):
+            self.lift_off_t = now
         self.phase, self.phase_start = phase, now
 
     def abort(self, reason: str, now: float) -> None:
@@ -376,11 +428,16 @@ class PressController:
             self._enter(RETRACT, now)
 
     def step(self, now: float, position: np.ndarray, force_n: float,
-             force_magnitude: float | None = None, state_age_s: float = 0.0) -> np.ndarray:
+             force_magnitude: float | None = None, state_age_s: float = 0.0,
+             samples: np.ndarray | None = None, contact: bool | None = None) -> np.ndarray:
         """Advance to time ``now`` [s] given the measured position [m], the signed normal force
         [N] (positive = pressing) and the force magnitude [N] (default ``|force_n|``), measured
         ``state_age_s`` [s] ago. Older than ``hold_s``: nothing is stepped and the target stays
         where it is (``held``); a target moved on a force not seen could press on unseen.
+        ``samples``: every wrench sample since the last step, (k, 2) of (normal force,
+        magnitude) [N] as measured: the force limit and ``max_force`` take the largest of them
+        (a 1 kHz stream between 50 Hz steps). ``contact``: the camera's latest contact verdict
+        (True: the gel image shows contact; None: no camera stream).
 
         Returns the equilibrium position to command (always inside the workspace).
         """
@@ -391,14 +448,22 @@ class PressController:
         self._last = self._now = now
         position = np.asarray(position, dtype=float)
         mag = abs(force_n) if force_magnitude is None else float(force_magnitude)
+        offset = 0.0 if self.tare is None else self.tare.offset_n
         if self.tare is not None:
-            force_n, mag = tared(force_n, mag, self.tare.offset_n)
+            force_n, mag = tared(force_n, mag, offset)
+        peak = mag
+        if samples is not None and len(samples):
+            arr = np.asarray(samples, dtype=float)
+            peak = max(peak, peak_tared(arr, offset))
+            # the tick's normal force: the mean of its samples (less noise than the newest)
+            force_n = float(np.mean(arr[:, 0])) - offset
         self.force_n = force_n     # the normal force the press acts on (tared once settled)
-        self.max_force = max(self.max_force, mag)
+        self.image_contact = contact
+        self.max_force = max(self.max_force, peak)
         self._track(now, position, force_n, dt)
         if self.phase == DONE:
             return self.target
-        self._check_limits(now, force_n, mag)
+        self._check_limits(now, force_n, peak)
         if self.phase == APPROACH:
             self._approach(now, position, dt)
         elif self.phase == TARE:
@@ -408,16 +473,21 @@ class PressController:
         elif self.phase == SETTLE:
             self._settle(now, position, dt)
         elif self.phase == RETRACT:
-            if self._arrive(self.approach_point, self.s.travel_speed, position, dt):
+            if self._arrive(self._retract_point(), self.s.travel_speed, position, dt):
                 self._enter(DONE, now)
         return self.target
 
     def _check_limits(self, now: float, force_n: float, mag: float) -> None:
-        """Abort on the force limit, a normal force of the wrong sign while pressing, or the
-        phase's deadline (checked on every tick, whatever the phase)."""
+        """Abort on the force limit (``mag``: the largest magnitude of every sample since the
+        last tick), a normal force of the wrong sign while pressing, or the phase's deadline
+        (checked on every tick, whatever the phase)."""
         s = self.s
-        if mag > s.max_force and self.phase != RETRACT:
-            self.abort(f"force limit: {mag:.1f} N > max_force {s.max_force} N", now)
+        if mag > s.max_force:
+            why = f"force limit: {mag:.1f} N > max_force {s.max_force} N"
+            if self.phase == RETRACT:       # lifting off already: go on, but never a success
+                self.failure = self.failure or f"{why} (while retracting)"
+            else:
+                self.abort(why, now)
         elif (self.force_avg < -s.force_threshold and force_n < -s.force_threshold
               and self.phase in (DESCEND, SETTLE, CAPTURE)):
             self.abort(f"force sign: the normal force reads {force_n:.1f} N while pressing; "
@@ -441,11 +511,22 @@ class PressController:
         point the target slows at ``approach_brake``: an impedance-controlled arm lags
         its moving target and overshoots where the target stops, towards the surface."""
         speed = self.s.travel_speed
-        if len(self._waypoints) == 1:
-            left = float(np.linalg.norm(self._waypoints[0] - self.target))
-            speed = min(speed, math.sqrt(2.0 * self.brake * left))
+        if len(self._waypoints) == 2 and dt > 0:
+            # the travel leg keeps its height: the arm's height below the target is the sag
+            w = min(1.0, dt / SAG_SMOOTH_S)
+            self.sag_m += w * (float(self.target[2] - position[2]) - self.sag_m)
+        left = float(np.linalg.norm(self._waypoints[0] - self.target))
+        brake = self.brake if len(self._waypoints) == 1 else TRAVEL_BRAKE_M_S2
+        speed = min(speed, math.sqrt(2.0 * brake * left))
         if self._arrive(self._waypoints[0], speed, position, dt):
             self._waypoints.pop(0)
+            if len(self._waypoints) == 1:
+                # a payload or cable pulling down holds the arm below its target: raise the
+                # approach point by that, so the arm, not its target, stops approach_height
+                # above the surface (at most by approach_height)
+                self.raised_m = float(np.clip(self.sag_m, 0.0, self.s.approach_height))
+                self.approach_point = self.approach_point + [0.0, 0.0, self.raised_m]
+                self._waypoints[0] = self.approach_point
             if not self._waypoints:
                 self._enter(TARE, now)
 
@@ -453,6 +534,12 @@ class PressController:
         """Hold the approach point and measure the offset; descend once it settled, refuse
         the press when it does not settle in time or is too large."""
         s = self.s
+        if self.image_contact:
+            self.abort("tare in contact: the gel image shows contact at the approach point "
+                       f"({self.approach_point[2] - self.expected_z:.4f} m above the expected "
+                       "surface); the surface is higher than the scene says or the arm sags: "
+                       "measure the scene again (tactex robot measure-scene)", now)
+            return
         self._tare.add(now, force_n, position)
         got = self._tare.settled()
         if got is not None:
@@ -487,7 +574,8 @@ class PressController:
     def _found(self, position: np.ndarray) -> None:
         """The smoothed force says contact: remember where, warn if the scene is off."""
         s = self.s
-        if self.surface_found is not None or self.force_avg < s.contact_force_n:
+        if self.surface_found is not None or (self.force_avg < s.contact_force_n
+                                              and not self.image_contact):
             return
         self.surface_found = float(position[2])
         self._touch = (self.surface_found, self.force_avg)
@@ -507,10 +595,10 @@ class PressController:
         or ``max_depth`` below the surface it found."""
         s = self.s
         if self.surface_found is None:
-            if self.surface_z - position[2] >= s.surface_search:
+            if self.expected_z - position[2] >= s.surface_search:
                 self.abort(f"no contact: {self.force_avg:.2f} N < contact_force_n "
                            f"{s.contact_force_n} N with the sensor surface_search "
-                           f"{s.surface_search} m below the scene's surface", now)
+                           f"{s.surface_search} m below the expected surface", now)
                 return True
         elif self.surface_found - position[2] >= s.max_depth:
             self.abort(f"too soft: {self.force_avg:.2f} N < force_threshold "
@@ -557,7 +645,7 @@ class PressController:
             return
         if self._too_deep(position, now):
             return
-        at_bottom = self._move_towards(self.bottom, s.descend_speed, dt)
+        at_bottom = self._move_towards(self.bottom, self._descent_speed(position), dt)
         self._guard(position)
         if self._stalled(now, position):
             return
@@ -566,6 +654,34 @@ class PressController:
                        f"{s.force_threshold} N with the equilibrium at its floor "
                        f"{self.surface_z - self.target[2]:.4f} m below the scene's surface",
                        now)
+
+    def _retract_point(self) -> np.ndarray:
+        """Straight up to the approach point, or higher: at least ``RETRACT_CLEAR_M`` above
+        the highest the surface may be (``expected_z + tolerance``) and above where the
+        surface was found (an approach point inside a surface higher than expected, a
+        refused tare in contact, is never the retract's goal)."""
+        top = self.expected_z + self.tolerance
+        if self.surface_found is not None:
+            top = max(top, self.surface_found)
+        z = max(float(self.approach_point[2]), top + RETRACT_CLEAR_M)
+        return clamp(self.scene, np.array([self.approach_point[0], self.approach_point[1], z]))
+
+    def _descent_speed(self, position: np.ndarray) -> float:
+        """[m/s] Above the band where the surface may be (``expected_z + tolerance``), the
+        arm's lower bound (its measured height or its target's plus the lift) slows from
+        ``descend_fast_speed`` at ``DESCENT_BRAKE_M_S2`` to ``descend_speed``
+        ``DESCENT_MARGIN_M`` above the band; after contact the force error over ``K x
+        RAMP_TAU_S``, between the two."""
+        s = self.s
+        fast = max(s.descend_fast_speed, s.descend_speed)
+        if self.surface_found is not None:
+            err = s.force_threshold - self.force_avg
+            return float(np.clip(err / (self.k * RAMP_TAU_S), s.descend_speed, fast))
+        low = min(float(position[2]), float(self.target[2]) + self.lift_n / self.k)
+        gap = low - (self.expected_z + self.tolerance) - DESCENT_MARGIN_M
+        if gap <= 0.0:
+            return s.descend_speed
+        return min(fast, s.descend_speed + math.sqrt(2.0 * DESCENT_BRAKE_M_S2 * gap))
 
     def _settle(self, now: float, position: np.ndarray, dt: float) -> None:
         """The hold: the smoothed force error moves the equilibrium (``HOLD_TAU_S``, guarded
@@ -580,7 +696,7 @@ class PressController:
         self._guard(position)
         if self._stalled(now, position):
             return
-        if abs(err) <= s.force_tolerance_n and self.speed <= s.rest_speed:
+        if abs(err) <= CAPTURE_BAND * s.force_tolerance_n and self.speed <= s.rest_speed:
             self._band_since = now if self._band_since is None else self._band_since
         else:
             self._band_since = None
@@ -613,7 +729,13 @@ class PressController:
         return self.phase == DONE
 
     def outcome(self) -> PressOutcome:
+        phase_s = dict(self.phase_s)
+        if self.phase != DONE:
+            phase_s[self.phase] = phase_s.get(self.phase, 0.0) + self._now - self.phase_start
         return PressOutcome(success=self.done and not self.failure, reason=self.failure,
                             force_n=self.capture_force, depth_m=self.capture_depth,
                             max_force_n=self.max_force, tare=self.tare,
-                            surface_z=self.surface_found, warning=self.warning)
+                            surface_z=self.surface_found, warning=self.warning,
+                            phase_s=phase_s,
+                            press_s=(float("nan") if self.lift_off_t is None
+                                     else self.lift_off_t - self.start_t))

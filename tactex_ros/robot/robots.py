@@ -164,8 +164,12 @@ class ControllerSpec(Schema):
     rate_hz: float = param(1000.0, "control loop rate [Hz]", 1.0, 1e4)
     target_filter: float = param(0.0, "EMA weight kept of the filtered target per control "
                                       "cycle (0 = no filter)", 0.0, 0.999)
-    error_clip: float = param(0.0, "pose error clipped per axis [m] (0 = not clipped)",
+    error_clip: float = param(0.0, "pose error clipped along z [m] (0 = not clipped): at "
+                                   "rest the press pushes with at most stiffness x this",
                               0.0, 10.0)
+    lateral_error_clip: float = param(0.0, "pose error clipped along x and y [m] (0 = "
+                                           "error_clip): the travel's speed is at most "
+                                           "stiffness x this / damping", 0.0, 10.0)
     max_delta_tau: float = param(0.0, "joint torque change per cycle at most [N m] (0 = no "
                                       "limit)", 0.0, 100.0)
     torque_lever_m: float = param(0.8, "longest lever from a joint to the sensor [m]: a "
@@ -196,6 +200,7 @@ class ControllerSpec(Schema):
         return ControlLaw(stiffness=self.stiffness, damping=self.damping, rate_hz=self.rate_hz,
                           target_filter=self.target_filter,
                           error_clip=self.error_clip or inf,
+                          lateral_error_clip=self.lateral_error_clip,
                           max_force_step=(self.max_delta_tau / self.torque_lever_m
                                           if self.max_delta_tau else inf),
                           max_stiffness=self.max_stiffness, state_filter=self.joint_filter,

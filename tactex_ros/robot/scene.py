@@ -48,8 +48,20 @@ class PressSettings(Schema):
                                    0.005, 0.3)
     travel_speed: float = param(0.15, "speed of moves between platforms (also the speed cap) "
                                       "[m/s]", 0.001, 1.0)
-    descend_speed: float = param(0.01, "speed while descending onto the fabric [m/s]",
-                                 0.0005, 0.1)
+    descend_speed: float = param(0.01, "speed of the descent where the surface may be (the "
+                                       "speed at contact) [m/s]", 0.0005, 0.1)
+    descend_fast_speed: float = param(
+        0.0, "speed of the descent above the band where the surface may be (the expected "
+             "surface plus its tolerance): it slows to descend_speed into the band; 0 = "
+             "descend_speed all the way [m/s]", 0.0, 0.3)
+    surface_tolerance: float = param(
+        0.002, "the scene's surface heights are right to within this (a hand-guided "
+               "measurement; tactex robot measure-scene: about 1 mm): the contact may come "
+               "this far above the scene's surface [m]", 0.0, 0.05)
+    found_tolerance: float = param(
+        0.001, "the same for a surface an earlier press of the platform found: the approach "
+               "point and the slow band are then lower by surface_tolerance - found_tolerance "
+               "[m]", 0.0, 0.05)
     max_speed: float = param(0.25, "never exceeded by any commanded motion [m/s]", 0.001, 1.0)
     force_threshold: float = param(5.0, "normal force that ends the descent [N]", 0.1, 50.0)
     max_force: float = param(15.0, "exceeded -> abort and retract [N]", 0.2, 100.0)
@@ -118,7 +130,23 @@ class PressSettings(Schema):
         if self.force_threshold >= self.max_force:
             raise FieldError("force_threshold", f"{self.force_threshold} N must be below "
                                                 f"max_force ({self.max_force} N)")
-        for name in ("travel_speed", "descend_speed"):
+        if self.found_tolerance > self.surface_tolerance:
+            raise FieldError("found_tolerance", f"{self.found_tolerance} m must be at most "
+                                                f"surface_tolerance ({self.surface_tolerance} m)")
+        if self.surface_tolerance >= self.approach_height:
+            raise FieldError("approach_height", f"{self.approach_height} m must be above "
+                                                f"surface_tolerance ({self.surface_tolerance} "
+                                                "m): the surface may be that much higher than "
+                                                "the scene says, so the approach point would "
+                                                "be in it (measure the scene and lower "
+                                                "surface_tolerance)")
+        if self.surface_tolerance - self.found_tolerance >= self.approach_height:
+            raise FieldError("surface_tolerance", f"{self.surface_tolerance} m minus "
+                                                  f"found_tolerance ({self.found_tolerance} m) "
+                                                  "must be below approach_height "
+                                                  f"({self.approach_height} m): the approach "
+                                                  "point above a found surface would be in it")
+        for name in ("travel_speed", "descend_speed", "descend_fast_speed"):
             if getattr(self, name) > self.max_speed:
                 raise FieldError(name, f"{getattr(self, name)} m/s exceeds max_speed "
                                        f"({self.max_speed} m/s)")
@@ -222,6 +250,15 @@ class SceneFile(Schema):
             if p.id in seen:
                 raise FieldError(f"platforms.{i}.id", f"duplicate platform id {p.id!r}")
             seen.add(p.id)
+            for q in plats[:i]:      # each fabric its own place: a press finds one platform
+                apart = float(np.hypot(p.position[0] - q.position[0],
+                                       p.position[1] - q.position[1]))
+                if apart < p.radius + q.radius:
+                    raise FieldError(f"platforms.{i}.position",
+                                     f"{list(p.position)} overlaps platform {q.id!r} at "
+                                     f"{list(q.position)}: their centres are {apart:.3f} m "
+                                     f"apart in x-y, less than their radii "
+                                     f"({q.radius} + {p.radius} m)")
             for high in (0.0, press.approach_height):
                 probe = np.asarray(p.position) + [0.0, 0.0, high]
                 if not (np.all(probe >= ws.min) and np.all(probe <= ws.max)):

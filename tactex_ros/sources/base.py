@@ -1,5 +1,5 @@
 """What every touch source offers (``TouchSource``): the replay source (``replay.py``,
-recorded presses) and the simulator source (``sim.py``) implement it, and trials, the job
+recorded presses) and the simulator source (``simulated.py``) implement it, and trials, the job
 runner and the experiments use only this, never the type of a source.
 
 Frames are RGB uint8 arrays of shape (240, 320, 3); platform 0 is the reference, platforms

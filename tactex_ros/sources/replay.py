@@ -10,6 +10,12 @@ of the strongest; evenly spaced in time). The live sensor's burst uses the same 
 (``robot/frames.py``). An image file gives a touch without a no-contact frame. Frames are RGB uint8
 (240, 320, 3).
 
+Every press file is judged when the source opens (``check_press_files``): an empty file, one
+that does not decode, a video whose frames do not all decode (garbled or cut: fewer than its
+container declares) or a frame smaller than the sensor's refuses the source (InputError naming
+each such file), rather than failing the touch that draws it. A file damaged after the source
+opened is still a failed touch of that trial.
+
 A trial assigns a class to the reference and to every comparison platform. Touching a platform
 draws a press of its class not used yet in this trial, in a seeded random order, cycling when
 the class is exhausted. Presses used for the reference are never handed to a comparison platform
@@ -40,11 +46,26 @@ VIDEO_EXT = {".mov", ".mp4", ".avi", ".mkv"}
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
 
 
+def _frame_count_problem(declared: int, decoded: int) -> str | None:
+    """Why a video that decoded ``decoded`` frames is damaged (None: it is whole): fewer than
+    2 frames, or fewer than its container declares (``declared`` <= 0: not declared; one
+    frame of slack for a count the container estimates from its duration)."""
+    if decoded < 2:
+        return ("unreadable video (no frames decoded)" if decoded == 0 else
+                f"unreadable video (only {decoded} frame decoded)")
+    if declared > 0 and decoded < declared - 1:
+        return (f"garbled or cut video: {decoded} of the {declared} frames its container "
+                "declares decode")
+    return None
+
+
 def read_video(path: str | Path) -> np.ndarray:
-    """All frames of a video as sensor-sized BGR uint8 (F, 240, 320, 3); InputError if < 2."""
+    """All frames of a video as sensor-sized BGR uint8 (F, 240, 320, 3); InputError if fewer
+    than 2 decode, or fewer than the container declares (a garbled or cut file)."""
     cap = cv2.VideoCapture(str(path))
     frames = []
     try:
+        declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
         while True:
             ok, frame = cap.read()
             if not ok:
@@ -55,9 +76,65 @@ def read_video(path: str | Path) -> np.ndarray:
                 raise InputError(f"press file {path}: {exc}") from None
     finally:
         cap.release()
-    if len(frames) < 2:
-        raise InputError(f"unreadable video (no frames decoded): {path}")
+    problem = _frame_count_problem(declared, len(frames))
+    if problem:
+        raise InputError(f"{problem}: {path}")
     return np.stack(frames)
+
+
+@lru_cache(maxsize=4096)
+def _judge(path: str, size: int, mtime_ns: int) -> str | None:
+    """Why the press file ``path`` (of ``size`` bytes, modified at ``mtime_ns``: a file
+    changed since is judged again) cannot be replayed, or None: empty, not decodable, a frame
+    smaller than the sensor's, a video whose frames do not all decode. A video's frames are
+    decoded (``grab``) but not converted: about 10 ms a press."""
+    p = Path(path)
+    if size == 0:
+        return f"press file {p} is empty (0 bytes)"
+    if p.suffix.lower() in IMAGE_EXT:
+        img = cv2.imread(path, cv2.IMREAD_COLOR)
+        if img is None:
+            return f"unreadable image file: {p}"
+        first = img
+    else:
+        cap = cv2.VideoCapture(path)
+        try:
+            if not cap.isOpened():
+                return f"unreadable video (the file does not open as a video): {p}"
+            declared = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            ok, first = cap.read()
+            decoded = int(ok)
+            while ok and cap.grab():
+                decoded += 1
+        finally:
+            cap.release()
+        problem = _frame_count_problem(declared, decoded)
+        if problem:
+            return f"{problem}: {p}"
+    try:
+        to_sensor_frame(first)
+    except InputError as exc:
+        return f"press file {p}: {exc}"
+    return None
+
+
+def check_press_files(files: list[Path]) -> None:
+    """InputError naming every press file of ``files`` that cannot be replayed whole
+    (``_judge``: empty, undecodable, garbled or cut, too small); nothing when all can."""
+    bad = []
+    for f in files:
+        try:
+            st = f.stat()
+        except OSError as exc:
+            bad.append(f"press file {f}: {exc.strerror or exc}")
+            continue
+        why = _judge(str(f), st.st_size, st.st_mtime_ns)
+        if why:
+            bad.append(why)
+    if bad:
+        raise InputError(f"{len(bad)} of {len(files)} press file(s) cannot be replayed: "
+                         + "; ".join(bad[:5]) + (" ..." if len(bad) > 5 else "")
+                         + " (repair or remove them)")
 
 
 def load_press(path: str) -> tuple[np.ndarray, float]:
@@ -111,6 +188,10 @@ class ReplaySource:
         if not any(self.files.values()):
             raise InputError(f"replay folder {self.root} has no <class>/<press file> entries "
                              f"(videos {sorted(VIDEO_EXT)} or images {sorted(IMAGE_EXT)})")
+        try:                       # every press judged now, not at the touch that draws it
+            check_press_files([f for fs in self.files.values() for f in fs])
+        except InputError as exc:
+            raise InputError(f"replay folder {self.root}: {exc}") from None
 
     @property
     def classes(self) -> list[str]:
@@ -209,8 +290,8 @@ class ReplayTrial:
         self.log.append((platform, str(path)))
         try:
             touch = self.source.touch(path)
-        except InputError as exc:     # one bad file among good ones: a failed touch, and the
-            from ..core.engine import TouchFailed     # engine draws another press (retry)
+        except InputError as exc:     # a file damaged since the source opened: a failed
+            from ..core.engine import TouchFailed     # touch, the engine draws another press
             raise TouchFailed(str(exc)) from exc
         if not self.source.one_session or touch.no_contact is None:
             return touch

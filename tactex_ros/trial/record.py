@@ -18,7 +18,10 @@ Layout of ``<root>/<trial_id>/``::
     scene.yaml, config.json   what the trial ran with
 
 Line-per-event files with ``fsync`` after every write lose nothing already recorded when the
-process dies; a reader (``read_record``) ignores a torn last line. This folder is the ground
+process dies; a reader (``read_record``) skips a torn last line, and one ended before the next
+line was appended (noted as a ``torn_line`` event: ``append_line``); any other line that does
+not parse, or a field of another type than ``FIELDS`` says, refuses the record with the file,
+the line and the field named (InputError). This folder is the ground
 truth (a resume is rebuilt from it, ``tactex_ros.trial.resume``); an MCAP file of the trial's topics
 (``ros/bag.py``) is written beside it for ROS tools.
 """
@@ -29,6 +32,7 @@ import hashlib
 import json
 import os
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +49,42 @@ MIN_FREE_MB = 50.0    # [MB] default free-space margin checked before a trial an
 
 def append_event(folder: str | Path, event: dict[str, Any]) -> None:
     """Append one line to ``<folder>/events.jsonl`` (fsync'ed)."""
-    _fsync_write(Path(folder) / "events.jsonl", _line(event), True)
+    p = Path(folder) / "events.jsonl"
+    append_line(p, _line(event), p)
+
+
+#: the event noted when a torn last line (a crashed writer's, without its newline) is ended
+#: before the next line is appended (``line``: its number in ``file``); readers skip that line
+TORN_LINE = "torn_line"
+#: the files where ``TORN_LINE`` notes are kept: a record's events, a session's
+NOTE_FILES = ("events.jsonl", "session_events.jsonl")
+
+
+def _close_torn(path: Path, notes: Path) -> None:
+    """End a last line that has no newline (a writer that crashed mid-line) and note its
+    number in ``notes`` (``TORN_LINE``), so that no later line is joined to it."""
+    try:
+        with open(path, "rb") as f:
+            if f.seek(0, os.SEEK_END) == 0:
+                return
+            f.seek(-1, os.SEEK_END)
+            if f.read(1) == b"\n":
+                return
+            f.seek(0)
+            n = f.read().count(b"\n") + 1
+    except FileNotFoundError:
+        return
+    _fsync_write(path, b"\n", True)
+    if notes != path:
+        _close_torn(notes, notes)
+    _fsync_write(notes, _line({"event": TORN_LINE, "file": path.name, "line": n}), True)
+
+
+def append_line(path: Path, data: bytes, notes: Path) -> None:
+    """Append the JSON line ``data`` to ``path`` whole and fsync'ed (``fsync_write``), after
+    ending a torn last line (``_close_torn``, noted in ``notes``)."""
+    _close_torn(path, notes)
+    _fsync_write(path, data, True)
 
 
 def _line(obj: dict[str, Any]) -> bytes:
@@ -64,10 +103,45 @@ def _last_seq(d: Path) -> int:
 RECORD_FILES = ("touches.jsonl", "config.json", "result.json", "decisions.jsonl")
 
 
+def name_problem(name: str, folder: bool = True) -> str | None:
+    """Why ``name`` is not a plain name for a trial (None: it is): empty or only spaces,
+    spaces around it, a control character (a newline, a tab); a ``folder`` name also '/' or
+    '\\', '.' or '..' (a trial file's id is not: its record folder is ``session.record_name``)."""
+    import unicodedata
+    if not name.strip():
+        return "empty or only spaces"
+    if name != name.strip():
+        return "spaces around it"
+    bad = next((c for c in name if unicodedata.category(c).startswith("C")), None)
+    if bad is not None:
+        return f"a control character ({bad!r})"
+    if not folder:
+        return None
+    if "/" in name or "\\" in name:
+        return "a '/' or '\\'"
+    if name in (".", ".."):
+        return "'.' or '..'"
+    return None
+
+
 def check_trial_id(trial_id: str) -> None:
-    """A trial id is a plain folder name: non-empty, no '/', not '.' or '..'."""
-    if not trial_id or "/" in trial_id or "\\" in trial_id or trial_id in (".", ".."):
-        raise InputError(f"trial_id {trial_id!r}: a non-empty name without '/'")
+    """A trial id is a plain folder name (``name_problem``); InputError naming it otherwise."""
+    why = name_problem(trial_id)
+    if why:
+        raise InputError(f"trial_id {trial_id!r}: {why}; a trial id is a plain name (letters, "
+                          "digits, spaces inside, punctuation other than '/' and '\\')")
+
+
+def free_trial_id(root: str | Path) -> str:
+    """A new record's name in ``root`` when none is given: ``trial_<date>_<time>``, with
+    ``_2``, ``_3``, ... when a record of that name is there already (two trials started in
+    the same second)."""
+    stem = time.strftime("trial_%Y%m%d_%H%M%S")
+    name, k = stem, 1
+    while (Path(root) / name).exists():
+        k += 1
+        name = f"{stem}_{k}"
+    return name
 
 
 def check_new_record(root: str | Path, trial_id: str) -> Path:
@@ -153,9 +227,7 @@ class TrialRecord:
                 append_event(self.dir, {"event": "failed", "result": res})
                 os.remove(self.dir / "result.json")
             for f in self.dir.glob("*.jsonl"):      # a torn last line stays a line of its own
-                data = f.read_bytes()
-                if data and not data.endswith(b"\n"):
-                    _fsync_write(f, b"\n", True)
+                _close_torn(f, self.dir / "events.jsonl")
             self.n_touches = _last_seq(self.dir)
             return
         check_new_record(root, trial_id)
@@ -241,7 +313,7 @@ class TrialRecord:
                 line["extra"] = extra_names
             if nc_name is not None:
                 line["no_contact"] = nc_name
-            _fsync_write(self.dir / "touches.jsonl", _line(line), True)
+            append_line(self.dir / "touches.jsonl", _line(line), self.dir / "events.jsonl")
         except BaseException:
             for f in written:        # a touch is its line: no image without one is left
                 f.unlink(missing_ok=True)
@@ -255,13 +327,13 @@ class TrialRecord:
         """Mark touch ``seq`` (already on disk) as not used, e.g. refused by the core's guard."""
         with self._lock:
             self._open()
-            _fsync_write(self.dir / "rejections.jsonl",
-                         _line({"seq": seq, "reason": reason}), True)
+            append_line(self.dir / "rejections.jsonl", _line({"seq": seq, "reason": reason}),
+                        self.dir / "events.jsonl")
 
     def add_decision(self, state: dict[str, Any]) -> None:
         with self._lock:
             self._open()
-            _fsync_write(self.dir / "decisions.jsonl", _line(state), True)
+            append_line(self.dir / "decisions.jsonl", _line(state), self.dir / "events.jsonl")
 
     def finish(self, result: dict[str, Any]) -> Path:
         """Write ``result.json`` atomically (temporary file, fsync, rename)."""
@@ -339,7 +411,10 @@ FIELDS: dict[str, dict[str, tuple]] = {
                       "extra": ([str], None),
                       "platform_id": (str, None), "platform_index": (int, None),
                       "accepted": (bool, None), "interrupted": (bool, None),
-                      "reason": (str, None)},
+                      "reason": (str, None), "force_n": (*NUM, None),
+                      "depth_m": (*NUM, None), "stamp": (*NUM, None),
+                      "requested": (*NUM, None), "pose": ([(*NUM, None)], None),
+                      "attempts": (int, None)},
     "rejections.jsonl": {"seq": (int,), "reason": (str, None)},
     "decisions.jsonl": {"round": (int, None), "belief": ([(*NUM, None)],), "touches": ([int],),
                         "next": (str, None), "done": (bool, None), "prediction": (str, None)},
@@ -387,9 +462,31 @@ def check_fields(obj: Any, fields: dict[str, tuple], where: str) -> dict:
     return obj
 
 
+def _torn_lines(d: Path, name: str) -> set[int]:
+    """Numbers of the lines of ``d/name`` ended as torn (``TORN_LINE`` notes)."""
+    out: set[int] = set()
+    text = ""
+    for f in NOTE_FILES:
+        try:
+            text += (d / f).read_text() + "\n"
+        except (OSError, UnicodeDecodeError):
+            continue
+    for line in text.splitlines():
+        try:
+            e = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(e, dict) and e.get("event") == TORN_LINE and e.get("file") == name \
+                and isinstance(e.get("line"), int):
+            out.add(e["line"])
+    return out
+
+
 def _read_jsonl(path: Path) -> list[dict]:
-    """The lines of a JSONL file of a record (a torn line is skipped); InputError naming the
-    file, the line and the field when a line is not an object or a field has another type."""
+    """The lines of a JSONL file of a record; InputError naming the file, the line (and the
+    field) when a line is not JSON, not an object or a field has another type. The one line
+    that may not parse is a crashed writer's torn line: the last one, or one ended before
+    the next append (``TORN_LINE``); it is skipped."""
     if not path.exists():
         return []
     try:
@@ -397,12 +494,22 @@ def _read_jsonl(path: Path) -> list[dict]:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{str(path)!r} cannot be read ({exc})") from None
     fields = FIELDS.get(path.name, {})
+    lines = text.splitlines()
+    torn: set[int] | None = None
     out = []
-    for i, line in enumerate(text.splitlines(), 1):
+    for i, line in enumerate(lines, 1):
         try:
             obj = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # torn line of a crashed writer (ended by a resume's newline)
+        except json.JSONDecodeError as exc:
+            if i == len(lines):
+                continue                # the torn last line of a crashed writer
+            if torn is None:
+                torn = _torn_lines(path.parent, path.name)
+            if i in torn:
+                continue                # one ended before the next line was appended
+            raise InputError(f"{str(path)!r}, line {i} of {len(lines)}: not a JSON line "
+                             f"({exc.msg} at column {exc.colno}): the file is damaged (only "
+                             "the last line may be torn, by a crash)") from None
         out.append(check_fields(obj, fields, f"{str(path)!r}, line {i}"))
     return out
 

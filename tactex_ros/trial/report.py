@@ -283,13 +283,6 @@ def _command_profiles(command: str) -> dict[str, str]:
             "sensor": opt("--sensor") or ("mock camera" if sim else "gelsight_mini (default)")}
 
 
-def _config(d: Path) -> dict:
-    try:
-        return json.loads((d / "config.json").read_text())
-    except (OSError, json.JSONDecodeError):
-        return {}
-
-
 def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
     """Platform ids (scene order, reference first) and their fabric where the record says."""
     import yaml
@@ -297,6 +290,9 @@ def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
     placed = (cfg.get("session") or {}).get("placement") or {}
     ids, fabrics = [], {}
     p = d / "scene.yaml"
+    cli = (cfg.get("cli") or {}).get("platforms")
+    if not p.is_file() and isinstance(cli, dict):      # `tactex trial`: the source's classes
+        return [str(k) for k in cli], {str(k): str(v) for k, v in cli.items()}
     if p.is_file():
         doc = yaml.safe_load(p.read_text()) or {}
         plats = doc.get("platforms") or []
@@ -319,7 +315,7 @@ def _config(d: Path) -> dict:
         return {}
     from .record import check_fields
     return check_fields(cfg, {k: (dict, None) for k in ("trial", "session", "explorer",
-                                                        "learner")}, repr(str(p)))
+                                                        "learner", "cli")}, repr(str(p)))
 
 
 def _session_of(d: Path) -> Path | None:
@@ -445,6 +441,8 @@ def _resume_command(d: Path, cfg: dict) -> str:
     sim = " --sim" if words.get("mode", "").startswith("simulation") else ""
     if sd is not None:
         return f"tactex graph run{sim} --session-dir {shlex.quote(str(sd))}"
+    if "cli" in cfg:
+        return f"tactex trial --resume {shlex.quote(str(d))}"
     return f"tactex graph run{sim} --resume {shlex.quote(str(d))}"
 
 
@@ -468,6 +466,11 @@ def _context_rows(d: Path, cfg: dict, res: dict, rec: dict) -> list[list[str]]:
     run = cfg.get("run") or {}
     ex, tr, le = cfg.get("explorer") or {}, cfg.get("trial") or {}, cfg.get("learner") or {}
     prof = _command_profiles(run.get("command", ""))
+    cli = cfg.get("cli") or {}
+    if cli:          # `tactex trial`: touches from a source, no robot
+        ex = cli
+        prof = {"mode": f"no robot: touches from source {cli.get('source')}",
+                "robot": "none", "sensor": "the source's recorded or simulated frames"}
     first = min([t.get("requested") or 1e18 for t in rec["touches"]] or [1e18])
     started = run.get("started") or (first if first < 1e18 else None)
     changes = dict(run.get("non_default") or {})
@@ -493,7 +496,8 @@ def _context_rows(d: Path, cfg: dict, res: dict, rec: dict) -> list[list[str]]:
             ["simulation or robot", _esc(prof.get("mode")) or missing],
             ["robot profile", _esc(prof.get("robot")) or missing],
             ["sensor", _esc(prof.get("sensor")) or missing],
-            ["scene", f"{_esc(Path(ex.get('scene_file') or '').name)} &middot; {scene}"],
+            ["scene", f"{_esc(Path(ex.get('scene_file') or '').name or ex.get('source'))} "
+                      f"&middot; {scene}"],
             ["host", _esc(run.get("host")) or missing]]
     if sess:
         rows.insert(0, ["session trial", f"{_esc(sess.get('name'))}, trial "

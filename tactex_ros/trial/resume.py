@@ -112,14 +112,16 @@ class Replay:
         return r.touch
 
 
-def restore_engine(spec: TrialSpec, folder: str | Path,
-                   recorded: list[RecordedTouch]) -> tuple[TrialEngine, int, str]:
+def restore_engine(spec: TrialSpec, folder: str | Path, recorded: list[RecordedTouch],
+                   guard_reference: bool = True) -> tuple[TrialEngine, int, str]:
     """The engine of a resumed trial: restored from the record's last checkpoint (the
     learner's state after its last round, ``TrialRecord.write_checkpoint``) when there is one
     that fits, else a fresh one that re-trains while the recorded touches are replayed.
     Returns (engine, number of the last recorded touch the checkpoint covers, 0 for none; a
     line saying which way it went). A checkpoint that is unreadable, altered or does not fit
-    the record is not used (the line says why): the touches on disk are the ground truth."""
+    the record is not used (the line says why): the touches on disk are the ground truth.
+    ``guard_reference``: the contact guard gets the first recorded no-contact frame back
+    (``TrialRun``'s)."""
     how = f"re-training on the {len(recorded)} recorded touches"
     try:
         got = read_checkpoint(folder)
@@ -140,7 +142,7 @@ def restore_engine(spec: TrialSpec, folder: str | Path,
         # a damaged state (wrong types, missing keys) can fail after the checks in restore():
         # the half-restored engine is dropped, the touches on disk are re-trained on
         return spec.engine(), 0, f"checkpoint does not fit the record ({exc}); not used, {how}"
-    for r in recorded:                  # the contact guard's no-contact frame, as it was
+    for r in recorded if guard_reference else ():    # the guard's no-contact frame, as it was
         if r.seq <= after and r.touch is not None and r.touch.no_contact is not None:
             if eng.guard is not None and not eng.guard.has_reference:
                 eng.guard.set_reference(r.touch.no_contact)
@@ -164,7 +166,10 @@ _FREE = {"explorer": {"resume", "record_dir", "trial_id", "exit_when_done", "nic
                       "goal_answer_s", "goal_renew_s", "min_free_mb", "run_id",
                       "scene_file", "session_file", "session_dir", "trials", "auto_confirm",
                       "confirm_timeout_s", "prompt_topic", "placement_service", "diag_period_s"},
-         "learner": {"threads"}, "trial": set()}
+         "learner": {"threads"}, "trial": set(),
+         # ``tactex trial`` (cli/main.py): its options; where the record goes and how much
+         # the console shows may change
+         "cli": {"resume", "record_dir", "trial_id", "json", "quiet"}}
 
 
 def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
@@ -191,14 +196,15 @@ def check_settings(folder: str | Path, now: dict[str, dict]) -> None:
 
 def record_settings(folder: str | Path) -> dict:
     """The settings a trial record was started with, flat (``config``, ``seed``, ...,
-    ``learner.*``, ``trial.*``; from its ``config.json``), those a resume may change
-    (``_FREE``) left out. InputError naming the folder when it has no readable config.json."""
+    ``learner.*``, ``trial.*``; from its ``config.json``: the explorer's section, or
+    ``tactex trial``'s ``cli``), those a resume may change (``_FREE``) left out. InputError naming the folder when it has no readable config.json."""
     import json
     from ..core.schema import flatten
     p = Path(folder) / "config.json"
     try:
         rec = json.loads(p.read_text())
-        out = {k: v for k, v in rec["explorer"].items() if k not in _FREE["explorer"]}
+        entrance = "explorer" if "explorer" in rec or "cli" not in rec else "cli"
+        out = {k: v for k, v in rec[entrance].items() if k not in _FREE[entrance]}
         out.update(flatten({"learner": rec["learner"], "trial": rec["trial"]}))
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise InputError(f"resume {str(folder)!r}: not a trial record with a config.json "
@@ -246,3 +252,34 @@ def record_scene(folder: str | Path) -> str:
                          f"scene_file {str(orig)!r} is not a file; give the scene")
     same = orig.is_file() and copy.is_file() and orig.read_bytes() == copy.read_bytes()
     return str(orig if same or not copy.is_file() else copy)
+
+
+def catch_up(folder: str | Path, touch_fn: Callable[[int], "Touch | np.ndarray"]) -> int:
+    """Bring a touch function whose touches follow from the ones made before (a replayed or
+    simulated source, ``sources.TouchSource.trial``) to where the trial recorded in
+    ``folder`` left it: ``touch_fn`` is called for every recorded touch (interrupted presses
+    left out), in order, and what it gives is dropped, so its next touch is the one the
+    uninterrupted trial got next. InputError naming the touch when it gives another touch
+    than the record holds (another source, or its files changed since). Returns the number
+    of touches made."""
+    from ..core.touch import as_touch
+    n = 0
+    for t in read_record(folder)["touches"]:
+        if t.get("interrupted"):
+            continue
+        seq = int(t.get("seq", 0))
+        try:
+            got = as_touch(touch_fn(int(t["platform_index"]))).frame
+        except TouchFailed:
+            got = None
+        except KeyError:
+            raise InputError(f"resume: touch {seq} of the record has no platform_index") \
+                from None
+        n += 1
+        was = t.get("array") if t.get("image") else None
+        if (got is None) != (t.get("image") is None) or \
+                (was is not None and not np.array_equal(was, got)):
+            raise InputError(f"resume: the source gives another touch {seq} than the record "
+                             f"{str(folder)!r} holds (another source, or its files changed "
+                             "since the trial started)")
+    return n

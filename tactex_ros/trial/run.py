@@ -29,7 +29,7 @@ import numpy as np
 from ..core.engine import RoundRecord, TouchFailed, TrialSpec
 from ..core.errors import TrialError
 from ..core.touch import Touch
-from .record import MIN_FREE_MB, TrialRecord, append_event, read_record
+from .record import MIN_FREE_MB, TrialRecord, append_event, free_trial_id, read_record
 
 #: ``press(platform, meta)``: the live touch, ``meta`` filled in place for the record
 Press = Callable[[int, dict], Touch]
@@ -63,15 +63,20 @@ class TrialRun:
     ``placed_scene``: scene text written instead (a session trial's placement);
     ``check_record(folder)``: more checks of a record to resume (the scene's platforms);
     ``log(level, text)``: where warnings and notes go (``logging`` levels);
-    ``min_free_mb``: the free disk the record keeps before the trial and each touch [MB]."""
+    ``min_free_mb``: the free disk the record keeps before the trial and each touch [MB];
+    ``guard_reference``: the contact guard takes the first touch's no-contact frame as the
+    sensor session's (the robot: one camera serves every touch); False where each touch
+    comes from a session of its own and is judged against its own frame before it arrives
+    (a replay: ``engine.refusing_no_contact``)."""
 
     def __init__(self, spec: TrialSpec, record_dir: str | Path, trial_id: str = "", *,
                  press: Press, inputs: dict[str, Any], resume: str | Path | None = None,
                  scene_file: str | Path | None = None, placed_scene: str | None = None,
                  check_record: Callable[[Path], None] | None = None,
                  log: Callable[[int, str], None] | None = None,
-                 min_free_mb: float = MIN_FREE_MB) -> None:
+                 min_free_mb: float = MIN_FREE_MB, guard_reference: bool = True) -> None:
         self.spec = spec
+        self.guard_reference = guard_reference
         self.min_free_mb = float(min_free_mb)
         self.ids = list(spec.platform_ids or ["reference"] + [f"c{i + 1}" for i in
                                                                range(spec.comparisons)])
@@ -86,7 +91,7 @@ class TrialRun:
         if resume:
             self._open_resume(Path(resume).resolve(), inputs, check_record)
         else:
-            self.trial_id = trial_id or time.strftime("trial_%Y%m%d_%H%M%S")
+            self.trial_id = trial_id or free_trial_id(record_dir)
             self.record = TrialRecord(record_dir, self.trial_id, min_free_mb=self.min_free_mb)
             self.record.save_inputs(scene_file, inputs, scene_text=placed_scene)
 
@@ -99,7 +104,8 @@ class TrialRun:
         if check_record is not None:
             check_record(d)
         self.replay, rec = load_replay(d, self._live, self.ids)
-        self.engine, after, how = restore_engine(self.spec, d, self.replay.recorded)
+        self.engine, after, how = restore_engine(self.spec, d, self.replay.recorded,
+                                                 self.guard_reference)
         self.replay.recorded = [r for r in self.replay.recorded if r.seq > after]
         self._replay_decisions = rec["decisions"]
         self._decisions = len(self.engine.records)     # decisions restored, not re-made
@@ -161,7 +167,8 @@ class TrialRun:
     def _set_guard_reference(self, no_contact: np.ndarray | None) -> None:
         """Give the core's contact guard the sensor's no-contact frame (first valid one)."""
         guard = self.engine.guard
-        if guard is None or guard.has_reference or no_contact is None:
+        if guard is None or guard.has_reference or no_contact is None or \
+                not self.guard_reference:
             return
         guard.set_reference(no_contact)
 

@@ -151,10 +151,14 @@ def select_trials(session: Session, text: str) -> list[str] | None:
     """The trial ids ``text`` asks for (``ID[,ID...]``, the explorer's ``trials``; spaces
     around an id are ignored), in the session's order; None for '' (every trial). InputError
     names an unknown id and the session's ids."""
-    asked = [t.strip() for t in str(text or "").split(",")]
-    if not any(asked):
+    if not str(text or "").strip():
         return None
+    asked = [t.strip() for t in str(text).split(",")]
     ids = [t.id for t in session.trials]
+    if not all(asked):
+        raise InputError(f"trials {text!r}: an empty id (a ',' with nothing on one side); "
+                         f"give ID[,ID...] of session {session.name} (its ids: "
+                         f"{', '.join(ids)}), or '' for every trial")
     for t in asked:
         if t not in ids:
             raise InputError(f"trials {text!r}: {t!r} is not a trial of session "
@@ -201,10 +205,10 @@ def events(session_dir: str | Path) -> list[dict]:
 
 def add_event(session_dir: str | Path, event: dict[str, Any]) -> None:
     """Append one line to ``session_events.jsonl`` (fsync'ed)."""
-    from .record import _fsync_write
+    from .record import append_line
     d = Path(session_dir)
     d.mkdir(parents=True, exist_ok=True)
-    _fsync_write(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), True)
+    append_line(d / EVENTS_FILE, (json.dumps(event) + "\n").encode(), d / EVENTS_FILE)
 
 
 def read_session_file(session_dir: str | Path) -> dict[str, Any] | None:

@@ -6,9 +6,9 @@ ends the session: recorded, resumable. Every trial gets a fresh engine with seed
 ``seed + position``, its own record ``<session_dir>/trial_<id>`` and its correctness from the
 trial file's truth. A session folder that already holds the same session is continued:
 finished trials are skipped, an interrupted trial resumes at the touch where it stopped
-(its placement, confirmed before, is not asked again), pending ones run. The explorer node (``ros/nodes/explorer_node.py``) supplies the operator (a
-service, a latched prompt topic, the mock camera's placement) and runs each trial
-(``trial/run.py``).
+(its placement, confirmed before, is not asked again), pending ones run. The explorer node
+(``ros/nodes/explorer_node.py``) runs each trial (``trial/run.py``); its operator is
+``ros/nodes/operator.py`` (a service, a latched prompt topic, the mock camera's placement).
 """
 
 from __future__ import annotations
@@ -71,7 +71,6 @@ class SessionRun:
         sess.add_event(self.dir, {"event": "resumed" if self.resumed else "started",
                                   "time": time.time(), "trials": len(session.trials),
                                   "trials_asked": only})
-        self.awaiting: str | None = None
 
     def done(self) -> int:
         """How many of the session's trials are done."""
@@ -87,17 +86,13 @@ class SessionRun:
         text = (f"session {self.session.name}, trial {trial.id} ({k}/{n}): place "
                 + "; ".join(trial.instructions()) + " -- then confirm")
         operator.expect(trial.id)       # before the prompt goes out: a quick confirm is taken
-        self.awaiting = trial.id
         self.log(logging.INFO, text)
         sess.add_event(self.dir, {"event": "awaiting_confirmation", "trial": trial.id,
                                   "position": trial.position, "number": k, "of": n,
                                   "placement": trial.placement, "text": text,
                                   "time": time.time()})
-        try:
-            operator.tell(text)
-            got = operator.wait()
-        finally:
-            self.awaiting = None
+        operator.tell(text)
+        got = operator.wait()
         if got is None:
             return False
         by, caller = got

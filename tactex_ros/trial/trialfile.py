@@ -20,6 +20,7 @@ from typing import Any
 
 from ..core.errors import InputError
 from ..paths import config_file, read_yaml
+from .record import name_problem
 
 
 def find_trial_file(spec: str | None) -> Path:
@@ -40,6 +41,10 @@ def load_trials(path: str | Path) -> dict[str, Any]:
         if not isinstance(t, dict) or not {"id", "reference", "comparisons"} <= set(t):
             raise InputError(f"{where}: needs id, reference and comparisons")
         tid = str(t["id"])
+        why = name_problem(tid, folder=False)
+        if why:
+            raise InputError(f"{where}: id {tid!r}: {why}; an id is a plain name (letters, "
+                             "digits, spaces inside, punctuation)")
         if tid in seen:
             raise InputError(f"{where}: duplicate id {tid!r}")
         seen.add(tid)

@@ -17,7 +17,7 @@ from tactex_ros.core.config import TrialConfig, learner_class
 from tactex_ros.core.engine import TrialSpec
 from tactex_ros.ros import adapter
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import run_graph
+from tactex_ros.ros.devrun.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
 from tactex_ros.trial.record import read_record
 from tactex_ros.trial.resume import Replay, recorded_touches
@@ -107,7 +107,7 @@ def test_a_short_hold_still_gets_the_whole_burst(tmp_path: Path, listener, press
     whole, within ``capture_deadline_s``."""
     import yaml
 
-    from tactex_ros.ros.launcher import Graph
+    from tactex_ros.ros.devrun.launcher import Graph
     scene = yaml.safe_load(Path(quick_scene).read_text())
     scene["press"]["settle_s"] = 0.0
     path = tmp_path / "scene_no_hold.yaml"

@@ -17,7 +17,7 @@ import pytest
 
 from tactex_ros.core.errors import InputError
 from tactex_ros.trial.record import read_checkpoint, read_record
-from tactex_ros.ros.launcher import ros_env
+from tactex_ros.ros.devrun.launcher import ros_env
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

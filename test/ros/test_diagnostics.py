@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -24,7 +24,7 @@ from tactex_ros.cli.graph_commands import summarise_bag
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import TOUCH_IMAGE_TOPIC
 from tactex_ros.trial.record import read_record, read_result
-from tactex_ros.ros.launcher import ros_env, run_graph
+from tactex_ros.ros.devrun.launcher import ros_env, run_graph
 from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
@@ -284,7 +284,7 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     """Without the runner's supervision (as under `launch`): the motion node is killed during a
     press; the explorer ends the trial within press_silence_s (not press_timeout_s, 120 s) with
     an error result, and the cut-off press is recorded as interrupted."""
-    from tactex_ros.ros.launcher import Graph
+    from tactex_ros.ros.devrun.launcher import Graph
     nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
                                      "record_dir": str(tmp_path), "trial_id": "gone",
                                      "exit_when_done": True, "press_silence_s": SILENCE_S})

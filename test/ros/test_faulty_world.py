@@ -11,7 +11,7 @@ import pytest
 
 from tactex_ros.robot.scene import load_scene
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

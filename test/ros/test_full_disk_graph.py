@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.ros.launcher import ros_env
+from tactex_ros.ros.devrun.launcher import ros_env
 from tactex_ros.trial.record import read_record
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

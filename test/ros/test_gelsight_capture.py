@@ -15,7 +15,7 @@ from sensor_msgs.msg import Image
 from tactex_ros.ros import adapter
 from tactex_ros.core.contact import contact_score, blur, crop_border, in_contact
 from tactex_ros.ros.graph import NodeSpec
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

@@ -16,7 +16,7 @@ from rclpy.task import Future
 
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.goal import GoalRequest
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

@@ -6,6 +6,7 @@ goals only while active; shutdown ends in ``finalized``."""
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
@@ -202,6 +203,9 @@ def test_explorer_lifecycle(bench, tmp_path: Path) -> None:
     b.manager.create_subscription(MarkerArray, "/tactex/markers", got.append, 10)
     _cycle(b, got, active_s=1.5)
     assert (tmp_path / "lc" / "config.json").is_file()
+    # an absent press server is a device absent at run time (core/errors.py), not bad input
+    res = json.loads((tmp_path / "lc" / "result.json").read_text())
+    assert res["error"].split(":")[0] == "DeviceError", res
 
 
 def test_motion_lifecycle(bench) -> None:

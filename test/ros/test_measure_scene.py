@@ -14,7 +14,7 @@ import yaml
 
 from tactex_ros.robot.scene import load_scene
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import Graph, ros_env
+from tactex_ros.ros.devrun.launcher import Graph, ros_env
 
 pytestmark = pytest.mark.ros
 

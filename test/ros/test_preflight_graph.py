@@ -25,7 +25,7 @@ from tactex_ros.core.contact import strongest_contact
 from tactex_ros.core.errors import InputError, TrialError
 from tactex_ros.paths import config_dir
 from tactex_ros.ros.graph import SIM_MIN_STATE_RATE_HZ, NodeSpec
-from tactex_ros.ros.launcher import Graph, ros_env
+from tactex_ros.ros.devrun.launcher import Graph, ros_env
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 SCENE = str(config_dir() / "scene_sim.yaml")

@@ -19,7 +19,7 @@ import yaml
 
 from tactex_ros.ros.graph import describe
 from tactex_ros.paths import config_dir
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = pytest.mark.ros
 

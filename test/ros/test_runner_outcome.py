@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from tactex_ros.paths import config_dir
-from tactex_ros.ros.launcher import ros_env
+from tactex_ros.ros.devrun.launcher import ros_env
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

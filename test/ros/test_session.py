@@ -17,7 +17,7 @@ import pytest
 from tactex_ros.trial import session as sess
 from tactex_ros.trial.record import read_record
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.session_runner import run_session
+from tactex_ros.ros.devrun.session_runner import run_session
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.ros.launcher import ros_env
+from tactex_ros.ros.devrun.launcher import ros_env
 from tactex_ros.trial import session as sess
 from tactex_ros.trial.record import read_record
 

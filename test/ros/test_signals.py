@@ -15,7 +15,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.qos import qos_profile_sensor_data
 
 from tactex_ros.ros.graph import describe, params_file
-from tactex_ros.ros.launcher import node_command, ros_env
+from tactex_ros.ros.devrun.launcher import node_command, ros_env
 from tactex_ros.ros.settings import POSE_TOPIC
 
 pytestmark = pytest.mark.ros

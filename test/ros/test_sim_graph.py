@@ -14,7 +14,7 @@ from visualization_msgs.msg import MarkerArray
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.settings import POSE_TOPIC
 from tactex_ros.trial.record import read_record
-from tactex_ros.ros.launcher import run_graph
+from tactex_ros.ros.devrun.launcher import run_graph
 from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
@@ -91,7 +91,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener, force_trace) -> Non
 def test_press_faults(tmp_path: Path, listener, press) -> None:
     """Unknown platform: goal rejected. Platforms lower than the scene says: no contact, the
     press is retried, then reported failed; the arm stays in the workspace meanwhile."""
-    from tactex_ros.ros.launcher import Graph
+    from tactex_ros.ros.devrun.launcher import Graph
     nodes = [n for n in describe(True, mock_arm={"surface_offset": -0.03})
              if n.name in ("mock_arm", "mock_image", "motion")]
     scene = load_scene(nodes[0].parameters["scene_file"])

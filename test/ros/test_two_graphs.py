@@ -11,7 +11,7 @@ import pytest
 
 from tactex_ros.robot.robots import load_profile
 from tactex_ros.ros.graph import describe
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 START_S = 180.0      # [s] a graph's start on a loaded machine (load 10 on 2 cores)

@@ -24,7 +24,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 from tactex_ros.ros.graph import NodeSpec, describe
-from tactex_ros.ros.launcher import Graph
+from tactex_ros.ros.devrun.launcher import Graph
 from tactex_ros.ros.settings import IMAGE_TOPIC
 
 pytestmark = pytest.mark.ros

@@ -26,6 +26,14 @@ def _file(tmp_path: Path) -> Path:
 
 
 # ---------------------------------------------------------------- output paths (exit 2, named)
+def _measure_scene(out: str) -> list[str]:
+    """``tactex robot measure-scene`` on the simulated scene; no robot state arrives here (the
+    command would give up after 0.5 s with exit status 1)."""
+    from tactex_ros.paths import config_dir
+    return ["robot", "measure-scene", "--robot", "sim", "--scene",
+            str(config_dir() / "scene_sim.yaml"), "--state-deadline-s", "0.5", "--out", out]
+
+
 @pytest.mark.parametrize("argv_of, option", [
     (lambda f: ["trial", "--source", "sim", "--quiet", "--json", f"{f}/out.json"], "--json"),
     (lambda f: ["trial", "--source", "sim", "--quiet", "--json", str(f.parent)], "--json"),
@@ -35,6 +43,13 @@ def _file(tmp_path: Path) -> Path:
     (lambda f: ["graph", "run", "--sim", "--log-dir", f"{f}/logs"], "--log-dir"),
     (lambda f: ["prepare", "--library", "sim", "--out", f"{f}/rep.pt"], "--out"),
     (lambda f: ["bench", "sim", "--json", f"{f}/b.json"], "--json"),
+    # issue 49: measure-scene's --out before the first press (was: after pressing every
+    # platform, exit 1, no report), export's before reading anything (was: a raw error late)
+    (lambda f: _measure_scene(f"{f}/scene.yaml"), "--out"),
+    (lambda f: _measure_scene(str(f.parent)), "--out"),
+    (lambda f: _measure_scene(str(f.parent / "scene.txt")), "--out"),
+    (lambda f: ["export", str(f.parent), "--out", f"{f}/dataset"], "--out"),
+    (lambda f: ["export", str(f.parent), "--out", str(f)], "--out"),
 ])
 def test_unwritable_output_refused_before_any_work(tmp_path, capsys, argv_of, option):
     f = _file(tmp_path)
@@ -171,7 +186,7 @@ def test_an_image_written_just_before_a_crash_is_not_an_orphan(tmp_path):
 
 
 def test_runner_ignores_a_result_that_was_there_before(tmp_path):
-    from tactex_ros.ros.launcher import _result_stamp, new_result
+    from tactex_ros.ros.devrun.launcher import _result_stamp, new_result
     d = _finished(tmp_path)
     before = _result_stamp(d / "result.json")
     assert new_result(d / "result.json", before) == (None, None)
@@ -182,14 +197,14 @@ def test_runner_ignores_a_result_that_was_there_before(tmp_path):
 
 
 def test_runner_names_a_torn_result(tmp_path):
-    from tactex_ros.ros.launcher import new_result
+    from tactex_ros.ros.devrun.launcher import new_result
     (tmp_path / "result.json").write_text("{")
     got, why = new_result(tmp_path / "result.json", None)
     assert got is None and "result.json" in why
 
 
 def test_node_reason_is_the_first_error_line(tmp_path):
-    from tactex_ros.ros.launcher import node_reason
+    from tactex_ros.ros.devrun.launcher import node_reason
     log = tmp_path / "n.log"
     log.write_text("[INFO] [1.0] [mock_image]: starting\n"
                    "[ERROR] [1.2] [mock_image]: configuration refused: source 'sim:7': bad\n"
@@ -253,17 +268,25 @@ def test_larger_presses_are_shrunk_not_refused(tmp_path):
                  "--rounds", "2", "--json", str(tmp_path / "t.json")]) == 0
 
 
-def test_one_unreadable_press_is_a_failed_touch_and_the_trial_goes_on(tmp_path):
+def test_a_press_damaged_after_the_source_opened_is_a_failed_touch(tmp_path):
+    """A damaged file is refused when the source opens (test/unit/sources/
+    test_replay_files.py); one damaged later (while a trial runs) fails the touch that draws
+    it, named, and the engine draws another press."""
+    from tactex_ros.core.engine import TouchFailed
+    from tactex_ros.sources.replay import ReplaySource
     lib = _replay(tmp_path, {c: [(240, 320)] * 4 for c in ("a", "b", "c")})
-    for cls in ("a", "b", "c"):
-        (lib / cls / "0.mov").write_bytes(b"")              # zero bytes, first in its class
-    out = tmp_path / "t.json"
-    # no confident stop: every round runs (the height map's sharper belief stops these early)
-    assert main(["trial", "--source", f"replay:{lib}", "--quiet", "--comparisons", "2",
-                 "--rounds", "12", "--set", "trial.stop_confidence=0", "--json", str(out)]) == 0
-    res = json.loads(out.read_text())
-    assert any("0.mov" in f.get("reason", "") for f in res["failed_touches"]), res
-    assert res["touches"] >= 3 + 12 - len(res["failed_touches"])
+    src = ReplaySource(lib)
+    trial = src.trial(["a", "b", "c"], seed=0)
+    for f in src.presses("a"):
+        f.write_bytes(b"")                       # every press of class a, after the open
+    failed = []
+    for _ in range(4):
+        try:
+            trial(0)
+        except TouchFailed as exc:
+            failed.append(str(exc))
+    assert len(failed) >= 3 and all("a/" in f and ".png" in f for f in failed), failed
+    assert trial(1).frame.shape == (240, 320, 3)          # the other classes go on
 
 
 def test_record_with_a_missing_image_refused_up_front(tmp_path):
@@ -299,7 +322,7 @@ def test_graph_summary_refuses_what_is_not_a_record(tmp_path, capsys, what):
 
 
 def test_idle_deadline_counts_from_the_last_progress(tmp_path):
-    from tactex_ros.ros.launcher import Deadlines
+    from tactex_ros.ros.devrun.launcher import Deadlines
     now = [0.0]
     d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0])
     for _ in range(10):                  # a decision every 90 s: 900 s in all, never idle
@@ -317,7 +340,7 @@ def test_idle_deadline_counts_from_the_last_progress(tmp_path):
 def test_idle_deadline_waits_for_an_explorer_that_is_working(tmp_path):
     """A decision longer than the idle deadline (the thesis CNN on a loaded machine) is not
     idle while the explorer uses CPU; a stopped explorer (no CPU) is, after idle_s."""
-    from tactex_ros.ros.launcher import BUSY_WINDOW_S, Deadlines, process_cpu_s
+    from tactex_ros.ros.devrun.launcher import BUSY_WINDOW_S, Deadlines, process_cpu_s
     now, cpu = [0.0], [0.0]
     d = Deadlines(tmp_path, None, 100.0, clock=lambda: now[0], cpu=lambda: cpu[0])
     for _ in range(20):                  # 600 s of training at a third of a core, no new line

@@ -21,7 +21,10 @@ THREE = Path(__file__).parents[1] / "data" / "session_three.yaml"
 
 def test_select_trials_keeps_the_session_order_and_refuses_unknown_ids() -> None:
     s = sess.load_session(THREE, IDS)
-    assert sess.select_trials(s, "") is None and sess.select_trials(s, " , ") is None
+    assert sess.select_trials(s, "") is None and sess.select_trials(s, "  ") is None
+    for text in (",", " , ", "1,,3"):          # an empty id is not "every trial" (issue 49)
+        with pytest.raises(InputError, match="empty id"):
+            sess.select_trials(s, text)
     assert sess.select_trials(s, "3, 1") == ["1", "3"]
     with pytest.raises(InputError) as err:
         sess.select_trials(s, "1,7")

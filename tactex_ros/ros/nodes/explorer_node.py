@@ -18,10 +18,9 @@ response sent before the server matched the client's reader) is re-sent after
 of whose sends was answered is asked again after ``goal_renew_s``. With ``resume``
 (a record folder) the trial continues an interrupted one (``trial/resume.py``).
 
-With ``session_file`` the node is the session's operator (``session_run.Operator``): the
-``~/confirm`` service (``std_srvs/srv/Trigger``), the latched prompt on ``prompt_topic``
-(``std_msgs/String``), and in simulation the mock camera's ``placement`` parameter set through
-its SetParameters service (``placement_service``).
+With ``session_file`` the node runs a study session (``trial.session_run.SessionRun``); the
+session's operator is ``operator.SessionOperator`` (the ``~/confirm`` service, the latched
+prompt on ``prompt_topic``, in simulation the mock camera's placement).
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ import os
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from action_msgs.msg import GoalStatus
@@ -41,7 +39,7 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
 from ...core.engine import TouchFailed, TrialSpec
-from ...core.errors import InputError, TrialError
+from ...core.errors import DeviceError, InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
@@ -74,6 +72,14 @@ class ExplorerNode(TactexNode):
 
     def __init__(self, **kw) -> None:
         super().__init__("explorer", **kw)
+        # what configure opens and cleanup closes (None: not open)
+        self.trial: TrialRun | None = None
+        self.bag = None
+        self.worker: threading.Thread | None = None
+        self.trial_id: str | None = None
+        self._running = threading.Event()   # set while active: the trial presses
+        self._stopping = False
+        self._bag_warned = False
 
     # ------------------------------------------------------------------ lifecycle
     def configure(self) -> None:
@@ -87,9 +93,10 @@ class ExplorerNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
         self.session: SessionRun | None = None
-        self.trial: TrialRun | None = None
+        self.operator = None             # a session's (``operator.SessionOperator``)
+        self.trial = None
         self.bag = self.last_state = None
-        self._awaiting: str | None = None
+        self._bag_warned = False
         if s.session_file:
             self._configure_session()    # checks the trial file, opens the session folder
             self._spec(s.seed).engine()   # settings refused here
@@ -132,6 +139,10 @@ class ExplorerNode(TactexNode):
                                 "learner": {"model": rec["learner.model"]}})]
         flat = settings_from_record(s.resume, flatten(s.model_dump()), unset)
         return type(s).check(nest(flat), "explorer parameters (resume)")
+
+    def _is_stopping(self) -> bool:
+        """The node is being stopped (cleanup, or the process's context shut down)."""
+        return self._stopping or not self.context.ok()
 
     def _log(self, level: int, text: str) -> None:
         """``TrialRun`` / ``SessionRun`` log lines, on the node's logger."""
@@ -201,7 +212,7 @@ class ExplorerNode(TactexNode):
         try:
             self.bag.write_all(topic, msg, self.get_clock().now().nanoseconds)
         except Exception as exc:  # noqa: BLE001 - the PNG+JSONL record is the ground truth
-            if not getattr(self, "_bag_warned", False):
+            if not self._bag_warned:
                 self._bag_warned = True
                 self.get_logger().warning(f"MCAP copy of the record failed: {exc}")
                 try:
@@ -231,14 +242,12 @@ class ExplorerNode(TactexNode):
         """Stopped mid-trial: let a touch being written finish, then write nothing more; give
         the trial thread a moment to leave its wait before the action client goes away."""
         self._stopping = True
-        if getattr(self, "_running", None) is not None:
-            self._running.set()             # a paused trial wakes up and sees the stop
-        record = getattr(self, "record", None)
-        if record is not None:
-            record.close()
-        if getattr(self, "bag", None) is not None:
+        self._running.set()             # a paused trial wakes up and sees the stop
+        if self.record is not None:
+            self.record.close()
+        if self.bag is not None:
             self.bag.close()
-        worker = getattr(self, "worker", None)
+        worker = self.worker
         if worker is not None and worker is not threading.current_thread():
             worker.join(timeout=3.0)
         self.worker = None
@@ -247,7 +256,7 @@ class ExplorerNode(TactexNode):
         """/diagnostics: the trial (and session) progress, the belief, the stop reason."""
         from ..diagnostics import ERROR, OK
         st, res = self.last_state, self.result or {}
-        values: dict = {"trial": getattr(self, "trial_id", None),
+        values: dict = {"trial": self.trial_id,
                         "touches": sum(st.touches) if st is not None else 0,
                         "belief": (" ".join(f"{p} {b:.2f}" for p, b in
                                             zip(self.ids[1:], st.belief))
@@ -263,7 +272,7 @@ class ExplorerNode(TactexNode):
             done, n = self.session.done(), len(self.session.session.trials)
             values.update(session=self.session.session.name, **{"trials done": done,
                                                                  "trials": n})
-            waiting = self._awaiting
+            waiting = self.operator.awaiting
             msg = (f"session {done}/{n} trials done"
                    + (f"; waiting for the operator to confirm trial {waiting}" if waiting
                       else ""))
@@ -406,7 +415,9 @@ class ExplorerNode(TactexNode):
                           "samples": int(touch.tare_samples)},
                     surface={"z_m": touch.surface_z, "error_m": touch.surface_error_m,
                              "warning": touch.warning},
-                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z])
+                    pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z],
+                    press_s=touch.press_s,
+                    phase_s=dict(zip(touch.phase_names, touch.phase_s)))
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
         except InputError as exc:
@@ -457,8 +468,8 @@ class ExplorerNode(TactexNode):
         self._t_trial = time.monotonic()
         if not self.press.server_is_ready() and \
                 not self.press.wait_for_server(timeout_sec=s.server_timeout_s):
-            raise InputError(f"press action {s.press_action!r} not available within "
-                             f"server_timeout_s ({s.server_timeout_s} s)")
+            raise DeviceError(f"press action {s.press_action!r} not available within "
+                              f"server_timeout_s ({s.server_timeout_s} s)")
         st = self.session_trial
         out = self.trial.run(on_decision=self._publish_state, t0=self._t_trial,
                              extra=None if st is None else lambda r: trial_outcome(st, r))
@@ -472,11 +483,8 @@ class ExplorerNode(TactexNode):
     # ------------------------------------------------------------------ the session
     def _configure_session(self) -> None:
         """Check the trial file against the scene (row named on error), open the session folder
-        (``trial/session_run.py``), make the confirm service, the prompt publisher and the
-        placement client."""
-        from rcl_interfaces.srv import SetParameters
-        from std_msgs.msg import String
-        from std_srvs.srv import Trigger
+        (``trial/session_run.py``) and make its operator (``operator.SessionOperator``: the
+        confirm services, the prompt publisher, the placement client)."""
         s = self.settings
         session = sess.load_session(s.session_file, self.ids, seed=s.seed)
         d = Path(s.session_dir or Path(s.record_dir) /
@@ -491,93 +499,10 @@ class ExplorerNode(TactexNode):
             "scene_file": str(Path(s.scene_file).resolve())}, s.confirm_timeout_s,
             log=self._log, library=keeper, only=sess.select_trials(session, s.trials))
         self.session_dir = d
-        from tactex.srv import Confirm
-        self._confirmed = threading.Event()
-        self._confirmed_by: tuple[str, str] = ("", "")
-        self.confirm_srv = self.create_service(Trigger, "~/confirm",
-                                               lambda req, res: self._on_confirm(res))
-        self.confirm_by_srv = self.create_service(
-            Confirm, "~/confirm_by",
-            lambda req, res: self._on_confirm(res, req.by or "service", req.caller))
-        self.prompt_pub = self.create_publisher(String, s.prompt_topic, adapter.latched_qos())
-        self.placement_client = (self.create_client(SetParameters, s.placement_service)
-                                 if s.placement_service else None)
+        from .operator import SessionOperator
+        self.operator = SessionOperator(self, s, self._is_stopping)
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
                                f"folder {d}{' (resumed)' if self.session.resumed else ''}")
-
-    def _on_confirm(self, res: Any, by: str = "service", caller: str = "") -> Any:
-        """``~/confirm`` (``std_srvs/Trigger``: recorded as by ``service``) / ``~/confirm_by``
-        (``tactex/srv/Confirm``: how and by whom, e.g. ``enter`` or ``yes_flag``): the operator
-        has placed the fabrics of the trial being prompted."""
-        if self._awaiting is None or self._confirmed.is_set():
-            res.success, res.message = False, "nothing to confirm: no placement is awaited now"
-            return res
-        res.success, res.message = True, f"trial {self._awaiting}: placement confirmed"
-        self._confirmed_by = (by, caller)
-        self._confirmed.set()
-        return res
-
-    # the session's operator (``session_run.Operator``): the confirm service, the prompt topic
-    def expect(self, trial_id: str) -> None:
-        self._confirmed.clear()
-        self._confirmed_by = ("", "")
-        self._awaiting = trial_id
-
-    def tell(self, text: str) -> None:
-        from std_msgs.msg import String
-        self.prompt_pub.publish(String(data=text))
-        if self.settings.auto_confirm:
-            self._confirmed_by = ("auto_confirm", "the explorer's auto_confirm parameter")
-            self._confirmed.set()
-
-    def wait(self) -> tuple[str, str] | None:
-        """Wait for a confirmation up to ``confirm_timeout_s``: (how, by whom); the
-        confirmation is published on the prompt topic, so every place that shows the prompt
-        shows it. TrialError when stopping."""
-        from std_msgs.msg import String
-        deadline = time.monotonic() + self.settings.confirm_timeout_s
-        try:
-            while not self._confirmed.wait(timeout=0.1):
-                if self._stopping or not self.context.ok():
-                    raise TrialError("the explorer is stopping")
-                if time.monotonic() > deadline:
-                    return None
-            trial = self._awaiting
-        finally:
-            self._awaiting = None
-        by, caller = self._confirmed_by
-        said = f"trial {trial}: placement confirmed by {by}" + (f" ({caller})" if caller else "")
-        self.get_logger().info(said)
-        self.prompt_pub.publish(String(data=said))
-        return by, caller
-
-    def place(self, trial: sess.SessionTrial) -> None:
-        """Simulation: set the mock camera's ``placement`` (SetParameters), within
-        ``server_timeout_s``; TrialError with the camera's reason when it refuses."""
-        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-        from rcl_interfaces.srv import SetParameters
-        client, s = self.placement_client, self.settings
-        if client is None:
-            return
-        if not client.wait_for_service(timeout_sec=s.server_timeout_s):
-            raise TrialError(f"placement service {s.placement_service!r} not available within "
-                              f"server_timeout_s ({s.server_timeout_s} s)")
-        value = ParameterValue(type=ParameterType.PARAMETER_STRING,
-                               string_value=sess.placement_text(trial.placement))
-        fut = client.call_async(SetParameters.Request(
-            parameters=[Parameter(name="placement", value=value)]))
-        deadline = time.monotonic() + s.server_timeout_s
-        while not fut.done():
-            if time.monotonic() > deadline:
-                raise TrialError(f"placement service {s.placement_service!r}: no answer within "
-                                  f"server_timeout_s ({s.server_timeout_s} s)")
-            if self._stopping:
-                raise TrialError("the explorer is stopping")
-            time.sleep(0.01)
-        r = fut.result().results[0]
-        if not r.successful:
-            raise TrialError(f"the mock camera refused the placement of trial {trial.id}: "
-                              f"{r.reason}")
 
     def _session_trial(self, trial: sess.SessionTrial, resume: str | None) -> dict | None:
         """One trial of the session, to its result (None: the node is being stopped)."""
@@ -592,8 +517,7 @@ class ExplorerNode(TactexNode):
         """The session's worker thread: every trial not yet done, in order; then the session's
         result and report. Ends the node's work (``exit_when_done``) in every case."""
         try:
-            code = self.session.run(self, self._session_trial,
-                                    lambda: self._stopping or not self.context.ok())
+            code = self.session.run(self.operator, self._session_trial, self._is_stopping)
             if code:
                 self.exit_code = code
         finally:

@@ -153,10 +153,21 @@ class TactexNode(LifecycleNode):
 
     def rate_loop(self, period_s: float, fn: Callable[[], None], name: str) -> "RateLoop":
         """A ``RateLoop`` of this node (``fn`` every ``period_s`` [s]); from ``activate`` only:
-        the base stops it on deactivation, as it destroys the activation's timers."""
-        loop = RateLoop(period_s, fn, f"{self.get_name()}-{name}", self.context.ok)
+        the base stops it on deactivation, as it destroys the activation's timers. A tick
+        that raises ends the node (``loop_failed``): a device whose loop is dead must not
+        stay up looking alive."""
+        loop = RateLoop(period_s, fn, f"{self.get_name()}-{name}", self.context.ok,
+                        on_error=lambda exc: self.loop_failed(name, exc))
         self._loops.append(loop)
         return loop
+
+    def loop_failed(self, name: str, exc: BaseException) -> None:
+        """The rate loop ``name`` ended in ``exc``: the reason on the log (an ``[ERROR]`` line,
+        the one ``tactex graph run`` prints), exit status 1 (a run-time failure; a bad input
+        is refused at configure), and the node's work is over."""
+        self.get_logger().error(f"{name} loop failed: {type(exc).__name__}: {exc}")
+        self.exit_code = 1
+        self.finished.set()
 
     def _deactivate(self) -> None:
         """``deactivate``, then the rate loops stopped."""
@@ -343,13 +354,16 @@ class RateLoop:
     thread costs a sleep. A tick that ends late starts the next at once, never a burst of
     catch-up ticks. ``fn`` runs outside the executor: it guards what callbacks share with it.
     The loop ends quietly once ``ok()`` is False (the context shut down by a stop while a tick
-    published); any other exception in ``fn`` ends it and is raised in its thread."""
+    published); any other exception in ``fn`` ends it and goes to ``on_error`` (None: it is
+    raised in its thread)."""
 
     def __init__(self, period_s: float, fn: Callable[[], None], name: str,
-                 ok: Callable[[], bool]) -> None:
+                 ok: Callable[[], bool],
+                 on_error: Callable[[BaseException], None] | None = None) -> None:
         if not period_s > 0:
             raise ValueError(f"RateLoop period_s must be > 0, got {period_s}")
         self.period_s, self.fn, self.ok = float(period_s), fn, ok
+        self.on_error = on_error
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
@@ -359,10 +373,13 @@ class RateLoop:
         while not self._stop.is_set():
             try:
                 self.fn()
-            except Exception:
+            except Exception as exc:
                 if self._stop.is_set() or not self.ok():
                     return              # stopped under the tick: not an error
-                raise
+                if self.on_error is None:
+                    raise
+                self.on_error(exc)
+                return
             due += self.period_s
             now = time.monotonic()
             if due < now:

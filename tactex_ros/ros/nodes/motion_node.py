@@ -25,14 +25,17 @@ the robot state arrives at the profile's ``state.min_rate_hz`` (or ``min_state_r
 faster, franka's ``robot_mode`` (where it is
 read) is move, and franka's collision thresholds are set to what the press needs through the
 profile's collision service (or the start is refused with the ``ros2 service call`` to run).
-Any failure refuses the configuration with the reason: exit status 2
-(``robot/preflight.py``, docs/hardware_checks.md). One graph per arm (no second publisher of
+Any failure refuses the configuration with the reason (``robot/preflight.py``,
+docs/hardware_checks.md): exit status 1 for a robot whose state is silent or too slow
+(``DeviceError``) or not in move mode (``DeviceNotReady``), 2 for collision thresholds that
+do not fit the press (``InputError``). One graph per arm (no second publisher of
 the target, the action's status or the robot state) is checked in the pre-flight and again
 until the node takes its first goal, since DDS discovery has no deadline: exit status 2.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 import time
@@ -63,6 +66,10 @@ MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
 MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
 BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the press held)
 GRAPH_CHECK_S = 0.5   # [s] one graph per arm is checked this often until the first goal
+#: the wrench subscription's own keep-last depth: the upstream publisher's reliability
+#: (best effort) with room for 64 ms of franka's 1 kHz stream between two callbacks, so the
+#: force limit sees every sample (a depth of 1 keeps only the newest when a callback is late)
+WRENCH_DEPTH = 64
 
 
 class Burst:
@@ -146,9 +153,14 @@ class MotionNode(TactexNode):
         self.force = 0.0            # signed normal force [N]
         self.force_mag = 0.0        # force magnitude [N]
         self.wrench_t = -1.0
+        self._samples: list[tuple[float, float]] = []   # (normal, magnitude) since the tick
+        self._samples_lock = threading.Lock()
+        self.samples_seen = 0        # wrench samples the press loop checked
         self.held_ticks = 0         # press-loop ticks that held the target on stale state
         self.robot_mode = 0
         self.busy = threading.Lock()
+        self.found: dict[str, float] = {}   # platform id -> surface z its last press found [m]
+        self.last_phases: dict[str, float] = {}   # the last press's time per phase [s]
         self.took_goal = False      # a press goal was taken: this graph drives the arm
         self._setup_diagnostics()
         # every state subscription asks for its upstream publisher's QoS (the profile's)
@@ -160,7 +172,10 @@ class MotionNode(TactexNode):
             self.create_subscription(PoseStamped, s.pose_topic,
                                      self._on_pose, adapter.qos_profile(prof.pose_qos))
             self.create_subscription(WrenchStamped, s.wrench_topic,
-                                     self._on_wrench, adapter.qos_profile(prof.wrench_qos))
+                                     self._on_wrench,
+                                     adapter.qos_profile(dataclasses.replace(
+                                         prof.wrench_qos,
+                                         depth=max(prof.wrench_qos.depth, WRENCH_DEPTH))))
         if prof.mode_topic:
             # franka's full state comes at 1 kHz (franka_ros2 v3.4.0
             # franka_robot_state_broadcaster.cpp:149-150, reliable, depth 10) and only
@@ -208,7 +223,9 @@ class MotionNode(TactexNode):
                                       "mode and collision thresholds not checked")
 
     def _preflight(self) -> None:
-        """The robot's pre-flight (module doc); InputError names the first problem."""
+        """The robot's pre-flight (module doc): the first problem raised as DeviceError (state
+        silent or slow), DeviceNotReady (not in move mode) or InputError (another graph,
+        collision thresholds, no robot_mode message)."""
         s, prof, press = self.settings, self.profile, self.scene.press
         if prof.collision is not None:
             problem = checks.collision_problem(prof.collision.request, press.max_force,
@@ -354,6 +371,9 @@ class MotionNode(TactexNode):
                   "last press attempts": lp.get("attempts"),
                   "last press at": lp.get("at"), "busy": self.busy.locked(),
                   "ticks held on stale state": self.held_ticks,
+                  "wrench samples checked": self.samples_seen,
+                  **{f"last press {k} [s]": round(v, 3)
+                     for k, v in self.last_phases.items()},
                   "capture service": ("ready" if self.capture.service_is_ready()
                                       else "not available")}
         if age is not None and self.arm_startup.active:
@@ -446,6 +466,7 @@ class MotionNode(TactexNode):
         try:
             self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
             self.wrench_t = time.monotonic()
+            self._keep_sample(self.force, self.force_mag)
         except InputError as exc:
             self.get_logger().warning(f"wrench ignored: {exc}")
 
@@ -457,6 +478,7 @@ class MotionNode(TactexNode):
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
         self.pose_t = self.wrench_t = time.monotonic()
+        self._keep_sample(fn, mag)
         self.state_meter.tick(self.pose_t)
 
     def _on_mode_raw(self, data: bytes) -> None:
@@ -469,6 +491,21 @@ class MotionNode(TactexNode):
             return
         self._mode_next = now + 1.0 / self.settings.mode_rate_hz
         self.topic_mode = int(deserialize_message(data, self._mode_type).robot_mode)
+
+    def _keep_sample(self, normal: float, magnitude: float) -> None:
+        """Keep every wrench sample until the press loop's next tick checks it (at most
+        ``10 x WRENCH_DEPTH``: a loop that stalls longer sees the newest of them)."""
+        with self._samples_lock:
+            self._samples.append((normal, magnitude))
+            if len(self._samples) > 10 * WRENCH_DEPTH:
+                del self._samples[0]
+
+    def _take_samples(self) -> np.ndarray:
+        """Every wrench sample since the last call, (k, 2) of (normal, magnitude) [N]."""
+        with self._samples_lock:
+            got, self._samples = self._samples, []
+        self.samples_seen += len(got)
+        return np.asarray(got, dtype=float).reshape(-1, 2)
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s
@@ -626,7 +663,9 @@ class MotionNode(TactexNode):
                 raise RobotError(self._robot_fault(time.monotonic()))
             time.sleep(period)
         ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
-                               stiffness=self.k, period_s=period, hold_s=s.state_hold_s)
+                               stiffness=self.k, period_s=period, hold_s=s.state_hold_s,
+                               surface_hint=self.found.get(platform.id))
+        self._take_samples()    # a sample from before the press is not the press's
         cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
         try:
             while not ctrl.done:
@@ -641,7 +680,8 @@ class MotionNode(TactexNode):
                 # every tick, the capture's too: the force limit holds at every sample; on
                 # stale state the target stays where it is until state returns (or the fault)
                 self._publish_target(ctrl.step(now, self.position, self.force, self.force_mag,
-                                               state_age_s=self._state_age(now)))
+                                               state_age_s=self._state_age(now),
+                                               samples=self._take_samples()))
                 if ctrl.held:
                     self.held_ticks += 1
                     time.sleep(period)
@@ -672,15 +712,20 @@ class MotionNode(TactexNode):
             if burst is not None:
                 burst.cancel()
         out = ctrl.outcome()
+        self.last_phases = {"press_s": out.press_s, **out.phase_s}
         if not out.success:
             return False, out.reason, None
+        if out.surface_z is not None:
+            self.found[platform.id] = out.surface_z   # the next press of it starts lower
         touch = Touch(header=cap.image.header, platform_id=platform.id, platform_index=index,
                       image=cap.image, contact_force_n=out.force_n, depth_m=out.depth_m,
                       attempt=attempt, no_contact_image=cap.no_contact,
                       tare_offset_n=out.tare.offset_n, tare_spread_n=out.tare.spread_n,
                       tare_samples=out.tare.samples, surface_z=out.surface_z,
                       surface_error_m=out.surface_z - platform.position[2],
-                      warning=out.warning, extra_images=list(cap.extra_images))
+                      warning=out.warning, extra_images=list(cap.extra_images),
+                      press_s=float(out.press_s), phase_names=list(out.phase_s),
+                      phase_s=[float(v) for v in out.phase_s.values()])
         if out.warning:
             self.get_logger().warning(out.warning)
         touch.pose = adapter.array_to_pose(pose_xyz, self.quat, 0.0, "").pose

@@ -69,7 +69,7 @@ def test_fr3_bringup_registers_the_controllers_and_rates() -> None:
 
 @pytest.mark.parametrize("name", ["fr3_crisp", "panda_crisp"])
 def test_profile_law_is_crisps_law_of_those_parameters(name: str) -> None:
-    """stiffness = task.k_pos_x/y/z, damping 2 sqrt(K) for d_pos_* = -1, target_filter =
+    """stiffness = task.k_pos_x/y/z, damping task.d_pos_* = 2 sqrt(K) set explicitly, target_filter =
     filter.target_pose, error_clip = task.error_clip.x/y/z (limit_error), force step from
     max_delta_tau (limit_torques); each inside CRISP's declared bounds
     (CRISP 2.1.0 src/cartesian_controller.yaml:27-63, 231-237)."""
@@ -77,8 +77,8 @@ def test_profile_law_is_crisps_law_of_those_parameters(name: str) -> None:
     law, p = load_profile(name).law, _controller_params(name)
     for ax in "xyz":
         assert p[f"task.k_pos_{ax}"] == law.stiffness and 0.0 <= law.stiffness <= 5000.0
-        assert p[f"task.d_pos_{ax}"] == -1.0 and raw["damping"] <= 0.0
-        assert p[f"task.error_clip.{ax}"] == law.error_clip
+        assert p[f"task.d_pos_{ax}"] == raw["damping"] == pytest.approx(law.d, abs=1e-4)
+        assert p[f"task.error_clip.{ax}"] == law.clip["xyz".index(ax)]
     assert law.d == pytest.approx(2.0 * law.stiffness ** 0.5)
     assert p["filter.target_pose"] == law.target_filter and 0.1 <= law.target_filter <= 1.0
     assert p["limit_error"] is True and p["limit_torques"] is True
@@ -161,3 +161,55 @@ def test_bringup_sets_crisps_filters_and_clamp(name: str) -> None:
     assert p["variable_max_stiffness.translational"] == prof.max_stiffness >= prof.stiffness
     for key in ("filter.q", "filter.dq", "filter.q_ref", "filter.output_torque"):
         assert 0.0 <= p[key] <= 1.0            # CRISP 2.1.0 src/cartesian_controller.yaml:238-262
+
+
+#: CRISP parameters whose upstream default is the -1 sentinel ("if negative, computed as
+#: 2 sqrt(stiffness)"): utiasDSL/crisp_controllers src/cartesian_controller.yaml (task.d_pos_*,
+#: task.d_rot_*, nullspace.damping). The controller tested nullspace.damping with
+#: `if (params_.nullspace.damping)`, true for -1, and damped with -1 x weights (issue 54).
+SENTINEL_PARAMETERS = ["task.d_pos_x", "task.d_pos_y", "task.d_pos_z", "task.d_rot_x",
+                       "task.d_rot_y", "task.d_rot_z", "nullspace.damping"]
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def _crisp_controllers(path) -> dict[str, dict]:
+    """Every CRISP CartesianController of a bring-up file: name -> flat ros__parameters."""
+    nodes: dict[str, dict] = {}
+
+    def walk(d: dict) -> None:
+        for k, v in d.items():
+            if isinstance(v, dict):
+                if "ros__parameters" in v:
+                    nodes[k] = v["ros__parameters"]
+                walk(v)
+    data = _yaml(path)
+    walk(data)
+    names = set()
+    for key, value in _flat(data).items():
+        parts = key.split(".")
+        if parts[-1] == "type" and value == "crisp_controllers/CartesianController":
+            names.add(parts[-3] if parts[-2] == "ros__parameters" else parts[-2])
+    return {n: _flat(nodes[n]) for n in names}
+
+
+@pytest.mark.parametrize("bringup", ["fr3_crisp_controllers.yaml", "panda_crisp_controller.yaml"])
+def test_no_crisp_controller_is_left_on_a_minus_one_sentinel(bringup: str) -> None:
+    """Every CRISP controller of the bring-up (the impedance controller and the gravity
+    compensation used while hand-guiding) sets each parameter whose upstream default is the
+    -1 sentinel, none of them negative, and nullspace.damping positive."""
+    ctrls = _crisp_controllers(config_dir() / "bringup" / bringup)
+    assert len(ctrls) == 2, ctrls.keys()
+    for name, p in ctrls.items():
+        for key in SENTINEL_PARAMETERS:
+            assert key in p, (name, key)
+            assert p[key] >= 0.0, (name, key, p[key])
+        assert p["nullspace.damping"] > 0.0, name

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ..core.errors import InputError
-from .graph import NodeSpec
+from ...core.errors import InputError
+from ..graph import NodeSpec
 from .launcher import Graph, exit_text, supervise
 
 
@@ -122,8 +122,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 on_start: Callable[[Graph], None] | None = None) -> SessionRun:
     """Start the graph once, run the explorer's session to its end (or a node's exit, a
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
-    from ..trial import session as sess
-    from ..trial.progress import Progress, console_printer, tail_jsonl
+    from ...trial import session as sess
+    from ...trial.progress import Progress, console_printer, tail_jsonl
     if confirm not in ("yes", "key", "none"):
         raise InputError(f"confirm {confirm!r}: use yes, key or none")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)

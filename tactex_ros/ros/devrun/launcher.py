@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ..core.errors import InputError
-from .graph import NodeSpec, params_file
+from ...core.errors import InputError
+from ..graph import NodeSpec, params_file
 
 _PR_SET_PDEATHSIG = 1
 try:
@@ -250,7 +250,7 @@ def supervise(nodes: list[NodeSpec], log_dir: str | Path, domain_id: int | None,
 
 def append_event(record: Path, event: dict) -> None:
     """One line in ``<record>/events.jsonl`` (fsync'ed), if the record folder exists."""
-    from ..trial.record import append_event as _append
+    from ...trial.record import append_event as _append
     if record.is_dir():
         _append(record, event)
 
@@ -268,7 +268,7 @@ def new_result(path: Path, before: tuple | None) -> tuple[dict | None, str | Non
     """The ``result.json`` this run wrote, or None when the file is absent or is the one that
     was there before the run (a run's status never comes from an older file); with a
     reason when the file is there but cannot be read."""
-    from ..trial.record import read_result
+    from ...trial.record import read_result
     now = _result_stamp(path)
     if now is None or now == before:
         return None, None
