@@ -1,6 +1,7 @@
 # The two commands of this project: `make demo` and `make test` (`make test-fast`: the product's
 # pure unit tests, no CNN training, no Ray, no ROS processes; `make test-lab`: the lab's tests;
-# `make lint`: ruff, which `make test` and `make test-fast` run first).
+# `make lint`: ruff, which `make test` and `make test-fast` run first; `make typecheck`: mypy on
+# the product, which `make test-fast` runs first).
 # Each first installs what is missing into .venv (pinned: requirements.txt, the product's;
 # requirements-lab.txt, the lab's; requirements-test.txt, the test tools) and builds the ROS 2
 # package with colcon into it; a second run finds the stamps and installs nothing.
@@ -19,7 +20,7 @@ BUILD_STAMP := $(VENV)/.tactex-build.stamp
 BUILD_INPUTS := CMakeLists.txt package.xml setup.cfg $(wildcard msg/*.msg srv/*.srv action/*.action) \
 	$(shell find tactex_ros tactex_lab launch config -type f -not -name '*.pyc' -not -path '*/__pycache__/*' 2>/dev/null)
 
-.PHONY: demo test test-fast test-soak test-lab lint setup clean
+.PHONY: demo test test-fast test-soak test-lab lint typecheck typecheck-baseline setup clean
 
 setup: $(BUILD_STAMP)
 
@@ -41,11 +42,23 @@ test: $(BUILD_STAMP) lint
 test-soak: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra -m soak test
 
-test-fast: $(BUILD_STAMP) lint
+test-fast: $(BUILD_STAMP) lint typecheck
 	$(PY) -m pytest -q -ra -m "not slow and not ros and not lab" test/unit
 
 lint: $(DEPS_STAMP)
 	$(PY) -m ruff check .
+
+# mypy on the product (pyproject.toml [tool.mypy]); an error not in mypy-baseline.txt fails,
+# and so does a mypy that did not run to its summary line (not installed, a crash).
+typecheck: $(DEPS_STAMP)
+	@out=$$($(PY) -m mypy); rc=$$?; \
+	  case "$$out" in *"Success: no issues found"*|*"Found "*" error"*) ;; \
+	    *) echo "$$out"; echo "typecheck: mypy did not run (status $$rc)" >&2; exit 2 ;; esac; \
+	  echo "$$out" | $(PY) -m mypy_baseline filter
+
+# rewrite mypy-baseline.txt from mypy's errors now (after fixing some of them)
+typecheck-baseline: $(DEPS_STAMP)
+	$(PY) -m mypy | $(PY) -m mypy_baseline sync
 
 test-lab: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra test/lab

@@ -1,7 +1,8 @@
 """Statistics helpers of the experiments: summaries, confusion matrices, paired tests, JS distance.
 
 - ``mean_std``: mean and sample standard deviation (ddof = 1; 0 for a single value).
-- ``wilson``: 95 % Wilson score interval of a proportion.
+- ``wilson``: 95 % Wilson score interval of a proportion, the product's
+  (``tactex_ros.core.stats.wilson``; (0, 1) for n = 0).
 - ``confusion``: confusion matrix (rows = truth, columns = prediction) via scikit-learn.
 - ``mcnemar_exact``: exact McNemar test of two classifiers on the same paired items — only the
   discordant pairs count; under H0 each discordant pair is equally likely either way, so the
@@ -24,6 +25,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tactex_ros.core.stats import wilson as wilson      # the product's, one for both
+
 
 def mean_std(values: Sequence[float]) -> dict:
     """{"mean", "std" (ddof = 1, 0 for n = 1), "n"}; NaN mean for no values."""
@@ -32,17 +35,6 @@ def mean_std(values: Sequence[float]) -> dict:
         return {"mean": float("nan"), "std": float("nan"), "n": 0}
     return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
             "n": int(v.size)}
-
-
-def wilson(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval of ``successes`` / ``n`` (scipy's ``binomtest(...).proportion_ci``);
-    (nan, nan) for n = 0."""
-    if n == 0:
-        return float("nan"), float("nan")
-    from scipy.stats import binomtest
-    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=confidence,
-                                                          method="wilson")
-    return float(ci.low), float(ci.high)
 
 
 def confusion(truth: Sequence, pred: Sequence, labels: Sequence) -> np.ndarray:

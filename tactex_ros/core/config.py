@@ -152,7 +152,7 @@ class CnnSettings(LearnerBase):
 
     kind: ClassVar[str] = "cnn"
     plugin: ClassVar[bool] = True
-    model: Literal[CNN_MODELS] = param("small_inception", MODEL_HELP)
+    model: Literal[CNN_MODELS] = param("small_inception", MODEL_HELP)  # type: ignore[valid-type]  # pydantic reads it at run time
     input_size: int = param(299, "model input side [px]", 32, 512)
     augment: int = param(10, "random-rotation views stored per touch", 1, 64)
     sensor_crops: bool = param(False, "views are input_size px crops of the frame at sensor "
@@ -308,7 +308,7 @@ class TrialConfig(Schema):
     """What a trial does (the learner's settings are LearnerSettings). The defaults are the
     shipped method's: information-gain touches, stop at belief ``SHIPPED_STOP``."""
 
-    strategy: Literal[STRATEGY_NAMES] = param("infogain", "exploration strategy")
+    strategy: Literal[STRATEGY_NAMES] = param("infogain", "exploration strategy")  # type: ignore[valid-type]  # pydantic reads it at run time
     rounds: int = param(20, "decisions that request a touch after the baseline", 0, 1000)
     stop_confidence: float = param(SHIPPED_STOP, "stop once the belief in one comparison "
                                                  "reaches this (0 = never: all rounds)", 0.0, 1.0)
@@ -390,7 +390,7 @@ class TrialSettings(Schema):
     """What one trial runs with: a preset (``config``) and overrides of its learner and trial
     settings. A field of ``learner`` / ``trial`` not given takes the preset's value."""
 
-    config: Literal[tuple(PRESETS)] = param(
+    config: Literal[tuple(PRESETS)] = param(  # type: ignore[valid-type]  # pydantic reads it at run time
         "default", "named preset of learner and trial settings: default (texture descriptor "
                    "and the shipped embedding, information-gain touches, stop at belief "
                    f"{SHIPPED_STOP:g}), descriptor (the same without the embedding: the "

@@ -12,11 +12,12 @@ lack), ``prediction_space`` (logits over the comparisons), ``action_space`` the 
 ``prediction_target_space`` (the match, 0..C-1, a numpy integer as ap_gym's loss functions
 take it), ``loss_fn`` (the cross-entropy of the logits
 at the match over log C: 1 for a uniform guess; ap_gym's ``CrossEntropyLossFn(C).normalized``
-where ap_gym is installed, whose torch and jax forms its agents train with), and every step's
-reward ``info["base_reward"] - info["prediction"]["loss"]``. Where ap_gym is installed the
-class is registered as an ap_gym ``BaseActivePerceptionEnv``, so ap_gym's wrappers and agents
-take it as an active-perception task (``ap_gym.ensure_active_perception_env`` returns it as it
-is).
+where the program has imported ap_gym, whose torch and jax forms its agents train with), and
+every step's reward ``info["base_reward"] - info["prediction"]["loss"]``. An environment made
+after ``import ap_gym`` registers the class as an ap_gym ``BaseActivePerceptionEnv``, so ap_gym's
+wrappers and agents take it as an active-perception task (``ap_gym.ensure_active_perception_env``
+returns it as it is). This module never imports ap_gym itself (it loads datasets, and torch
+where installed).
 
 - ``reset(seed=s)`` presses the reference (platform 0) and returns its observation.
 - ``action = {"action": a, "prediction": logits}``: ``a`` in 0..C presses that platform
@@ -40,6 +41,7 @@ is).
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import gymnasium as gym
@@ -48,11 +50,6 @@ import numpy as np
 from ..core.engine import TouchFailed
 from ..core.errors import InputError
 from ..core.touch import as_touch
-
-try:        # optional: ap_gym's active-perception tools (requirements-test.txt)
-    import ap_gym
-except ImportError:
-    ap_gym = None
 
 H, W = 240, 320
 EXTRA = 3                    # in-contact frames per press besides the strongest (replay's)
@@ -104,9 +101,16 @@ class CrossEntropyLoss:
         return self.numpy(prediction, target, batch_shape, rng), {}
 
 
+def _ap_gym():
+    """ap_gym where the program has imported it, else None. Never imported here: it loads
+    datasets (and torch, where installed) on import, which the product does not."""
+    return sys.modules.get("ap_gym")
+
+
 def loss_fn(num_classes: int):
     """The prediction loss of ``num_classes`` comparisons: ap_gym's normalized cross-entropy
-    where ap_gym is installed, else ``CrossEntropyLoss`` (the same numbers)."""
+    where ap_gym is imported, else ``CrossEntropyLoss`` (the same numbers)."""
+    ap_gym = _ap_gym()
     if ap_gym is not None:
         return ap_gym.CrossEntropyLossFn(num_classes=num_classes).normalized
     return CrossEntropyLoss(num_classes)
@@ -145,6 +149,9 @@ class TouchEnv(gym.Env):
                                              "prediction": self.prediction_space})
         self.prediction_target_space = gym.spaces.Discrete(comparisons)
         self.loss_fn = loss_fn(comparisons)
+        ap_gym = _ap_gym()
+        if ap_gym is not None:      # ap_gym's wrappers and agents take it as an AP task
+            ap_gym.BaseActivePerceptionEnv.register(TouchEnv)
         self._fn = None
         self._over = True
 
@@ -243,6 +250,3 @@ class TouchEnv(gym.Env):
                 "budget_left": np.array([max(self.max_presses - int(self.touches.sum()), 0)],
                                         np.int64)}
 
-
-if ap_gym is not None:      # ap_gym's wrappers and agents take it as an active-perception task
-    ap_gym.BaseActivePerceptionEnv.register(TouchEnv)

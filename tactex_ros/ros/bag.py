@@ -1,10 +1,18 @@
 """The trial's topics as an MCAP file that ``ros2 bag`` (rosbag2_storage_mcap) and Foxglove read.
 
 ``BagWriter`` writes ROS 2 messages as CDR (``rclpy.serialization``) with ``ros2msg`` schemas
-(the message definition and its dependencies, as rosbag2 stores them), without chunking and
-with a flush and ``fsync`` after every message: a crash loses at most the message being written.
-``close()`` writes the summary and footer. ``read_bag`` reads a closed file, or a crashed one up
-to its last whole record; ``recover_bag`` writes a closed copy of a crashed file.
+(the message definition and its dependencies, as rosbag2 stores them) into zstd-compressed,
+indexed chunks (the mcap writer's ``compression``, ``chunk_size`` and message indexes, as
+rosbag2's MCAP storage writes them: readers that seek, like rerun's MCAP import, need the
+chunks). Each ``write`` (a message) and ``write_all`` (a message and its ``standard_views``)
+ends its chunk (``Writer.flush``) and is fsync'ed: a crash loses at most what is being written.
+``close()`` writes the summary (chunk indexes, statistics) and footer. ``read_bag`` reads a
+closed file, or a crashed one up to its last whole record; ``recover_bag`` writes a closed copy
+of a crashed file.
+
+A bag in a trial record folder (one with ``config.json``) is listed in the record when it is
+started: an ``mcap_started`` line in ``events.jsonl`` names the file (``topics.mcap``, then
+``topics.<k>.mcap`` for the k-th resume); ``recorded_bags`` gives a record's files in order.
 
 The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the bag is for ROS tools.
 """
@@ -17,6 +25,7 @@ import os
 import re
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -32,6 +41,10 @@ _PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "i
 _SEP = "=" * 80
 TOUCH_TOPIC = "/tactex/touch"   # channel of the full touches (tactex/msg/Touch, no-contact frame
 #                                 included); not a published topic, the action result's touch
+COMPRESSION = CompressionType.ZSTD   # rosbag2's MCAP storage default (its "zstd_fast" preset)
+CHUNK_BYTES = 1024 * 1024       # [bytes] the mcap writer's default chunk size: a chunk also
+#                                 ends at every write (one touch and its views: about 2.3 MB)
+STARTED_EVENT = "mcap_started"  # events.jsonl: a bag of the trial was started (``file``)
 
 
 def _share_dirs() -> list[Path]:
@@ -94,8 +107,24 @@ def type_name(msg: Any) -> str:
     return f"{mod[0]}/{mod[1]}/{type(msg).__name__}"
 
 
+def _writer(f) -> Writer:
+    """The mcap writer of every bag this module writes: chunked, compressed, indexed."""
+    return Writer(f, chunk_size=CHUNK_BYTES, compression=COMPRESSION)
+
+
+def recorded_bags(folder: str | Path) -> list[Path]:
+    """The bags a trial record lists (``mcap_started`` events), in the order they were
+    started; a listed file that is gone is left out."""
+    from ..trial.record import read_record
+    events = read_record(folder, images=False).get("events") or []
+    names = [e.get("file") for e in events if e.get("event") == STARTED_EVENT]
+    return [Path(folder) / n for n in dict.fromkeys(names)
+            if isinstance(n, str) and (Path(folder) / n).is_file()]
+
+
 class BagWriter:
-    """MCAP writer of ROS 2 messages; thread-safe; every message flushed and fsync'ed.
+    """MCAP writer of ROS 2 messages; thread-safe; every write ends its chunk, flushed and
+    fsync'ed. In a trial record folder the file is listed in the record (module doc).
 
     A write that fails (disk full, file-size limit, I/O error) raises WriteError naming the
     file once; the writer is then ``failed`` (the reason) and takes no more messages, and
@@ -112,11 +141,15 @@ class BagWriter:
         except OSError as exc:
             raise WriteError(f"could not write {str(self.path)!r}: "
                              f"{exc.strerror or exc}") from None
-        self._w = Writer(self._f, compression=CompressionType.NONE, use_chunking=False)
+        self._w = _writer(self._f)
         self._channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         with self._lock:
             self._guard(lambda: self._w.start(profile="ros2", library="tactex"))
+        if (self.path.parent / "config.json").is_file():       # a trial record: list it
+            from ..trial.record import append_event
+            append_event(self.path.parent, {"event": STARTED_EVENT, "file": self.path.name,
+                                            "time": time.time()})
 
     def _sync(self) -> None:
         self._f.flush()
@@ -140,32 +173,36 @@ class BagWriter:
                 from None
 
     def write(self, topic: str, msg: Any, t_ns: int) -> None:
-        """Append ``msg`` on ``topic`` at ``t_ns`` [ns since the epoch]; nothing once closed
-        or failed."""
+        """Append ``msg`` on ``topic`` at ``t_ns`` [ns since the epoch] in a chunk of its own;
+        nothing once closed or failed."""
+        self._write_chunk([(topic, msg)], t_ns)
+
+    def write_all(self, topic: str, msg: Any, t_ns: int) -> None:
+        """``write`` the message and its ``standard_views`` at the same time, in one chunk."""
+        self._write_chunk([(topic, msg), *standard_views(topic, msg)], t_ns)
+
+    def _write_chunk(self, items: list[tuple[str, Any]], t_ns: int) -> None:
+        """The messages ``items`` ((topic, message)) at ``t_ns``, then their chunk ended,
+        flushed and fsync'ed."""
         from rclpy.serialization import serialize_message
-        tn = type_name(msg)
-        data = serialize_message(msg)
+        rows = [(topic, type_name(msg), serialize_message(msg)) for topic, msg in items]
         with self._lock:
             if self.closed:
                 return
 
             def step() -> None:
-                if tn not in self._schemas:
-                    self._schemas[tn] = self._w.register_schema(
-                        tn, "ros2msg", message_definition(tn).encode())
-                key = (topic, tn)
-                if key not in self._channels:
-                    self._channels[key] = self._w.register_channel(topic, "cdr",
-                                                                   self._schemas[tn])
-                self._w.add_message(self._channels[key], log_time=t_ns, data=data,
-                                    publish_time=t_ns)
+                for topic, tn, data in rows:
+                    if tn not in self._schemas:
+                        self._schemas[tn] = self._w.register_schema(
+                            tn, "ros2msg", message_definition(tn).encode())
+                    key = (topic, tn)
+                    if key not in self._channels:
+                        self._channels[key] = self._w.register_channel(topic, "cdr",
+                                                                       self._schemas[tn])
+                    self._w.add_message(self._channels[key], log_time=t_ns, data=data,
+                                        publish_time=t_ns)
+                self._w.flush()
             self._guard(step)
-
-    def write_all(self, topic: str, msg: Any, t_ns: int) -> None:
-        """``write`` the message, then its ``standard_views`` at the same time."""
-        self.write(topic, msg, t_ns)
-        for view_topic, view in standard_views(topic, msg):
-            self.write(view_topic, view, t_ns)
 
     def close(self) -> None:
         """Write the summary and footer (a closed file is indexed for ``ros2 bag``). Never
@@ -232,7 +269,7 @@ def recover_bag(path: str | Path, out: str | Path) -> int:
     sids: dict[int, int] = {}
     n = 0
     with open(out, "wb") as f:
-        w = Writer(f, compression=CompressionType.NONE, use_chunking=False)
+        w = _writer(f)
         w.start(profile="ros2", library="tactex")
         for r in _records(Path(path)):
             if isinstance(r, Schema):

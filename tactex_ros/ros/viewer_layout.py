@@ -6,6 +6,11 @@ profile's end-effector pose), the placement prompt, a button that confirms the p
 explorer's ``~/confirm``, ``std_srvs/srv/Trigger``), the belief per comparison platform as a
 plot, the latest touch and the live camera image, the contact force and the diagnostics.
 
+The same layout plays a trial's MCAP file (``ros/bag.py``): the markers, the belief
+(``/tactex/state``), the touch image and the touches' force (``/tactex/touch_wrench``, a second
+line of the force plot beside the live wrench) are in the file; the live topics (the robot's
+wrench, the camera, the prompt, the diagnostics) are not recorded there and stay empty.
+
 ``PANEL_KEYS`` lists, per panel type, the configuration keys Foxglove reads, from Foxglove's own
 config types (github.com/foxglove/studio, packages/studio-base/src/panels/):
 ``ThreeDeeRender/IRenderer.ts`` ``RendererConfig`` (the 3D and Image panels: ``followTf``,
@@ -27,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from ..robot.robots import load_profile
+from .bag import WRENCH_VIEW
 from .settings import (IMAGE_TOPIC, MARKER_TOPIC, PROMPT_TOPIC, STATE_TOPIC,
                        TOUCH_IMAGE_TOPIC)
 
@@ -130,7 +136,10 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "RawMessages!state": {"topicPath": STATE_TOPIC, "diffEnabled": False,
                               "expansion": "all"},
         "Plot!wrench": {"title": "contact force [N]", "paths": [
-            {"value": force, "enabled": True, "timestampMethod": "receiveTime"}],
+            {"value": force, "enabled": True, "label": "live",
+             "timestampMethod": "receiveTime"},
+            {"value": f"{WRENCH_VIEW}.wrench.force.z", "enabled": True,
+             "label": "touches (recorded)", "timestampMethod": "receiveTime"}],
             "showLegend": True, "isSynced": True, "xAxisVal": "timestamp"},
         "DiagnosticSummary!health": {"topicToRender": "/diagnostics", "minLevel": 0,
                                      "pinnedIds": [], "hardwareIdFilter": ""},

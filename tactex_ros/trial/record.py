@@ -12,7 +12,8 @@ Layout of ``<root>/<trial_id>/``::
                          only when it changes; each touch line names its file)
     decisions.jsonl      one JSON line per decision (the exploration state)
     events.jsonl         what happened to the trial: how it ended without a result (node exit,
-                         signal, deadline), where it was resumed
+                         signal, deadline), where it was resumed, each MCAP file of its topics
+                         when it was started (``mcap_started``, ``ros/bag.py``)
     result.json          the trial's result (written last, atomically)
     scene.yaml, config.json   what the trial ran with
 

@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
+from ..core.stats import wilson
 from .record import read_record, read_result
 
 REPORT = "report.html"
@@ -89,17 +90,6 @@ def _page(title: str, body: str, extra_css: str = "") -> str:
 def _write(path: Path, text: str) -> Path:
     from ..core.outputs import write_bytes
     return write_bytes(path, text.encode("utf-8"))     # whole or not at all (WriteError)
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The Wilson score interval of a proportion k / n (95 % for z = 1.96); (0, 1) for n = 0."""
-    if n <= 0:
-        return 0.0, 1.0
-    p = k / n
-    den = 1 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, mid - half), min(1.0, mid + half)
 
 
 def line_chart(series: dict[str, list[tuple[float, float]]], *, chart_id: str, x_label: str,

@@ -17,7 +17,8 @@ from packaging.utils import canonicalize_name
 
 ROOT = Path(__file__).resolve().parents[2]
 LAB_ONLY = {"torch", "captum", "ray", "matplotlib", "scikit-learn", "joblib"}
-TEST_ONLY = {"pytest", "ruff", "pytest-xdist", "execnet", "selenium", "mcap-ros2-support"}
+TEST_ONLY = {"pytest", "ruff", "mypy", "mypy-baseline", "pytest-xdist", "execnet", "selenium",
+             "mcap-ros2-support"}
 # the DIGIT sensor's driver, installed by hand (README); ap_gym, the touch environment's
 # optional active-perception interface (requirements-test.txt)
 OPTIONAL = {"digit_interface", "ap_gym"}

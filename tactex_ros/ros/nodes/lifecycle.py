@@ -133,7 +133,7 @@ class TactexNode(LifecycleNode):
         declare_settings(self, self.settings_cls)
         self.declare_parameter("autostart", True, ParameterDescriptor(
             description="configure and activate at start-up (no lifecycle manager needed)"))
-        self.settings = None
+        self.settings: Any = None           # the validated settings (configure)
         self.finished = threading.Event()   # set when the node's work is over (exit_when_done)
         self.exit_code = 0
         self.configured = self.active = self.finalized = False

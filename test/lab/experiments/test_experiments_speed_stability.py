@@ -28,7 +28,7 @@ def test_wilson_and_mcnemar():
     mid, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
     assert wilson(8, 10) == pytest.approx(((mid - half) / (1 + z * z / n),
                                            (mid + half) / (1 + z * z / n)), abs=1e-9)
-    assert all(math.isnan(v) for v in wilson(0, 0))
+    assert wilson(0, 0) == (0.0, 1.0)                    # the product's: no trial, any rate
     r = mcnemar([True] * 10 + [False] * 5, [False] * 10 + [False] * 5)
     assert r["a_only"] == 10 and r["b_only"] == 0
     assert r["p"] == pytest.approx(2 * 0.5 ** 10)        # 2 * P(X = 0), X ~ Bin(10, 1/2)

@@ -2,6 +2,7 @@
 presses written as a Hugging Face dataset and loaded back with ``datasets``: every image byte
 for byte the record's PNG, every label the record's."""
 
+import json
 import os
 import subprocess
 import sys
@@ -10,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import yaml
 
 datasets = pytest.importorskip("datasets")
 
@@ -83,7 +85,7 @@ def _same_as_record(ds, d: Path, session: str = "") -> None:
         assert len(row["extra"]) == t["platform_index"]
         assert (row["seq"], row["platform_id"], row["session"]) == (t["seq"], t["platform_id"],
                                                                   session)
-        assert row["material"] == mats[t["platform_id"]]
+        assert ds.features["material"].int2str(row["material"]) == mats[t["platform_id"]]
         assert (row["force_n"], row["depth_m"], row["pose"]) == (t["force_n"], t["depth_m"],
                                                                  t["pose"])
         assert row["prediction"] == rec["result"]["prediction"]
@@ -103,6 +105,7 @@ def test_trial_record_round_trip(tmp_path):
     _same_as_record(ds, d)
     card = (out / "README.md").read_text()
     assert card.startswith("---\n") and "infogain" in card and "datasets" in card
+    _check_card(out, d, tmp_path)
     decoded = datasets.load_dataset(str(out), split="train", cache_dir=str(tmp_path / "c2"))
     png = cv2.imread(str(d / read_record(d, images=False)["touches"][0]["image"]))
     assert np.array_equal(np.asarray(decoded[0]["image"]), png[:, :, ::-1])   # lossless
@@ -146,13 +149,74 @@ def test_library_round_trip_and_bad_input(tmp_path):
     assert main(["export", f"replay:{lib}", "--out", str(out)]) == 0
     ds = datasets.load_dataset(str(out), split="train", cache_dir=str(tmp_path / "cache"))
     src = open_source(f"replay:{lib}")
-    assert [r["material"] for r in ds] == ["cork", "cork", "felt", "felt"]
+    assert ds.features["material"].names == ["cork", "felt"]
+    assert [r["material"] for r in ds] == [0, 0, 1, 1]
+    meta = yaml.safe_load((out / "README.md").read_text().split("---\n")[1])
+    assert meta["license"] == "other"                  # someone else's presses: theirs
     for row in ds:
         frame = src.touch(lib / row["source_file"]).frame
         assert np.array_equal(np.asarray(row["image"]), frame)
     assert main(["export", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
     (tmp_path / "empty").mkdir()
     assert main(["export", str(tmp_path / "empty"), "--out", str(tmp_path / "y")]) == 2
+
+
+def _check_card(out: Path, record: Path, tmp: Path) -> None:
+    """The card of a record's export: CC BY 4.0, tactex's commit, the dataset_info block of
+    the Hub (features with material a ClassLabel, the split's rows and bytes), no path of this
+    machine and no host name."""
+    import socket
+
+    from tactex_ros.export.hf import DATA_LICENSE
+    from tactex_ros.trial.report import run_info
+    text = (out / "README.md").read_text()
+    meta = yaml.safe_load(text.split("---\n")[1])
+    assert meta["license"] == DATA_LICENSE == "cc-by-4.0"
+    assert meta["tactex"]["commit"] == (run_info()["commit"] or None)
+    info = meta["dataset_info"]
+    assert info["config_name"] == meta["configs"][0]["config_name"]
+    assert info["config_name"] == "tactex-" + meta["tactex"]["fingerprint"]
+    feats = {f["name"]: f for f in info["features"]}
+    scene = load_scene(record / "scene.yaml")
+    names = sorted({p.sim_fabric for p in scene.ordered})
+    assert list(feats["material"]["dtype"]["class_label"]["names"].values()) == names
+    rows = len(read_record(record, images=False)["touches"])
+    assert info["splits"] == [{"name": "train", "num_bytes": info["dataset_size"],
+                               "num_examples": rows}]
+    assert info["download_size"] == (out / "data" / "train-00000-of-00001.parquet").stat().st_size
+    for machine in (str(tmp), str(record.parent), str(config_dir()), str(Path.home()),
+                    os.getcwd()):
+        assert machine not in text, machine
+    cfg = json.loads((record / "config.json").read_text())
+    host = (cfg.get("run") or {}).get("host") or socket.gethostname()
+    assert f'"{host}"' not in text and '"host"' not in text
+
+
+def test_two_exports_in_folders_of_one_name_load_each_its_own(tmp_path):
+    """``datasets`` caches a local folder by its name and config: each export's config is
+    named after its data, so the second never comes back as the first (one cache)."""
+    images = {}
+    for name, level in (("a", 40), ("b", 200)):
+        lib = tmp_path / f"lib_{name}"
+        for c in ("cork", "felt"):
+            (lib / c).mkdir(parents=True)
+            cv2.imwrite(str(lib / c / "0.png"), np.full((240, 320, 3), level, np.uint8))
+        assert main(["export", f"replay:{lib}", "--out", str(tmp_path / name / "ds")]) == 0
+        images[name] = level
+    for name, level in images.items():
+        ds = datasets.load_dataset(str(tmp_path / name / "ds"), split="train",
+                                   cache_dir=str(tmp_path / "cache"))
+        assert np.asarray(ds[0]["image"]).mean() == level, name
+
+
+def test_machine_paths_are_cut_and_ros_names_kept():
+    from tactex_ros.export.hf import _public
+    home = str(Path.home())
+    assert _public({"host": "lab-pc", "scene_file": f"{home}/ws/scene.yaml",
+                    "source": "replay:/tmp/x/octopi-dev", "state_topic": "/tactex/state",
+                    "command": "tactex trial --json ~/out/t.json --seed 0"}) == {
+        "scene_file": "scene.yaml", "source": "replay:octopi-dev",
+        "state_topic": "/tactex/state", "command": "tactex trial --json t.json --seed 0"}
 
 
 def test_the_command_line_starts_without_datasets():

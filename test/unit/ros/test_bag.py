@@ -122,3 +122,50 @@ def test_standard_views_decode_without_ros(tmp_path: Path) -> None:
     assert [m.ros_msg.wrench.force.z for m in by[WRENCH_VIEW]] == [5.0, 6.0, 7.0]
     assert [m.ros_msg.data for m in by[BELIEF_VIEW + "c1"]] == [0.5]
     assert by[BELIEF_VIEW + "c2"][0].schema.name == "std_msgs/msg/Float64"
+
+
+def test_the_bag_is_chunked_compressed_and_indexed(tmp_path: Path) -> None:
+    """What readers that seek need (rerun's MCAP import, ``mcap info``, ``ros2 bag``): zstd
+    chunks, one per write (a touch with its views in one), their index and the statistics in
+    the summary; the indexed read gives every message."""
+    path = tmp_path / "topics.mcap"
+    bag = BagWriter(path)
+    for i in range(1, 4):
+        bag.write_all(TOUCH_TOPIC, _touch(i), i * 10**9)
+    bag.write("/tactex/state", _state(1, True), 4 * 10**9)
+    bag.close()
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        chunks = summary.chunk_indexes
+        assert len(chunks) == 4 == summary.statistics.chunk_count
+        assert {c.compression for c in chunks} == {"zstd"}
+        assert all(c.message_index_offsets for c in chunks)          # message indexes
+        # a touch's chunk holds the touch, its image and its force: 3 messages at one time
+        assert [c.message_start_time for c in chunks] == [10**9, 2 * 10**9, 3 * 10**9,
+                                                          4 * 10**9]
+        assert summary.statistics.message_count == 3 * 3 + 1
+        assert chunks[0].uncompressed_size > 2 * 240 * 320 * 3          # touch + image
+        topics = [c.topic for _, c, _ in reader.iter_messages(log_time_order=True)]
+    assert topics.count(TOUCH_TOPIC) == 3 and topics[-1] == "/tactex/state"
+    assert [m[0] for m in read_bag(path)] == topics                  # the stream reader too
+
+
+def test_a_resumed_trials_bags_are_listed_in_its_record(tmp_path: Path) -> None:
+    from tactex_ros.ros.bag import recorded_bags
+    from tactex_ros.trial.record import read_record
+    rec = tmp_path / "trial"
+    rec.mkdir()
+    (rec / "config.json").write_text("{}")                           # a trial record
+    for k, name in enumerate(["topics.mcap", "topics.1.mcap"]):      # started, then resumed
+        bag = BagWriter(rec / name)
+        bag.write(TOUCH_TOPIC, _touch(k + 1), (k + 1) * 10**9)
+        bag.close()
+    assert recorded_bags(rec) == [rec / "topics.mcap", rec / "topics.1.mcap"]
+    events = [e for e in read_record(rec, images=False)["events"]
+              if e["event"] == "mcap_started"]
+    assert [e["file"] for e in events] == ["topics.mcap", "topics.1.mcap"]
+    assert [read_bag(p)[0][2].platform_id for p in recorded_bags(rec)] == ["c1", "c2"]
+    plain = tmp_path / "elsewhere.mcap"                               # not in a record
+    BagWriter(plain).close()
+    assert not (tmp_path / "events.jsonl").exists()

@@ -147,6 +147,13 @@ def test_foxglove_layouts_use_only_keys_foxglove_reads() -> None:
     assert cfg["Image!touch"]["imageMode"]["imageTopic"] == TOUCH_IMAGE_TOPIC
     sim = json.loads(shipped["layouts/sim"].read_text())["configById"]
     assert POSE_TOPIC in sim["3D!tactex"]["topics"]
+    # a trial's MCAP played in the layout: every plot has a line on a topic the file holds
+    from tactex_ros.ros.bag import WRENCH_VIEW
+    recorded = {STATE_TOPIC, WRENCH_VIEW}
+    for name, panel in cfg.items():
+        if name.startswith("Plot!"):
+            assert {p["value"].split(".")[0] for p in panel["paths"]} & recorded, name
+    assert cfg["Plot!wrench"]["paths"][1]["value"] == f"{WRENCH_VIEW}.wrench.force.z"
 
 
 def test_foxglove_layout_check_names_a_key_foxglove_ignores() -> None:
@@ -299,7 +306,8 @@ def test_unfinished_trial_report_says_why_and_how_to_continue(tmp_path: Path) ->
 def test_session_report_has_n_wilson_bands_duration_and_links_both_ways(tmp_path: Path
                                                                         ) -> None:
     from tactex_ros.trial import session as sess
-    from tactex_ros.trial.report import session_html, wilson
+    from tactex_ros.core.stats import wilson
+    from tactex_ros.trial.report import session_html
     d = tmp_path / "s"
     trials = []
     for k, truth in ((1, "c2"), (2, "c2"), (3, "c3")):
