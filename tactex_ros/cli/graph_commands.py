@@ -282,7 +282,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         why = (run.failure or (run.result or {}).get("error")
                or f"explorer ended without a result ({exit_text(run.exit_code)})")
         print(f"tactex: trial ended without a result: {why}; logs in {logs}", file=sys.stderr)
-        if run.reason:
+        if run.reason and run.failed_node:
             print(f"tactex: {run.failed_node}: {run.reason} (from "
                   f"{logs / (run.failed_node + '.log')})", file=sys.stderr)
         hint = resume_hint(run, args)

@@ -58,7 +58,8 @@ def _third_party(folder: Path) -> set[str]:
             elif isinstance(n, ast.ImportFrom) and n.module and not n.level:
                 tops.add(n.module.split(".")[0])
     return {t for t in tops if t not in sys.stdlib_module_names
-            and t not in ("tactex", "tactex_ros", "tactex_lab", "test_gelsight_setup")}
+            and t not in ("tactex", "tactex_ros", "tactex_lab", "test_gelsight_setup")
+            and not any((ROOT / "test").rglob(f"{t}.py"))}     # a sibling test module
 
 
 def test_the_products_requirements_have_no_torch_and_the_lab_includes_them():

@@ -448,7 +448,7 @@ def is_this_runs(record: Path, run_id: str) -> bool:
     run is in its events, or nothing is recorded there yet. A run refused because the record
     is another run's (the same trial id) must not write into it."""
     import json
-    from ..trial.record import RECORD_FILES
+    from ...trial.record import RECORD_FILES
     cfg = record / "config.json"
     if not cfg.is_file():
         return record.is_dir() and not any((record / f).exists() for f in RECORD_FILES)

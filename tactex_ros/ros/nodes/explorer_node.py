@@ -472,10 +472,10 @@ class ExplorerNode(TactexNode):
         report.html, an event): why, naming each file, logged as an error; the node then ends
         with exit status 1 (a run-time failure: ``tactex graph run`` prints it and no
         success). None when the trial failed (its error is the result) or nothing is missing."""
-        if self.result is None or "error" in self.result:
+        if self.result is None or "error" in self.result or self.trial is None:
             return None
         missing = list(self.trial.write_failures) + self._not_written
-        if self.bag.failed:
+        if self.bag is not None and self.bag.failed:
             missing.insert(0, f"the MCAP copy {str(self.bag.path)!r} stopped: {self.bag.failed} "
                               "(whole messages before stay readable)")
         if not missing:

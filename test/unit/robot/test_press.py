@@ -182,7 +182,8 @@ def test_the_approach_from_high_above_stops_short_of_a_close_surface() -> None:
     target brakes into the approach point (``approach_brake``), so the sensor never
     reaches the fabric before the tare: the tare reads no contact and the contact force stays
     at the press's own (without the brake: 50.9 N at the approach, the press refused)."""
-    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4)
+    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4,
+                   descend_speed=0.01, descend_fast_speed=0.0)
     s = scene.press
     out, pos, peaks, *_ = _simulate(scene, "reference", law=load_profile("sim").law, mass=6.0)
     assert out.success, out.reason
@@ -206,7 +207,8 @@ def test_a_short_descent_to_a_close_approach_point_keeps_a_heavy_arm_off_the_fab
     1 m/s^2 the arm, still catching up with its target when the brake began, hit the fabric
     at 24.5 / 5.1 / 31.9 N (two presses refused at the force limit). Braking at
     ``approach_brake`` (0.42 m/s^2 here), every press succeeds under the force limit."""
-    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4, descend_speed=0.02)
+    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4,
+                   descend_speed=0.02, descend_fast_speed=0.0)
     p0 = np.asarray(scene.platforms[0].position, dtype=float)
     worlds = [Faults(), Faults(platform_stiffness=1500.0),
               Faults(static_force=(0.0, 0.0, -2.5), coulomb_friction=1.0)]
@@ -215,7 +217,7 @@ def test_a_short_descent_to_a_close_approach_point_keeps_a_heavy_arm_off_the_fab
     for r in out:
         assert r.outcome.success, r.outcome.reason
         assert r.peak_force_n < scene.press.max_force
-    assert max(r.peak_force_n for r in out) < 8.5        # 7.9 N measured
+    assert max(r.peak_force_n for r in out) < 9.0        # 8.6 N measured (7.9 before the faster force ramp)
 
 
 def test_a_stalled_loop_does_not_jump_the_target_into_the_surface() -> None:
@@ -224,7 +226,8 @@ def test_a_stalled_loop_does_not_jump_the_target_into_the_surface() -> None:
     most two periods' worth, so the arm never reaches the fabric before the tare (seen in a
     graph test: 23.9 N at the approach; here 25.5 N when a late tick moved the target by its
     whole lateness)."""
-    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4)
+    scene = _scene(approach_height=0.005, surface_tolerance=0.002, travel_speed=0.4,
+                   tare_window_s=0.3)
     s = scene.press
     law = load_profile("sim").law
     arm = ArmModel(scene, np.array([0.5, 0.0, 0.3]), law, mass=3.0, faults=Faults())
