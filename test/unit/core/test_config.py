@@ -174,7 +174,8 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
     p = launch.plan({"sim": "true", "rounds": "2", "strategy": "random", "seed": "",
                      "exit_when_done": "true", "record_dir": str(tmp_path)})
     ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
-    assert ex["trial"] == {"rounds": 2, "strategy": "random"} and ex["exit_when_done"] is True
+    assert (ex["trial"]["rounds"], ex["trial"]["strategy"]) == (2, "random")
+    assert ex["exit_when_done"] is True
     assert ex["seed"] == 0 and ex["record_dir"] == str(tmp_path)     # '' = the node's default
     assert p["sim"] and p["frame"] == "fr3_link0"
     hw = launch.plan({"device": "/dev/video3"})
@@ -227,8 +228,9 @@ def test_launch_resume_settings_file_and_dotted_settings_become_node_parameters(
     assert ex["resume"] == str(rec) and ex["session_dir"] == str(tmp_path / "s")
     assert ex["trial"]["stop_confidence"] == 0.95 and ex["trial"]["rounds"] == 5
     assert ex["press_timeout_s"] == 77.0 and ex["learner"]["model"] == "descriptor"
-    assert launch.plan({"sim": "true"})["nodes"][-1].parameters.get("trial", {}).get(
-        "stop_confidence") is None
+    # not given: the preset's, resolved before the node starts
+    assert launch.plan({"sim": "true"})["nodes"][-1].parameters["trial"][
+        "stop_confidence"] == SHIPPED_STOP
     with pytest.raises(launch.LaunchArgumentError,
                        match=re.escape("explorer_set:= 'stop_confidence=0.9'") + ".*"
                        + re.escape("'trial.stop_confidence'")):
@@ -292,6 +294,9 @@ def test_the_schema_names_every_strategy():
     from tactex_ros.core.config import STRATEGY_NAMES
     from tactex_ros.core.strategies import STRATEGIES
     assert set(STRATEGY_NAMES) == set(STRATEGIES)
+    from tactex_ros.core.config import REFERENCE_STRATEGIES
+    assert set(REFERENCE_STRATEGIES) == {n for n, c in STRATEGIES.items()
+                                         if c.includes_reference}
 
 
 def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, capsys) -> None:
