@@ -128,6 +128,8 @@ def resolve_run(options: Mapping[str, Any] | None = None,
         # a value counts as given when it was given, not when it is only a default beneath
         flat = settings_from_record(resume, {**base, **given},
                                     [{k: v for k, v in base.items() if k not in given}])
+        if not flat.get("scene_file"):           # the node given only ``resume``
+            flat["scene_file"] = scene = record_scene(resume)
     else:
         flat = {**base, **given}
     if opts.get("sim") and flat.get("session_file") and not flat.get("placement_service"):
