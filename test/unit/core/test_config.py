@@ -320,3 +320,40 @@ def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, c
         assert named in capsys.readouterr().err
     assert main(["graph", "describe", "--sim", "--node-params", str(tmp_path / "no")]) == 2
     assert str(tmp_path / "no") in capsys.readouterr().err
+
+
+def test_the_launch_remembers_what_the_cli_remembers(tmp_path, monkeypatch) -> None:
+    """A launch writes the run's options into the record's run.json before any node starts,
+    the same options as ``tactex graph run`` (sim, source, seed, the ROS domain, ...); a
+    launch with only ``resume:=`` gets them back (the simulated graph and its source)."""
+    import json
+
+    from tactex_ros.cli.graph_commands import _nodes
+    from tactex_ros.cli.main import build_parser
+    from tactex_ros.paths import config_dir
+    from tactex_ros.ros.run_settings import RUN_FILE, save_run_file
+    launch = _launch_module()
+    monkeypatch.setenv("ROS_DOMAIN_ID", "7")
+    p = launch.plan({"sim": "true", "source": "sim:easy", "seed": "3",
+                     "record_dir": str(tmp_path / "l"), "trial_id": "t"})
+    d = launch.run_folder(p)
+    assert d == tmp_path / "l" / "t"
+    by_launch = json.loads((d / RUN_FILE).read_text())
+    args = build_parser("graph").parse_args(["graph", "run", "--sim", "--source", "sim:easy",
+                                             "--seed", "3", "--domain-id", "7"])
+    _nodes(args)
+    save_run_file(tmp_path / "c", args.run)
+    assert by_launch == json.loads((tmp_path / "c" / RUN_FILE).read_text())
+    assert (by_launch["sim"], by_launch["source"], by_launch["domain_id"]) == (True, "sim:easy", 7)
+
+    ex = ExplorerSettings.check({"seed": 3, "scene_file": str(config_dir() / "scene_sim.yaml")})
+    (d / "config.json").write_text(json.dumps(ex.record_inputs(3)))
+    again = launch.plan({"resume": str(d)})
+    assert again["sim"]
+    assert next(n for n in again["nodes"] if n.name == "mock_image").parameters["source"] == \
+        "sim:easy"
+    with pytest.raises(launch.LaunchArgumentError, match="sim:easy"):
+        launch.plan({"resume": str(d), "source": "sim:hard"})
+    monkeypatch.setenv("ROS_DOMAIN_ID", "8")
+    with pytest.raises(launch.LaunchArgumentError, match="domain_id"):
+        launch.plan({"resume": str(d)})
