@@ -1,7 +1,7 @@
 """Issue 50: a run's settings are validated once, where they enter (``ros/run_settings.py``,
 ``resolve_run``), and are frozen typed objects after: on the launch path (the launch file's
-arguments and plan, new and resumed), in ``tactex graph describe`` and on the explorer node's
-path (its parameters resolved, then its trial and engine built) the stop threshold (the trial
+arguments and plan, new and resumed), in ``tactex graph describe``, in ``tactex trial`` (its
+record and report included) and on the explorer node's path (its parameters resolved, then its trial and engine built) the stop threshold (the trial
 settings, ``TrialConfig``) and the learner model (the learner's settings) are each validated
 exactly once. Every validation of a settings model runs its ``__init__`` (a nested one too),
 so the test counts those."""
@@ -114,3 +114,12 @@ def test_the_explorer_nodes_path_validates_each_once(tmp_path: Path) -> None:
                        inputs=s.record_inputs(s.seed))
     assert n == ONCE
     assert run.engine.trial_cfg.stop_confidence == 0.85
+
+
+def test_tactex_trial_validates_each_once(tmp_path: Path) -> None:
+    """``tactex trial``: its options checked once, its record and report written after."""
+    from tactex_ros.cli.main import main
+    with validations() as n:
+        assert main(["trial", "--source", "sim:easy", "--rounds", "2", "--quiet",
+                     "--record-dir", str(tmp_path)]) == 0
+    assert n == ONCE
