@@ -110,8 +110,14 @@ def resolve_run(options: Mapping[str, Any] | None = None,
     resume = given.get("resume") or (defaults or {}).get("resume") or ""
     record = bool(resume) and (Path(resume) / "config.json").is_file() and \
         not (given.get("session_file") or (defaults or {}).get("session_file"))
-    if record and (opts.get("record_dir") is not None or opts.get("trial_id") is not None):
-        raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
+    if record:             # the record's folder is where the trial goes on
+        d = Path(resume).resolve()
+        for k, there in (("record_dir", str(d.parent)), ("trial_id", d.name)):
+            v = opts.get(k)
+            if v not in (None, "") and (str(Path(v).resolve()) if k == "record_dir"
+                                        else v) != there:
+                raise InputError(f"--{k.replace('_', '-')} {v!r} given but --resume names "
+                                 f"the record {str(d)!r}, in {there!r} (leave it out)")
     scene = opts.get("scene")
     if defaults is None:
         scene = scene_path(bool(opts.get("sim")),

@@ -357,3 +357,27 @@ def test_the_launch_remembers_what_the_cli_remembers(tmp_path, monkeypatch) -> N
     monkeypatch.setenv("ROS_DOMAIN_ID", "8")
     with pytest.raises(launch.LaunchArgumentError, match="domain_id"):
         launch.plan({"resume": str(d)})
+
+
+def test_a_launch_resume_with_another_threshold_is_refused_before_anything_starts(
+        tmp_path) -> None:
+    """resume:=RECORD with a stop threshold other than the record's: refused by the launch
+    (the setting and both values named), nothing written into the record."""
+    import json
+
+    from tactex_ros.paths import config_dir
+    launch = _launch_module()
+    d = tmp_path / "cut"
+    d.mkdir()
+    ex = ExplorerSettings.check({"scene_file": str(config_dir() / "scene_sim.yaml"),
+                                 "trial": {"stop_confidence": 0.6}})
+    (d / "config.json").write_text(json.dumps(ex.record_inputs(0)))
+    p = launch.plan({"sim": "true", "resume": str(d), "record_dir": str(tmp_path),
+                     "explorer_set": "trial.stop_confidence=0.6"})
+    assert next(n for n in p["nodes"] if n.name == "explorer").parameters["resume"] == \
+        str(d.resolve())
+    with pytest.raises(launch.LaunchArgumentError) as err:
+        launch.plan({"sim": "true", "resume": str(d),
+                     "explorer_set": "trial.stop_confidence=0.7"})
+    assert "trial.stop_confidence = 0.7" in str(err.value) and "= 0.6" in str(err.value)
+    assert sorted(p.name for p in d.iterdir()) == ["config.json"]
