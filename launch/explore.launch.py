@@ -31,9 +31,13 @@ camera's placement. A bad trial file ends the launch before anything starts, the
 session's ids); a later launch with the same ``session_dir:=`` continues with the others.
 
 ``resume:=RECORD`` continues the interrupted trial recorded in folder RECORD and needs no other
-argument: the explorer takes the record's settings (preset, seed, every learner and trial
-setting; ``trial.resume.settings_from_record``) and the launch its scene; an argument given with
-another value than the record's is refused, the setting and both values named. Every explorer setting can be set at launch, as ``tactex graph run`` sets it:
+argument: the run's settings are resolved once as ``tactex graph run --resume`` resolves them
+(``tactex_ros.ros.run_settings.resolve_run``): the options the run was given from the record's
+``run.json`` (sim, source, sensor, device, settings, ``explorer_set``, the ROS domain), every
+explorer setting from its ``config.json`` and its scene; an argument given with another value
+than the record's is refused, the setting and both values named. A launch writes its options
+to ``run.json`` in the trial record (or session folder) before any node starts, as ``tactex
+graph run`` does. Every explorer setting can be set at launch, as ``tactex graph run`` sets it:
 ``settings:=FILE`` is a YAML of explorer parameters over ``config/explorer.yaml`` (``{name:
 value}`` or the ROS 2 ``explorer: {ros__parameters: ...}`` form) and ``explorer_set:=`` takes
 dotted ``PATH=VALUE`` items separated by spaces or ``;`` (e.g. ``explorer_set:="
@@ -55,6 +59,7 @@ launch shuts down.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 # launch and launch_ros are imported where the launch runs (generate_launch_description and
@@ -118,16 +123,12 @@ def arguments() -> list[tuple[str, str, str]]:
     return args
 
 
-def explorer_set(text: str) -> dict[str, Any]:
+def explorer_set_items(text: str) -> list[str]:
     """The launch argument ``explorer_set``: dotted ``PATH=VALUE`` items of the explorer's
-    settings separated by spaces or ';' -> nested settings (``core.config.overrides``, the
-    syntax of ``--set``); InputError names the item and the nearest valid path."""
+    settings separated by spaces or ';' (the syntax of ``--set``; each is read and checked by
+    ``core.schema.overrides``, which names the item and the nearest valid path)."""
     import re
-
-    from tactex_ros.core.schema import overrides
-    from tactex_ros.ros.settings import ExplorerSettings
-    items = [i for i in re.split(r"[;\s]+", text.strip()) if i]
-    return overrides(ExplorerSettings, items, "explorer_set:=") if items else {}
+    return [i for i in re.split(r"[;\s]+", text.strip()) if i]
 
 
 def plan(values: dict[str, str]) -> dict[str, Any]:
@@ -137,8 +138,10 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
     ``record_dir``. Everything is checked here;
     LaunchArgumentError names the argument or field."""
     from tactex_ros.core.errors import InputError
-    from tactex_ros.core.schema import merge
-    from tactex_ros.ros.graph import OPTIONS, describe, fixed_frame, option_overrides, parse_option
+    from tactex_ros.core.schema import flatten
+    from tactex_ros.ros.graph import (OPTIONS, describe, fixed_frame, option_overrides,
+                                      params_from_file, parse_option)
+    from tactex_ros.ros.run_settings import resolve_run, ros_domain_id
     from tactex_ros.robot.robots import load_profile
 
     def flag(name: str) -> bool:
@@ -150,29 +153,33 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
 
     sim, rviz, bag = flag("sim"), flag("rviz"), flag("bag")
     try:
-        given = option_overrides({name: parse_option(name, values[name]) for name in OPTIONS
-                                  if values.get(name, "") != ""})
+        given = {name: parse_option(name, values[name]) for name in OPTIONS
+                 if values.get(name, "") != ""}
         # the explorer's settings: the options above, then learner.NAME:= / trial.NAME:=
-        # arguments, then explorer_set:= items (each checked by the schema)
-        scene = values.get("scene") or None
-        if values.get("resume") and scene is None:      # the record's scene (its copy)
-            from pathlib import Path
-
-            from tactex_ros.trial.resume import record_scene
-            if (Path(values["resume"]) / "config.json").is_file():
-                scene = record_scene(values["resume"])
-        nodes = describe(sim, scene,
-                         explorer=merge(given.get("explorer"), trial_settings(values),
-                                        explorer_set(values.get("explorer_set", ""))),
-                         explorer_file=values.get("settings") or None,
-                         gelsight=None if sim else given.get("gelsight"),
-                         mock_image=given.get("mock_image") if sim else None,
-                         robot=values.get("robot") or None,
-                         motion_file=values.get("motion_params") or None)
+        # arguments, then explorer_set:= items (each checked by the schema), resolved once
+        # as `tactex graph run` resolves them (a resume: from its record and run.json)
+        dotted = trial_settings(values)
+        items = [f"{k}={values[k]}" for k in sorted(flatten(dotted))] + \
+            explorer_set_items(values.get("explorer_set", ""))
+        motion_file = values.get("motion_params") or None
+        robot = values.get("robot") or None
+        if motion_file:
+            robot = params_from_file(motion_file, "motion").get("robot") or robot
+        run = resolve_run(dict(given, sim=sim, scene=values.get("scene") or None,
+                               settings=values.get("settings") or None, set=items,
+                               domain_id=ros_domain_id(), robot=robot),
+                          set_origin="explorer_set:=")
+        opts = run.options
+        sim = bool(opts.get("sim"))       # a resume: the record's graph (sim:=false is unset)
+        devices = option_overrides({k: opts.get(k) for k in ("source", "sensor", "device")})
+        nodes = describe(sim, run.scene, explorer=run.explorer,
+                         gelsight=None if sim else devices.get("gelsight"),
+                         mock_image=devices.get("mock_image") if sim else None,
+                         robot=values.get("robot") or None, motion_file=motion_file)
         motion = next(n for n in nodes if n.name == "motion")
         profile = load_profile(motion.parameters["robot"])
         explorer = next(n for n in nodes if n.name == "explorer")
-        return {"nodes": nodes, "sim": sim, "rviz": rviz, "bag": bag,
+        return {"nodes": nodes, "sim": sim, "rviz": rviz, "bag": bag, "run": run,
                 "frame": fixed_frame(nodes),
                 "pose_topic": motion.parameters.get("pose_topic") or profile.pose_topic,
                 "wrench_topic": motion.parameters.get("wrench_topic") or profile.wrench_topic,
@@ -182,6 +189,31 @@ def plan(values: dict[str, str]) -> dict[str, Any]:
                 "record_dir": explorer.parameters.get("record_dir") or "runs/trials"}
     except InputError as exc:
         raise LaunchArgumentError(f"launch argument {exc}") from None
+
+
+def run_folder(p: dict[str, Any]) -> Path:
+    """Where the planned run ``p`` keeps its record (a new trial's id, a new session's
+    folder named now, as ``tactex graph run`` names them) with its options (``run.json``,
+    ``run_settings.save_run_file``), before any node starts: the trial record, the session
+    folder, or the record a resume continues."""
+    import time
+
+    from tactex_ros.ros.run_settings import save_run_file
+    from tactex_ros.trial.record import free_trial_id
+    ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
+    root = Path(ex.get("record_dir") or "runs/trials")
+    if ex.get("session_file"):
+        if not ex.get("session_dir"):
+            ex["session_dir"] = str(root / f"{Path(ex['session_file']).stem}_"
+                                           f"{time.strftime('%Y%m%d_%H%M%S')}")
+        folder = Path(ex["session_dir"])
+    elif ex.get("resume"):
+        folder = Path(ex["resume"])
+    else:
+        ex["trial_id"] = ex.get("trial_id") or free_trial_id(root)
+        folder = root / ex["trial_id"]
+    save_run_file(folder, p["run"])
+    return folder
 
 
 def trial_settings(values: dict[str, str]) -> dict[str, Any]:
@@ -200,12 +232,17 @@ def _nodes(context, *args, **kwargs):
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
 
+    from tactex_ros.core.errors import InputError
     from tactex_ros.paths import config_dir
     given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()}
     # the trial's settings by dotted name, undeclared (they depend on learner.model)
     given.update({k: v for k, v in context.launch_configurations.items()
                   if k.startswith(("learner.", "trial."))})
     p = plan(given)
+    try:
+        run_folder(p)
+    except InputError as exc:
+        raise LaunchArgumentError(f"launch argument {exc}") from None
     nodes, sim, rviz, frame = p["nodes"], p["sim"], p["rviz"], p["frame"]
     if p["bag"] and not _installed("rosbag2_storage_mcap"):
         raise LaunchArgumentError("launch argument bag:=true: rosbag2 with MCAP storage is not "

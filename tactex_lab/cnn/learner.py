@@ -47,7 +47,6 @@ from tactex_lab.cnn.models import build_model
 from tactex_lab.cnn.preprocess import augment, safe_crop_side, to_tensor, view
 from tactex_lab.cnn.uncertainty import LastLayerLaplace, ensemble_probs, mc_probs
 from tactex_ros.core.config import CNN_MODELS, CnnSettings, learner_class
-from tactex_ros.core.schema import validate
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.learners import TrainStats
 from tactex_ros.core.touch import Touch, as_touch, validate_frame
@@ -73,7 +72,7 @@ class OnlineLearner:
 
     def __init__(self, num_classes: int, cfg: CnnSettings, seed: int = 0,
                  model_name: str | None = None) -> None:
-        self.cfg = validate(cfg)
+        self.cfg = cfg
         self.num_classes = num_classes
         self.seed = int(seed)
         name = model_name or cfg.model

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -15,115 +14,30 @@ from ..core.errors import InputError
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
                     "session", "session_dir", "trials")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
-# what a record keeps of the command line (``RUN_FILE``): a resume takes it from there
-RUN_FILE = "run.json"
-SETTING_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "session")
-RUN_OPTIONS = ("sim", "scene", "settings", "node_params", "set", "yes") + DEVICE_OPTIONS
-_PATHS = ("scene", "settings", "node_params", "session")
-
-
-def _given(args: argparse.Namespace, name: str):
-    """Option ``name`` as given on the command line; None when not given."""
-    v = getattr(args, name, None)
-    if v is None or v is False or v == []:
-        return None
-    return str(Path(v).resolve()) if name in _PATHS and Path(v).is_file() else v
-
-
-def run_options(args: argparse.Namespace, nodes: list) -> dict:
-    """What ``RUN_FILE`` keeps of a run: the graph options given (``RUN_OPTIONS``, paths
-    absolute) and the value every setting option (``SETTING_OPTIONS``) had, given or not."""
-    from ..core.schema import flatten
-    from ..ros.graph import OPTIONS, SETTINGS
-    ex = next(n for n in nodes if n.executable == "explorer_node")
-    eff = flatten(SETTINGS["explorer"].check(ex.parameters, "explorer").model_dump())
-    out = {k: v for k in RUN_OPTIONS if (v := _given(args, k)) is not None}
-    out.update({k: eff[OPTIONS[k][1]] for k in SETTING_OPTIONS})
-    if not out["session"]:
-        del out["session"]
-    return out
-
-
-def save_run_options(folder: str | Path, args: argparse.Namespace, nodes: list) -> None:
-    """``<folder>/run.json`` (the trial record or session folder) before any node starts,
-    unless the folder has one: a resume keeps the run's first one."""
-    from ..core.outputs import dumps
-    p = Path(folder) / RUN_FILE
-    if not p.is_file():
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(dumps(run_options(args, nodes)))
-
-
-def options_from_record(args: argparse.Namespace) -> Path | None:
-    """For ``--resume DIR`` or ``--session-dir DIR`` of a folder with ``RUN_FILE``: every
-    option the run was given (and every setting option's value) from it, into ``args``. An
-    option given now with another value is refused (InputError, exit 2) naming both values,
-    before anything starts. Returns the folder, or None when there is no record to follow."""
-    from ..ros.graph import OPTIONS
-    folder = getattr(args, "resume", None) or getattr(args, "session_dir", None)
-    if not folder or not (Path(folder) / RUN_FILE).is_file():
-        return None
-    p = Path(folder) / RUN_FILE
-    try:
-        was = json.loads(p.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{str(p)!r}: not readable ({exc})") from None
-    for k in RUN_OPTIONS + SETTING_OPTIONS:
-        if k == "scene" and getattr(args, "resume", None):
-            continue            # a trial's scene: its record's copy (``resume_settings``)
-        given, rec = _given(args, k), was.get(k)
-        if given is None:
-            setattr(args, k, rec if rec is not None or k not in ("sim", "yes") else False)
-        elif given != rec:
-            name = OPTIONS[k][1] if k in OPTIONS else k
-            raise InputError(f"--{k} {given!r} given but the record {str(folder)!r} has "
-                             f"{name} = {rec!r}; a resumed run keeps what it was given "
-                             "(leave the option out)")
-    return Path(folder)
-
-
-def resume_settings(folder: str | Path, args: argparse.Namespace) -> dict:
-    """Explorer parameters that continue the trial recorded in ``folder``: its settings
-    (``trial.resume.settings_from_record``, as the explorer node takes them itself); an option
-    or ``--set`` that contradicts them is refused (both values named); the scene is the
-    record's (``record_scene``) unless ``--scene`` is given."""
-    from ..core.schema import flatten, merge, nest, overrides
-    from ..ros.graph import option_overrides
-    from ..ros.settings import ExplorerSettings
-    from ..trial.resume import record_scene, settings_from_record
-    if args.record_dir is not None or args.trial_id is not None:
-        raise InputError("--resume names the record; --record-dir and --trial-id do not apply")
-    given = merge(option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS})
-                  .get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
-    ex = nest(settings_from_record(folder, flatten(given)))
-    if args.scene is None:
-        args.scene = record_scene(folder)
-    return ex
 
 
 def _nodes(args: argparse.Namespace):
     """The graph these options ask for, as ``launch/explore.launch.py`` builds it from its
-    arguments: the options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
-    ``explorer_set:=``) over config/explorer.yaml."""
-    from ..core.schema import merge, overrides
+    arguments: the run's settings resolved once (``ros.run_settings.resolve_run``: the
+    options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
+    ``explorer_set:=``) over config/explorer.yaml; a resume's from its record), then the
+    nodes. The options the record gave are put into ``args``."""
+    from ..core.schema import merge
     from ..ros.graph import describe, node_params_file, option_overrides
-    from ..ros.settings import ExplorerSettings
-    folder = options_from_record(args)
-    if folder is not None and getattr(args, "resume", None) and \
-            not (folder / "config.json").is_file():
-        # the run stopped before its trial recorded anything (e.g. no camera): the resume
-        # starts the trial in that folder with the options the run was given (run.json)
-        if args.record_dir is not None or args.trial_id is not None:
-            raise InputError("--resume names the record; --record-dir and --trial-id do not "
-                             "apply")
-        d = folder.resolve()
-        args.resume, args.record_dir, args.trial_id = None, str(d.parent), d.name
-    given = option_overrides({k: getattr(args, k) for k in EXPLORER_OPTIONS + DEVICE_OPTIONS})
-    if getattr(args, "resume", None):
-        given["explorer"] = resume_settings(args.resume, args)
-    explorer = merge(given.get("explorer"), overrides(ExplorerSettings, args.set, "--set"))
+    from ..ros.run_settings import RUN_OPTIONS, resolve_run
     more = node_params_file(args.node_params) if getattr(args, "node_params", None) else {}
-    return describe(args.sim, args.scene, explorer=explorer, explorer_file=args.settings,
+    names = EXPLORER_OPTIONS + DEVICE_OPTIONS + RUN_OPTIONS + ("resume",)
+    options = {k: getattr(args, k, None) for k in names}
+    options["robot"] = (more.get("motion") or {}).get("robot")
+    run = resolve_run(options)
+    for k in names:
+        if k in run.options:
+            setattr(args, k, run.options[k])
+    args.run = run
+    if run.options.get("node_params") != getattr(args, "node_params", None):
+        more = node_params_file(run.options["node_params"])     # the record's
+    given = option_overrides({k: run.options.get(k) for k in DEVICE_OPTIONS})
+    return describe(bool(args.sim), run.scene, explorer=run.explorer,
                     mock_image=merge(more.get("mock_image"), given.get("mock_image")),
                     gelsight=merge(more.get("gelsight"), given.get("gelsight")),
                     motion=more.get("motion"), mock_arm=more.get("mock_arm"))
@@ -159,6 +73,7 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     """``tactex graph run --resume <record>`` when a resume of this run can work: the record
     exists and can be continued, and no node refused its input (exit status 2: the same
     input would be refused again). Nothing else: the record keeps the run's options."""
+    from ..ros.run_settings import RUN_FILE
     from ..trial.record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None
@@ -199,11 +114,12 @@ def default_logs(args: argparse.Namespace, nodes: list) -> Path:
 def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     """``tactex graph run --session FILE``: the session's trials in one graph start."""
     from ..ros.devrun.session_runner import run_session
+    from ..ros.run_settings import save_run_file
     if getattr(args, "resume", None):
         raise InputError("--resume continues one trial; a session continues with "
                           "--session-dir <its folder>")
     d = session_dir(args, nodes)
-    save_run_options(d, args, nodes)
+    save_run_file(d, args.run)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
     run = run_session(nodes, logs, d, confirm=confirm,
@@ -241,6 +157,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from ..ros.devrun.launcher import exit_text, run_graph
+    from ..ros.run_settings import save_run_file
     nodes = _nodes(args)
     logs = Path(args.log_dir) if args.log_dir else default_logs(args, nodes)
     if args.session:
@@ -250,7 +167,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         check_session_dir(session_dir(args, nodes), args.session)
         check_dir(logs, "--log-dir")
         return cmd_session(args, nodes, logs)
-    save_run_options(preflight(nodes, logs), args, nodes)
+    save_run_file(preflight(nodes, logs), args.run)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     from ..trial.progress import Progress
     progress = Progress()

@@ -15,7 +15,7 @@ from typing import Annotated, Any, ClassVar, Literal, Union
 from pydantic import Field, TypeAdapter, ValidationError, model_validator
 
 from .errors import InputError
-from .schema import TAG, Schema, located, param
+from .schema import TAG, FieldError, Schema, located, param
 
 # the CNN learners (the thesis method) are a plug-in (``core/learners.py``): the schema names them,
 # the lab implements them
@@ -23,6 +23,9 @@ CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
 # the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
 # that the schema, and with it `tactex trial --help`, imports no numpy
 STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
+# ... and those that may touch the reference again (``Strategy.includes_reference``): they
+# need a learner whose belief takes reference touches (``LearnerBase.scores_reference``)
+REFERENCE_STRATEGIES = ("infogain",)
 MODEL_NAMES = ("descriptor",) + CNN_MODELS + ("cnn_auto", "auto")
 MODEL_HELP = ("model: 'descriptor' (texture descriptor + Gaussian match belief, no training), "
               "a CNN variant, 'auto' (a ladder: descriptor, then the prepared representation, "
@@ -398,6 +401,15 @@ class TrialSettings(Schema):
         read_only=True)
     learner: LearnerSettings = Field(default_factory=DescriptorSettings)
     trial: TrialConfig = Field(default_factory=TrialConfig)
+
+    @model_validator(mode="after")
+    def _strategy_fits_the_learner(self) -> "TrialSettings":
+        if self.trial.strategy in REFERENCE_STRATEGIES and not self.learner.scores_reference:
+            raise FieldError("trial.strategy", f"{self.trial.strategy!r} touches the reference "
+                                               f"again and needs model 'descriptor' (got "
+                                               f"{self.learner.model!r}); with a CNN model "
+                                               "choose another strategy, e.g. variance")
+        return self
 
     @model_validator(mode="before")
     @classmethod

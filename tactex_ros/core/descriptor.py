@@ -16,7 +16,6 @@ from .config import DescriptorSettings
 from .embedding import Embedding, embed_touch
 from .embedding import load as load_embedding
 from .embedding import resolve as resolve_embedding
-from .schema import validate
 from .errors import InputError
 from .library import EVIDENCE_WEIGHT, FabricLibrary, LibraryBelief, library_belief
 from .match import MatchModel
@@ -79,7 +78,7 @@ class DescriptorLearner:
     model_name = "descriptor"
 
     def __init__(self, num_classes: int, cfg: DescriptorSettings, seed: int = 0) -> None:
-        self.cfg = validate(cfg)
+        self.cfg = cfg
         self.num_classes = num_classes
         emb = embedding_of(cfg)          # a missing or foreign weights file: refused here
         rep = _load_representation(cfg.representation) if cfg.representation else None

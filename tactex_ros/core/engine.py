@@ -56,7 +56,6 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_preset  # noqa: F401
-from .schema import validate
 from .errors import InputError, TrialError
 from .guards import ContactGuard
 from .build import make_learner
@@ -261,8 +260,8 @@ class TrialEngine:
         if n_comparisons < 2:
             raise InputError(f"comparisons must be >= 2, got {n_comparisons}")
         self.C = n_comparisons
-        self.trial_cfg = validate(trial_cfg or TrialConfig())
-        self.learner_cfg = validate(learner_cfg)
+        self.trial_cfg = trial_cfg or TrialConfig()     # settings: validated at the edge
+        self.learner_cfg = learner_cfg
         self.seed = seed
         self.strategy = make_strategy(self.trial_cfg.strategy)
         self.platform_ids = platform_ids or default_platform_ids(n_comparisons)

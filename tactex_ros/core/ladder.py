@@ -63,7 +63,6 @@ import numpy as np
 from .descriptor import raw_descriptor
 from .config import (CNN_MODELS, PRESETS, AutoSettings, LadderSettings, LearnerSettings,
                      learner_class, learner_settings, preset)
-from .schema import validate
 from .errors import InputError
 from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .plugins import LEARNERS, available
@@ -358,7 +357,7 @@ class Ladder:
                  make: Callable[[int, LearnerSettings, int], Learner]) -> None:
         """``make``: builds a rung's learner from its settings (``core/build.make_learner``)."""
         self.make = make
-        self.base_cfg = validate(cfg)
+        self.base_cfg = cfg
         self.num_classes = num_classes
         self.seed = seed
         self.plan = rungs_of(self.base_cfg, num_classes)

@@ -42,11 +42,11 @@ class FieldError(ValueError):
 
 class Schema(BaseModel):
     """Base of every settings model. Strict types (an int is taken where a float is expected;
-    a bool or a string for a number is not), unknown names refused, assignments checked.
-    Constructing one with bad values raises InputError naming the field."""
+    a bool or a string for a number is not), unknown names refused, frozen (validated once
+    where the settings enter; ``replace`` makes a validated copy). Constructing one with bad
+    values raises InputError naming the field."""
 
-    model_config = ConfigDict(strict=True, extra="forbid", validate_assignment=True,
-                              validate_default=True)
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True, validate_default=True)
 
     def __init__(self, **data: Any) -> None:
         try:
@@ -318,8 +318,3 @@ def typed(cls: type, given: dict[str, Any], origin: str | None = None) -> dict[s
     dumped = flatten(model.model_dump())
     return nest({k: dumped[k] for k in flatten(given)})
 
-
-def validate(cfg: Any) -> Any:
-    """``cfg`` checked again against its schema (a copy made without validation, e.g. by
-    ``model_construct``, is caught here). Returns a validated instance."""
-    return type(cfg).check(cfg.model_dump(), type(cfg).__name__)

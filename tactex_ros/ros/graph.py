@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from ..core.schema import FieldSpec, field_spec, flatten, merge, nest, parse_text, typed
+from ..core.schema import FieldSpec, field_spec, merge, nest, parse_text, typed
 from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
@@ -62,8 +62,13 @@ def option_default(name: str) -> Any:
     """The value option ``name`` of ``OPTIONS`` has when not given: the node's settings with
     nothing set (the explorer's ``learner.*`` / ``trial.*`` come from the default preset, not
     from the field's own default)."""
+    from ..core.config import PRESETS, TRIAL_PRESETS
     node, path = OPTIONS[name]
-    return flatten(SETTINGS[node].check({}, f"{node} defaults").model_dump())[path]
+    head, _, last = path.partition(".")
+    preset = {"learner": PRESETS, "trial": TRIAL_PRESETS}.get(head) if node == "explorer" \
+        else None
+    default = option_spec(name).default
+    return preset["default"].get(last, default) if preset else default
 
 
 def parse_option(name: str, text: str) -> Any:
@@ -131,8 +136,25 @@ def node_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
     return {node: params_from_file(p, node) for node in data}
 
 
+def scene_path(sim: bool, scene: str | Path | None, robot: str | None = None) -> str:
+    """The scene file of a graph: ``scene`` (a path, or a shipped scene by name:
+    scene_replay, scene_sim), else config/scene_sim.yaml (``sim``) or the robot profile's
+    ``scene`` (``robot``: a profile name or path; default fr3_crisp)."""
+    from ..robot.robots import load_profile
+    if scene and not Path(scene).is_file() and "/" not in str(scene):
+        for cand in (config_dir() / str(scene), config_dir() / f"{scene}.yaml"):
+            if cand.is_file():
+                return str(cand)
+    if scene:
+        return str(Path(scene))
+    if sim:
+        return str(config_dir() / "scene_sim.yaml")
+    return str(config_dir() / load_profile(robot or "fr3_crisp").scene)
+
+
 def describe(sim: bool, scene_file: str | Path | None = None, *,
-             explorer: dict[str, Any] | None = None, explorer_file: str | Path | None = None,
+             explorer: "dict[str, Any] | ExplorerSettings | None" = None,
+             explorer_file: str | Path | None = None,
              gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,
              mock_arm: dict[str, Any] | None = None,
              motion: dict[str, Any] | None = None, motion_file: str | Path | None = None,
@@ -140,23 +162,17 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     """The tactex graph. ``robot`` (profile name or path) defaults to ``sim`` (sim) or
     ``fr3_crisp``; ``scene_file`` to config/scene_sim.yaml (sim) or the profile's ``scene``
     (config/scene.yaml for the FR3, config/scene_panda.yaml for the Panda);
-    ``motion_file``: a YAML of motion node parameters, under ``motion``. The scene, the robot
-    profile and every parameter are validated here, so bad values fail before anything starts,
-    with the field named."""
+    ``motion_file``: a YAML of motion node parameters, under ``motion``. ``explorer``: the
+    explorer's settings resolved by ``run_settings.resolve_run`` (the launch file and ``tactex
+    graph``: taken as they are), or settings given over ``explorer_file`` (default
+    config/explorer.yaml), checked here. The scene, the robot profile and every parameter are
+    validated here, so bad values fail before anything starts, with the field named."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
-    if scene_file and not Path(scene_file).is_file() and "/" not in str(scene_file):
-        for cand in (config_dir() / str(scene_file), config_dir() / f"{scene_file}.yaml"):
-            if cand.is_file():          # a shipped scene by name: scene_replay, scene_sim
-                scene_file = cand
-                break
     given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
                          motion)
-    prof = load_profile(given_motion.get("robot") or robot or ("sim" if sim else "fr3_crisp"))
-    scene_file = str(Path(scene_file) if scene_file else
-                     config_dir() / ("scene_sim.yaml" if sim else prof.scene))
+    scene_file = scene_path(sim, scene_file, given_motion.get("robot") or robot)
     scene = load_scene(scene_file)
-    ex = merge(explorer_defaults(explorer_file), {"scene_file": scene_file}, explorer)
     # the mock arm is no robot: its state rate (100 Hz nominal) fell to 12 Hz during start-up
     # on a loaded machine, so the sim graph's pre-flight asks only for SIM_MIN_STATE_RATE_HZ
     mo = merge({"scene_file": scene_file, "robot": robot or ("sim" if sim else "fr3_crisp")},
@@ -168,7 +184,11 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                           f"the base frame {prof.frame_id!r} of robot profile {prof.name!r}")
     check_press(scene, mo.get("stiffness") or prof.stiffness, f"scene {Path(scene_file).name}",
                 prof.law.error_clip)
-    ex = _checked("explorer", ex)
+    if isinstance(explorer, ExplorerSettings):    # resolved at the edge (ros/run_settings.py)
+        ex = explorer.model_dump()
+    else:
+        ex = _checked("explorer", merge(explorer_defaults(explorer_file),
+                                        {"scene_file": scene_file}, explorer))
     if ex.get("session_file"):
         check_session(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
     elif ex.get("trials"):

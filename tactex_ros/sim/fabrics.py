@@ -61,7 +61,9 @@ class FabricParams:
     repeat: int = 1
     softness: float = 0.2
 
-    def validate(self, where: str = "fabric") -> "FabricParams":
+    def check(self, where: str = "fabric") -> "FabricParams":
+        """These parameters within their ranges and their family's rules; InputError names the
+        field as ``where.field``."""
         if self.family not in FAMILIES:
             raise InputError(f"{where}.family: {self.family!r} is not one of "
                              f"{', '.join(FAMILIES)}")
@@ -142,7 +144,7 @@ class Catalogue(Schema):
                 raise FieldError(f"fabrics.{i}.name", f"duplicate fabric name {e.name!r}")
             seen.add(e.name)
             try:
-                _params(e).validate("fabric")
+                _params(e).check("fabric")
             except InputError as exc:      # a family's own rule (twill / satin repeat)
                 field, _, msg = str(exc).partition(": ")
                 raise FieldError(f"fabrics.{i}.{field.rpartition('.')[2]}", msg) from None

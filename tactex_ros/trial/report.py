@@ -246,13 +246,17 @@ def changed_settings(now: dict[str, Any], default: dict[str, Any], prefix: str =
 
 def _preset_changes(cfg: dict) -> dict[str, Any]:
     """Trial and learner settings of ``config.json`` that differ from their preset's."""
-    from ..core.config import TrialSettings
-    preset = (cfg.get("explorer") or {}).get("config") or "default"
+    from ..core.config import TRIAL_PRESETS, TrialConfig, learner_class, preset_learner
+    preset = ((cfg.get("explorer") or cfg.get("cli") or {}).get("config")) or "default"
     learner = cfg.get("learner") or {}
-    try:
-        base = TrialSettings.model_validate(
-            {"config": preset, "learner": {"model": learner["model"]}} if "model" in learner
-            else {"config": preset}).model_dump()
+
+    def defaults(cls: type) -> dict:
+        return {n: f.get_default(call_default_factory=True) for n, f in cls.model_fields.items()}
+    try:             # the preset's values (as TrialSettings makes them), not validated again
+        given = preset_learner(preset, {"model": learner["model"]} if "model" in learner
+                               else None)
+        base = {"learner": {**defaults(learner_class(given["model"])), **given},
+                "trial": {**defaults(TrialConfig), **TRIAL_PRESETS[preset]}}
     except Exception:  # noqa: BLE001 - an old or foreign record: every value is shown
         base = {}
     out = changed_settings(cfg.get("trial") or {}, base.get("trial") or {}, "trial.")

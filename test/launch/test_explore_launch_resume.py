@@ -3,11 +3,10 @@ stop threshold set at launch, three launches (``launch_testing.parametrize``):
 
 - ``explorer_set``: ``explorer_set:="trial.stop_confidence=0.6"``, the record's threshold: the
   trial continues from the cut record and ends by that threshold, every process exits 0;
-- ``argument``: the same threshold as the dotted argument ``trial.stop_confidence:=0.6``;
-- ``refused``: ``explorer_set:="trial.stop_confidence=0.7"``, another value than the record's:
-  the explorer refuses the resume (exit status 2), the launch ends, the record is untouched.
-  A resume takes every setting from its record (``trial.resume.settings_from_record``), so
-  this case is the one that shows the launch's threshold reaches the explorer.
+- ``argument``: the same threshold as the dotted argument ``trial.stop_confidence:=0.6``.
+
+Another value than the record's is refused by the launch before any node starts
+(``ros.run_settings.resolve_run``; test/unit/core/test_config.py).
 
 The interrupted record is made before each launch, without ROS (``trial.run.TrialRun`` with
 the simulator as press, cut off after 4 touches), with the settings the launch gives the
@@ -38,8 +37,7 @@ STOP = 0.6
 ARGS = {"sim": "true", "rounds": "20", "seed": "0", "exit_when_done": "true",
         "explorer_set": f"trial.stop_confidence={STOP}"}
 CASES = {"explorer_set": {},
-         "argument": {"explorer_set": "", "trial.stop_confidence": str(STOP)},
-         "refused": {"explorer_set": "trial.stop_confidence=0.7"}}
+         "argument": {"explorer_set": "", "trial.stop_confidence": str(STOP)}}
 CUT = 4
 
 
@@ -106,9 +104,7 @@ class TestResume(unittest.TestCase):
 @launch_testing.post_shutdown_test()
 class TestAfterShutdown(unittest.TestCase):
     def test_exit_codes(self, proc_info, case):
-        refused = case == "refused"
-        launch_testing.asserts.assertExitCodes(
-            proc_info, allowable_exit_codes=[2] if refused else [0], process="explorer_node")
+        launch_testing.asserts.assertExitCodes(proc_info, process="explorer_node")
         for other in ("mock_arm_node", "mock_image_node", "motion_node"):
             launch_testing.asserts.assertExitCodes(proc_info, process=other)
 
@@ -117,10 +113,6 @@ class TestAfterShutdown(unittest.TestCase):
         config = json.loads((d / "config.json").read_text())
         self.assertEqual(config["trial"]["stop_confidence"], STOP)
         touches = [json.loads(line) for line in (d / "touches.jsonl").read_text().splitlines()]
-        if case == "refused":       # nothing written over the cut record
-            self.assertEqual(len(touches), CUT)
-            self.assertFalse((d / "result.json").exists())
-            return
         result = json.loads((d / "result.json").read_text())
         self.assertEqual([r["after_touch"] for r in result["resumed"]], [CUT])
         self.assertGreater(len(touches), CUT)        # the recorded ones, then live presses

@@ -1,8 +1,9 @@
 """Issue 29: ``resume:=RECORD`` needs no other argument. The explorer node, given only its
-``resume`` parameter (as ``ros2 launch tactex explore.launch.py sim:=true resume:=RECORD``
-gives it), takes the record's settings itself (seed, strategy, rounds, stop rule, record
-folder) and finishes the interrupted trial; a parameter set to another value than the record's
-ends the node with exit status 2 before it presses, the setting and both values named."""
+``resume`` parameter (``ros2 run tactex explorer_node --ros-args -p resume:=RECORD``), takes
+the record's settings itself (``run_settings.resolve_run``, as the launch file and ``tactex
+graph run`` resolve a resume: seed, strategy, rounds, stop rule, record folder) and finishes
+the interrupted trial; a parameter set to another value than the record's ends the node with
+exit status 2 before it presses, the setting and both values named."""
 
 from __future__ import annotations
 
@@ -62,10 +63,10 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
     assert "seed = 6" in (run.reason or "") and "seed = 5" in (run.reason or ""), run.reason
     assert len(read_record(rec, images=False)["touches"]) == n      # nothing pressed
 
-    # only `resume`: the record's settings, the trial finished in its own folder
-    only = describe(True, quick_scene, explorer={"resume": str(rec)})
-    ex = next(x for x in only if x.name == "explorer").parameters
-    assert ex["seed"] == 0 and ex["trial"]["rounds"] == 20      # the node's defaults given
+    # only `resume` (as `ros2 run tactex explorer_node --ros-args -p resume:=RECORD`): the
+    # record's settings, the trial finished in its own folder
+    only = describe(True, quick_scene)
+    next(x for x in only if x.name == "explorer").parameters = {"resume": str(rec)}
     run = run_graph(only, tmp_path / "logs3", timeout_s=DEADLINE_S, domain_id=domain_id)
     res = run.result
     assert res is not None and "error" not in res, (run.failure, run.reason)

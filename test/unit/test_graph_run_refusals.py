@@ -121,7 +121,8 @@ def test_resume_takes_every_option_from_the_record(tmp_path: Path, capsys) -> No
     """A run's options (settings, seed, sim, mock camera source, --yes) go into the record's
     run.json; ``--resume DIR`` alone gets them back; an option given again with another value
     is refused before anything starts (exit 2, both values named); the same value is fine."""
-    from tactex_ros.cli.graph_commands import _nodes, save_run_options
+    from tactex_ros.cli.graph_commands import _nodes
+    from tactex_ros.ros.run_settings import save_run_file
     from tactex_ros.core.errors import InputError
     first = _run_args(["--sim", "--rounds", "3", "--seed", "4", "--source", "sim", "--yes",
                        "--set", "trial.stop_confidence=0.95"])
@@ -130,7 +131,8 @@ def test_resume_takes_every_option_from_the_record(tmp_path: Path, capsys) -> No
     cfg["explorer"]["seed"], cfg["trial"]["rounds"] = 4, 3
     cfg["trial"]["stop_confidence"] = 0.95
     (d / "config.json").write_text(json.dumps(cfg))
-    save_run_options(d, first, _nodes(first))
+    _nodes(first)
+    save_run_file(d, first.run)
 
     again = _run_args(["--resume", str(d)])
     nodes = {n.name: n.parameters for n in _nodes(again)}
@@ -157,13 +159,15 @@ def test_resume_takes_every_option_from_the_record(tmp_path: Path, capsys) -> No
 def test_session_dir_alone_continues_the_session_with_its_options(tmp_path: Path) -> None:
     """`--session-dir DIR` of a session folder holding run.json: the trial file, rounds, seed,
     sim graph and --yes come back from it; another --rounds is refused, both values named."""
-    from tactex_ros.cli.graph_commands import _nodes, save_run_options
+    from tactex_ros.cli.graph_commands import _nodes
+    from tactex_ros.ros.run_settings import save_run_file
     from tactex_ros.core.errors import InputError
     short = Path(__file__).parents[1] / "data" / "session_short.yaml"
     d = tmp_path / "sess"
     first = _run_args(["--sim", "--session", str(short), "--session-dir", str(d),
                        "--rounds", "3", "--seed", "0", "--yes"])
-    save_run_options(d, first, _nodes(first))
+    _nodes(first)
+    save_run_file(d, first.run)
     again = _run_args(["--session-dir", str(d)])
     ex = next(n.parameters for n in _nodes(again) if n.name == "explorer")
     assert (again.session, again.rounds, again.seed, again.sim, again.yes) == \

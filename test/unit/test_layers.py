@@ -316,3 +316,36 @@ def test_no_module_imports_back_a_module_that_imports_it():
 def test_the_cycle_finder_finds_a_cycle():
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
     assert _cycle({"a": {"b"}, "b": set()}) == []
+
+
+# where a run's settings enter and are validated, once: the command line (``cli/``), the one
+# settings resolver (``ros/run_settings.py``, which the launch file, the command line and the
+# explorer node call) and the launch file (outside the package); below it settings are frozen
+# typed objects and nothing validates them again
+EDGE = ("tactex_ros/cli/", "tactex_ros/ros/run_settings.py")
+
+
+def _validate_calls(files: list[Path]) -> list[str]:
+    """``validate(...)`` / ``x.validate(...)`` calls (a settings object checked again)."""
+    hits = []
+    for p in files:
+        for node in ast.walk(ast.parse(p.read_text(), str(p))):
+            if isinstance(node, ast.Call):
+                f = node.func
+                name = (f.id if isinstance(f, ast.Name) else
+                        f.attr if isinstance(f, ast.Attribute) else "")
+                if name == "validate":
+                    hits.append(f"{p.name}:{node.lineno}")
+    return hits
+
+
+def test_no_validate_call_below_the_edge():
+    below = [p for p in _files() + _files(LAB)
+             if not str(p.relative_to(PKG.parent)).startswith(EDGE)]
+    assert below and _validate_calls(below) == []
+
+
+def test_the_validate_rule_flags_a_call(tmp_path):
+    p = tmp_path / "learner.py"
+    p.write_text("def make(cfg):\n    cfg = validate(cfg)\n    return schema.validate(cfg)\n")
+    assert _validate_calls([p]) == ["learner.py:2", "learner.py:3"]

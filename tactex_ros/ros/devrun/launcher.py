@@ -384,17 +384,20 @@ def run_graph(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | Non
     if ex is None:
         raise InputError("the graph has no explorer_node")
     ex.parameters["exit_when_done"] = True
-    if not ex.parameters.get("trial_id"):
-        ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
     if not ex.parameters.get("run_id"):      # this run's identity: its record says it is its
         import uuid
         ex.parameters["run_id"] = uuid.uuid4().hex
     run_id = str(ex.parameters["run_id"])
-    ex.parameters["record_dir"] = str(Path(ex.parameters["record_dir"]).resolve())
-    # a resume writes into its record whatever record_dir and trial_id say (the explorer
-    # takes them from the record: trial.resume.settings_from_record)
-    record = (Path(ex.parameters["resume"]).resolve() if ex.parameters.get("resume") else
-              Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"])
+    if ex.parameters.get("resume"):
+        # a resume writes into its record whatever record_dir and trial_id say (the explorer
+        # takes them from the record: run_settings.resolve_run)
+        record = Path(ex.parameters["resume"]).resolve()
+    else:
+        if not ex.parameters.get("trial_id"):
+            ex.parameters["trial_id"] = time.strftime("trial_%Y%m%d_%H%M%S")
+        ex.parameters["record_dir"] = str(Path(ex.parameters.get("record_dir") or
+                                               "runs/trials").resolve())
+        record = Path(ex.parameters["record_dir"]) / ex.parameters["trial_id"]
     res_path = record / "result.json"
     before = _result_stamp(res_path)     # a result already there is not this run's
     failed_node = None

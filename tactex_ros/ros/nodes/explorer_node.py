@@ -39,6 +39,7 @@ from visualization_msgs.msg import MarkerArray
 
 from .. import adapter
 from ...core.engine import TouchFailed, TrialSpec
+from ...core.schema import nest
 from ...core.errors import DeviceError, InputError, TrialError
 from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
@@ -86,8 +87,6 @@ class ExplorerNode(TactexNode):
         from tactex.action import Press
         from tactex.msg import ExplorationState
         s = self.settings
-        if s.resume and not s.session_file:
-            s = self.settings = self._from_record(s)
         if s.nice:
             os.nice(s.nice)  # before torch starts its worker threads, which inherit it
         self.scene = load_scene(s.scene_file)
@@ -99,7 +98,6 @@ class ExplorerNode(TactexNode):
         self._bag_warned = False
         if s.session_file:
             self._configure_session()    # checks the trial file, opens the session folder
-            self._spec(s.seed).engine()   # settings refused here
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
         import uuid
@@ -122,24 +120,18 @@ class ExplorerNode(TactexNode):
         self._running = threading.Event()   # set while active: the trial presses
         self.worker: threading.Thread | None = None
 
-    @staticmethod
-    def _from_record(s: ExplorerSettings) -> ExplorerSettings:
-        """With ``resume``: the settings of the record (``trial.resume.settings_from_record``:
-        preset, seed, every learner and trial setting, record folder), so the node needs no
-        other parameter; one set to another value than the record's is refused (InputError,
-        exit status 2, both values named). Not set: the value config/explorer.yaml gives
-        under the default preset or under the record's."""
-        from ...core.schema import flatten, merge, nest
-        from ...trial.resume import record_settings, settings_from_record
-        from ..graph import explorer_defaults
-        rec = record_settings(s.resume)
-        base = explorer_defaults()
-        unset = [flatten(type(s).check(merge(base, extra), "explorer defaults").model_dump())
-                 for extra in ({"scene_file": s.scene_file},
-                               {"scene_file": s.scene_file, "config": rec["config"],
-                                "learner": {"model": rec["learner.model"]}})]
-        flat = settings_from_record(s.resume, flatten(s.model_dump()), unset)
-        return type(s).check(nest(flat), "explorer parameters (resume)")
+    def load_settings(self) -> ExplorerSettings:
+        """The parameters' settings, resolved as the launch file and ``tactex graph run``
+        resolve a run's (``run_settings.resolve_run``, validated once): with ``resume`` (a
+        trial record), the record's settings (preset, seed, every learner and trial setting,
+        record folder), so the node needs no other parameter; a parameter given with another
+        value than the record's is refused (InputError, exit status 2, both values named)."""
+        from ..run_settings import resolve_run
+        from .lifecycle import given_parameters, parameter_values
+        values = parameter_values(self, ExplorerSettings)
+        given = given_parameters(self)
+        return resolve_run(explorer=nest({k: v for k, v in values.items() if k in given}),
+                           defaults=values, origin="explorer parameters").explorer
 
     def _is_stopping(self) -> bool:
         """The node is being stopped (cleanup, or the process's context shut down)."""

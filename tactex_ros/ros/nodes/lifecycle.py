@@ -97,7 +97,7 @@ def check_overrides(node: LifecycleNode) -> None:
     that name is declared, so with ``allow_undeclared_parameters=False`` (the default) an
     unknown name or a typo is silently ignored rather than refused: it is refused here, at
     configure, by name (InputError)."""
-    given = set(getattr(node, "_parameter_overrides", {}) or {})
+    given = given_parameters(node)
     unknown = sorted(n for n in given if not node.has_parameter(n)
                      and n not in ROS_OWN_PARAMETERS and not n.startswith(ROS_OWN_PREFIXES))
     if unknown:
@@ -107,11 +107,22 @@ def check_overrides(node: LifecycleNode) -> None:
             + f" (ros2 param list /{node.get_name()} shows the declared ones)")
 
 
+def given_parameters(node: LifecycleNode) -> set[str]:
+    """The names of the parameters given to ``node`` (``-p``, ``--params-file``, a launch's
+    parameters), not its declared defaults."""
+    return set(getattr(node, "_parameter_overrides", {}) or {})
+
+
+def parameter_values(node: LifecycleNode, cls: type) -> dict[str, Any]:
+    """The current values of the declared parameters of schema ``cls``, flat (dotted names),
+    as given (not validated)."""
+    return {s.name: node.get_parameter(s.name).value for s in fields(cls)
+            if node.has_parameter(s.name)}
+
+
 def read_settings(node: LifecycleNode, cls: type) -> Any:
     """Current parameter values as a validated settings model (InputError names a field)."""
-    values = {s.name: node.get_parameter(s.name).value for s in fields(cls)
-              if node.has_parameter(s.name)}
-    return cls.check(nest(values), f"{node.get_name()} parameters")
+    return cls.check(nest(parameter_values(node, cls)), f"{node.get_name()} parameters")
 
 
 def entities(node: LifecycleNode) -> set:
@@ -139,6 +150,10 @@ class TactexNode(LifecycleNode):
         self.configured = self.active = self.finalized = False
         self._made_before: dict[str, set] = {}    # entities before configure / activate
         self._loops: list[RateLoop] = []          # started by activate (``rate_loop``)
+
+    def load_settings(self) -> Any:
+        """The node's settings from its parameters, validated (at configure)."""
+        return read_settings(self, self.settings_cls)
 
     # subclasses implement these
     def configure(self) -> None:
@@ -229,7 +244,7 @@ class TactexNode(LifecycleNode):
 
         def configure() -> None:
             check_overrides(self)
-            self.settings = read_settings(self, self.settings_cls)
+            self.settings = self.load_settings()
             self.configure()
         ret = self._transition("configuration", configure)
         if ret != TransitionCallbackReturn.SUCCESS:

@@ -174,7 +174,8 @@ def test_launch_arguments_come_from_the_schema(tmp_path) -> None:
     p = launch.plan({"sim": "true", "rounds": "2", "strategy": "random", "seed": "",
                      "exit_when_done": "true", "record_dir": str(tmp_path)})
     ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
-    assert ex["trial"] == {"rounds": 2, "strategy": "random"} and ex["exit_when_done"] is True
+    assert (ex["trial"]["rounds"], ex["trial"]["strategy"]) == (2, "random")
+    assert ex["exit_when_done"] is True
     assert ex["seed"] == 0 and ex["record_dir"] == str(tmp_path)     # '' = the node's default
     assert p["sim"] and p["frame"] == "fr3_link0"
     hw = launch.plan({"device": "/dev/video3"})
@@ -227,8 +228,9 @@ def test_launch_resume_settings_file_and_dotted_settings_become_node_parameters(
     assert ex["resume"] == str(rec) and ex["session_dir"] == str(tmp_path / "s")
     assert ex["trial"]["stop_confidence"] == 0.95 and ex["trial"]["rounds"] == 5
     assert ex["press_timeout_s"] == 77.0 and ex["learner"]["model"] == "descriptor"
-    assert launch.plan({"sim": "true"})["nodes"][-1].parameters.get("trial", {}).get(
-        "stop_confidence") is None
+    # not given: the preset's, resolved before the node starts
+    assert launch.plan({"sim": "true"})["nodes"][-1].parameters["trial"][
+        "stop_confidence"] == SHIPPED_STOP
     with pytest.raises(launch.LaunchArgumentError,
                        match=re.escape("explorer_set:= 'stop_confidence=0.9'") + ".*"
                        + re.escape("'trial.stop_confidence'")):
@@ -292,6 +294,9 @@ def test_the_schema_names_every_strategy():
     from tactex_ros.core.config import STRATEGY_NAMES
     from tactex_ros.core.strategies import STRATEGIES
     assert set(STRATEGY_NAMES) == set(STRATEGIES)
+    from tactex_ros.core.config import REFERENCE_STRATEGIES
+    assert set(REFERENCE_STRATEGIES) == {n for n, c in STRATEGIES.items()
+                                         if c.includes_reference}
 
 
 def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, capsys) -> None:
@@ -315,3 +320,64 @@ def test_node_params_file_reaches_the_nodes_and_refuses_unknown_ones(tmp_path, c
         assert named in capsys.readouterr().err
     assert main(["graph", "describe", "--sim", "--node-params", str(tmp_path / "no")]) == 2
     assert str(tmp_path / "no") in capsys.readouterr().err
+
+
+def test_the_launch_remembers_what_the_cli_remembers(tmp_path, monkeypatch) -> None:
+    """A launch writes the run's options into the record's run.json before any node starts,
+    the same options as ``tactex graph run`` (sim, source, seed, the ROS domain, ...); a
+    launch with only ``resume:=`` gets them back (the simulated graph and its source)."""
+    import json
+
+    from tactex_ros.cli.graph_commands import _nodes
+    from tactex_ros.cli.main import build_parser
+    from tactex_ros.paths import config_dir
+    from tactex_ros.ros.run_settings import RUN_FILE, save_run_file
+    launch = _launch_module()
+    monkeypatch.setenv("ROS_DOMAIN_ID", "7")
+    p = launch.plan({"sim": "true", "source": "sim:easy", "seed": "3",
+                     "record_dir": str(tmp_path / "l"), "trial_id": "t"})
+    d = launch.run_folder(p)
+    assert d == tmp_path / "l" / "t"
+    by_launch = json.loads((d / RUN_FILE).read_text())
+    args = build_parser("graph").parse_args(["graph", "run", "--sim", "--source", "sim:easy",
+                                             "--seed", "3", "--domain-id", "7"])
+    _nodes(args)
+    save_run_file(tmp_path / "c", args.run)
+    assert by_launch == json.loads((tmp_path / "c" / RUN_FILE).read_text())
+    assert (by_launch["sim"], by_launch["source"], by_launch["domain_id"]) == (True, "sim:easy", 7)
+
+    ex = ExplorerSettings.check({"seed": 3, "scene_file": str(config_dir() / "scene_sim.yaml")})
+    (d / "config.json").write_text(json.dumps(ex.record_inputs(3)))
+    again = launch.plan({"resume": str(d)})
+    assert again["sim"]
+    assert next(n for n in again["nodes"] if n.name == "mock_image").parameters["source"] == \
+        "sim:easy"
+    with pytest.raises(launch.LaunchArgumentError, match="sim:easy"):
+        launch.plan({"resume": str(d), "source": "sim:hard"})
+    monkeypatch.setenv("ROS_DOMAIN_ID", "8")
+    with pytest.raises(launch.LaunchArgumentError, match="domain_id"):
+        launch.plan({"resume": str(d)})
+
+
+def test_a_launch_resume_with_another_threshold_is_refused_before_anything_starts(
+        tmp_path) -> None:
+    """resume:=RECORD with a stop threshold other than the record's: refused by the launch
+    (the setting and both values named), nothing written into the record."""
+    import json
+
+    from tactex_ros.paths import config_dir
+    launch = _launch_module()
+    d = tmp_path / "cut"
+    d.mkdir()
+    ex = ExplorerSettings.check({"scene_file": str(config_dir() / "scene_sim.yaml"),
+                                 "trial": {"stop_confidence": 0.6}})
+    (d / "config.json").write_text(json.dumps(ex.record_inputs(0)))
+    p = launch.plan({"sim": "true", "resume": str(d), "record_dir": str(tmp_path),
+                     "explorer_set": "trial.stop_confidence=0.6"})
+    assert next(n for n in p["nodes"] if n.name == "explorer").parameters["resume"] == \
+        str(d.resolve())
+    with pytest.raises(launch.LaunchArgumentError) as err:
+        launch.plan({"sim": "true", "resume": str(d),
+                     "explorer_set": "trial.stop_confidence=0.7"})
+    assert "trial.stop_confidence = 0.7" in str(err.value) and "= 0.6" in str(err.value)
+    assert sorted(p.name for p in d.iterdir()) == ["config.json"]

@@ -82,9 +82,9 @@ def test_bad_names_and_parameters_are_named(tmp_path, src):
     with pytest.raises(InputError, match="velvet"):
         src.press("velvet", np.random.default_rng(0))
     with pytest.raises(InputError, match="pitch_mm"):
-        FabricParams("plain", pitch_mm=-1.0).validate()
+        FabricParams("plain", pitch_mm=-1.0).check()
     with pytest.raises(InputError, match="family"):
-        FabricParams("lace", pitch_mm=1.0).validate()
+        FabricParams("lace", pitch_mm=1.0).check()
     bad = tmp_path / "f.yaml"
     bad.write_text("fabrics:\n  - {name: x, family: twill, pitch_mm: 0.3, repeat: 2}\n")
     with pytest.raises(InputError, match="repeat"):
