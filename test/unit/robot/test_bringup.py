@@ -171,16 +171,6 @@ SENTINEL_PARAMETERS = ["task.d_pos_x", "task.d_pos_y", "task.d_pos_z", "task.d_r
                        "task.d_rot_y", "task.d_rot_z", "nullspace.damping"]
 
 
-def _flat(d: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
 def _crisp_controllers(path) -> dict[str, dict]:
     """Every CRISP CartesianController of a bring-up file: name -> flat ros__parameters."""
     nodes: dict[str, dict] = {}
@@ -194,11 +184,11 @@ def _crisp_controllers(path) -> dict[str, dict]:
     data = _yaml(path)
     walk(data)
     names = set()
-    for key, value in _flat(data).items():
+    for key, value in flatten(data).items():
         parts = key.split(".")
         if parts[-1] == "type" and value == "crisp_controllers/CartesianController":
             names.add(parts[-3] if parts[-2] == "ros__parameters" else parts[-2])
-    return {n: _flat(nodes[n]) for n in names}
+    return {n: flatten(nodes[n]) for n in names}
 
 
 @pytest.mark.parametrize("bringup", ["fr3_crisp_controllers.yaml", "panda_crisp_controller.yaml"])
