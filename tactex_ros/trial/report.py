@@ -309,6 +309,18 @@ def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
     return ids, fabrics
 
 
+def scene_truth(folder: str | Path) -> list[str] | None:
+    """The comparisons of record ``folder`` whose fabric is the reference's, when every
+    platform of its scene names its fabric (``sim_fabric``, ``replay_class`` or a session's
+    placement): a simulated or replayed trial's truth. None when a platform names none (a
+    lab scene: the truth is not known) or no comparison matches."""
+    ids, fabrics = _scene_fabrics(Path(folder))
+    if len(ids) < 2 or any(i not in fabrics for i in ids):
+        return None
+    same = [i for i in ids[1:] if fabrics[i] == fabrics[ids[0]]]
+    return same or None
+
+
 def _config(d: Path) -> dict:
     """``config.json`` of a record ({} when absent or unreadable); InputError naming the file
     and the field when it is not an object or a section is not one."""
@@ -556,6 +568,8 @@ def trial_html(folder: str | Path) -> str:
     truth = res.get("truth_platforms")
     if truth is None and (cfg.get("session") or {}).get("truth") is not None:
         truth = cfg["session"]["truth"]
+    if truth is None and res and "error" not in res:
+        truth = scene_truth(d)             # a record written before result.json kept it
     n_touch = len([t for t in touches if t.get("accepted")])
     final_belief = (decisions[-1].get("belief") if decisions else None) or []
     p_belief = (final_belief[comps.index(pred)] if pred in comps and
