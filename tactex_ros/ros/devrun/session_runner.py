@@ -167,6 +167,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         for e in evs:
             kind = e.get("event")
             if kind == "awaiting_confirmation":
+                progress.nodes_up()         # the prompt is not followed by start-up lines
                 out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
                 for pid, fab in e["placement"].items():
                     out(f"  platform {pid}: {fab}", "prompt")

@@ -399,7 +399,8 @@ def test_progress_says_round_k_of_n_time_and_marks_replayed_touches(tmp_path: Pa
     lines: list[tuple[str, str]] = []
     p = Progress(lambda text, kind: lines.append((kind, text)), clock=lambda: now[0])
     p.follow(tmp_path / "not_yet")
-    for t in (2.0, 6.0, 11.0):          # the nodes are starting: said every 5 s
+    for t in (2.0, 6.0, 11.0, 36.0):    # the nodes are starting: said after 5 s, then every
+        #                                 30 s (not every 5 s: issue 47)
         now[0] = t
         p.poll()
     assert [k for k, _ in lines] == ["info", "info"]
