@@ -760,8 +760,14 @@ def session_html(folder: str | Path) -> str:
     for e in ends:
         info.append(["interrupted", f"{_esc(_when(e.get('time')))}: {_esc(e.get('reason'))}"])
     if summ["done"] < summ["total"]:
-        info.append(["continue with", f"<code id='resume-command'>tactex graph run --session-dir "
-                                      f"{_esc(shlex.quote(str(d.resolve())))}</code>"])
+        # the last run's --trials while one of them is not done: its interrupted trial first
+        asked = (starts[-1].get("trials_asked") if starts else None) or []
+        left = {r["id"] for r in summ["trials"] if not r["done"]}
+        words = ["tactex", "graph", "run", "--session-dir", str(d.resolve())]
+        if left & set(asked):
+            words += ["--trials", ",".join(asked)]
+        info.append(["continue with", f"<code id='resume-command'>"
+                                      f"{_esc(shlex.join(words))}</code>"])
     parts.append(_table([], info, left=2, cls="context", tid="context"))
     rows = []
     curves: list[list[tuple[int, bool]]] = []
