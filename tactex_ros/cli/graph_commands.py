@@ -103,6 +103,15 @@ def session_resume_hint(folder: str | Path, args: argparse.Namespace) -> str:
     return shlex.join(words)
 
 
+def session_done_text(result: dict, elapsed_s: float) -> str:
+    """The terminal's last line of a finished session (``result``: its result.json): trials,
+    accuracy (sure right answers over the trials done) and the not-sure answers counted
+    apart; ``elapsed_s`` [s] of this run."""
+    return (f"session {result['name']}: {result['done']} trials, accuracy "
+            f"{result['accuracy']:.3f}, {result.get('not_sure', 0)} not sure; "
+            f"{elapsed_s / 60:.1f} min in this run")
+
+
 def session_dir(args: argparse.Namespace, nodes: list) -> str:
     """The session folder: ``--session-dir``, or ``record_dir/<trial file>_<time>``."""
     if args.session_dir:
@@ -162,8 +171,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
               f"{run.elapsed_s / 60:.1f} min in this run; the rest with: tactex graph run "
               f"--session-dir {shlex.quote(str(run.session_dir))}")
         return 0
-    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
-          f"{run.elapsed_s / 60:.1f} min in this run")
+    print(session_done_text(r, run.elapsed_s))
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
     return 0
 

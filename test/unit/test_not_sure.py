@@ -95,3 +95,13 @@ def test_the_trial_report_of_a_not_sure_trial_never_says_correct(tmp_path: Path)
         verdict = re.search(r"id='verdict'[^>]*>([^<]*)<", html).group(1)
         assert stop == "not sure" and verdict != "correct"
         assert verdict == ("not sure" if res["prediction"] == c else "wrong")
+
+
+def test_the_sessions_last_line_counts_the_not_sure_apart(tmp_path: Path) -> None:
+    from tactex_ros.cli.graph_commands import session_done_text
+    d = tmp_path / "s"
+    _session(d)
+    res = json.loads((d / sess.RESULT_FILE).read_text())      # what cmd_session prints from
+    assert res["not_sure"] == 1
+    nums = [float(x) for x in re.findall(r"\d+(?:\.\d+)?", session_done_text(res, 120.0))]
+    assert nums[-4:] == [3.0, round(1 / 3, 3), 1.0, 2.0]      # trials, accuracy, not sure, min
