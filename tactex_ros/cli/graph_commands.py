@@ -89,6 +89,29 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     return f"tactex graph run --resume {shlex.quote(str(run.record))}"
 
 
+def session_resume_hint(folder: str | Path, args: argparse.Namespace) -> str:
+    """The command that continues an interrupted session in ``folder``: ``tactex graph run
+    --session-dir FOLDER`` with this run's ``--trials`` (so the interrupted trial comes
+    first, not the session's first trial not done) and ``--domain-id`` (the nodes' DDS
+    domain; ``run.json`` keeps it too, so giving it again is never a contradiction)."""
+    import shlex
+    words = ["tactex", "graph", "run", "--session-dir", str(folder)]
+    if getattr(args, "trials", None):
+        words += ["--trials", str(args.trials)]
+    if getattr(args, "domain_id", None) is not None:
+        words += ["--domain-id", str(args.domain_id)]
+    return shlex.join(words)
+
+
+def session_done_text(result: dict, elapsed_s: float) -> str:
+    """The terminal's last line of a finished session (``result``: its result.json): trials,
+    accuracy (sure right answers over the trials done) and the not-sure answers counted
+    apart; ``elapsed_s`` [s] of this run."""
+    return (f"session {result['name']}: {result['done']} trials, accuracy "
+            f"{result['accuracy']:.3f}, {result.get('not_sure', 0)} not sure; "
+            f"{elapsed_s / 60:.1f} min in this run")
+
+
 def session_dir(args: argparse.Namespace, nodes: list) -> str:
     """The session folder: ``--session-dir``, or ``record_dir/<trial file>_<time>``."""
     if args.session_dir:
@@ -138,9 +161,8 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
                 print(f"tactex: {n}: {why} (from {Path(logs) / f'{n}.log'})", file=sys.stderr)
         if refused:
             return 2                 # a refusal: continuing the same way would fail again
-        import shlex
-        print(f"tactex: continue with: tactex graph run --session-dir "
-              f"{shlex.quote(str(run.session_dir))}", file=sys.stderr)
+        print(f"tactex: continue with: {session_resume_hint(run.session_dir, args)}",
+              file=sys.stderr)
         return 128 + run.signal if run.signal else 1
     r = run.result
     if r["done"] < r["total"]:          # --trials: a part of the session
@@ -149,8 +171,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
               f"{run.elapsed_s / 60:.1f} min in this run; the rest with: tactex graph run "
               f"--session-dir {shlex.quote(str(run.session_dir))}")
         return 0
-    print(f"session {r['name']}: {r['done']} trials, accuracy {r['accuracy']:.3f}; "
-          f"{run.elapsed_s / 60:.1f} min in this run")
+    print(session_done_text(r, run.elapsed_s))
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
     return 0
 

@@ -8,7 +8,9 @@ and an estimate of the rest: the mean round so far times the rounds left, an upp
 trial may stop earlier) and how a resume went (learner checkpoint restored, or re-training).
 Touches and decisions a resumed trial had on disk before its interruption are marked
 "replayed": they were pressed before, not now. Until the record folder exists (the nodes are
-starting, 10-25 s) it says so every ``STARTING_EVERY_S``; while nothing new arrives (a thesis
+starting, 10-25 s) it says so once after ``STARTING_EVERY_S``, then every
+``STARTING_AGAIN_S``, and no more once the nodes are up (``nodes_up``: a session's placement
+prompt is not buried under it); while nothing new arrives (a thesis
 CNN's decision takes 27-98 s) every ``WAITING_EVERY_S``. On a terminal it prints through
 ``rich`` (colour); in a log (not a terminal) plain lines.
 """
@@ -24,8 +26,10 @@ from typing import Any, Callable
 
 #: [s] a decision still under way after this long (the thesis CNN: 27-98 s) is said so again
 WAITING_EVERY_S = 30.0
-#: [s] while the record folder does not exist yet (the nodes start), said every this often
+#: [s] while the record folder does not exist yet (the nodes start), said first after this
 STARTING_EVERY_S = 5.0
+#: [s] ... and again every this often while it still does not exist (a slow start)
+STARTING_AGAIN_S = 30.0
 
 
 def press_line(t: dict[str, Any], replayed: bool = False) -> str:
@@ -107,7 +111,8 @@ class Progress:
         self._since = 0.0                    # clock of the last line printed
         self._waited = 0.0                   # [s] since the last touch or decision
         self._started = clock()              # for the start-up line
-        self._start_said = self._started
+        self._start_said: float | None = None   # clock of the last start-up line
+        self._up = False                     # the nodes are up: no more start-up lines
         self._rounds: int | None = None      # the rounds cap (config.json)
         self._replayed_touches = 0           # touches on disk before the last resume
         self._replayed_decisions = 0
@@ -122,6 +127,11 @@ class Progress:
             self._deciding, self._rounds, self._first = None, None, None
             self._replayed_touches = self._replayed_decisions = self._seen_decisions = 0
 
+    def nodes_up(self) -> None:
+        """Every node is up (e.g. a session's placement prompt is out): the start-up line is
+        not printed again."""
+        self._up = True
+
     def _new_lines(self, name: str) -> list[dict]:
         lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
         return lines
@@ -129,7 +139,9 @@ class Progress:
     def poll(self) -> None:
         now = self.clock()
         if self.folder is None or not self.folder.is_dir():
-            if now - self._start_said >= STARTING_EVERY_S:
+            due = (now - self._started >= STARTING_EVERY_S if self._start_said is None
+                   else now - self._start_said >= STARTING_AGAIN_S)
+            if due and not self._up:
                 self._start_said = now
                 self.out(f"starting the nodes: {now - self._started:.0f} s (the first press "
                          "follows once every node is up)", "info")

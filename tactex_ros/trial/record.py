@@ -558,3 +558,41 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
                 t["no_contact_array"] = cache[t["no_contact"]]
     return {"touches": touches, "decisions": _read_jsonl(d / "decisions.jsonl"),
             "events": _read_jsonl(d / "events.jsonl"), "result": read_result(d)}
+
+
+# ------------------------------------------------------------------------------ the answer
+
+def read_config(folder: str | Path) -> dict:
+    """``config.json`` of a record ({} when absent or unreadable); InputError naming the file
+    and the field when it is not an object or a section is not one."""
+    p = Path(folder) / "config.json"
+    try:
+        cfg = json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    return check_fields(cfg, {k: (dict, None) for k in ("trial", "session", "explorer",
+                                                        "learner", "cli")}, repr(str(p)))
+
+
+def not_sure(result: dict, stop_confidence: float | None, belief: float | None) -> bool:
+    """A trial that ran out of rounds or touches with its answer's belief below the stop
+    confidence it was given (no stop confidence: 0 or unknown -> never 'not sure'). A result
+    that carries the engine's own ``sure`` (``TrialOutcome.sure``) is read from it."""
+    if result.get("sure") is not None:
+        return not result["sure"]
+    if result.get("stop_reason") in (None, "", "confident") or not stop_confidence:
+        return False
+    return belief is None or belief < stop_confidence
+
+
+def result_not_sure(folder: str | Path, result: dict) -> bool:
+    """``not_sure`` of the result of record ``folder``: its stop confidence from the
+    record's config.json, the answer's belief from the result's ``confidence``."""
+    conf = (read_config(folder).get("trial") or {}).get("stop_confidence")
+    return not_sure(result, conf, result.get("confidence"))
+
+
+def stop_text(result: dict, unsure: bool) -> str:
+    """How a trial stopped, for a person: "not sure" when it ran out of rounds or touches
+    below its stop confidence (``not_sure``), else its stop reason."""
+    return "not sure" if unsure else str(result.get("stop_reason") or "")

@@ -36,7 +36,8 @@ from typing import Any
 
 from ..core.errors import InputError
 from ..core.stats import wilson
-from .record import read_record, read_result
+from .record import not_sure, read_record, read_result, stop_text
+from .record import read_config as _config
 
 REPORT = "report.html"
 COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -309,34 +310,22 @@ def _scene_fabrics(d: Path) -> tuple[list[str], dict[str, str]]:
     return ids, fabrics
 
 
-def _config(d: Path) -> dict:
-    """``config.json`` of a record ({} when absent or unreadable); InputError naming the file
-    and the field when it is not an object or a section is not one."""
-    p = d / "config.json"
-    try:
-        cfg = json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return {}
-    from .record import check_fields
-    return check_fields(cfg, {k: (dict, None) for k in ("trial", "session", "explorer",
-                                                        "learner", "cli")}, repr(str(p)))
+def scene_truth(folder: str | Path) -> list[str] | None:
+    """The comparisons of record ``folder`` whose fabric is the reference's, when every
+    platform of its scene names its fabric (``sim_fabric``, ``replay_class`` or a session's
+    placement): a simulated or replayed trial's truth. None when a platform names none (a
+    lab scene: the truth is not known) or no comparison matches."""
+    ids, fabrics = _scene_fabrics(Path(folder))
+    if len(ids) < 2 or any(i not in fabrics for i in ids):
+        return None
+    same = [i for i in ids[1:] if fabrics[i] == fabrics[ids[0]]]
+    return same or None
 
 
 def _session_of(d: Path) -> Path | None:
     """The session folder a trial record lies in (None: a single trial)."""
     from .session import SESSION_FILE
     return d.parent if (d.parent / SESSION_FILE).is_file() else None
-
-
-def not_sure(result: dict, stop_confidence: float | None, belief: float | None) -> bool:
-    """A trial that ran out of rounds or touches with its answer's belief below the stop
-    confidence it was given (no stop confidence: 0 or unknown -> never 'not sure'). A result
-    that carries the engine's own ``sure`` (``TrialOutcome.sure``) is read from it."""
-    if result.get("sure") is not None:
-        return not result["sure"]
-    if result.get("stop_reason") in (None, "", "confident") or not stop_confidence:
-        return False
-    return belief is None or belief < stop_confidence
 
 
 def failed_attempts(touches: list[dict]) -> int:
@@ -556,6 +545,8 @@ def trial_html(folder: str | Path) -> str:
     truth = res.get("truth_platforms")
     if truth is None and (cfg.get("session") or {}).get("truth") is not None:
         truth = cfg["session"]["truth"]
+    if truth is None and res and "error" not in res:
+        truth = scene_truth(d)             # a record written before result.json kept it
     n_touch = len([t for t in touches if t.get("accepted")])
     final_belief = (decisions[-1].get("belief") if decisions else None) or []
     p_belief = (final_belief[comps.index(pred)] if pred in comps and
@@ -573,21 +564,24 @@ def trial_html(folder: str | Path) -> str:
                      f"id='resume-command'>{_esc(_resume_command(d, cfg))}</code> (the "
                      "recorded touches are replayed, none is pressed twice).</p>")
     else:
-        sure = "<span id='not-sure'>not sure</span>; best guess " \
-            if not_sure(res, conf, p_belief) else ""
+        unsure = not_sure(res, conf, p_belief)
+        sure = "<span id='not-sure'>not sure</span>; best guess " if unsure else ""
         fab = f" ({_esc(fabrics[pred])})" if pred in fabrics else ""
         verdict = "<span id='verdict' class='muted'>truth unknown</span>"
         if isinstance(res.get("correct"), bool) or truth is not None:
             ok = res.get("correct") if isinstance(res.get("correct"), bool) else pred in truth
             tfab = ", ".join(f"{_esc(p)}" + (f" ({_esc(fabrics[p])})" if p in fabrics else "")
                              for p in truth or [])
-            verdict = ("<span id='verdict' class='ok'>correct</span>" if ok else
+            # a not-sure answer is never called correct (its best guess may be right)
+            verdict = ("<span id='verdict' class='muted'>not sure</span> (the best guess is "
+                       "the true match)" if ok and unsure else
+                       "<span id='verdict' class='ok'>correct</span>" if ok else
                        f"<span id='verdict' class='bad'>wrong</span>: the true match is "
                        f"<b id='truth'>{tfab}</b>")
         parts.append(f"<p class='answer' id='answer'>The reference matches <b "
                      f"id='prediction'>{_esc(pred)}</b>{fab}: {sure}belief "
                      f"{_fmt(p_belief, '.2f')}, stopped: <span id='stop-reason'>"
-                     f"{_esc(res.get('stop_reason'))}</span> &mdash; {verdict}</p>")
+                     f"{_esc(stop_text(res, unsure))}</span> &mdash; {verdict}</p>")
     split = time_split(rec)
     n_failed = failed_attempts(touches)
     facts = [("touches", f"<span id='touches'>{n_touch}</span> accepted of {len(touches)} "
@@ -741,13 +735,15 @@ def session_html(folder: str | Path) -> str:
     evs = sess.events(d)
     done = [r for r in summ["trials"] if r["done"]]
     acc = summ["accuracy"]
-    k = sum(bool(r["correct"]) for r in done)
+    k = sum(r["correct"] is True for r in done)
+    unsure_n = summ.get("not_sure", 0)
     lo, hi = wilson(k, len(done))
     times = [e["time"] for e in evs if e.get("time")]
     span = (max(times) - min(times)) if times else None
     parts = [f"<h1>Session {_esc(summ['name'])}</h1>",
              f"<p class='answer' id='accuracy'>accuracy <b>{_fmt(acc, '.3f')}</b> "
-             f"({k} of {len(done)} trials correct; 95 % interval (Wilson) "
+             f"({k} of {len(done)} trials correct, <span id='not-sure-count'>{unsure_n}"
+             f"</span> not sure; 95 % interval (Wilson) "
              f"<span id='accuracy-ci'>{lo:.2f}&ndash;{hi:.2f}</span>, n = "
              f"<span id='n'>{len(done)}</span>; {summ['done']} of {summ['total']} trials "
              "done)</p>"]
@@ -764,8 +760,14 @@ def session_html(folder: str | Path) -> str:
     for e in ends:
         info.append(["interrupted", f"{_esc(_when(e.get('time')))}: {_esc(e.get('reason'))}"])
     if summ["done"] < summ["total"]:
-        info.append(["continue with", f"<code id='resume-command'>tactex graph run --session-dir "
-                                      f"{_esc(shlex.quote(str(d.resolve())))}</code>"])
+        # the last run's --trials while one of them is not done: its interrupted trial first
+        asked = (starts[-1].get("trials_asked") if starts else None) or []
+        left = {r["id"] for r in summ["trials"] if not r["done"]}
+        words = ["tactex", "graph", "run", "--session-dir", str(d.resolve())]
+        if left & set(asked):
+            words += ["--trials", ",".join(asked)]
+        info.append(["continue with", f"<code id='resume-command'>"
+                                      f"{_esc(shlex.join(words))}</code>"])
     parts.append(_table([], info, left=2, cls="context", tid="context"))
     rows = []
     curves: list[list[tuple[int, bool]]] = []
@@ -786,7 +788,8 @@ def session_html(folder: str | Path) -> str:
                 fabrics.append(f)
         conf[(ref_fab, got)] = conf.get((ref_fab, got), 0) + 1
         res = read_result(d / r["record"]) or {}
-        mark = "<span class='ok'>yes</span>" if r["correct"] else "<span class='bad'>no</span>"
+        mark = ("<span class='muted'>not sure</span>" if r.get("not_sure") else
+                "<span class='ok'>yes</span>" if r["correct"] else "<span class='bad'>no</span>")
         stop_conf = (_config(d / r["record"]).get("trial") or {}).get("stop_confidence")
         rec = read_record(d / r["record"], images=False)
         dec = rec["decisions"]
@@ -794,14 +797,14 @@ def session_html(folder: str | Path) -> str:
         b = (dec[-1].get("belief") or []) if dec else []
         p_b = b[comps_.index(r["prediction"])] if r["prediction"] in comps_ and \
             len(b) == len(comps_) else None
+        unsure = bool(r.get("not_sure")) or not_sure(res, stop_conf, p_b)
         n_cmp = sum(bool(x.get("accepted")) and x.get("platform_id") in comps_
                     for x in rec["touches"])
         split = time_split(rec)
         rows.append([link, _esc(ref_fab), f"{_esc(r['prediction'])} ({_esc(got)})"
-                     + (" <span class='muted'>not sure</span>" if not_sure(res, stop_conf, p_b)
-                        else ""),
+                     + (" <span class='muted'>not sure</span>" if unsure else ""),
                      _esc(r["touches"]), _esc(n_cmp), _fmt(split["total"], ".1f"),
-                     _esc(r["stop_reason"]), mark])
+                     _esc(stop_text(res, unsure)), mark])
         curves.append([(n, a in t["truth"]) for n, a in anytime_answers(rec, comps_)])
     parts.append("<h2>Trials</h2>" + _table(
         ["trial", "reference fabric", "answer", "touches (all)", "touches (comparisons)",

@@ -246,6 +246,12 @@ class TrialRun:
         if self.replay is not None:
             out["resumed"] = [e for e in read_record(self.record.dir, images=False)["events"]
                               if e.get("event") == "resumed"]
+        if out.get("truth") is None:
+            from .report import scene_truth
+            same = scene_truth(self.record.dir)   # a simulated scene names every fabric
+            if same:
+                out.update(truth=same[0] if len(same) == 1 else None, truth_platforms=same,
+                           correct=out.get("prediction") in same)
         if t0 is not None:
             out["elapsed_s"] = time.monotonic() - t0
         if extra is not None:

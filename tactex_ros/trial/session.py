@@ -345,7 +345,12 @@ def finish_session(session_dir: str | Path, result: dict[str, Any]) -> Path:
 
 
 def summary(session_dir: str | Path) -> dict[str, Any]:
-    """Per-trial outcome of a session folder (done trials only) and its accuracy."""
+    """Per-trial outcome of a session folder (done trials only) and its accuracy. A trial
+    that ended not sure (``report.not_sure``: out of rounds or touches below its stop
+    confidence) is counted apart (``not_sure``; its row's ``correct`` None,
+    ``guess_correct`` whether its best guess was right) and never as correct: accuracy is
+    the sure, right answers over the trials done."""
+    from .record import result_not_sure
     d = Path(session_dir)
     started = load_started(d)
     rows = []
@@ -356,12 +361,14 @@ def summary(session_dir: str | Path) -> dict[str, Any]:
             rows.append({"id": t["id"], "record": name, "done": False})
             continue
         pred = res.get("prediction")
+        unsure = result_not_sure(d / name, res)
         rows.append({"id": t["id"], "record": name, "done": True, "prediction": pred,
-                     "truth": t["truth"], "correct": pred in t["truth"],
+                     "truth": t["truth"], "correct": None if unsure else pred in t["truth"],
+                     "not_sure": unsure, "guess_correct": pred in t["truth"],
                      "touches": res.get("touches"), "stop_reason": res.get("stop_reason"),
                      "seed": t["seed"], "elapsed_s": res.get("elapsed_s"),
                      "placement": t["placement"]})
     done = [r for r in rows if r["done"]]
-    acc = sum(r["correct"] for r in done) / len(done) if done else None
+    acc = sum(r["correct"] is True for r in done) / len(done) if done else None
     return {"name": started["name"], "trials": rows, "done": len(done), "total": len(rows),
-            "accuracy": acc}
+            "accuracy": acc, "not_sure": sum(r["not_sure"] for r in done)}

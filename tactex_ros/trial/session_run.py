@@ -48,6 +48,19 @@ def trial_outcome(trial: sess.SessionTrial, result: dict) -> dict:
             "placement": dict(trial.placement), "seed": trial.seed}
 
 
+def trial_done_text(event: dict) -> str:
+    """The terminal's line of a ``trial_done`` session event: the answer, its touches and how
+    the trial stopped; "not sure" (with the answer's belief) for a trial that ended below its
+    stop confidence, never "correct"; else correct or wrong."""
+    head = (f"trial {event.get('trial')}: {event.get('prediction')} after "
+            f"{event.get('touches')} touches")
+    if event.get("not_sure"):
+        b = event.get("confidence")
+        return head + ", not sure" + (f" (belief {b:.2f})" if isinstance(b, float) else "")
+    return (head + f" ({event.get('stop_reason')}); "
+            + ("correct" if event.get("correct") else "wrong"))
+
+
 class SessionRun:
     """The session ``session`` in folder ``session_dir`` (opened, or continued when it holds the
     same session; ``settings``: what ``session.json`` keeps). ``confirm_timeout_s``: for the
@@ -151,10 +164,13 @@ class SessionRun:
                                        "time": time.time()})
                     return 0
                 self._learn(trial)
+                from .record import result_not_sure
                 sess.add_event(d, {"event": "trial_done", "trial": trial.id,
                                    "prediction": res.get("prediction"),
                                    "correct": res.get("correct"), "touches": res.get("touches"),
-                                   "stop_reason": res.get("stop_reason"), "time": time.time()})
+                                   "stop_reason": res.get("stop_reason"),
+                                   "not_sure": result_not_sure(d / trial.record_name, res),
+                                   "confidence": res.get("confidence"), "time": time.time()})
             self.current_library()            # the last trial's presses are filed first
             out = sess.summary(d)
             if out["done"] < out["total"]:     # a part (``only``): the rest is for a later run

@@ -56,3 +56,22 @@ def test_waiting_line_during_a_long_decision_and_resume_line(tmp_path: Path) -> 
     now[0] = 400.0
     p.poll()
     assert len(lines) == n                                # done: no more waiting lines
+
+
+def test_the_start_up_line_does_not_bury_the_placement_prompt(tmp_path: Path) -> None:
+    """Issue 47, item 3: while the record folder does not exist the start-up line comes once
+    after 5 s, then every 30 s (16 lines by 81 s before); none once the nodes are up (the
+    session's placement prompt is out)."""
+    now = [0.0]
+    lines: list[str] = []
+    p = Progress(lambda text, kind: lines.append(text), clock=lambda: now[0])
+    p.follow(tmp_path / "trial_1")                       # not there yet: the nodes start
+    for t in range(0, 82):                               # polled every second, as the runner
+        now[0] = float(t)
+        p.poll()
+    assert len(lines) == 3                               # at 5, 35 and 65 s
+    p.nodes_up()
+    for t in range(82, 400):
+        now[0] = float(t)
+        p.poll()
+    assert len(lines) == 3

@@ -94,3 +94,42 @@ def test_a_part_of_a_session_then_the_rest_from_the_same_folder(tmp_path) -> Non
     assert res["done"] == 3 and res["accuracy"] == 1.0
     asked = [e["trials_asked"] for e in sess.events(d) if e["event"] in ("started", "resumed")]
     assert asked == [["2"], ["1", "2"], None]
+
+
+def test_the_session_reports_continue_command_keeps_the_interrupted_part(tmp_path) -> None:
+    """The report of a session stopped in trial 3 of ``--trials 2,3`` continues with those
+    trials; once they are done, with the rest (no ``--trials``)."""
+    import html as _html
+    import re
+    import shlex
+
+    from tactex_ros.trial.report import session_html
+    from tactex_ros.trial.session_run import SessionRun
+
+    d = tmp_path / "s"
+    s = sess.load_session(THREE, IDS)
+
+    def run_trial(trial, resume):
+        r = d / trial.record_name
+        r.mkdir(parents=True, exist_ok=True)
+        (r / "config.json").write_text("{}")
+        if trial.id == "3":
+            return None                           # Ctrl-C in trial 3
+        (r / "result.json").write_text(json.dumps({"prediction": trial.truth[0],
+                                                   "touches": 3, "stop_reason": "confident"}))
+        return {"prediction": trial.truth[0], "touches": 3}
+
+    def command() -> list[str]:
+        got = re.search(r"id='resume-command'>([^<]*)<", session_html(d)).group(1)
+        return shlex.split(_html.unescape(got))
+
+    SessionRun(s, d, {"seed": 0}, 60.0, only=sess.select_trials(s, "2,3")).run(
+        _Operator(), run_trial, lambda: True)
+    words = command()
+    assert words[words.index("--trials") + 1] == "2,3"
+    assert Path(words[words.index("--session-dir") + 1]) == d.resolve()
+    (d / s.trials[2].record_name / "result.json").write_text(json.dumps(
+        {"prediction": "c1", "touches": 3, "stop_reason": "confident"}))
+    SessionRun(s, d, {"seed": 0}, 60.0, only=sess.select_trials(s, "2,3")).run(
+        _Operator(), run_trial, lambda: False)
+    assert "--trials" not in command()                  # trial 1 left: every trial left

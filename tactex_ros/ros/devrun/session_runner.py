@@ -124,6 +124,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
     from ...trial import session as sess
     from ...trial.progress import Progress, console_printer, tail_jsonl
+    from ...trial.session_run import trial_done_text
     if confirm not in ("yes", "key", "none"):
         raise InputError(f"confirm {confirm!r}: use yes, key or none")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
@@ -166,6 +167,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         for e in evs:
             kind = e.get("event")
             if kind == "awaiting_confirmation":
+                progress.nodes_up()         # the prompt is not followed by start-up lines
                 out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
                 for pid, fab in e["placement"].items():
                     out(f"  platform {pid}: {fab}", "prompt")
@@ -197,9 +199,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 progress.follow(d / sess.record_name(e["trial"]))
             elif kind == "trial_done":
                 progress.poll()
-                out(f"trial {e['trial']}: {e.get('prediction')} after "
-                    f"{e.get('touches')} touches ({e.get('stop_reason')}); "
-                    f"{'correct' if e.get('correct') else 'wrong'}", "info")
+                out(trial_done_text(e), "info")
             elif kind == "session_ended":
                 out(f"session ended: {e.get('reason')}", "info")
             elif kind == "part_done":

@@ -323,7 +323,9 @@ def test_session_report_has_n_wilson_bands_duration_and_links_both_ways(tmp_path
     for k in (1, 2):
         r = _wrong_trial(d, f"trial_{k}")
         res = json.loads((r / "result.json").read_text())
-        res.update(prediction="c2" if k == 1 else "c1", correct=k == 1)
+        # trial 1 sure and right, trial 2 not sure (a not-sure answer never counts as
+        # correct: issue 47)
+        res.update(prediction="c2" if k == 1 else "c1", correct=k == 1, sure=k == 1)
         (r / "result.json").write_text(json.dumps(res))
     sess.add_event(d, {"event": "run_ended", "reason": "SIGINT", "time": 1_764_000_900.0})
     html = session_html(d)
@@ -397,7 +399,8 @@ def test_progress_says_round_k_of_n_time_and_marks_replayed_touches(tmp_path: Pa
     lines: list[tuple[str, str]] = []
     p = Progress(lambda text, kind: lines.append((kind, text)), clock=lambda: now[0])
     p.follow(tmp_path / "not_yet")
-    for t in (2.0, 6.0, 11.0):          # the nodes are starting: said every 5 s
+    for t in (2.0, 6.0, 11.0, 36.0):    # the nodes are starting: said after 5 s, then every
+        #                                 30 s (not every 5 s: issue 47)
         now[0] = t
         p.poll()
     assert [k for k, _ in lines] == ["info", "info"]
