@@ -248,7 +248,7 @@ def test_launch_takes_the_learner_device_by_its_dotted_name():
     spec.loader.exec_module(launch)
     p = launch.plan({"sim": "true", "config": "seed_faithful", "learner.device": "cuda:1"})
     ex = next(n for n in p["nodes"] if n.name == "explorer").parameters
-    assert ex["learner"] == {"device": "cuda:1"} and ex["config"] == "seed_faithful"
+    assert ex["learner"]["device"] == "cuda:1" and ex["config"] == "seed_faithful"
     with pytest.raises(launch.LaunchArgumentError, match="learner.device:='gpu'"):
         launch.plan({"sim": "true", "config": "seed_faithful", "learner.device": "gpu"})
     with pytest.raises(launch.LaunchArgumentError, match="device"):
