@@ -280,10 +280,11 @@ def new_result(path: Path, before: tuple | None) -> tuple[dict | None, str | Non
         return None, str(exc)
 
 
-def node_reason(log: Path, max_chars: int = 400) -> str | None:
+def node_reason(log: Path, max_chars: int = 2000) -> str | None:
     """Why a node ended, from its log: the first error line (rclpy's ``[ERROR]``, or the
     node's own ``tactex:`` line), else the last line of a Python traceback; None if the log
-    holds neither."""
+    holds neither. Cut at ``max_chars`` (long enough for the files a failure names: a record
+    under a deep temporary folder, two paths, ran past 400)."""
     try:
         lines = log.read_text(errors="replace").splitlines()
     except OSError:
