@@ -65,7 +65,7 @@ def test_measure_scene_refuses_an_unknown_platform(tmp_path: Path) -> None:
 
 def test_measure_scene_holds_the_target_on_stale_state_then_stops(tmp_path: Path, listener,
                                                                    force_trace) -> None:
-    """The robot state stops in the light press's descent (mock arm SIGSTOP, 4 s): from
+    """The robot state stops at the light press's approach point (mock arm SIGSTOP, 4 s): from
     ``--state-hold-s`` on the command publishes the same target; after ``--state-timeout-s``
     (2 s) it ends with exit 1, nothing written."""
     import os
@@ -74,8 +74,9 @@ def test_measure_scene_holds_the_target_on_stale_state_then_stops(tmp_path: Path
     nodes = [n for n in describe(True) if n.name == "mock_arm"]
     scene_file = nodes[0].parameters["scene_file"]
     scene = load_scene(scene_file)
-    # 2 mm into the descent (config/scene_sim.yaml: 20 mm above the surface)
-    descending = scene.platform("c3").position[2] + scene.press.approach_height - 0.002
+    # at the approach point (its tare, before the descent: the lab scene's press then takes
+    # about 0.3 s to reach the surface, too fast to catch inside the descent)
+    descending = scene.platform("c3").position[2] + scene.press.approach_height + 0.0005
     out = tmp_path / "measured.yaml"
     cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
            "sys.exit(main())", "robot", "measure-scene", "--robot", "sim", "--scene",
