@@ -574,14 +574,14 @@ def press_in_worlds(scene: Workspace, law: ControlLaw, faults: Sequence[Faults],
     samples = w.wrench()[:, None, :]
     while t < t_max and not all(c.done for c in ctrls):
         read = samples[:, -1]
+        # every world's samples as (normal, magnitude), once per tick: (n, cycles, 2)
+        pairs = np.stack([samples[:, :, 2], np.linalg.norm(samples, axis=2)], axis=2)
         cam.update(t, w.force[:, 2])
         for i, c in enumerate(ctrls):
             if c.done:
                 continue
-            mags = np.linalg.norm(samples[i], axis=1)
             w.target[i] = c.step(t, w.position[i], float(read[i, 2]),
-                                 float(np.linalg.norm(read[i])),
-                                 samples=np.stack([samples[i, :, 2], mags], axis=1),
+                                 float(pairs[i, -1, 1]), samples=pairs[i],
                                  contact=cam.contact(t, i))
             if c.capture_requested and cam.burst(t, i, s.capture_window_s) >= s.capture_frames:
                 true_force[i] = w.force[i, 2]
