@@ -163,12 +163,43 @@ def test_bringup_sets_crisps_filters_and_clamp(name: str) -> None:
         assert 0.0 <= p[key] <= 1.0            # CRISP 2.1.0 src/cartesian_controller.yaml:238-262
 
 
-#: CRISP parameters whose upstream default is the -1 sentinel ("if negative, computed as
-#: 2 sqrt(stiffness)"): utiasDSL/crisp_controllers src/cartesian_controller.yaml (task.d_pos_*,
-#: task.d_rot_*, nullspace.damping). The controller tested nullspace.damping with
-#: `if (params_.nullspace.damping)`, true for -1, and damped with -1 x weights (issue 54).
-SENTINEL_PARAMETERS = ["task.d_pos_x", "task.d_pos_y", "task.d_pos_z", "task.d_rot_x",
-                       "task.d_rot_y", "task.d_rot_z", "nullspace.damping"]
+#: The traced list of CRISP's CartesianController parameter declarations (names, defaults,
+#: bounds and lines of src/cartesian_controller.yaml at the release the profiles cite), written
+#: by scripts/crisp_params.py from the upstream source.
+UPSTREAM = config_dir() / "upstream" / "crisp_cartesian_controller.yaml"
+
+
+def _upstream() -> dict[str, dict]:
+    """name -> {type, default?, bounds?, line} of the traced CRISP release."""
+    return {p["name"]: p for p in _yaml(UPSTREAM)["parameters"]}
+
+
+def _sentinels() -> list[str]:
+    """The parameters whose upstream default is the -1 sentinel ("if negative, computed as
+    2 sqrt(stiffness)"). The controller tested nullspace.damping with
+    `if (params_.nullspace.damping)`, true for -1, and damped with -1 x weights (issue 54)."""
+    return [n for n, p in _upstream().items() if p.get("default") == -1.0]
+
+
+def _declared(name: str, upstream: dict[str, dict]) -> dict | None:
+    """The upstream declaration a bring-up key sets (a per-joint key maps to __map_joints)."""
+    if name in upstream:
+        return upstream[name]
+    parts = name.split(".")
+    if len(parts) >= 3:
+        mapped = ".".join(parts[:-2] + ["__map_joints", parts[-1]])
+        return upstream.get(mapped)
+    return None
+
+
+def test_the_traced_list_names_the_known_sentinels() -> None:
+    """The list is the release's: the seven -1 defaults (task.d_pos_*, task.d_rot_*,
+    nullspace.damping) and the 2.2.0 stiffness clamp are in it, each with a line."""
+    up = _upstream()
+    assert set(_sentinels()) == {f"task.d_{k}_{a}" for k in ("pos", "rot") for a in "xyz"} | {
+        "nullspace.damping"}
+    assert up["variable_max_stiffness.translational"]["default"] == 900.0
+    assert all(isinstance(p["line"], int) and p["line"] > 0 for p in up.values())
 
 
 def _crisp_controllers(path) -> dict[str, dict]:
@@ -198,8 +229,32 @@ def test_no_crisp_controller_is_left_on_a_minus_one_sentinel(bringup: str) -> No
     -1 sentinel, none of them negative, and nullspace.damping positive."""
     ctrls = _crisp_controllers(config_dir() / "bringup" / bringup)
     assert len(ctrls) == 2, ctrls.keys()
+    assert len(_sentinels()) == 7
     for name, p in ctrls.items():
-        for key in SENTINEL_PARAMETERS:
+        for key in _sentinels():
             assert key in p, (name, key)
             assert p[key] >= 0.0, (name, key, p[key])
         assert p["nullspace.damping"] > 0.0, name
+
+
+@pytest.mark.parametrize("bringup", ["fr3_crisp_controllers.yaml", "panda_crisp_controller.yaml"])
+def test_every_crisp_parameter_a_bringup_sets_is_declared_upstream(bringup: str) -> None:
+    """Each name a CRISP controller of the bring-up sets is one the traced release declares
+    (a misspelt or removed name would be declared by ros2_control and never read), with a value
+    of the declared type and inside the declared bounds (else the controller fails to
+    configure)."""
+    up = _upstream()
+    kinds = {"double": (int, float), "bool": (bool,), "string": (str,), "string_array": (list,),
+             "double_array": (list,)}
+    for name, p in _crisp_controllers(config_dir() / "bringup" / bringup).items():
+        for key, value in p.items():
+            if key == "type":          # the controller_manager's plugin name, not CRISP's
+                continue
+            decl = _declared(key, up)
+            assert decl is not None, (name, key)
+            assert isinstance(value, kinds[decl["type"]]), (name, key, value, decl["type"])
+            if decl["type"] == "double":
+                assert not isinstance(value, bool), (name, key)
+            if "bounds" in decl:
+                lo, hi = decl["bounds"]
+                assert lo <= value <= hi, (name, key, value, decl["bounds"])
