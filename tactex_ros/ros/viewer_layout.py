@@ -39,6 +39,16 @@ from .settings import (IMAGE_TOPIC, MARKER_TOPIC, PROMPT_TOPIC, STATE_TOPIC,
 #: the explorer's confirm service (``<explorer node>/confirm``; the graph's explorer is
 #: ``explorer``)
 CONFIRM_SERVICE = "/explorer/confirm"
+#: the operator's buttons on the running trial: action -> (text, colour, what it does); each
+#: calls ``/explorer/<action>`` (``std_srvs/srv/Trigger``, ``trial/control.py``)
+ACTION_BUTTONS = {
+    "pause": ("Pause", "#b58900", "no new press until resume (the press under way ends)"),
+    "resume": ("Resume", "#17803d", "presses go on"),
+    "abort": ("Abort", "#b91c1c", "the session ends after the press under way; resumable"),
+    "skip": ("Skip trial", "#6b7280", "the trial ends now, recorded as skipped"),
+    "redo": ("Redo trial", "#1d4ed8", "the trial starts again; its presses are kept as "
+                                      "superseded"),
+}
 
 _RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "transforms",
              "topics", "layers", "imageMode"}
@@ -51,7 +61,7 @@ PANEL_KEYS: dict[str, set[str]] = {
              "showYAxisLabels", "isSynced", "showTooltips", "xAxisVal", "xAxisPath",
              "followingViewWidth", "sidebarDimension"},
     "CallService": {"serviceName", "datatype", "requestPayload", "layout", "buttonText",
-                    "buttonTooltip", "buttonColor"},
+                    "buttonTooltip", "buttonColor", "editingMode"},
     "RawMessages": {"topicPath", "diffMethod", "diffTopicPath", "diffEnabled",
                     "showFullMessageForDiff", "expansion", "fontSize"},
     "DiagnosticSummary": {"topicToRender", "minLevel", "pinnedIds", "hardwareIdFilter",
@@ -125,7 +135,15 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                 "buttonTooltip": "calls the explorer's ~/confirm "
                                                  "(std_srvs/srv/Trigger); recorded as "
                                                  "confirmed by service",
-                                "buttonColor": "#17803d"},
+                                "buttonColor": "#17803d", "editingMode": False},
+        **{f"CallService!{a}": {"serviceName": CONFIRM_SERVICE.rpartition("/")[0] + "/" + a,
+                                "datatype": "std_srvs/srv/Trigger", "requestPayload": "{}",
+                                "layout": "horizontal", "buttonText": text,
+                                "buttonTooltip": f"calls the explorer's ~/{a} "
+                                                 f"(std_srvs/srv/Trigger): {what}; recorded "
+                                                 "as by service",
+                                "buttonColor": colour, "editingMode": False}
+           for a, (text, colour, what) in ACTION_BUTTONS.items()},
         "Plot!belief": {"title": "belief per comparison platform", "paths": [
             {"value": f"{STATE_TOPIC}.belief[{k}]", "enabled": True, "label": pid,
              "timestampMethod": "receiveTime"} for k, pid in enumerate(comparisons)],
@@ -149,7 +167,9 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "direction": "row", "splitPercentage": 50,
         "first": {"direction": "column", "splitPercentage": 30,
                   "first": {"direction": "row", "splitPercentage": 70,
-                            "first": "RawMessages!prompt", "second": "CallService!confirm"},
+                            "first": "RawMessages!prompt",
+                            "second": _column(["CallService!confirm"]
+                                              + [f"CallService!{a}" for a in ACTION_BUTTONS])},
                   "second": {"direction": "column", "splitPercentage": 55,
                              "first": "3D!tactex",
                              "second": {"direction": "row", "first": "Image!touch",
@@ -164,6 +184,14 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                          "second": "DiagnosticStatusPanel!detail"}}}}
     return {"configById": configs, "globalVariables": {}, "userNodes": {},
             "linkedGlobalVariables": [], "playbackConfig": {"speed": 1}, "layout": tree}
+
+
+def _column(panels: list[str]) -> Any:
+    """A column of ``panels``, equal heights (Foxglove's binary mosaic tree)."""
+    if len(panels) == 1:
+        return panels[0]
+    return {"direction": "column", "splitPercentage": round(100 / len(panels), 1),
+            "first": panels[0], "second": _column(panels[1:])}
 
 
 def layout_text(robot: str = "fr3_crisp") -> str:

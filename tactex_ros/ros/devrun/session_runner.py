@@ -9,6 +9,9 @@ operator what to place where and confirms through the explorer's ``~/confirm_by`
 ``confirm='yes'`` (scripted), after Enter on a terminal with ``confirm='key'``, or never
 (``'none'``: someone else calls ``~/confirm``). A confirmation from elsewhere (Foxglove's
 button, ``ros2 service call``) is shown as such and the terminal stops asking for Enter.
+With ``confirm='key'`` a line with one of ``trial.control.KEYS`` (``p`` pause, ``r`` resume,
+``a`` abort, ``s`` skip, ``d`` redo, then Enter) asks the explorer's ``~/<action>_by`` for
+it, recorded as by ``key``; every operator action, wherever it came from, is shown.
 """
 
 from __future__ import annotations
@@ -68,25 +71,34 @@ class Confirmer:
 
             import rclpy
             from rclpy.signals import SignalHandlerOptions
-            from tactex.srv import Confirm
             os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
             self._ctx = rclpy.Context()
             kw = {} if self.domain_id is None else {"domain_id": self.domain_id}
             rclpy.init(context=self._ctx, signal_handler_options=SignalHandlerOptions.NO, **kw)
             self._node = rclpy.create_node("tactex_operator", context=self._ctx)
-            self._client = self._node.create_client(Confirm, self.service)
+            self._clients: dict = {}
         return self._node
 
-    def confirm(self, by: str) -> tuple[bool, str]:
-        """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter``); (False,
-        why) on a deadline."""
+    def _client(self, service: str):
+        """The client of ``service`` (made once)."""
+        if service not in self._clients:
+            from tactex.srv import Confirm
+            self._clients[service] = self._ensure().create_client(Confirm, service)
+        return self._clients[service]
+
+    def confirm(self, by: str, service: str | None = None) -> tuple[bool, str]:
+        """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter`` | ``key``)
+        to ``service`` (a ``tactex/srv/Confirm`` service; default: the confirm service);
+        (False, why) on a deadline."""
         from rclpy.executors import SingleThreadedExecutor
         from tactex.srv import Confirm
         with self._lock:
             node = self._ensure()
-            if not self._client.wait_for_service(timeout_sec=self.timeout_s):
-                return False, f"service {self.service} not available within {self.timeout_s} s"
-            fut = self._client.call_async(Confirm.Request(by=by, caller=self.caller))
+            name = service or self.service
+            client = self._client(name)
+            if not client.wait_for_service(timeout_sec=self.timeout_s):
+                return False, f"service {name} not available within {self.timeout_s} s"
+            fut = client.call_async(Confirm.Request(by=by, caller=self.caller))
             ex = SingleThreadedExecutor(context=self._ctx)
             ex.add_node(node)
             try:
@@ -95,7 +107,7 @@ class Confirmer:
                 ex.remove_node(node)
                 ex.shutdown()
             if not fut.done():
-                return False, f"no answer from {self.service} within {self.timeout_s} s"
+                return False, f"no answer from {name} within {self.timeout_s} s"
             r = fut.result()
             return bool(r.success), str(r.message)
 
@@ -124,6 +136,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
     from ...trial import session as sess
     from ...trial.progress import Progress, console_printer, tail_jsonl
+    from ...trial.control import KEYS
     from ...trial.session_run import trial_done_text
     if confirm not in ("yes", "key", "none"):
         raise InputError(f"confirm {confirm!r}: use yes, key or none")
@@ -150,10 +163,17 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         nonlocal n_confirmed
         while True:
             try:
-                if not sys.stdin.readline():
+                line = sys.stdin.readline()
+                if not line:
                     return
             except (OSError, ValueError):
                 return
+            action = KEYS.get(line.strip().lower()[:1])
+            if action is not None:     # an operator action on the running trial
+                ok, msg = confirmer.confirm("key", f"/{ex.name}/{action}_by")
+                if not ok:
+                    out(f"{action} refused: {msg}", "info")
+                continue
             if not awaited:
                 continue          # confirmed from elsewhere already: nothing to do
             ok, msg = confirmer.confirm("enter")
@@ -185,6 +205,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                     out("press Enter once the fabrics are in place (or confirm in Foxglove / "
                         f"ros2 service call /{ex.name}/confirm std_srvs/srv/Trigger)",
                         "prompt")
+                    out("during the trial: " + ", ".join(f"{k} {a}" for k, a in KEYS.items())
+                        + " (the letter, then Enter)", "prompt")
                     if waiting_key is None or not waiting_key.is_alive():
                         waiting_key = threading.Thread(target=on_key, daemon=True)
                         waiting_key.start()
@@ -195,6 +217,12 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 awaited.clear()
                 out(f"trial {e['trial']}: placement confirmed by {e.get('by')}"
                     + (f" ({e['caller']})" if e.get("caller") else ""), "info")
+            elif kind == "operator":
+                out(f"trial {e.get('trial')}: {e.get('action')} by {e.get('by')}"
+                    + (f" ({e['caller']})" if e.get("caller") else ""), "info")
+            elif kind == "superseded":
+                out(f"trial {e.get('trial')}: starts again; its presses so far kept in "
+                    f"{e.get('record')}", "info")
             elif kind == "trial_started":
                 progress.follow(d / sess.record_name(e["trial"]))
             elif kind == "trial_done":
