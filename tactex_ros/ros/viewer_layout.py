@@ -16,7 +16,11 @@ config types (github.com/foxglove/studio, packages/studio-base/src/panels/):
 ``ThreeDeeRender/IRenderer.ts`` ``RendererConfig`` (the 3D and Image panels: ``followTf``,
 ``followMode``, ...), ``Plot/types.ts`` ``PlotConfig`` (+ ``Plot/internalTypes.ts``
 ``PlotPath``), ``CallService/types.ts`` ``CallServiceConfig``, ``RawMessages`` and the
-diagnostics panels' configs. ``check_layout`` names every key Foxglove would ignore (e.g. the
+diagnostics panels' configs; every panel's title is ``foxglovePanelTitle`` (``PANEL_TITLE``: the
+app keeps a panel's title in its config under that key; the Foxglove SDK's layout model,
+``foxglove.layouts`` of the foxglove-sdk package, has no ``title`` in ``PlotConfig``: the
+title is the panel's, not the plot's). The CallService buttons set ``editingMode: false``
+(only the button shows). ``check_layout`` names every key Foxglove would ignore (e.g. the
 old ``followTfFrame``) and every panel that is configured but not placed, or placed but not
 configured.
 
@@ -56,7 +60,7 @@ _RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "trans
 PANEL_KEYS: dict[str, set[str]] = {
     "3D": _RENDERER,
     "Image": _RENDERER,
-    "Plot": {"title", "paths", "minYValue", "maxYValue", "minXValue", "maxXValue",
+    "Plot": {"paths", "minYValue", "maxYValue", "minXValue", "maxXValue",
              "showLegend", "legendDisplay", "showPlotValuesInLegend", "showXAxisLabels",
              "showYAxisLabels", "isSynced", "showTooltips", "xAxisVal", "xAxisPath",
              "followingViewWidth", "sidebarDimension"},
@@ -74,6 +78,8 @@ NESTED_KEYS = {("Plot", "paths"): {"value", "enabled", "color", "label", "timest
                                    "showLine", "lineSize"},
                ("3D", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"},
                ("Image", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"}}
+#: the key of a panel's title in its config (every panel type)
+PANEL_TITLE = "foxglovePanelTitle"
 FOLLOW_MODES = {"follow-pose", "follow-position", "follow-none"}
 TOP_KEYS = {"configById", "globalVariables", "userNodes", "linkedGlobalVariables",
             "playbackConfig", "layout"}
@@ -91,7 +97,7 @@ def check_layout(layout: dict[str, Any]) -> list[str]:
                        f"{sorted(PANEL_KEYS)})")
             continue
         out += [f"panel {pid!r}: unknown key {k!r} (Foxglove reads {sorted(keys)})"
-                for k in cfg if k not in keys]
+                for k in cfg if k not in keys and k != PANEL_TITLE]
         if "followMode" in cfg and cfg["followMode"] not in FOLLOW_MODES:
             out.append(f"panel {pid!r}: followMode {cfg['followMode']!r} (one of "
                        f"{sorted(FOLLOW_MODES)})")
@@ -144,7 +150,7 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                                  "as by service",
                                 "buttonColor": colour, "editingMode": False}
            for a, (text, colour, what) in ACTION_BUTTONS.items()},
-        "Plot!belief": {"title": "belief per comparison platform", "paths": [
+        "Plot!belief": {"foxglovePanelTitle": "belief per comparison platform", "paths": [
             {"value": f"{STATE_TOPIC}.belief[{k}]", "enabled": True, "label": pid,
              "timestampMethod": "receiveTime"} for k, pid in enumerate(comparisons)],
             "minYValue": 0, "maxYValue": 1, "showLegend": True, "isSynced": True,
@@ -153,7 +159,7 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "Image!live": {"imageMode": {"imageTopic": IMAGE_TOPIC}},
         "RawMessages!state": {"topicPath": STATE_TOPIC, "diffEnabled": False,
                               "expansion": "all"},
-        "Plot!wrench": {"title": "contact force [N]", "paths": [
+        "Plot!wrench": {"foxglovePanelTitle": "contact force [N]", "paths": [
             {"value": force, "enabled": True, "label": "live",
              "timestampMethod": "receiveTime"},
             {"value": f"{WRENCH_VIEW}.wrench.force.z", "enabled": True,

@@ -104,3 +104,49 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
     page = (d / sess.REPORT_FILE).read_text()
     assert page.count("class='operator'") == 4 and "skipped" in page
     assert os.path.getsize(d / sess.RESULT_FILE) > 0
+
+
+def test_an_abort_from_the_terminal_loses_no_press_and_the_session_resumes(
+        tmp_path: Path, domain_id, listener, quick_scene: str) -> None:
+    """``/explorer/abort_by`` (tactex/srv/Confirm, as the terminal's ``a`` key calls it) in
+    trial 1: the session ends with trial 1 resumable; a second start of the folder finishes
+    it with every press of the first run kept once."""
+    from tactex.srv import Confirm
+    d = tmp_path / "sess"
+    nodes = describe(True, quick_scene, explorer={
+        "trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 3,
+        "record_dir": str(tmp_path), "session_file": str(THREE)})
+    seen: dict = {}
+
+    def drive(graph) -> None:
+        def watch() -> None:
+            f = d / "trial_1" / "touches.jsonl"
+            end = time.monotonic() + 600
+            while _lines(f) < 2 and time.monotonic() < end:
+                time.sleep(0.05)
+            cli = listener.node.create_client(Confirm, "/explorer/abort_by")
+            if cli.wait_for_service(timeout_sec=60.0):
+                fut = cli.call_async(Confirm.Request(by="key", caller="test terminal"))
+                while not fut.done() and time.monotonic() < end:
+                    time.sleep(0.05)
+                seen["ok"] = fut.done() and fut.result().success
+        threading.Thread(target=watch, daemon=True).start()
+
+    first = run_session(nodes, tmp_path / "logs1", d, confirm="yes", timeout_s=900,
+                        domain_id=domain_id, on_start=drive, out=lambda *_: None)
+    assert seen.get("ok") is True, (seen, tmp_path / "logs1" / "explorer.log")
+    assert first.result is None and first.exit_code == 0
+    ended = [e for e in sess.events(d) if e["event"] == "session_ended"]
+    assert len(ended) == 1 and ended[0]["aborted"] and ended[0]["by"] == "key"
+    assert ended[0]["caller"] == "test terminal"
+    before = read_record(d / "trial_1", images=False)["touches"]
+    assert len(before) >= 2 and not (d / "trial_1" / "result.json").exists()
+    assert not (d / "trial_2").exists()
+    second = run_session(nodes, tmp_path / "logs2", d, confirm="yes", timeout_s=900,
+                         domain_id=domain_id, out=lambda *_: None)
+    assert second.result is not None, (second.failure, tmp_path / "logs2" / "explorer.log")
+    rec = read_record(d / "trial_1", images=False)
+    seqs = [t["seq"] for t in rec["touches"]]
+    assert seqs == list(range(1, len(seqs) + 1))
+    assert [t["seq"] for t in rec["touches"][:len(before)]] == [t["seq"] for t in before]
+    assert rec["result"]["touches"] == sum(bool(t.get("accepted")) for t in rec["touches"])

@@ -170,3 +170,29 @@ def test_a_session_with_redo_skip_and_abort_keeps_every_press_once(tmp_path) -> 
     assert page.count("class='operator'") == 3
     assert "(2 of 2 trials correct" in page               # the skip is not in the count
     assert sess.accuracy_text(res) == "1.000 (1 skipped)"
+
+
+def test_the_layout_has_a_button_for_every_action_out_of_editing_mode() -> None:
+    from tactex_ros.ros.viewer_layout import CONFIRM_SERVICE, check_layout, foxglove_layout
+    lay = foxglove_layout("sim")
+    assert check_layout(lay) == []
+    cfg = lay["configById"]
+    node = CONFIRM_SERVICE.rpartition("/")[0]
+    for action in ACTIONS:
+        b = cfg[f"CallService!{action}"]
+        assert b["serviceName"] == f"{node}/{action}"
+        assert b["datatype"] == "std_srvs/srv/Trigger" and b["editingMode"] is False
+    assert cfg["CallService!confirm"]["editingMode"] is False
+    placed = json.dumps(lay["layout"])
+    assert all(f'"CallService!{a}"' in placed for a in ACTIONS)
+
+
+def test_plot_titles_are_panel_titles_and_a_plain_title_is_named() -> None:
+    """Issue 47 item 8: a plot's title is the panel's ``foxglovePanelTitle``; ``title`` (not
+    in the current layout model's PlotConfig) is reported as a key Foxglove ignores."""
+    from tactex_ros.ros.viewer_layout import PANEL_TITLE, check_layout, foxglove_layout
+    lay = foxglove_layout("sim")
+    plots = {k: v for k, v in lay["configById"].items() if k.startswith("Plot!")}
+    assert plots and all(v.get(PANEL_TITLE) and "title" not in v for v in plots.values())
+    lay["configById"]["Plot!belief"]["title"] = "old"
+    assert any("'title'" in p for p in check_layout(lay))

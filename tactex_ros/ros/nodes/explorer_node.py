@@ -269,9 +269,13 @@ class ExplorerNode(TactexNode):
             values.update(session=self.session.session.name, **{"trials done": done,
                                                                  "trials": n})
             waiting = self.operator.awaiting
+            paused = self.operator.control.paused
+            values["operator"] = "paused" if paused else ""
             msg = (f"session {done}/{n} trials done"
                    + (f"; waiting for the operator to confirm trial {waiting}" if waiting
-                      else ""))
+                      else "")
+                   + (f"; trial {self.operator.control.trial} paused by the operator"
+                      if paused else ""))
         if "error" in res:
             return ERROR, f"trial failed: {res['error']}", values
         return OK, msg, values
