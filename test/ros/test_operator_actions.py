@@ -74,9 +74,15 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
                 seen["error"] = str(exc)
         threading.Thread(target=watch, daemon=True).start()
 
+    lines: list[str] = []
     run = run_session(nodes, tmp_path / "logs", d, confirm="yes", timeout_s=900,
-                      domain_id=domain_id, on_start=drive, out=lambda *_: None)
+                      domain_id=domain_id, on_start=drive,
+                      out=lambda text, kind: lines.append(text))
     assert "error" not in seen, seen
+    ready = [k for k, t in enumerate(lines) if t.startswith("ready: every node is active")]
+    assert len(ready) == 1, lines                  # one ready line, the whole session
+    shown = [t for t in lines if t.startswith("trial ") and " by service" in t]
+    assert len(shown) == 4, lines                  # each action shown in the terminal
     assert run.result is not None, (run.failure, tmp_path / "logs" / "explorer.log")
     assert seen["answers"] == [("pause", True), ("resume", True), ("skip", True),
                                ("redo", True)]

@@ -9,7 +9,8 @@ operator what to place where and confirms through the explorer's ``~/confirm_by`
 ``confirm='yes'`` (scripted), after Enter on a terminal with ``confirm='key'``, or never
 (``'none'``: someone else calls ``~/confirm``). A confirmation from elsewhere (Foxglove's
 button, ``ros2 service call``) is shown as such and the terminal stops asking for Enter.
-With ``confirm='key'`` a line with one of ``trial.control.KEYS`` (``p`` pause, ``r`` resume,
+Once every node is active (each one's ``get_state``), one ``ready`` line says so. With
+``confirm='key'`` a line with one of ``trial.control.KEYS`` (``p`` pause, ``r`` resume,
 ``a`` abort, ``s`` skip, ``d`` redo, then Enter) asks the explorer's ``~/<action>_by`` for
 it, recorded as by ``key``; every operator action, wherever it came from, is shown.
 """
@@ -111,6 +112,35 @@ class Confirmer:
             r = fut.result()
             return bool(r.success), str(r.message)
 
+    def states(self, names: list[str], timeout_s: float = 2.0) -> dict[str, str]:
+        """Each node's lifecycle state label (``/<name>/get_state``,
+        ``lifecycle_msgs/srv/GetState``): 'active', 'inactive', ...; '' when it did not
+        answer within ``timeout_s`` [s]."""
+        from lifecycle_msgs.srv import GetState
+        from rclpy.executors import SingleThreadedExecutor
+        out: dict[str, str] = {}
+        with self._lock:
+            node = self._ensure()
+            for name in names:
+                key = f"/{name}/get_state"
+                if key not in self._clients:
+                    self._clients[key] = node.create_client(GetState, key)
+                cli = self._clients[key]
+                out[name] = ""
+                if not cli.wait_for_service(timeout_sec=timeout_s):
+                    continue
+                fut = cli.call_async(GetState.Request())
+                ex = SingleThreadedExecutor(context=self._ctx)
+                ex.add_node(node)
+                try:
+                    ex.spin_until_future_complete(fut, timeout_sec=timeout_s)
+                finally:
+                    ex.remove_node(node)
+                    ex.shutdown()
+                if fut.done() and fut.result() is not None:
+                    out[name] = str(fut.result().current_state.label)
+        return out
+
     def close(self) -> None:
         if self._node is not None:
             self._node.destroy_node()
@@ -158,6 +188,22 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     t_run = time.monotonic()
     waiting_key: threading.Thread | None = None
     awaited: list[str] = []          # the trial whose placement is awaited now (0 or 1)
+
+    ready = threading.Event()            # every node active: said once
+    over = threading.Event()             # the session ended: the watch stops
+
+    def watch_ready() -> None:     # one "ready" line once every node is active
+        names = [n.name for n in nodes]
+        end = time.monotonic() + timeout_s
+        while not over.is_set() and time.monotonic() < end:
+            states = confirmer.states(names)
+            if all(v == "active" for v in states.values()):
+                ready.set()
+                progress.nodes_up()
+                out(f"ready: every node is active ({', '.join(names)}), "
+                    f"{time.monotonic() - t_run:.0f} s after the start", "info")
+                return
+            over.wait(0.5)
 
     def on_key() -> None:    # one reader for the whole session: Enter confirms what is awaited
         nonlocal n_confirmed
@@ -257,10 +303,14 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     def deadline(elapsed: float) -> str | None:
         return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
 
+    watcher = threading.Thread(target=watch_ready, name="ready", daemon=True)
+    watcher.start()
     try:
         run = supervise(nodes, log_dir, domain_id, "session", ended, deadline, poll=poll,
                         on_start=on_start, poll_s=poll_s)
     finally:
+        over.set()
+        watcher.join(timeout=10.0)     # a state query under way ends within its deadline
         confirmer.close()
     failure, exits = run.failure, run.exits
     if failure is not None and d.is_dir():
