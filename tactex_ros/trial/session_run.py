@@ -64,6 +64,27 @@ def trial_done_text(event: dict) -> str:
             + ("correct" if event.get("correct") else "wrong"))
 
 
+def progress_text(summ: dict, asked: list[str] | None, current: str) -> str:
+    """Where a session stands as the operator reads it: ``trial k of n in this run`` (``asked``:
+    this run's trial ids, None: every trial) and the time left, from the MEASURED times of the
+    trials done (their ``elapsed_s``, pauses left out) times the trials left, current one
+    included; ``summ``: ``session.summary``."""
+    rows = summ["trials"]
+    mine = [r for r in rows if asked is None or r["id"] in asked]
+    ids = [r["id"] for r in mine]
+    k = ids.index(current) + 1 if current in ids else 0
+    left = sum(1 for r in mine if not r["done"])
+    times = [float(r["elapsed_s"]) for r in rows if r["done"]
+             and isinstance(r.get("elapsed_s"), (int, float))]
+    text = f"trial {current}: {k} of {len(mine)} in this run"
+    if times:
+        per = sum(times) / len(times)
+        s = int(round(per * left))
+        text += (f"; about {s // 60}:{s % 60:02d} left ({left} trial(s) at {per:.0f} s, "
+                 f"the mean of {len(times)} done)")
+    return text
+
+
 class SessionRun:
     """The session ``session`` in folder ``session_dir`` (opened, or continued when it holds the
     same session; ``settings``: what ``session.json`` keeps). ``confirm_timeout_s``: for the

@@ -37,6 +37,11 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
         "record_dir": str(tmp_path), "session_file": str(THREE)})
     seen: dict = {"answers": []}
     lst = listener
+    from std_msgs.msg import String
+
+    from tactex_ros.ros import adapter
+    from tactex_ros.ros.settings import PROGRESS_TOPIC
+    progress = lst.collect(String, PROGRESS_TOPIC, adapter.latched_qos())
 
     def call(action: str) -> None:
         cli = lst.node.create_client(Trigger, f"/explorer/{action}")
@@ -79,6 +84,9 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
                       domain_id=domain_id, on_start=drive,
                       out=lambda text, kind: lines.append(text))
     assert "error" not in seen, seen
+    said = [m.data for m in progress]
+    assert [t.split(":")[0] for t in said] == ["trial 1", "trial 2", "trial 3", "trial 3"]
+    assert all("of 3 in this run" in t for t in said) and "left" in said[-1], said
     ready = [k for k, t in enumerate(lines) if t.startswith("ready: every node is active")]
     assert len(ready) == 1, lines                  # one ready line, the whole session
     shown = [t for t in lines if t.startswith("trial ") and " by service" in t]

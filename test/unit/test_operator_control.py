@@ -196,3 +196,16 @@ def test_plot_titles_are_panel_titles_and_a_plain_title_is_named() -> None:
     assert plots and all(v.get(PANEL_TITLE) and "title" not in v for v in plots.values())
     lay["configById"]["Plot!belief"]["title"] = "old"
     assert any("'title'" in p for p in check_layout(lay))
+
+
+def test_progress_counts_this_runs_trials_and_measured_times() -> None:
+    from tactex_ros.trial.session_run import progress_text
+    summ = {"trials": [{"id": "1", "done": True, "elapsed_s": 100.0},
+                       {"id": "2", "done": True, "elapsed_s": 140.0},
+                       {"id": "3", "done": False}, {"id": "4", "done": False}]}
+    text = progress_text(summ, None, "3")
+    assert text.startswith("trial 3: 3 of 4 in this run")
+    assert "about 4:00 left (2 trial(s) at 120 s, the mean of 2 done)" in text
+    assert progress_text(summ, ["3", "4"], "4").startswith("trial 4: 2 of 2 in this run")
+    fresh = {"trials": [{"id": "1", "done": False}]}
+    assert progress_text(fresh, None, "1") == "trial 1: 1 of 1 in this run"   # nothing measured

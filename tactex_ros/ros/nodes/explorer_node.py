@@ -538,6 +538,15 @@ class ExplorerNode(TactexNode):
             out.update(elapsed_s=result["elapsed_s"] - paused, paused_s=paused)
         return out
 
+    def _say_progress(self, trial: sess.SessionTrial) -> None:
+        """Session progress (trial k of n in this run, time left from the measured trial
+        times) on the log and ``progress_topic``."""
+        from std_msgs.msg import String
+        from ...trial.session_run import progress_text
+        text = progress_text(sess.summary(self.session.dir), self.session.only, trial.id)
+        self.get_logger().info(text)
+        self.operator.progress_pub.publish(String(data=text))
+
     def _record_operator(self, event: dict) -> None:
         """An operator's request: into the session's events and the running trial's."""
         sess.add_event(self.session.dir, event)
@@ -557,6 +566,7 @@ class ExplorerNode(TactexNode):
                          **self.session.trial_inputs(trial, self.settings.scene_file))
         self.session.trial_started(trial, resume is not None, self.record.n_touches)
         self.operator.control.start(trial.id)
+        self._say_progress(trial)
         try:
             self._trial(finish_node=False)
         finally:

@@ -24,7 +24,7 @@ from typing import Any, Callable
 from ...core.errors import TrialError
 from ...trial import session as sess
 from .. import adapter
-from ..settings import ExplorerSettings
+from ..settings import PROGRESS_TOPIC, ExplorerSettings
 
 
 class SessionOperator:
@@ -58,6 +58,8 @@ class SessionOperator:
                                     res, a, req.by or "service", req.caller))
         self.prompt_pub = node.create_publisher(String, settings.prompt_topic,
                                                 adapter.latched_qos())
+        self.progress_pub = node.create_publisher(String, PROGRESS_TOPIC,
+                                                  adapter.latched_qos())
         self.placement_client = (node.create_client(SetParameters, settings.placement_service)
                                  if settings.placement_service else None)
 
