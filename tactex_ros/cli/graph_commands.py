@@ -107,8 +107,10 @@ def session_done_text(result: dict, elapsed_s: float) -> str:
     """The terminal's last line of a finished session (``result``: its result.json): trials,
     accuracy (sure right answers over the trials done) and the not-sure answers counted
     apart; ``elapsed_s`` [s] of this run."""
+    acc = "n/a" if result.get("accuracy") is None else f"{result['accuracy']:.3f}"
+    skipped = f", {result['skipped']} skipped" if result.get("skipped") else ""
     return (f"session {result['name']}: {result['done']} trials, accuracy "
-            f"{result['accuracy']:.3f}, {result.get('not_sure', 0)} not sure; "
+            f"{acc}, {result.get('not_sure', 0)} not sure{skipped}; "
             f"{elapsed_s / 60:.1f} min in this run")
 
 

@@ -16,7 +16,11 @@ config types (github.com/foxglove/studio, packages/studio-base/src/panels/):
 ``ThreeDeeRender/IRenderer.ts`` ``RendererConfig`` (the 3D and Image panels: ``followTf``,
 ``followMode``, ...), ``Plot/types.ts`` ``PlotConfig`` (+ ``Plot/internalTypes.ts``
 ``PlotPath``), ``CallService/types.ts`` ``CallServiceConfig``, ``RawMessages`` and the
-diagnostics panels' configs. ``check_layout`` names every key Foxglove would ignore (e.g. the
+diagnostics panels' configs; every panel's title is ``foxglovePanelTitle`` (``PANEL_TITLE``: the
+app keeps a panel's title in its config under that key; the Foxglove SDK's layout model,
+``foxglove.layouts`` of the foxglove-sdk package, has no ``title`` in ``PlotConfig``: the
+title is the panel's, not the plot's). The CallService buttons set ``editingMode: false``
+(only the button shows). ``check_layout`` names every key Foxglove would ignore (e.g. the
 old ``followTfFrame``) and every panel that is configured but not placed, or placed but not
 configured.
 
@@ -39,6 +43,16 @@ from .settings import (IMAGE_TOPIC, MARKER_TOPIC, PROMPT_TOPIC, STATE_TOPIC,
 #: the explorer's confirm service (``<explorer node>/confirm``; the graph's explorer is
 #: ``explorer``)
 CONFIRM_SERVICE = "/explorer/confirm"
+#: the operator's buttons on the running trial: action -> (text, colour, what it does); each
+#: calls ``/explorer/<action>`` (``std_srvs/srv/Trigger``, ``trial/control.py``)
+ACTION_BUTTONS = {
+    "pause": ("Pause", "#b58900", "no new press until resume (the press under way ends)"),
+    "resume": ("Resume", "#17803d", "presses go on"),
+    "abort": ("Abort", "#b91c1c", "the session ends after the press under way; resumable"),
+    "skip": ("Skip trial", "#6b7280", "the trial ends now, recorded as skipped"),
+    "redo": ("Redo trial", "#1d4ed8", "the trial starts again; its presses are kept as "
+                                      "superseded"),
+}
 
 _RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "transforms",
              "topics", "layers", "imageMode"}
@@ -46,12 +60,12 @@ _RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "trans
 PANEL_KEYS: dict[str, set[str]] = {
     "3D": _RENDERER,
     "Image": _RENDERER,
-    "Plot": {"title", "paths", "minYValue", "maxYValue", "minXValue", "maxXValue",
+    "Plot": {"paths", "minYValue", "maxYValue", "minXValue", "maxXValue",
              "showLegend", "legendDisplay", "showPlotValuesInLegend", "showXAxisLabels",
              "showYAxisLabels", "isSynced", "showTooltips", "xAxisVal", "xAxisPath",
              "followingViewWidth", "sidebarDimension"},
     "CallService": {"serviceName", "datatype", "requestPayload", "layout", "buttonText",
-                    "buttonTooltip", "buttonColor"},
+                    "buttonTooltip", "buttonColor", "editingMode"},
     "RawMessages": {"topicPath", "diffMethod", "diffTopicPath", "diffEnabled",
                     "showFullMessageForDiff", "expansion", "fontSize"},
     "DiagnosticSummary": {"topicToRender", "minLevel", "pinnedIds", "hardwareIdFilter",
@@ -64,6 +78,8 @@ NESTED_KEYS = {("Plot", "paths"): {"value", "enabled", "color", "label", "timest
                                    "showLine", "lineSize"},
                ("3D", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"},
                ("Image", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"}}
+#: the key of a panel's title in its config (every panel type)
+PANEL_TITLE = "foxglovePanelTitle"
 FOLLOW_MODES = {"follow-pose", "follow-position", "follow-none"}
 TOP_KEYS = {"configById", "globalVariables", "userNodes", "linkedGlobalVariables",
             "playbackConfig", "layout"}
@@ -81,7 +97,7 @@ def check_layout(layout: dict[str, Any]) -> list[str]:
                        f"{sorted(PANEL_KEYS)})")
             continue
         out += [f"panel {pid!r}: unknown key {k!r} (Foxglove reads {sorted(keys)})"
-                for k in cfg if k not in keys]
+                for k in cfg if k not in keys and k != PANEL_TITLE]
         if "followMode" in cfg and cfg["followMode"] not in FOLLOW_MODES:
             out.append(f"panel {pid!r}: followMode {cfg['followMode']!r} (one of "
                        f"{sorted(FOLLOW_MODES)})")
@@ -125,8 +141,16 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                 "buttonTooltip": "calls the explorer's ~/confirm "
                                                  "(std_srvs/srv/Trigger); recorded as "
                                                  "confirmed by service",
-                                "buttonColor": "#17803d"},
-        "Plot!belief": {"title": "belief per comparison platform", "paths": [
+                                "buttonColor": "#17803d", "editingMode": False},
+        **{f"CallService!{a}": {"serviceName": CONFIRM_SERVICE.rpartition("/")[0] + "/" + a,
+                                "datatype": "std_srvs/srv/Trigger", "requestPayload": "{}",
+                                "layout": "horizontal", "buttonText": text,
+                                "buttonTooltip": f"calls the explorer's ~/{a} "
+                                                 f"(std_srvs/srv/Trigger): {what}; recorded "
+                                                 "as by service",
+                                "buttonColor": colour, "editingMode": False}
+           for a, (text, colour, what) in ACTION_BUTTONS.items()},
+        "Plot!belief": {"foxglovePanelTitle": "belief per comparison platform", "paths": [
             {"value": f"{STATE_TOPIC}.belief[{k}]", "enabled": True, "label": pid,
              "timestampMethod": "receiveTime"} for k, pid in enumerate(comparisons)],
             "minYValue": 0, "maxYValue": 1, "showLegend": True, "isSynced": True,
@@ -135,7 +159,7 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "Image!live": {"imageMode": {"imageTopic": IMAGE_TOPIC}},
         "RawMessages!state": {"topicPath": STATE_TOPIC, "diffEnabled": False,
                               "expansion": "all"},
-        "Plot!wrench": {"title": "contact force [N]", "paths": [
+        "Plot!wrench": {"foxglovePanelTitle": "contact force [N]", "paths": [
             {"value": force, "enabled": True, "label": "live",
              "timestampMethod": "receiveTime"},
             {"value": f"{WRENCH_VIEW}.wrench.force.z", "enabled": True,
@@ -149,7 +173,9 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "direction": "row", "splitPercentage": 50,
         "first": {"direction": "column", "splitPercentage": 30,
                   "first": {"direction": "row", "splitPercentage": 70,
-                            "first": "RawMessages!prompt", "second": "CallService!confirm"},
+                            "first": "RawMessages!prompt",
+                            "second": _column(["CallService!confirm"]
+                                              + [f"CallService!{a}" for a in ACTION_BUTTONS])},
                   "second": {"direction": "column", "splitPercentage": 55,
                              "first": "3D!tactex",
                              "second": {"direction": "row", "first": "Image!touch",
@@ -164,6 +190,14 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                          "second": "DiagnosticStatusPanel!detail"}}}}
     return {"configById": configs, "globalVariables": {}, "userNodes": {},
             "linkedGlobalVariables": [], "playbackConfig": {"speed": 1}, "layout": tree}
+
+
+def _column(panels: list[str]) -> Any:
+    """A column of ``panels``, equal heights (Foxglove's binary mosaic tree)."""
+    if len(panels) == 1:
+        return panels[0]
+    return {"direction": "column", "splitPercentage": round(100 / len(panels), 1),
+            "first": panels[0], "second": _column(panels[1:])}
 
 
 def layout_text(robot: str = "fr3_crisp") -> str:

@@ -3,8 +3,10 @@
 ``Progress`` follows a trial record folder (``touches.jsonl``, ``decisions.jsonl``,
 ``events.jsonl``: the files the explorer fsyncs as it goes) and prints each new line once: a
 press (platform, force [N], press time [s], failed attempts), a decision (round k of the
-rounds cap N, belief per platform, the next platform, the time since the trial's first press
-and an estimate of the rest: the mean round so far times the rounds left, an upper bound as the
+rounds cap N; the answer after the last capped round is "final", never "5/4"), belief per
+platform, the next platform, the time since the trial's first press (the time it was
+interrupted, from its last record line to the resume, left out: ``interrupted_s``) and an
+estimate of the rest: the mean round so far times the rounds left, an upper bound as the
 trial may stop earlier) and how a resume went (learner checkpoint restored, or re-training).
 Touches and decisions a resumed trial had on disk before its interruption are marked
 "replayed": they were pressed before, not now. Until the record folder exists (the nodes are
@@ -64,7 +66,10 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | No
     b = dec.get("belief") or []
     belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b))
     nxt = dec.get("next") or ("done: " + str(dec.get("prediction")) if dec.get("done") else "-")
-    k = f"{dec.get('round')}/{rounds}" if rounds else f"{dec.get('round')}"
+    r = dec.get("round")
+    # the answer given after the last capped round is its own decision: never "5/4"
+    k = (f"{r}/{rounds}" if rounds and isinstance(r, int) and r <= rounds else
+         f"{r} (final, after the rounds cap {rounds})" if rounds else f"{r}")
     text = f"decision {k}: belief {belief} -> next {nxt}"
     if elapsed_s is not None:
         text += f" [{_clock(elapsed_s)} elapsed"
@@ -118,6 +123,8 @@ class Progress:
         self._replayed_decisions = 0
         self._seen_decisions = 0
         self._first: float | None = None     # epoch s of the first press request
+        self._times: list[float] = []        # epoch s of every press and decision seen
+        self._resumes: list[float] = []      # epoch s of each resume of the record
 
     def follow(self, folder: str | Path | None) -> None:
         """Follow another record folder (the next trial of a session)."""
@@ -125,12 +132,18 @@ class Progress:
         if folder != self.folder:
             self.folder, self._offsets, self._ids = folder, {}, []
             self._deciding, self._rounds, self._first = None, None, None
+            self._times, self._resumes = [], []
             self._replayed_touches = self._replayed_decisions = self._seen_decisions = 0
 
     def nodes_up(self) -> None:
         """Every node is up (e.g. a session's placement prompt is out): the start-up line is
         not printed again."""
         self._up = True
+
+    def _interrupted(self, until: float) -> float:
+        """[s] the trial was interrupted (stopped, then resumed) before ``until``: not part
+        of its elapsed time nor of the estimate of the rest."""
+        return interrupted_s(self._times, self._resumes, until)
 
     def _new_lines(self, name: str) -> list[dict]:
         lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
@@ -153,6 +166,8 @@ class Progress:
         printed = False
         for e in self._new_lines("events.jsonl"):
             if e.get("event") == "resumed":
+                if isinstance(e.get("time"), (int, float)):
+                    self._resumes.append(float(e["time"]))
                 self._replayed_touches = int(e.get("after_touch") or 0)
                 self._replayed_decisions = int(e.get("decisions_on_disk") or 0)
                 if e.get("how"):
@@ -161,6 +176,8 @@ class Progress:
         for t in self._new_lines("touches.jsonl"):
             if self._first is None and t.get("requested"):
                 self._first = float(t["requested"])
+            self._times += [float(t[k]) for k in ("requested", "stamp")
+                            if isinstance(t.get(k), (int, float))]
             self.out(press_line(t, int(t.get("seq") or 0) <= self._replayed_touches), "press")
             printed = True
         decisions = self._new_lines("decisions.jsonl")
@@ -168,8 +185,10 @@ class Progress:
             self._seen_decisions += 1
             replayed = self._seen_decisions <= self._replayed_decisions
             elapsed = rest = None
+            if d.get("time"):
+                self._times.append(float(d["time"]))
             if self._first is not None and d.get("time"):
-                elapsed = float(d["time"]) - self._first
+                elapsed = float(d["time"]) - self._first - self._interrupted(float(d["time"]))
                 r = int(d.get("round") or 0)
                 if self._rounds and r > 0:
                     rest = elapsed / (r + 1) * max(0, self._rounds - r)
@@ -187,6 +206,17 @@ class Progress:
             self.out(f"working: {self._waited:.0f} s without a new touch or decision "
                      f"(decisions on disk: {self._deciding - 1})", "info")
             self._since = now
+
+
+def interrupted_s(times: list[float], resumes: list[float], until: float) -> float:
+    """[s] of a record's interruptions before ``until`` (epoch s): for each resume before it,
+    from the last press or decision recorded before the resume (``times``) to the resume."""
+    gap = 0.0
+    for r in resumes:
+        before = [t for t in times if t < r]
+        if r < until and before:
+            gap += r - max(before)
+    return gap
 
 
 def _rounds_cap(folder: Path) -> int | None:

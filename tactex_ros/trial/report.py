@@ -733,7 +733,7 @@ def session_html(folder: str | Path) -> str:
     summ = sess.summary(d)
     started = sess.load_started(d)
     evs = sess.events(d)
-    done = [r for r in summ["trials"] if r["done"]]
+    done = [r for r in summ["trials"] if r["done"] and not r.get("skipped")]
     acc = summ["accuracy"]
     k = sum(r["correct"] is True for r in done)
     unsure_n = summ.get("not_sure", 0)
@@ -759,6 +759,12 @@ def session_html(folder: str | Path) -> str:
                                    for k_, v in sorted(set_.items())) or "not recorded"]]
     for e in ends:
         info.append(["interrupted", f"{_esc(_when(e.get('time')))}: {_esc(e.get('reason'))}"])
+    for e in evs:                    # the operator's pause / resume / abort / skip / redo
+        if e.get("event") == "operator":
+            who = _esc(e.get("by")) + (f", {_esc(e['caller'])}" if e.get("caller") else "")
+            info.append(["operator", f"<span class='operator'>{_esc(_when(e.get('time')))}: "
+                                     f"{_esc(e.get('action'))} trial {_esc(e.get('trial'))} "
+                                     f"(by {who})</span>"])
     if summ["done"] < summ["total"]:
         # the last run's --trials while one of them is not done: its interrupted trial first
         asked = (starts[-1].get("trials_asked") if starts else None) or []
@@ -779,6 +785,11 @@ def session_html(folder: str | Path) -> str:
             state = "not started" if not (d / r["record"]).is_dir() else "unfinished"
             rows.append([link, _esc(list(t["placement"].values())[0]), "", "", "", "", "",
                          f"<span class='muted'>{state}</span>"])
+            continue
+        if r.get("skipped"):
+            rows.append([_esc(r["id"]), _esc(list(t["placement"].values())[0]), "",
+                         _esc(r["touches"]), "", "", "skipped by the operator",
+                         "<span class='muted skipped'>skipped</span>"])
             continue
         placement = t["placement"]
         ref_fab = list(placement.values())[0]

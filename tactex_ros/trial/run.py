@@ -261,6 +261,15 @@ class TrialRun:
         self._write_report()
         return out
 
+    def skip(self, by: dict[str, Any]) -> dict:
+        """The operator skipped the trial: its result says so (``skipped``, no answer; ``by``:
+        who asked), its presses so far stay in the record."""
+        self.result = {"skipped": True, "trial_id": self.trial_id, "prediction": None,
+                       "stop_reason": "skipped", "touches": self.record.n_touches,
+                       "record": str(self.record.dir), "seed": self.spec.seed, **by}
+        self.record.finish(self.result)
+        return self.result
+
     def fail(self, exc: BaseException) -> dict:
         """The trial ended in ``exc``: the error is its recorded result."""
         self.result = {"error": f"{type(exc).__name__}: {exc}", "trial_id": self.trial_id}

@@ -347,7 +347,7 @@ def finish_session(session_dir: str | Path, result: dict[str, Any]) -> Path:
 def summary(session_dir: str | Path) -> dict[str, Any]:
     """Per-trial outcome of a session folder (done trials only) and its accuracy. A trial
     that ended not sure (``report.not_sure``: out of rounds or touches below its stop
-    confidence) is counted apart (``not_sure``; its row's ``correct`` None,
+    confidence) or was skipped by the operator (``skipped``) is counted apart (``not_sure``; its row's ``correct`` None,
     ``guess_correct`` whether its best guess was right) and never as correct: accuracy is
     the sure, right answers over the trials done."""
     from .record import result_not_sure
@@ -360,6 +360,13 @@ def summary(session_dir: str | Path) -> dict[str, Any]:
         if res is None or "error" in res:
             rows.append({"id": t["id"], "record": name, "done": False})
             continue
+        if res.get("skipped"):       # done (the session goes on) without an answer
+            rows.append({"id": t["id"], "record": name, "done": True, "skipped": True,
+                         "prediction": None, "truth": t["truth"], "correct": None,
+                         "not_sure": False, "guess_correct": None,
+                         "touches": res.get("touches"), "stop_reason": "skipped",
+                         "seed": t["seed"], "elapsed_s": None, "placement": t["placement"]})
+            continue
         pred = res.get("prediction")
         unsure = result_not_sure(d / name, res)
         rows.append({"id": t["id"], "record": name, "done": True, "prediction": pred,
@@ -369,6 +376,18 @@ def summary(session_dir: str | Path) -> dict[str, Any]:
                      "seed": t["seed"], "elapsed_s": res.get("elapsed_s"),
                      "placement": t["placement"]})
     done = [r for r in rows if r["done"]]
-    acc = sum(r["correct"] is True for r in done) / len(done) if done else None
+    answered = [r for r in done if not r.get("skipped")]
+    acc = sum(r["correct"] is True for r in answered) / len(answered) if answered else None
     return {"name": started["name"], "trials": rows, "done": len(done), "total": len(rows),
-            "accuracy": acc, "not_sure": sum(r["not_sure"] for r in done)}
+            "accuracy": acc, "not_sure": sum(r["not_sure"] for r in done),
+            "skipped": len(done) - len(answered)}
+
+
+def accuracy_text(summ: dict[str, Any]) -> str:
+    """A summary's accuracy as the terminal shows it: ``0.667`` (``n/a`` when no trial was
+    answered), with its not-sure and skipped counts when there are any."""
+    acc = summ.get("accuracy")
+    text = "n/a" if acc is None else f"{acc:.3f}"
+    extra = [f"{summ[k]} {k.replace('_', ' ')}" for k in ("not_sure", "skipped")
+             if summ.get(k)]
+    return text + (f" ({', '.join(extra)})" if extra else "")

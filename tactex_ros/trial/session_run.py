@@ -14,6 +14,7 @@ finished trials are skipped, an interrupted trial resumes at the touch where it 
 from __future__ import annotations
 
 import logging
+import os
 import time
 from pathlib import Path
 from typing import Any, Callable, Protocol
@@ -54,11 +55,34 @@ def trial_done_text(event: dict) -> str:
     stop confidence, never "correct"; else correct or wrong."""
     head = (f"trial {event.get('trial')}: {event.get('prediction')} after "
             f"{event.get('touches')} touches")
+    if event.get("skipped"):
+        return f"trial {event.get('trial')}: skipped after {event.get('touches')} touches"
     if event.get("not_sure"):
         b = event.get("confidence")
         return head + ", not sure" + (f" (belief {b:.2f})" if isinstance(b, float) else "")
     return (head + f" ({event.get('stop_reason')}); "
             + ("correct" if event.get("correct") else "wrong"))
+
+
+def progress_text(summ: dict, asked: list[str] | None, current: str) -> str:
+    """Where a session stands as the operator reads it: ``trial k of n in this run`` (``asked``:
+    this run's trial ids, None: every trial) and the time left, from the MEASURED times of the
+    trials done (their ``elapsed_s``, pauses left out) times the trials left, current one
+    included; ``summ``: ``session.summary``."""
+    rows = summ["trials"]
+    mine = [r for r in rows if asked is None or r["id"] in asked]
+    ids = [r["id"] for r in mine]
+    k = ids.index(current) + 1 if current in ids else 0
+    left = sum(1 for r in mine if not r["done"])
+    times = [float(r["elapsed_s"]) for r in rows if r["done"]
+             and isinstance(r.get("elapsed_s"), (int, float))]
+    text = f"trial {current}: {k} of {len(mine)} in this run"
+    if times:
+        per = sum(times) / len(times)
+        s = int(round(per * left))
+        text += (f"; about {s // 60}:{s % 60:02d} left ({left} trial(s) at {per:.0f} s, "
+                 f"the mean of {len(times)} done)")
+    return text
 
 
 class SessionRun:
@@ -154,9 +178,22 @@ class SessionRun:
                                        "trial": trial.id, "time": time.time()})
                     return 1
                 operator.place(trial)
-                res = run_trial(trial, str(d / trial.record_name) if state == "started"
-                                else None)
+                resume = str(d / trial.record_name) if state == "started" else None
+                while True:
+                    res = run_trial(trial, resume)
+                    if res is None or res.get("operator") != "redo":
+                        break
+                    self.supersede(trial, res)     # the trial starts again, same placement
+                    resume = None
                 if res is None:          # the process is being stopped: the trial stays resumable
+                    return 0
+                if res.get("operator") == "abort":   # resumable: every press is on disk
+                    why = f"trial {trial.id} aborted by the operator ({res.get('by')})"
+                    self.log(logging.INFO, f"session ended: {why}")
+                    sess.add_event(d, {"event": "session_ended", "reason": why,
+                                       "trial": trial.id, "aborted": True,
+                                       "by": res.get("by"), "caller": res.get("caller"),
+                                       "time": time.time()})
                     return 0
                 if "error" in res:
                     sess.add_event(d, {"event": "session_ended", "trial": trial.id,
@@ -166,6 +203,7 @@ class SessionRun:
                 self._learn(trial)
                 from .record import result_not_sure
                 sess.add_event(d, {"event": "trial_done", "trial": trial.id,
+                                   "skipped": bool(res.get("skipped")),
                                    "prediction": res.get("prediction"),
                                    "correct": res.get("correct"), "touches": res.get("touches"),
                                    "stop_reason": res.get("stop_reason"),
@@ -185,7 +223,7 @@ class SessionRun:
             sess.add_event(d, {"event": "session_done", "accuracy": out["accuracy"],
                                "time": time.time()})
             self.log(logging.INFO, f"session {self.session.name}: {out['done']} trials, "
-                                   f"accuracy {out['accuracy']:.3f}; folder {d}")
+                                   f"accuracy {sess.accuracy_text(out)}; folder {d}")
             return 0
         except Exception as exc:  # the session must end in an explicit, recorded state
             if stopping():
@@ -197,6 +235,21 @@ class SessionRun:
             except TrialError as why:   # a full disk may refuse the event too
                 self.log(logging.ERROR, f"session end not recorded: {why}")
             return 1
+
+    def supersede(self, trial: sess.SessionTrial, why: dict) -> Path:
+        """A redo: the trial's record folder becomes ``<record>.superseded.<k>`` (its presses
+        kept, marked in its events and the session's); the trial then starts afresh."""
+        from .record import append_event
+        d = self.dir
+        k = 1 + sum(1 for _ in d.glob(trial.record_name + ".superseded.*"))
+        old = d / f"{trial.record_name}.superseded.{k}"
+        event = {"event": "superseded", "trial": trial.id, "record": old.name,
+                 "by": why.get("by"), "caller": why.get("caller"), "time": time.time()}
+        append_event(d / trial.record_name, event)
+        os.replace(d / trial.record_name, old)
+        sess.add_event(d, event)
+        self.log(logging.INFO, f"trial {trial.id}: redone; its presses so far kept in {old}")
+        return old
 
     def _learn(self, trial: sess.SessionTrial) -> None:
         """A finished trial's presses join the fabric library (background; its placement is

@@ -9,6 +9,10 @@ operator what to place where and confirms through the explorer's ``~/confirm_by`
 ``confirm='yes'`` (scripted), after Enter on a terminal with ``confirm='key'``, or never
 (``'none'``: someone else calls ``~/confirm``). A confirmation from elsewhere (Foxglove's
 button, ``ros2 service call``) is shown as such and the terminal stops asking for Enter.
+Once every node is active (each one's ``get_state``), one ``ready`` line says so. With
+``confirm='key'`` a line with one of ``trial.control.KEYS`` (``p`` pause, ``r`` resume,
+``a`` abort, ``s`` skip, ``d`` redo, then Enter) asks the explorer's ``~/<action>_by`` for
+it, recorded as by ``key``; every operator action, wherever it came from, is shown.
 """
 
 from __future__ import annotations
@@ -68,25 +72,34 @@ class Confirmer:
 
             import rclpy
             from rclpy.signals import SignalHandlerOptions
-            from tactex.srv import Confirm
             os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
             self._ctx = rclpy.Context()
             kw = {} if self.domain_id is None else {"domain_id": self.domain_id}
             rclpy.init(context=self._ctx, signal_handler_options=SignalHandlerOptions.NO, **kw)
             self._node = rclpy.create_node("tactex_operator", context=self._ctx)
-            self._client = self._node.create_client(Confirm, self.service)
+            self._clients: dict = {}
         return self._node
 
-    def confirm(self, by: str) -> tuple[bool, str]:
-        """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter``); (False,
-        why) on a deadline."""
+    def _client(self, service: str):
+        """The client of ``service`` (made once)."""
+        if service not in self._clients:
+            from tactex.srv import Confirm
+            self._clients[service] = self._ensure().create_client(Confirm, service)
+        return self._clients[service]
+
+    def confirm(self, by: str, service: str | None = None) -> tuple[bool, str]:
+        """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter`` | ``key``)
+        to ``service`` (a ``tactex/srv/Confirm`` service; default: the confirm service);
+        (False, why) on a deadline."""
         from rclpy.executors import SingleThreadedExecutor
         from tactex.srv import Confirm
         with self._lock:
             node = self._ensure()
-            if not self._client.wait_for_service(timeout_sec=self.timeout_s):
-                return False, f"service {self.service} not available within {self.timeout_s} s"
-            fut = self._client.call_async(Confirm.Request(by=by, caller=self.caller))
+            name = service or self.service
+            client = self._client(name)
+            if not client.wait_for_service(timeout_sec=self.timeout_s):
+                return False, f"service {name} not available within {self.timeout_s} s"
+            fut = client.call_async(Confirm.Request(by=by, caller=self.caller))
             ex = SingleThreadedExecutor(context=self._ctx)
             ex.add_node(node)
             try:
@@ -95,9 +108,38 @@ class Confirmer:
                 ex.remove_node(node)
                 ex.shutdown()
             if not fut.done():
-                return False, f"no answer from {self.service} within {self.timeout_s} s"
+                return False, f"no answer from {name} within {self.timeout_s} s"
             r = fut.result()
             return bool(r.success), str(r.message)
+
+    def states(self, names: list[str], timeout_s: float = 2.0) -> dict[str, str]:
+        """Each node's lifecycle state label (``/<name>/get_state``,
+        ``lifecycle_msgs/srv/GetState``): 'active', 'inactive', ...; '' when it did not
+        answer within ``timeout_s`` [s]."""
+        from lifecycle_msgs.srv import GetState
+        from rclpy.executors import SingleThreadedExecutor
+        out: dict[str, str] = {}
+        with self._lock:
+            node = self._ensure()
+            for name in names:
+                key = f"/{name}/get_state"
+                if key not in self._clients:
+                    self._clients[key] = node.create_client(GetState, key)
+                cli = self._clients[key]
+                out[name] = ""
+                if not cli.wait_for_service(timeout_sec=timeout_s):
+                    continue
+                fut = cli.call_async(GetState.Request())
+                ex = SingleThreadedExecutor(context=self._ctx)
+                ex.add_node(node)
+                try:
+                    ex.spin_until_future_complete(fut, timeout_sec=timeout_s)
+                finally:
+                    ex.remove_node(node)
+                    ex.shutdown()
+                if fut.done() and fut.result() is not None:
+                    out[name] = str(fut.result().current_state.label)
+        return out
 
     def close(self) -> None:
         if self._node is not None:
@@ -124,6 +166,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
     from ...trial import session as sess
     from ...trial.progress import Progress, console_printer, tail_jsonl
+    from ...trial.control import KEYS
     from ...trial.session_run import trial_done_text
     if confirm not in ("yes", "key", "none"):
         raise InputError(f"confirm {confirm!r}: use yes, key or none")
@@ -146,14 +189,37 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     waiting_key: threading.Thread | None = None
     awaited: list[str] = []          # the trial whose placement is awaited now (0 or 1)
 
+    ready = threading.Event()            # every node active: said once
+    over = threading.Event()             # the session ended: the watch stops
+
+    def watch_ready() -> None:     # one "ready" line once every node is active
+        names = [n.name for n in nodes]
+        end = time.monotonic() + timeout_s
+        while not over.is_set() and time.monotonic() < end:
+            states = confirmer.states(names)
+            if all(v == "active" for v in states.values()):
+                ready.set()
+                progress.nodes_up()
+                out(f"ready: every node is active ({', '.join(names)}), "
+                    f"{time.monotonic() - t_run:.0f} s after the start", "info")
+                return
+            over.wait(0.5)
+
     def on_key() -> None:    # one reader for the whole session: Enter confirms what is awaited
         nonlocal n_confirmed
         while True:
             try:
-                if not sys.stdin.readline():
+                line = sys.stdin.readline()
+                if not line:
                     return
             except (OSError, ValueError):
                 return
+            action = KEYS.get(line.strip().lower()[:1])
+            if action is not None:     # an operator action on the running trial
+                ok, msg = confirmer.confirm("key", f"/{ex.name}/{action}_by")
+                if not ok:
+                    out(f"{action} refused: {msg}", "info")
+                continue
             if not awaited:
                 continue          # confirmed from elsewhere already: nothing to do
             ok, msg = confirmer.confirm("enter")
@@ -185,6 +251,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                     out("press Enter once the fabrics are in place (or confirm in Foxglove / "
                         f"ros2 service call /{ex.name}/confirm std_srvs/srv/Trigger)",
                         "prompt")
+                    out("during the trial: " + ", ".join(f"{k} {a}" for k, a in KEYS.items())
+                        + " (the letter, then Enter)", "prompt")
                     if waiting_key is None or not waiting_key.is_alive():
                         waiting_key = threading.Thread(target=on_key, daemon=True)
                         waiting_key.start()
@@ -195,6 +263,12 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 awaited.clear()
                 out(f"trial {e['trial']}: placement confirmed by {e.get('by')}"
                     + (f" ({e['caller']})" if e.get("caller") else ""), "info")
+            elif kind == "operator":
+                out(f"trial {e.get('trial')}: {e.get('action')} by {e.get('by')}"
+                    + (f" ({e['caller']})" if e.get("caller") else ""), "info")
+            elif kind == "superseded":
+                out(f"trial {e.get('trial')}: starts again; its presses so far kept in "
+                    f"{e.get('record')}", "info")
             elif kind == "trial_started":
                 progress.follow(d / sess.record_name(e["trial"]))
             elif kind == "trial_done":
@@ -229,10 +303,14 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     def deadline(elapsed: float) -> str | None:
         return f"session not finished within {timeout_s:g} s" if elapsed > timeout_s else None
 
+    watcher = threading.Thread(target=watch_ready, name="ready", daemon=True)
+    watcher.start()
     try:
         run = supervise(nodes, log_dir, domain_id, "session", ended, deadline, poll=poll,
                         on_start=on_start, poll_s=poll_s)
     finally:
+        over.set()
+        watcher.join(timeout=10.0)     # a state query under way ends within its deadline
         confirmer.close()
     failure, exits = run.failure, run.exits
     if failure is not None and d.is_dir():

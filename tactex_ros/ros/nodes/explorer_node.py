@@ -45,6 +45,7 @@ from ...core.touch import Touch
 from ..settings import MARKER_TOPIC, STATE_TOPIC, ExplorerSettings
 from ..bag import TOUCH_TOPIC
 from ...trial import session as sess
+from ...trial.control import OperatorStop
 from ...trial.run import TouchInterrupted, TrialRun
 from ...trial.session_run import SessionRun, trial_outcome
 from ...robot.scene import load_scene
@@ -268,9 +269,13 @@ class ExplorerNode(TactexNode):
             values.update(session=self.session.session.name, **{"trials done": done,
                                                                  "trials": n})
             waiting = self.operator.awaiting
+            paused = self.operator.control.paused
+            values["operator"] = "paused" if paused else ""
             msg = (f"session {done}/{n} trials done"
                    + (f"; waiting for the operator to confirm trial {waiting}" if waiting
-                      else ""))
+                      else "")
+                   + (f"; trial {self.operator.control.trial} paused by the operator"
+                      if paused else ""))
         if "error" in res:
             return ERROR, f"trial failed: {res['error']}", values
         return OK, msg, values
@@ -368,6 +373,8 @@ class ExplorerNode(TactexNode):
         ``TouchFailed(retry=False)``; a press server that is gone, ``PressServerLost``."""
         from tactex.action import Press
         self._wait_running()
+        if self.operator is not None:     # a session: paused, or the trial ends (abort, ...)
+            self.operator.control.gate(self.settings.pause_timeout_s, self._is_stopping)
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta["requested"] = self._now()
@@ -445,8 +452,11 @@ class ExplorerNode(TactexNode):
     def _trial(self, finish_node: bool = True) -> None:
         """Run the open trial to its result (or its error, recorded); ``finish_node``: the
         node's work is over afterwards (one trial; a session runs several)."""
+        self.operator_stop: OperatorStop | None = None
         try:
             self._run_trial()
+        except OperatorStop as stop:      # the session decides (abort, skip, redo)
+            self.operator_stop = stop
         except Exception as exc:  # the trial must end in an explicit result
             if not self.context.ok() or self.record.closed:
                 return   # the node is being stopped (SIGINT/SIGTERM): no result, resumable
@@ -487,7 +497,7 @@ class ExplorerNode(TactexNode):
                               f"server_timeout_s ({s.server_timeout_s} s)")
         st = self.session_trial
         out = self.trial.run(on_decision=self._publish_state, t0=self._t_trial,
-                             extra=None if st is None else lambda r: trial_outcome(st, r))
+                             extra=None if st is None else lambda r: self._outcome(st, r))
         self.result = out
         self.get_logger().info(f"trial {self.trial_id}: reference matches "
                                f"{out['prediction']} after {out['touches']} touches "
@@ -515,17 +525,60 @@ class ExplorerNode(TactexNode):
             log=self._log, library=keeper, only=sess.select_trials(session, s.trials))
         self.session_dir = d
         from .operator import SessionOperator
-        self.operator = SessionOperator(self, s, self._is_stopping)
+        self.operator = SessionOperator(self, s, self._is_stopping, record=self._record_operator)
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
                                f"folder {d}{' (resumed)' if self.session.resumed else ''}")
 
+    def _outcome(self, trial: sess.SessionTrial, result: dict) -> dict:
+        """A session trial's result fields (``trial_outcome``); the time the operator held it
+        paused is not part of its ``elapsed_s`` (kept as ``paused_s``)."""
+        out = trial_outcome(trial, result)
+        paused = self.operator.control.paused_s
+        if paused > 0 and isinstance(result.get("elapsed_s"), float):
+            out.update(elapsed_s=result["elapsed_s"] - paused, paused_s=paused)
+        return out
+
+    def _say_progress(self, trial: sess.SessionTrial) -> None:
+        """Session progress (trial k of n in this run, time left from the measured trial
+        times) on the log and ``progress_topic``."""
+        from std_msgs.msg import String
+        from ...trial.session_run import progress_text
+        text = progress_text(sess.summary(self.session.dir), self.session.only, trial.id)
+        self.get_logger().info(text)
+        self.operator.progress_pub.publish(String(data=text))
+
+    def _record_operator(self, event: dict) -> None:
+        """An operator's request: into the session's events and the running trial's."""
+        sess.add_event(self.session.dir, event)
+        if self.record is not None:
+            from ...trial.record import append_event
+            try:
+                append_event(self.record.dir, event)
+            except TrialError as why:        # the session's events hold it
+                self.get_logger().warning(f"operator event not in the trial's events: {why}")
+
     def _session_trial(self, trial: sess.SessionTrial, resume: str | None) -> dict | None:
-        """One trial of the session, to its result (None: the node is being stopped)."""
+        """One trial of the session, to its result (None: the node is being stopped). Ended
+        by the operator: a skip's result (``skipped``) is recorded; an abort or a redo gives
+        ``{"operator": action, "by": ..., "caller": ...}`` and the record stays resumable."""
         self.session_trial, self.result = trial, None
         self._open_trial(trial.seed, resume, trial.record_name, str(self.session.dir),
                          **self.session.trial_inputs(trial, self.settings.scene_file))
         self.session.trial_started(trial, resume is not None, self.record.n_touches)
-        self._trial(finish_node=False)
+        self.operator.control.start(trial.id)
+        self._say_progress(trial)
+        try:
+            self._trial(finish_node=False)
+        finally:
+            self.operator.control.end()
+        stop = self.operator_stop
+        if stop is not None:
+            said = {"by": stop.by, "caller": stop.caller or None}
+            if stop.action == "skip":
+                self.result = self.trial.skip(said)
+                return self.result
+            self.record.close()           # every press made is on disk
+            return {"operator": stop.action, **said}
         if self.incomplete:              # the session ends: exit status 1, the file named
             raise TrialError(self.incomplete)
         return self.result

@@ -8,6 +8,11 @@ prompt topic (``prompt_topic``, ``std_msgs/String``), and confirms the placement
 confirms at once. In simulation the mock camera's ``placement`` parameter is set through its
 SetParameters service (``placement_service``). The confirmation is published on the prompt
 topic too, so every place that shows the prompt shows it.
+
+The running trial is held through ``~/pause``, ``~/resume``, ``~/abort``, ``~/skip`` and
+``~/redo`` (``std_srvs/srv/Trigger``: recorded as by ``service``) or ``~/<action>_by``
+(``tactex/srv/Confirm``: how and by whom, e.g. ``key`` from the terminal); the requests go to
+``trial.control.OperatorControl`` and are recorded through ``record(event)``.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from typing import Any, Callable
 from ...core.errors import TrialError
 from ...trial import session as sess
 from .. import adapter
-from ..settings import ExplorerSettings
+from ..settings import PROGRESS_TOPIC, ExplorerSettings
 
 
 class SessionOperator:
@@ -29,7 +34,8 @@ class SessionOperator:
     is awaited now (None: none)."""
 
     def __init__(self, node: Any, settings: ExplorerSettings,
-                 stopping: Callable[[], bool]) -> None:
+                 stopping: Callable[[], bool],
+                 record: Callable[[dict], None] | None = None) -> None:
         from rcl_interfaces.srv import SetParameters
         from std_msgs.msg import String
         from std_srvs.srv import Trigger
@@ -42,8 +48,18 @@ class SessionOperator:
         node.create_service(Confirm, "~/confirm_by",
                             lambda req, res: self._on_confirm(res, req.by or "service",
                                                               req.caller))
+        from ...trial.control import ACTIONS, OperatorControl
+        self.control = OperatorControl(record or (lambda event: None))
+        for action in ACTIONS:
+            node.create_service(Trigger, f"~/{action}",
+                                lambda req, res, a=action: self._on_action(res, a, "service"))
+            node.create_service(Confirm, f"~/{action}_by",
+                                lambda req, res, a=action: self._on_action(
+                                    res, a, req.by or "service", req.caller))
         self.prompt_pub = node.create_publisher(String, settings.prompt_topic,
                                                 adapter.latched_qos())
+        self.progress_pub = node.create_publisher(String, PROGRESS_TOPIC,
+                                                  adapter.latched_qos())
         self.placement_client = (node.create_client(SetParameters, settings.placement_service)
                                  if settings.placement_service else None)
 
@@ -56,6 +72,15 @@ class SessionOperator:
         res.success, res.message = True, f"trial {self.awaiting}: placement confirmed"
         self._confirmed_by = (by, caller)
         self._confirmed.set()
+        return res
+
+    def _on_action(self, res: Any, action: str, by: str, caller: str = "") -> Any:
+        """An operator action (service call) on the running trial; refused with the reason
+        when no trial runs or it would change nothing."""
+        res.success, res.message = self.control.request(action, by, caller)
+        self.node.get_logger().info(res.message + (f" (by {by}" + (f", {caller}" if caller
+                                                                   else "") + ")"
+                                                   if res.success else " (refused)"))
         return res
 
     def expect(self, trial_id: str) -> None:
