@@ -120,6 +120,7 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
     assert os.path.getsize(d / sess.RESULT_FILE) > 0
 
 
+@pytest.mark.soak   # 125 s of graph (make test-soak); test_operator_control covers the record side
 def test_an_abort_from_the_terminal_loses_no_press_and_the_session_resumes(
         tmp_path: Path, domain_id, listener, quick_scene: str) -> None:
     """``/explorer/abort_by`` (tactex/srv/Confirm, as the terminal's ``a`` key calls it) in
