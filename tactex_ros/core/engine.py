@@ -57,7 +57,7 @@ import numpy as np
 
 from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_preset  # noqa: F401
 from .errors import InputError, TrialError
-from .evidence import EProcess, EvidenceModel
+from .evidence import EProcess, EvidenceModel, shipped_evidence
 from .guards import ContactGuard
 from .build import make_learner
 from .learners import Learner, TrainStats, can_checkpoint, train_round
@@ -295,13 +295,11 @@ class TrialEngine:
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
         self.eprocess: EProcess | None = None   # stop_rule 'evalue' (core/evidence.py)
         if self.trial_cfg.stop_rule == "evalue":
-            if evidence is None:
-                raise InputError("trial.stop_rule 'evalue' needs an evidence model (the null "
-                                 "fitted on a library: core/evidence.fit_evidence); use "
-                                 "trial.stop_rule=threshold")
             if not hasattr(self.learner, "match"):
                 raise InputError("trial.stop_rule 'evalue' needs model 'descriptor', got "
                                  f"{self.learner_cfg.model!r}")
+            if evidence is None:      # the shipped one, fitted on the simulator's fabrics
+                evidence = shipped_evidence(self.learner_cfg)
             self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha)
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:

@@ -30,8 +30,11 @@ Pure numpy; no torch.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -101,7 +104,10 @@ def fit_evidence(descriptors: dict[str, np.ndarray], max_pairs: int = 20000,
     """Fit ``EvidenceModel`` on a library: ``descriptors`` maps class -> (n_k, D) touches (>= 2
     classes, >= 2 touches in at least one). Pairs of one class give H1, pairs of two classes
     the null; at most ``max_pairs`` of each, drawn with ``seed``. z of a pair is
-    ``||a - b|| / sqrt(2)`` (n = 1)."""
+    ``||a - b|| / sqrt(2)`` (n = 1). Both hypotheses get the larger of the two spreads: the log
+    ratio is then linear and falling in log z (a far touch never speaks for a match), and a
+    true null narrower than the fitted one only makes the bound conservative
+    (E_0[ratio] < 1)."""
     groups = [np.asarray(v, float) for v in descriptors.values()]
     if len(groups) < 2:
         raise InputError(f"evidence model: needs >= 2 classes, got {len(groups)}")
@@ -126,8 +132,9 @@ def fit_evidence(descriptors: dict[str, np.ndarray], max_pairs: int = 20000,
         return np.log(np.maximum(v, _Z_FLOOR))
 
     ls, ld = log_z(same), log_z(diff)
-    return EvidenceModel(mu_same=float(ls.mean()), sd_same=max(float(ls.std()), 1e-3),
-                         mu_diff=float(ld.mean()), sd_diff=max(float(ld.std()), 1e-3))
+    sd = max(float(ls.std()), float(ld.std()), 1e-3)
+    return EvidenceModel(mu_same=float(ls.mean()), sd_same=sd, mu_diff=float(ld.mean()),
+                         sd_diff=sd)
 
 
 class EProcess:
@@ -174,3 +181,36 @@ class EProcess:
         """What the record and the operator see: the bound and the e-values."""
         return {"rule": "evalue", "alpha": self.alpha, "threshold": 1.0 / self.alpha,
                 "evalues": self.evalues.tolist(), "observations": self.observations}
+
+
+#: The shipped evidence model: fitted by ``tactex experiment evidence-sim`` on the simulator's
+#: fabrics only (nothing recorded), for the descriptor space it names.
+SHIPPED_EVIDENCE = Path(__file__).parent / "data" / "evidence_sim.json"
+SPACE_FIELDS = ("descriptor_height_map", "descriptor_frames", "descriptor_embedding",
+                "descriptor_embedding_frames")
+
+
+def descriptor_space(cfg: Any) -> dict[str, Any]:
+    """The settings that decide a descriptor learner's space (what a fitted model needs)."""
+    return {k: getattr(cfg, k) for k in SPACE_FIELDS}
+
+
+def shipped_evidence(cfg: Any, path: Path = SHIPPED_EVIDENCE) -> EvidenceModel:
+    """The shipped evidence model for learner settings ``cfg`` (a descriptor learner without a
+    prepared representation, in the space the file was fitted in); InputError naming what
+    differs otherwise."""
+    if getattr(cfg, "representation", ""):
+        raise InputError("trial.stop_rule 'evalue': the shipped evidence model is of the raw "
+                         "descriptor; with learner.representation set, give a model fitted in "
+                         "its space (TrialSpec.evidence) or use trial.stop_rule=threshold")
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"evidence model file {path}: {exc}") from None
+    want = descriptor_space(cfg)
+    if data.get("space") != want:
+        raise InputError(f"trial.stop_rule 'evalue': the shipped evidence model ({path.name}) "
+                         f"was fitted in the descriptor space {data.get('space')}, these "
+                         f"settings' is {want}; use the shipped descriptor settings or "
+                         "trial.stop_rule=threshold")
+    return EvidenceModel.from_dict(data.get("model", {}), f"evidence model file {path}")

@@ -102,7 +102,7 @@ def test_fit_on_a_library():
     rng = np.random.default_rng(0)
     lib = {f"k{i}": rng.normal(3.0 * i, 0.3, size=(6, 5)) for i in range(4)}
     m = fit_evidence(lib)
-    assert m.mu_same < m.mu_diff and m.sd_same > 0 and m.sd_diff > 0
+    assert m.mu_same < m.mu_diff and m.sd_same == m.sd_diff > 0
     # same-class z of (n, D=5) normal with sigma 0.3: ||a-b||/sqrt2 ~ 0.3 chi_5, log ~ log(0.63)
     assert m.mu_same == pytest.approx(math.log(0.3 * math.sqrt(5)), abs=0.25)
     with pytest.raises(InputError, match="2 classes"):
@@ -148,6 +148,17 @@ def test_evalue_settings_refused_by_name():
         TrialConfig.check({"stop_rule": "bayes"}, "trial")
     with pytest.raises(InputError, match="stop_alpha"):
         TrialConfig.check({"stop_alpha": 0.0}, "trial")
-    with pytest.raises(InputError, match="evidence model"):
-        TrialEngine(3, preset("default", guards=False),
-                    trial_preset("default", stop_rule="evalue"))
+    with pytest.raises(InputError, match="needs model 'descriptor'"):
+        TrialEngine(3, preset("cnn"), trial_preset("cnn", stop_rule="evalue"))
+
+
+def test_shipped_evidence_model_fits_the_default_settings():
+    from tactex_ros.core.evidence import shipped_evidence
+    m = shipped_evidence(preset("default"))
+    assert m.mu_same < m.mu_diff                 # one material's touches are the closer
+    with pytest.raises(InputError, match="descriptor space"):
+        shipped_evidence(preset("descriptor"))   # no embedding: another space
+    # the engine takes it when no model is given
+    eng = TrialEngine(3, preset("default", guards=False),
+                      trial_preset("default", stop_rule="evalue"))
+    assert eng.eprocess is not None and eng.eprocess.model == m
