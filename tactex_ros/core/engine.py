@@ -179,6 +179,8 @@ class RoundRecord:
     #                               (robust to other processes sharing the machine)
     reference_touches: int = 1    # touches of the reference when deciding
     detail: RoundDetail | None = None
+    evalues: list[float] | None = None  # trial.stop_rule 'evalue': every comparison's e-value
+    #                                     at this decision (stop at 1 / stop_alpha)
 
     @property
     def train_s(self) -> float:
@@ -410,7 +412,8 @@ class TrialEngine:
             heldout=list(self._pending_heldout), degenerate=degenerate,
             cpu_s=time.process_time() - c0,
             detail=(None if stats is None
-                    else TrainingDetail.of(stats, getattr(self.learner.cfg, "input_size", 0))))
+                    else TrainingDetail.of(stats, getattr(self.learner.cfg, "input_size", 0))),
+            evalues=None if self.eprocess is None else self.eprocess.evalues.tolist())
         self._pending_heldout = []
         if final:
             self.final = rec

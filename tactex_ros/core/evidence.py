@@ -14,7 +14,8 @@ descriptors (``fit_evidence``: pairs of touches of one class for H1, of two clas
 
 The e-process (``EProcess``): ``E_c`` starts at 1 and is multiplied, touch after touch, by the
 likelihood ratio ``f1(z) / f0(z)`` of every new observation concerning c. Stop rule: name c
-once ``E_c >= 1 / alpha``. Ville's inequality gives ``P_H0(E_c ever >= 1/alpha) <= alpha`` for
+once ``E_c >= 1 / alpha`` and no other comparison's has (two above it: a wrong one broke the
+null, the trial touches on). Ville's inequality gives ``P_H0(E_c ever >= 1/alpha) <= alpha`` for
 each wrong comparison c, at every stopping time (looking after every touch costs nothing)
 PROVIDED THAT
   (1) under H0 each new observation z, given the trial so far, follows f0 (the touches are
@@ -173,9 +174,10 @@ class EProcess:
             self.observe(platform - 1, normalised_distance(x, samples[0]))
 
     def sure(self) -> int | None:
-        """The comparison (0..C-1) whose e-value reached 1 / alpha (the largest), else None."""
-        best = int(np.argmax(self.log_e))
-        return best if self.log_e[best] >= math.log(1.0 / self.alpha) else None
+        """The comparison (0..C-1) whose e-value reached 1 / alpha, else None; None too while
+        two or more have (a wrong one then already broke the null model: touch on)."""
+        above = np.flatnonzero(self.log_e >= math.log(1.0 / self.alpha))
+        return int(above[0]) if len(above) == 1 else None
 
     def state(self) -> dict:
         """What the record and the operator see: the bound and the e-values."""

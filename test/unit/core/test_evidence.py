@@ -162,3 +162,39 @@ def test_shipped_evidence_model_fits_the_default_settings():
     eng = TrialEngine(3, preset("default", guards=False),
                       trial_preset("default", stop_rule="evalue"))
     assert eng.eprocess is not None and eng.eprocess.model == m
+
+
+def test_two_evalues_above_the_bound_are_not_sure():
+    e = EProcess(3, UNIT, alpha=0.2)
+    for c in (0, 2):
+        e.observe(c, 1.0 / math.sqrt(2.0))
+        e.observe(c, 1.0 / math.sqrt(2.0))        # both at 2e >= 5
+    assert e.sure() is None
+    e.observe(2, math.e ** 3)                     # log ratio -2.5: c3 falls to 2e e^-2.5 < 5
+    assert e.sure() == 0
+
+
+@pytest.mark.parametrize("setting, named", [
+    ("trial.stop_rule=bayes", "'threshold' or 'evalue'"),
+    ("trial.stop_alpha=0.7", "stop_alpha"),
+    ("trial.stop_alpha=0", "stop_alpha"),
+])
+def test_cli_refuses_bad_stop_settings(setting: str, named: str, capsys, tmp_path) -> None:
+    from tactex_ros.cli.main import main
+    assert main(["trial", "--source", "sim", "--set", setting,
+                 "--record-dir", str(tmp_path)]) == 2
+    assert named in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())            # refused before anything ran
+
+
+def test_cli_evalue_trial_records_the_bound(capsys, tmp_path) -> None:
+    import json
+
+    from tactex_ros.cli.main import main
+    assert main(["trial", "--source", "sim", "--comparisons", "3", "--seed", "3", "--set",
+                 "trial.stop_rule=evalue", "--record-dir", str(tmp_path), "--quiet"]) == 0
+    (res,) = [json.loads(p.read_text()) for p in tmp_path.glob("*/result.json")]
+    b = res["bound"]
+    assert b["rule"] == "evalue" and b["alpha"] == 0.03 and len(b["evalues"]) == 3
+    assert res["sure"] == (sum(e >= b["threshold"] for e in b["evalues"]) == 1)
+    assert all(r["evalues"] is not None for r in res["rounds"] + [res["final"]])
