@@ -198,3 +198,7 @@ def test_cli_evalue_trial_records_the_bound(capsys, tmp_path) -> None:
     assert b["rule"] == "evalue" and b["alpha"] == 0.03 and len(b["evalues"]) == 3
     assert res["sure"] == (sum(e >= b["threshold"] for e in b["evalues"]) == 1)
     assert all(r["evalues"] is not None for r in res["rounds"] + [res["final"]])
+    from tactex_ros.trial.report import write_trial_report
+    (folder,) = [p.parent for p in tmp_path.glob("*/result.json")]
+    html = write_trial_report(folder).read_text()
+    assert "id='stop-bound'" in html and f"{max(b['evalues']):.3g}" in html
