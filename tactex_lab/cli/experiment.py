@@ -13,7 +13,7 @@ from tactex_ros.cli.options import builds
 
 MODULES: list[str] = ["classify", "explore", "humans", "pareto", "stability", "saliency",
                       "real_sessions", "unseen", "real", "accuracy_charts", "stability_real",
-                      "ladder", "fabric_library", "families", "sim_embedding",
+                      "ladder", "fabric_library", "families", "sim_embedding", "evidence_sim", "stop_rules",
                       "embedding_search"]
 
 

@@ -170,6 +170,13 @@ def belief_curves(scenes: list[list[str]], settings: list[tuple], source: str, s
     out: dict[str, list[BeliefCurve]] = {s[0]: [] for s in settings}
     for r in res:
         out[r.job.tags["setting"]].append(curve(r.decisions, r.truth, r.error, r.classes))
+    empty = [c for cs in out.values() for c in cs if not c.extra]
+    if empty:          # no decision to score: refused presses, not a figure (IndexError before)
+        why = sorted({c.error or "no decision" for c in empty})
+        raise InputError(f"{source}: {len(empty)} of {len(res)} trials ended before their "
+                         f"first decision, so they cannot be scored (e.g. every press of a "
+                         f"class refused); scenes {[list(c.classes or ()) for c in empty][:3]}"
+                         f": {'; '.join(why[:3])}")
     return out
 
 

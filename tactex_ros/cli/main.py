@@ -135,7 +135,10 @@ def cmd_trial(args: argparse.Namespace) -> int:
     def progress(rec, line) -> None:
         if not args.quiet:
             nxt = ids[rec.platform] if rec.platform is not None else "-"
-            print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}  next={nxt}  "
+            ev = ("" if rec.evalues is None else
+                  f"  E={[float(f'{e:.3g}') for e in rec.evalues]} (stop at "
+                  f"{1 / tcfg.stop_alpha:g}, alpha {tcfg.stop_alpha:g})")
+            print(f"round {rec.round:3d}  p={np.round(rec.probs, 2).tolist()}{ev}  next={nxt}  "
                   f"decision {rec.decision_s:.2f}s", file=sys.stderr)
 
     def outcome(out: dict) -> dict:
@@ -166,9 +169,17 @@ def cmd_trial(args: argparse.Namespace) -> int:
     write_json(args.json, out)
     pred = ids.index(out["prediction"])
     verdict = "correct" if out["correct"] else "wrong"
-    if out["sure"] is False:
+    bound = out.get("bound") or {}
+    if out["sure"] is False and bound.get("rule") == "evalue":
+        print(f"not sure: no e-value reached {bound['threshold']:g} (largest "
+              f"{max(bound['evalues']):.3g}, alpha {bound['alpha']:g}); best guess {ids[pred]} "
+              f"({platform_classes[pred]})")
+    elif out["sure"] is False:
         print(f"not sure: the belief ended at {out['confidence']:.2f} < "
               f"{tcfg.stop_confidence:g}; best guess {ids[pred]} ({platform_classes[pred]})")
+    elif bound.get("rule") == "evalue":
+        print(f"sure: e-value {max(bound['evalues']):.3g} >= {bound['threshold']:g} (P(ever "
+              f"stopping wrong) <= {bound['alpha']:g} under the evidence model)")
     print(f"reference ({platform_classes[0]}) matches {ids[pred]} "
           f"({platform_classes[pred]}); truth {ids[truth]}: {verdict}; "
           f"{out['touches']} touches; stopped: {out['stop_reason']}; record {run.dir}")

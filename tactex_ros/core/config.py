@@ -320,6 +320,14 @@ class TrialConfig(Schema):
              "means' separation (core/match.py: squared distance over its sampling spread per "
              "dimension, 1 = as alike as repeated touches of one platform) above this; a trial "
              "whose budget ends below it ends not sure (0 = off; descriptor models)", 0.0, 1e6)
+    stop_rule: Literal["threshold", "evalue"] = param(
+        "threshold", "threshold (stop at belief stop_confidence) or evalue (stop when one "
+                     "comparison's likelihood-ratio e-value reaches 1 / stop_alpha: P(ever "
+                     "stopping wrong) <= stop_alpha under the evidence model, core/evidence.py;"
+                     " descriptor models)")
+    stop_alpha: float = param(0.03, "stop_rule evalue: the bound on the chance of ever "
+                                    "stopping wrong (stop at e-value 1 / stop_alpha)",
+                              1e-6, 0.5)
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)

@@ -97,14 +97,18 @@ def burst_indices(scores: np.ndarray, count: int) -> list[int]:
 
 
 def to_sensor_frame(img: np.ndarray) -> np.ndarray:
-    """An (H, W, 3) uint8 frame at least as large as the sensor's -> (240, 320, 3): centre-crop
-    to 4:3, then shrink. A smaller frame is refused (InputError): up-scaling would invent
-    the texture the classifier judges."""
+    """An (H, W, 3) uint8 frame -> (240, 320, 3): a portrait frame (H > W, e.g. another
+    GelSight's 300 x 400) is first turned a quarter clockwise to landscape; then centre-crop to
+    4:3 and shrink. A frame still smaller than the sensor's is refused (InputError): up-scaling
+    would invent the texture the classifier judges."""
     h, w = img.shape[:2]
     if (h, w) == (FRAME_H, FRAME_W):
         return img
+    if h > w:                                   # portrait: the sensor's long side is W
+        img = cv2.rotate(img, cv2.ROTATE_90_CLOCKWISE)   # as the sensor node's ``landscape``
+        h, w = w, h
     if h < FRAME_H or w < FRAME_W:
-        raise InputError(f"frame of {w}x{h} px is smaller than the sensor frame "
+        raise InputError(f"frame of {w}x{h} px (landscape) is smaller than the sensor frame "
                           f"{FRAME_W}x{FRAME_H} px (not up-scaled)")
     target = FRAME_W / FRAME_H
     if w / h > target:

@@ -57,6 +57,7 @@ import numpy as np
 
 from .config import DescriptorSettings, LearnerSettings, TrialConfig, trial_preset  # noqa: F401
 from .errors import InputError, TrialError
+from .evidence import EProcess, EvidenceModel, shipped_evidence
 from .guards import ContactGuard
 from .build import make_learner
 from .learners import Learner, TrainStats, can_checkpoint, train_round
@@ -178,6 +179,8 @@ class RoundRecord:
     #                               (robust to other processes sharing the machine)
     reference_touches: int = 1    # touches of the reference when deciding
     detail: RoundDetail | None = None
+    evalues: list[float] | None = None  # trial.stop_rule 'evalue': every comparison's e-value
+    #                                     at this decision (stop at 1 / stop_alpha)
 
     @property
     def train_s(self) -> float:
@@ -213,6 +216,8 @@ class TrialOutcome:
     #                               unsure, ``prediction`` is only the best guess; None: no stop
     #                               rule, nothing to be sure against)
     notes: list[str] = field(default_factory=list)  # model 'auto': ladder rungs skipped, why
+    bound: dict = field(default_factory=dict)  # the stop's promise (TrialEngine.stop_bound):
+    #                               the threshold, or alpha and the final e-values
 
     @property
     def confidence(self) -> float:
@@ -243,7 +248,7 @@ class TrialOutcome:
             "sure": self.sure, "confidence": self.confidence,
             "reference_touches": self.reference_touches,
             "models": sorted({r.model_label for r in self.rounds + [self.final]}),
-            "notes": list(self.notes),
+            "notes": list(self.notes), "bound": dict(self.bound),
             "escalations": [{"round": r.round, "reason": r.detail.escalation,
                              "model": r.model_label}
                             for r in self.rounds + [self.final]
@@ -256,7 +261,8 @@ class TrialEngine:
 
     def __init__(self, n_comparisons: int, learner_cfg: LearnerSettings,
                  trial_cfg: TrialConfig | None = None, seed: int = 0,
-                 platform_ids: list[str] | None = None) -> None:
+                 platform_ids: list[str] | None = None,
+                 evidence: EvidenceModel | None = None) -> None:
         if n_comparisons < 2:
             raise InputError(f"comparisons must be >= 2, got {n_comparisons}")
         self.C = n_comparisons
@@ -289,6 +295,14 @@ class TrialEngine:
         self._pending_heldout: list[bool] = []             # since the last decision
         self._separated = True           # the last decision's "not sure" rule (separated)
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
+        self.eprocess: EProcess | None = None   # stop_rule 'evalue' (core/evidence.py)
+        if self.trial_cfg.stop_rule == "evalue":
+            if not hasattr(self.learner, "match"):
+                raise InputError("trial.stop_rule 'evalue' needs model 'descriptor', got "
+                                 f"{self.learner_cfg.model!r}")
+            if evidence is None:      # the shipped one, fitted on the simulator's fabrics
+                evidence = shipped_evidence(self.learner_cfg)
+            self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha)
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
         """A no-contact frame of this sensor session: enables the guard's contact test."""
@@ -326,15 +340,31 @@ class TrialEngine:
             ok, reason, touch = self.guard.inspect(replace(touch, frame=frame))
             if not ok:
                 raise TouchRejected(f"touch of {self.platform_ids[platform]} rejected: {reason}")
+        before = self._samples_before()
         if platform == 0:
             self.learner.add_reference(touch)
             self.reference_touches += 1
+            self._observe(platform, before)
         else:
             x = self.learner.add_touch(touch, platform - 1)
+            self._observe(platform, before)
             self.touches[platform - 1] += 1
             if self.records or self.final is not None:   # after the first decision
                 p = self.learner.heldout_proba(x)
                 self._pending_heldout.append(bool(int(np.argmax(p)) == platform - 1))
+
+    def _samples_before(self) -> list[list[np.ndarray]] | None:
+        """stop_rule 'evalue': the descriptors of every platform's touches so far (copies)."""
+        if self.eprocess is None:
+            return None
+        return [list(s) for s in self.learner.match.samples_by_platform]  # type: ignore[attr-defined]
+
+    def _observe(self, platform: int, before: list[list[np.ndarray]] | None) -> None:
+        """stop_rule 'evalue': the new touch's evidence into the e-process."""
+        if self.eprocess is None or before is None:
+            return
+        x = self.learner.match.samples_by_platform[platform][-1]  # type: ignore[attr-defined]
+        self.eprocess.add_touch(platform, x, before)
 
     def record_failure(self, platform: int, reason: str) -> None:
         self.failed.append({"platform": self.platform_ids[platform], "reason": reason,
@@ -382,7 +412,8 @@ class TrialEngine:
             heldout=list(self._pending_heldout), degenerate=degenerate,
             cpu_s=time.process_time() - c0,
             detail=(None if stats is None
-                    else TrainingDetail.of(stats, getattr(self.learner.cfg, "input_size", 0))))
+                    else TrainingDetail.of(stats, getattr(self.learner.cfg, "input_size", 0))),
+            evalues=None if self.eprocess is None else self.eprocess.evalues.tolist())
         self._pending_heldout = []
         if final:
             self.final = rec
@@ -394,6 +425,9 @@ class TrialEngine:
 
     def _stop_reason(self, belief: np.ndarray) -> str | None:
         """Why the trial ends at this decision, or None to go on."""
+        if self.eprocess is not None:      # e-value rule: sure at E_c >= 1 / alpha
+            return stop_reason(1.0 if self.eprocess.sure() is not None else 0.0, 1.0,
+                               len(self.records), self.trial_cfg.rounds, self._budget_left())
         return stop_reason(float(belief.max()), self.trial_cfg.stop_confidence,
                            len(self.records), self.trial_cfg.rounds, self._budget_left(),
                            self._separated)
@@ -404,20 +438,33 @@ class TrialEngine:
         without a stop rule.) An unsure end gives the best guess and its belief, not an
         answer."""
         th = self.trial_cfg.stop_confidence
+        if self.final is not None and self.eprocess is not None:
+            return self.eprocess.sure() is not None
         if self.final is None or th <= 0:
             return None
         return self._separated and confident(float(max(self.final.probs)), th)
+
+    def stop_bound(self) -> dict:
+        """What the stop promises: ``{"rule": "threshold", "stop_confidence": theta}`` or the
+        e-process's state (alpha, 1 / alpha, the e-values; ``EProcess.state``)."""
+        if self.eprocess is not None:
+            return self.eprocess.state()
+        return {"rule": "threshold", "stop_confidence": self.trial_cfg.stop_confidence}
 
     def result(self, truth: int | None = None) -> TrialOutcome:
         if self.final is None:
             raise TrialError("trial not finished")
         pred = int(np.argmax(self.final.probs)) + 1
+        named = self.eprocess.sure() if self.eprocess is not None else None
+        if named is not None:
+            pred = named + 1                  # the comparison whose e-value reached 1 / alpha
         return TrialOutcome(prediction=pred, truth=truth, touches=self.total_touches,
                            rounds=list(self.records), final=self.final,
                            failed_touches=list(self.failed), platform_ids=self.platform_ids,
                            stop_reason=self.stop_reason,
                            reference_touches=self.reference_touches, sure=self.sure,
-                           notes=list(getattr(self.learner, "notes", [])))
+                           notes=list(getattr(self.learner, "notes", [])),
+                           bound=self.stop_bound())
 
     # ------------------------------------------------------------------ checkpoint
     def checkpoint(self) -> tuple[dict, bytes] | None:
@@ -629,6 +676,8 @@ class TrialSpec:
     library: "FabricLibrary | None" = None
     representation: "Representation | None" = None
     temperature: float | None = None
+    evidence: EvidenceModel | None = None   # trial.stop_rule 'evalue': its fitted null and
+    #                                         alternative (core/evidence.py)
 
     def engine(self) -> TrialEngine:
         """The trial's engine, ready for its first touch (the one place one is built). A
@@ -636,7 +685,8 @@ class TrialSpec:
         ``fabric_library`` on; ``representation`` / ``temperature`` need a descriptor learner
         (InputError otherwise)."""
         eng = TrialEngine(self.comparisons, self.learner, self.trial, seed=self.seed,
-                          platform_ids=list(self.platform_ids) if self.platform_ids else None)
+                          platform_ids=list(self.platform_ids) if self.platform_ids else None,
+                          evidence=self.evidence)
         if self.representation is not None or self.temperature is not None:
             if not hasattr(eng.learner, "use_representation"):
                 raise InputError("TrialSpec.representation / temperature need model "

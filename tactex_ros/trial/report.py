@@ -582,6 +582,13 @@ def trial_html(folder: str | Path) -> str:
                      f"id='prediction'>{_esc(pred)}</b>{fab}: {sure}belief "
                      f"{_fmt(p_belief, '.2f')}, stopped: <span id='stop-reason'>"
                      f"{_esc(stop_text(res, unsure))}</span> &mdash; {verdict}</p>")
+        bound = res.get("bound") or {}
+        if bound.get("rule") == "evalue" and bound.get("evalues"):
+            parts.append(f"<p id='stop-bound'>Stop rule: e-value (likelihood-ratio "
+                         f"martingale); the largest e-value is {max(bound['evalues']):.3g}, the "
+                         f"stop needs {bound['threshold']:g} = 1 / alpha: P(ever stopping wrong)"
+                         f" &le; alpha = {bound['alpha']:g} under the evidence model "
+                         "(independent touches, the null fitted on another library).</p>")
     split = time_split(rec)
     n_failed = failed_attempts(touches)
     facts = [("touches", f"<span id='touches'>{n_touch}</span> accepted of {len(touches)} "
