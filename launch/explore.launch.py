@@ -262,7 +262,7 @@ def _nodes(context, *args, **kwargs):
                         for n in nodes]
     if sim and _installed("tf2_ros"):   # rviz's fixed frame exists in TF (viewer only)
         actions.append(Node(package="tf2_ros", executable="static_transform_publisher",
-                            name="tactex_sim_world",
+                            name="tactex_sim_world", parameters=[{"use_sim_time": True}],
                             arguments=["--frame-id", "world", "--child-frame-id", frame]))
     elif sim:
         actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
@@ -287,7 +287,8 @@ def _nodes(context, *args, **kwargs):
         import shutil
         cfg = _rviz_config(config_dir() / "tactex.rviz", frame, p["pose_topic"])
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
-                            arguments=["-d", str(cfg)]))
+                            arguments=["-d", str(cfg)],
+                            parameters=[{"use_sim_time": True}] if sim else []))
         actions.append(RegisterEventHandler(OnShutdown(
             on_shutdown=lambda *_: shutil.rmtree(cfg.parent, ignore_errors=True))))
     return actions

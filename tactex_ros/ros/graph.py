@@ -217,6 +217,9 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
         gs = _checked("gelsight", gelsight or {})
         sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
         nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
+    if sim:     # the simulated graph keeps the mock arm's time (/clock: ros/simclock.py)
+        for n in nodes:
+            n.parameters["use_sim_time"] = True
     return nodes
 
 
