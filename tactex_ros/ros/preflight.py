@@ -57,6 +57,7 @@ class Probe:
                          parameter_overrides=[Parameter("use_sim_time", value=True)]
                          if sim_time else [])
         self.now = NodeClock(self.node).now     # [s] monotonic, or simulated time
+        self.sim = sim_time
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
@@ -64,6 +65,12 @@ class Probe:
         if not self.context.ok():
             raise Stopped()
         self.executor.spin_once(timeout_sec=SPIN_S)
+
+    def _clock_started(self) -> None:
+        """On the simulated clock: spin until the first /clock (``NodeClock`` raises
+        ``SimClockStalled`` when none comes within its wall-time limit)."""
+        while self.sim and self.now() <= 0.0:
+            self._spin()
 
     def other_graph(self, topics: list[tuple[str, str]]) -> str | None:
         """``other_graph`` as this probe's node sees the ROS graph."""
@@ -91,6 +98,7 @@ class Probe:
         subs = [self.node.create_subscription(t, name, on(i), qos)
                 for i, (t, name, qos) in enumerate(topics)]
         try:
+            self._clock_started()
             start = self.now()
 
             def open_window() -> bool:
@@ -112,6 +120,7 @@ class Probe:
         ``ok_field`` false (its ``error`` / ``message`` text named)."""
         client = self.node.create_client(srv_type, name)
         try:
+            self._clock_started()
             end = self.now() + deadline_s
             while not client.service_is_ready():
                 if self.now() > end:
