@@ -106,6 +106,9 @@ class RealTimeFactor:
         self._samples: list[tuple[float, float]] = []     # (wall, sim)
 
     def tick(self, sim_s: float, wall_s: float | None = None) -> None:
+        """One reading of the simulated clock [s]; 0 (no /clock yet) is left out."""
+        if sim_s <= 0.0:
+            return
         wall = time.monotonic() if wall_s is None else wall_s
         self._samples.append((wall, sim_s))
         while len(self._samples) > 2 and self._samples[1][0] < wall - self.window_s:

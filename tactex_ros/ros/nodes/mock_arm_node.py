@@ -123,7 +123,11 @@ class MockArmNode(TactexNode):
             self.sim_t = time.time()      # [s] simulated time, advanced by dt per cycle
             self._publish_clock()
         self._last = self.get_clock().now().nanoseconds * 1e-9
-        self.rate_loop(1.0 / self.settings.rate_hz, self._tick, "sim")
+        # a cycle (dt = 1 / rate_hz) takes at least dt / max_real_time_factor of wall time: at
+        # most real time, or a forced slower pace (a starved machine's; on wall time the
+        # physics catches up as ever, and the state comes that much slower)
+        pace = self.settings.max_real_time_factor
+        self.rate_loop(1.0 / (self.settings.rate_hz * pace), self._tick, "sim")
 
     # ------------------------------------------------------------------ recovery stand-ins
     def _serve_standins(self, s: MockArmSettings) -> None:
