@@ -10,7 +10,9 @@ Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``
 config/robots/) names the impedance controller, topics, message types and recovery interface of
 the robot stack, which must already run. ``sim:=true``: mock_arm_node and mock_image_node replace
 robot and camera at the same topics, and a static transform world -> base frame gives rviz its
-fixed frame. The nodes and their parameters come from ``tactex_ros.ros.graph.describe`` -- the same
+fixed frame; every node of the simulated graph (rviz and the static transform too) has
+``use_sim_time``: the mock arm publishes /clock (``tactex_ros.ros.simclock``). ``bag:=true``
+records with receive times on the wall clock (stamps inside the messages are simulated). The nodes and their parameters come from ``tactex_ros.ros.graph.describe`` -- the same
 description the ``tactex graph run`` runner uses -- and are all validated before anything starts:
 a bad value ends the launch with the argument or field named and no process started. The node
 settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
