@@ -92,7 +92,12 @@ class Probe:
 
         def on(i: int):
             def got(msg: Any) -> None:
-                stamps[i].append(self.now())
+                # on the simulated clock a stamped message counts at its own stamp (the
+                # simulated time it was computed at): a starved probe that reads /clock (keep
+                # last 1) late must not see the stream as slow
+                stamp = getattr(getattr(msg, "header", None), "stamp", None)
+                t = stamp.sec + stamp.nanosec * 1e-9 if self.sim and stamp is not None else 0.0
+                stamps[i].append(t if t > 0.0 else self.now())
                 last[i] = msg
             return got
         subs = [self.node.create_subscription(t, name, on(i), qos)
