@@ -38,9 +38,15 @@ demo: $(BUILD_STAMP)
 test: $(BUILD_STAMP) lint
 	$(PY) -m pytest -q -ra -n 2 --dist loadfile --no-loadscope-reorder -m "not soak" test
 
-# the long runs `make test` leaves out: the press in 1000 seeded faulty worlds, a local Ray cluster
+# the long runs `make test` leaves out: the press in 1000 seeded faulty worlds, a local Ray cluster;
+# then the graph tests (test/ros) with SOAK_HOGS bounded busy processes beside them
+# (scripts/cpu_hog.py, each ends after SOAK_HOG_S at most and all are killed when pytest ends)
+SOAK_HOGS ?= 4
+SOAK_HOG_S ?= 3600
 test-soak: $(BUILD_STAMP)
 	$(PY) -m pytest -q -ra -m soak test
+	$(PY) scripts/cpu_hog.py --procs $(SOAK_HOGS) --limit-s $(SOAK_HOG_S) -- \
+		$(PY) -m pytest -q -ra -m "not soak" test/ros
 
 test-fast: $(BUILD_STAMP) lint typecheck
 	$(PY) -m pytest -q -ra -m "not slow and not ros and not lab" test/unit

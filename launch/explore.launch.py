@@ -10,7 +10,9 @@ Hardware graph: gelsight_node, motion_node, explorer_node; the robot profile (``
 config/robots/) names the impedance controller, topics, message types and recovery interface of
 the robot stack, which must already run. ``sim:=true``: mock_arm_node and mock_image_node replace
 robot and camera at the same topics, and a static transform world -> base frame gives rviz its
-fixed frame. The nodes and their parameters come from ``tactex_ros.ros.graph.describe`` -- the same
+fixed frame; every node of the simulated graph (rviz and the static transform too) has
+``use_sim_time``: the mock arm publishes /clock (``tactex_ros.ros.simclock``). ``bag:=true``
+records with receive times on the wall clock (stamps inside the messages are simulated). The nodes and their parameters come from ``tactex_ros.ros.graph.describe`` -- the same
 description the ``tactex graph run`` runner uses -- and are all validated before anything starts:
 a bad value ends the launch with the argument or field named and no process started. The node
 settings among the arguments (config ... source) are ``tactex_ros.ros.graph.OPTIONS``: their types,
@@ -262,7 +264,7 @@ def _nodes(context, *args, **kwargs):
                         for n in nodes]
     if sim and _installed("tf2_ros"):   # rviz's fixed frame exists in TF (viewer only)
         actions.append(Node(package="tf2_ros", executable="static_transform_publisher",
-                            name="tactex_sim_world",
+                            name="tactex_sim_world", parameters=[{"use_sim_time": True}],
                             arguments=["--frame-id", "world", "--child-frame-id", frame]))
     elif sim:
         actions.append(LogInfo(msg="tf2_ros is not installed: no static transform world -> "
@@ -287,7 +289,8 @@ def _nodes(context, *args, **kwargs):
         import shutil
         cfg = _rviz_config(config_dir() / "tactex.rviz", frame, p["pose_topic"])
         actions.append(Node(package="rviz2", executable="rviz2", name="rviz2",
-                            arguments=["-d", str(cfg)]))
+                            arguments=["-d", str(cfg)],
+                            parameters=[{"use_sim_time": True}] if sim else []))
         actions.append(RegisterEventHandler(OnShutdown(
             on_shutdown=lambda *_: shutil.rmtree(cfg.parent, ignore_errors=True))))
     return actions

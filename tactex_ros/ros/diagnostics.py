@@ -154,7 +154,11 @@ class Diagnostics:
         self.node = node
         self.tasks: list[tuple[str, str, Task]] = []
         self.pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
-        self.timer = node.create_timer(period_s, self.publish)
+        # on the steady (wall) clock, also in a simulated graph: a simulation that stopped
+        # (its clock standing still) is still reported
+        from rclpy.clock import Clock, ClockType
+        self.timer = node.create_timer(period_s, self.publish,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def add(self, name: str, hardware_id: str, task: Task) -> None:
         """Task ``name`` (the status is named ``"<node>: <name>"``) watching ``hardware_id``."""

@@ -158,7 +158,7 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
              gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,
              mock_arm: dict[str, Any] | None = None,
              motion: dict[str, Any] | None = None, motion_file: str | Path | None = None,
-             robot: str | None = None) -> list[NodeSpec]:
+             robot: str | None = None, sim_clock: bool = True) -> list[NodeSpec]:
     """The tactex graph. ``robot`` (profile name or path) defaults to ``sim`` (sim) or
     ``fr3_crisp``; ``scene_file`` to config/scene_sim.yaml (sim) or the profile's ``scene``
     (config/scene.yaml for the FR3, config/scene_panda.yaml for the Panda);
@@ -166,7 +166,10 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
     explorer's settings resolved by ``run_settings.resolve_run`` (the launch file and ``tactex
     graph``: taken as they are), or settings given over ``explorer_file`` (default
     config/explorer.yaml), checked here. The scene, the robot profile and every parameter are
-    validated here, so bad values fail before anything starts, with the field named."""
+    validated here, so bad values fail before anything starts, with the field named.
+    ``sim_clock`` (sim only): every node gets ``use_sim_time`` and the mock arm publishes
+    /clock (ros/simclock.py); False keeps wall time, as the robot graph does (a test of the
+    robot graph's own timing against the mock)."""
     from ..robot.press import check_press
     from ..robot.robots import load_profile
     given_motion = merge(params_from_file(motion_file, "motion") if motion_file else None,
@@ -217,6 +220,9 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
         gs = _checked("gelsight", gelsight or {})
         sensor_config(GelsightSettings(**gs), camera=False)   # the sensor profile, validated
         nodes = [NodeSpec("gelsight_node", "gelsight", gs)] + nodes
+    if sim and sim_clock:   # the simulated graph keeps the mock arm's time (ros/simclock.py)
+        for n in nodes:
+            n.parameters["use_sim_time"] = True
     return nodes
 
 

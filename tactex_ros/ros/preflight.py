@@ -45,10 +45,19 @@ class Stopped(Exception):
 class Probe:
     """Samples and service calls for a pre-flight, on a helper node ``name`` in ``context``."""
 
-    def __init__(self, context: Context, name: str) -> None:
+    def __init__(self, context: Context, name: str, sim_time: bool = False) -> None:
+        from rclpy.parameter import Parameter
+
+        from .simclock import NodeClock
         self.context = context
-        # not renamed by the process's `-r __node:=...` (that names the lifecycle node)
-        self.node = Node(name, context=context, use_global_arguments=False)
+        # not renamed by the process's `-r __node:=...` (that names the lifecycle node);
+        # ``sim_time``: this probe's windows and deadlines are on the simulated clock (/clock,
+        # spun by this probe's own executor), as the simulated graph's nodes are
+        self.node = Node(name, context=context, use_global_arguments=False,
+                         parameter_overrides=[Parameter("use_sim_time", value=True)]
+                         if sim_time else [])
+        self.now = NodeClock(self.node).now     # [s] monotonic, or simulated time
+        self.sim = sim_time
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
@@ -57,13 +66,19 @@ class Probe:
             raise Stopped()
         self.executor.spin_once(timeout_sec=SPIN_S)
 
+    def _clock_started(self) -> None:
+        """On the simulated clock: spin until the first /clock (``NodeClock`` raises
+        ``SimClockStalled`` when none comes within its wall-time limit)."""
+        while self.sim and self.now() <= 0.0:
+            self._spin()
+
     def other_graph(self, topics: list[tuple[str, str]]) -> str | None:
         """``other_graph`` as this probe's node sees the ROS graph."""
         return other_graph(self.node, topics)
 
     def sample(self, msg_type: type, topic: str, qos: Any, window_s: float,
                deadline_s: float) -> tuple[list[float], Any]:
-        """Arrival times [s, monotonic] of ``topic``'s messages over ``window_s`` after the
+        """Arrival times [s, monotonic or simulated: ``self.now``] of ``topic``'s messages over ``window_s`` after the
         first one (which must come within ``deadline_s``), and the last message (None if
         none)."""
         return self.sample_all([(msg_type, topic, qos)], window_s, deadline_s)[0]
@@ -77,16 +92,22 @@ class Probe:
 
         def on(i: int):
             def got(msg: Any) -> None:
-                stamps[i].append(time.monotonic())
+                # on the simulated clock a stamped message counts at its own stamp (the
+                # simulated time it was computed at): a starved probe that reads /clock (keep
+                # last 1) late must not see the stream as slow
+                stamp = getattr(getattr(msg, "header", None), "stamp", None)
+                t = stamp.sec + stamp.nanosec * 1e-9 if self.sim and stamp is not None else 0.0
+                stamps[i].append(t if t > 0.0 else self.now())
                 last[i] = msg
             return got
         subs = [self.node.create_subscription(t, name, on(i), qos)
                 for i, (t, name, qos) in enumerate(topics)]
         try:
-            start = time.monotonic()
+            self._clock_started()
+            start = self.now()
 
             def open_window() -> bool:
-                now = time.monotonic()
+                now = self.now()
                 return any((not st and now < start + deadline_s) or
                            (st and now < st[0] + window_s) for st in stamps)
             while open_window():
@@ -104,14 +125,15 @@ class Probe:
         ``ok_field`` false (its ``error`` / ``message`` text named)."""
         client = self.node.create_client(srv_type, name)
         try:
-            end = time.monotonic() + deadline_s
+            self._clock_started()
+            end = self.now() + deadline_s
             while not client.service_is_ready():
-                if time.monotonic() > end:
+                if self.now() > end:
                     raise TrialError(f"service {name} is not offered (waited {deadline_s} s)")
                 self._spin()
             fut = client.call_async(fill_message(srv_type.Request(), request, name))
             while not fut.done():
-                if time.monotonic() > end:
+                if self.now() > end:
                     client.remove_pending_request(fut)
                     raise TrialError(f"service {name} did not answer within {deadline_s} s")
                 self._spin()

@@ -299,6 +299,10 @@ class MockArmSettings(Schema):
     wrench_sign: float = param(0.0, "published wrench z = wrench_sign * contact force (0 = the "
                                     "profile's force_sign)", -1.0, 1.0)
     rate_hz: float = param(100.0, "simulation and publish rate [Hz]", 5.0, 1000.0)
+    max_real_time_factor: float = param(1.0, "the fastest pace of the simulation cycles "
+                                        "[cycle time per wall time] (< 1: a forced slow "
+                                        "simulation, as on a starved machine)",
+                                        0.001, 1.0)
     start_x: float = param(0.5, "start position x [m] in the base frame", -2.0, 2.0)
     start_y: float = param(0.0, "start position y [m] in the base frame", -2.0, 2.0)
     start_z: float = param(0.3, "start position z [m] in the base frame", -2.0, 2.0)

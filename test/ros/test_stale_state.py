@@ -1,6 +1,8 @@
 """Robot state that stops for a while mid-press (a stalled state broadcaster, a loaded machine):
 the motion node holds the target where it is until fresh state arrives, so the arm is never
-commanded deeper on a force it has not seen; the press then goes on and ends as usual."""
+commanded deeper on a force it has not seen; the press then goes on and ends as usual. The
+graph keeps wall time here (``sim_clock=False``), as the robot graph does: on the simulated
+clock a stopped mock arm stops time as well, and no state is ever stale."""
 
 from __future__ import annotations
 
@@ -34,7 +36,7 @@ def _wait(cond, timeout: float) -> bool:
 
 def test_stale_state_holds_the_target_and_the_press_goes_on(tmp_path: Path, listener, press,
                                                             force_trace) -> None:
-    nodes = [n for n in describe(True, motion={"state_timeout_s": TIMEOUT_S})
+    nodes = [n for n in describe(True, motion={"state_timeout_s": TIMEOUT_S}, sim_clock=False)
              if n.name in ("mock_arm", "mock_image", "motion")]
     scene = load_scene(nodes[0].parameters["scene_file"])
     platform = scene.platform("c2")

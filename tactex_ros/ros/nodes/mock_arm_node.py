@@ -7,9 +7,7 @@ current pose (PoseStamped) and the external wrench in the base frame (WrenchStam
 ``wrench_sign`` x contact force) at ``rate_hz``. The physics is ``robot.press.ArmModel`` running
 the control law of the controller the profile names (``robot.press.ControlLaw``: stiffness,
 damping as the controller computes it, its target filter, error clip and force rate limit, one
-control cycle at the profile's ``rate_hz``; the physics keeps the wall clock, as a real arm
-does, whenever this process is starved: up to ``CATCH_UP_S`` of missed cycles are run at the
-next simulation cycle, with the newest target) on an apparent mass against platforms of
+control cycle at the profile's ``rate_hz``) on an apparent mass against platforms of
 ``platform_stiffness``, so the mock behaves as that controller does: it pushes with
 K (x_eq - x), not as a position follower. Like CRISP, it ignores targets while more publishers
 than the profile's ``target.max_publishers`` are on the target topic.
@@ -27,7 +25,17 @@ component and its controllers are down, as after a franka reflex) until a stand-
 (``recovery_standin``: an action or a service) clears the error and the stand-in re-activation
 services bring hardware, then controllers, back -- in that order, as franka_ros2 requires.
 
-/diagnostics ``mock_arm: arm``: the simulated state's publish rate, hardware and controller
+Time: with ``use_sim_time`` (every node of a simulated graph, ``tactex_ros.ros.simclock``) the
+mock arm is the graph's clock source: each simulation cycle steps the physics by exactly
+1 / ``rate_hz`` and publishes ``rosgraph_msgs/Clock`` on ``/clock`` advanced by that dt (never by
+the wall clock); the cycle is paced to at most real time and runs slower when starved, so the
+others' deadlines stretch with it. The simulated time starts at the wall clock's epoch time of
+activation (stamps stay readable). Without ``use_sim_time`` (a mock beside wall-time nodes) the
+physics follows the wall clock as a real arm does: up to ``CATCH_UP_S`` of missed cycles run at
+the next cycle, with the newest target.
+
+/diagnostics ``mock_arm: arm``: the real-time factor (simulated s per wall s, sim time only;
+WARN "simulation behind" below ``SIM_BEHIND_RTF``), the simulated state's publish rate, hardware and controller
 active, reflexes injected, targets ignored; ERROR while an injected reflex is not recovered (the
 stand-in of a robot fault), WARN while targets are ignored (too many publishers).
 """
@@ -103,8 +111,23 @@ class MockArmNode(TactexNode):
                       self._health)
 
     def activate(self) -> None:
+        import time
+        from ..simclock import RealTimeFactor, uses_sim_time
+        self.sim_clock = uses_sim_time(self)
+        self.rtf = RealTimeFactor()
+        if self.sim_clock:
+            from rosgraph_msgs.msg import Clock
+            from ..simclock import CLOCK_TOPIC, clock_qos
+            self._clock_msg = Clock
+            self.clock_pub = self.create_publisher(Clock, CLOCK_TOPIC, clock_qos())
+            self.sim_t = time.time()      # [s] simulated time, advanced by dt per cycle
+            self._publish_clock()
         self._last = self.get_clock().now().nanoseconds * 1e-9
-        self.rate_loop(1.0 / self.settings.rate_hz, self._tick, "sim")
+        # a cycle (dt = 1 / rate_hz) takes at least dt / max_real_time_factor of wall time: at
+        # most real time, or a forced slower pace (a starved machine's; on wall time the
+        # physics catches up as ever, and the state comes that much slower)
+        pace = self.settings.max_real_time_factor
+        self.rate_loop(1.0 / (self.settings.rate_hz * pace), self._tick, "sim")
 
     # ------------------------------------------------------------------ recovery stand-ins
     def _serve_standins(self, s: MockArmSettings) -> None:
@@ -150,7 +173,8 @@ class MockArmNode(TactexNode):
     def _health(self) -> tuple[int, str, dict]:
         from ..diagnostics import ERROR, OK, WARN
         import time
-        rate = self.state_meter.rate()
+        rate = self.state_meter.rate(self._meter_now())
+        rtf = self.rtf.factor() if getattr(self, "sim_clock", False) else None
         ignored, _ = self._ignored_seen
         newly = self.ignored_targets - ignored
         self._ignored_seen = (self.ignored_targets, time.monotonic())
@@ -161,6 +185,8 @@ class MockArmNode(TactexNode):
                   "contact force [N]": float(self.arm.normal_force()),
                   "cycles over max_force (true force)": int(self.arm.world.over_limit[0]),
                   "position [m]": " ".join(f"{v:.4f}" for v in self.arm.position.copy())}
+        if rtf is not None:
+            values["real-time factor"] = rtf
         if self.error or not self.controller_active:
             return ERROR, ("reflex (injected): arm stopped, no state until recovered"
                            if self.error else "controller inactive: no state"), values
@@ -173,7 +199,13 @@ class MockArmNode(TactexNode):
         if newly:
             return WARN, (f"{newly} target(s) ignored since the last status: more than "
                           f"{self.max_publishers} publisher(s) on {self.target_topic}"), values
-        return OK, f"simulating, state at {rate:.0f} Hz", values
+        if rtf is not None and rtf < SIM_BEHIND_RTF:
+            return WARN, (f"simulation behind: real-time factor {rtf:.2f} (the machine cannot "
+                          "compute the simulation in real time; simulated time runs slower, "
+                          "the trial is unchanged)"), values
+        return OK, (f"simulating, state at {rate:.0f} Hz" +
+                    (f" (simulated time), real-time factor {rtf:.2f}" if rtf is not None
+                     else "")), values
 
     # ------------------------------------------------------------------ loop
     def _on_target(self, msg) -> None:
@@ -202,9 +234,27 @@ class MockArmNode(TactexNode):
         if reader is not None:
             reader.close()
 
+    def _publish_clock(self) -> None:
+        sec = int(self.sim_t)
+        msg = self._clock_msg()
+        msg.clock.sec, msg.clock.nanosec = sec, int(round((self.sim_t - sec) * 1e9)) % 1_000_000_000
+        self.clock_pub.publish(msg)
+        self.rtf.tick(self.sim_t)
+
+    def _meter_now(self) -> float | None:
+        """The state meter's clock: simulated time on the sim clock, else monotonic."""
+        return self.sim_t if getattr(self, "sim_clock", False) else None
+
     def _step(self) -> None:
-        now = self.get_clock().now().nanoseconds * 1e-9
-        self.arm.step(min(CATCH_UP_S, now - self._last))
+        if self.sim_clock:
+            dt = 1.0 / self.settings.rate_hz    # one computed cycle, whatever the wall clock did
+            self.arm.step(dt)
+            self.sim_t += dt
+            self._publish_clock()
+            now = self.sim_t
+        else:
+            now = self.get_clock().now().nanoseconds * 1e-9
+            self.arm.step(min(CATCH_UP_S, now - self._last))
         self._last = now
         rf = self.settings.reflex_force
         if (rf and self.controller_active and self.arm.peak_force > rf and
@@ -216,7 +266,7 @@ class MockArmNode(TactexNode):
             self.reflexes += 1
         if not self.controller_active:
             return     # the state broadcaster is down with the hardware component
-        self.state_meter.tick()
+        self.state_meter.tick(self._meter_now())
         self.pose_pub.publish(adapter.array_to_pose(self.arm.position, self.quat, now,
                                                     self.scene.frame_id))
         w = WrenchStamped(header=Header(stamp=adapter.stamp(now), frame_id=self.scene.frame_id))
@@ -230,6 +280,9 @@ class MockArmNode(TactexNode):
 #: that ran slower than the wall clock let the press's target run ahead of it), and beyond a
 #: second the arm stands, as a controller that missed its cycles stops the robot.
 CATCH_UP_S = 1.0
+
+#: Below this real-time factor the mock arm's /diagnostics says WARN "simulation behind"
+SIM_BEHIND_RTF = 0.5
 
 
 def mock_law(law: ControlLaw, s: MockArmSettings) -> ControlLaw:

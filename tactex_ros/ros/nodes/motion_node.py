@@ -65,6 +65,8 @@ MODE_FILTER = ContentFilterOptions(filter_expression="robot_mode <> %0",
                                    expression_parameters=["2"])
 MODE_HOLD_S = 0.25   # [s] a robot_mode read from the mode topic counts this long
 BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the press held)
+SIM_BEHIND_S = 2.0    # [s wall] a simulated clock standing still this long: "simulation behind"
+SIM_BEHIND_RTF = 0.5  # below this real-time factor the simulation is behind (WARN)
 GRAPH_CHECK_S = 0.5   # [s] one graph per arm is checked this often until the first goal
 #: the wrench subscription's own keep-last depth: the upstream publisher's reliability
 #: (best effort) with room for 64 ms of franka's 1 kHz stream between two callbacks, so the
@@ -138,6 +140,12 @@ class MotionNode(TactexNode):
     def configure(self) -> None:
         from tactex.action import Press
         from tactex.srv import Capture
+
+        from ..simclock import NodeClock, RealTimeFactor
+        # deadlines, rates and staleness on the node's clock: simulated time in a simulated
+        # graph (use_sim_time, ros/simclock.py), else monotonic wall time
+        self.dclock = NodeClock(self)
+        self._rtf = RealTimeFactor()
         self.scene = load_scene(self.settings.scene_file)
         prof = self.profile = load_profile(self.settings.robot)
         s = self.settings = with_profile(self.settings, prof)
@@ -232,7 +240,7 @@ class MotionNode(TactexNode):
                                                press.tare_max_offset_n)
             if problem:
                 raise InputError(str(problem))
-        probe = Probe(self.context, f"{self.get_name()}_preflight")
+        probe = Probe(self.context, f"{self.get_name()}_preflight", sim_time=self.dclock.sim)
         try:
             if prof.franka_state:
                 topics = [(import_interface(prof.state_type), s.state_topic,
@@ -351,7 +359,7 @@ class MotionNode(TactexNode):
 
     def _arm_health(self) -> tuple[int, str, dict]:
         from ..diagnostics import ERROR, OK, WARN, grade, robot_mode_name, summary
-        s, now = self.settings, time.monotonic()
+        s, now = self.settings, self.dclock.read()
         age = None if self.pose_t < 0 else now - max(self.pose_t, 0.0)
         rate = self.state_meter.rate(now)
         mode = (self.robot_mode if self.profile.franka_state else
@@ -363,6 +371,17 @@ class MotionNode(TactexNode):
                   "no robot state" if age is None else f"robot state {age:.2f} s old"),
                  (WARN if rate < s.diag_state_rate_warn else OK,
                   f"robot state at {rate:.0f} Hz")]
+        rtf = behind = None
+        if self.dclock.sim:
+            # a starved simulation is slower, not faulty: the state's age and rate are in
+            # simulated time; the clock's own pace says the simulation is behind (WARN)
+            self._rtf.tick(now)
+            rtf, behind = self._rtf.factor(), self.dclock.behind_s()
+            if behind > SIM_BEHIND_S or (rtf is not None and rtf < SIM_BEHIND_RTF):
+                parts.append((WARN, "simulation behind: " + (
+                    f"the simulated clock has not advanced for {behind:.1f} s of wall time"
+                    if behind > SIM_BEHIND_S else f"real-time factor {rtf:.2f}") +
+                    " (the machine cannot compute the simulation in real time)"))
         level, msg = summary(parts)
         lp = self.last_press
         values = {"robot mode": robot_mode_name(mode) if (self.profile.franka_state or
@@ -381,9 +400,14 @@ class MotionNode(TactexNode):
                      for k, v in self.last_phases.items()},
                   "capture service": ("ready" if self.capture.service_is_ready()
                                       else "not available")}
+        if rtf is not None:
+            values["real-time factor"] = rtf
+        if behind is not None:
+            values["simulated clock still [s wall]"] = behind
+        wall = time.monotonic()     # the start-up phase is in wall time (it began so)
         if age is not None and self.arm_startup.active:
-            self.arm_startup.end(now)
-        return self.arm_startup.apply((level, msg, values), now)
+            self.arm_startup.end(wall)
+        return self.arm_startup.apply((level, msg, values), wall)
 
     def _setup_recovery(self) -> None:
         """Clients of the profile's recovery interface and re-activation services; where a
@@ -462,7 +486,7 @@ class MotionNode(TactexNode):
     def _on_pose(self, msg: PoseStamped) -> None:
         try:
             self.position = adapter.pose_to_array(msg)[0]
-            self.pose_t = time.monotonic()
+            self.pose_t = self.dclock.read()
             self.state_meter.tick(self.pose_t)
         except InputError as exc:
             self.get_logger().warning(f"pose ignored: {exc}")
@@ -470,7 +494,7 @@ class MotionNode(TactexNode):
     def _on_wrench(self, msg: WrenchStamped) -> None:
         try:
             self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
-            self.wrench_t = time.monotonic()
+            self.wrench_t = self.dclock.read()
             self._keep_sample(self.force, self.force_mag)
         except InputError as exc:
             self.get_logger().warning(f"wrench ignored: {exc}")
@@ -482,7 +506,7 @@ class MotionNode(TactexNode):
             self.get_logger().warning(f"robot state ignored: {exc}")
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
-        self.pose_t = self.wrench_t = time.monotonic()
+        self.pose_t = self.wrench_t = self.dclock.read()
         self._keep_sample(fn, mag)
         self.state_meter.tick(self.pose_t)
 
@@ -490,7 +514,7 @@ class MotionNode(TactexNode):
         """A serialized full state: its robot_mode decoded at most ``mode_rate_hz`` times a
         second (a reflex is then seen within 1 / mode_rate_hz; the state stopping is seen by
         the pose and wrench deadlines anyway)."""
-        now = time.monotonic()
+        now = self.dclock.read()
         self._mode_t = now
         if now < self._mode_next:
             return
@@ -592,9 +616,9 @@ class MotionNode(TactexNode):
         self.get_logger().info(f"waiting for the capture service {s.capture_service!r} "
                                f"(up to capture_wait_s, {s.capture_wait_s:g} s) before "
                                "pressing")
-        end = time.monotonic() + s.capture_wait_s
+        end = self.dclock.now() + s.capture_wait_s
         fb = self._Press.Feedback(phase="waiting for the camera")
-        while time.monotonic() < end:
+        while self.dclock.now() < end:
             goal_handle.publish_feedback(fb)
             if self.capture.wait_for_service(timeout_sec=0.2):
                 return ""
@@ -616,7 +640,7 @@ class MotionNode(TactexNode):
                 self.get_logger().error(f"press on {platform.id} refused: {refusal}")
                 goal_handle.abort()
                 return result
-            t_press = time.monotonic()
+            t_press = self.dclock.now()
             for attempt in range(1, self.scene.press.retries + 2):
                 result.attempts = attempt
                 try:
@@ -640,7 +664,7 @@ class MotionNode(TactexNode):
                         touch
                     self.last_press = {"platform": platform.id,
                                        "force_n": float(touch.contact_force_n),
-                                       "duration_s": time.monotonic() - t_press,
+                                       "duration_s": self.dclock.now() - t_press,
                                        "attempts": attempt,
                                        "at": time.strftime("%H:%M:%S")}
                     goal_handle.succeed()
@@ -662,19 +686,19 @@ class MotionNode(TactexNode):
         from tactex.msg import Touch
         s = self.settings
         period = 1.0 / s.rate_hz
-        t0 = time.monotonic()
-        while self._robot_fault(time.monotonic()):
-            if time.monotonic() - t0 > s.state_timeout_s:
-                raise RobotError(self._robot_fault(time.monotonic()))
+        t0 = self.dclock.now()
+        while self._robot_fault(self.dclock.now()):
+            if self.dclock.now() - t0 > s.state_timeout_s:
+                raise RobotError(self._robot_fault(self.dclock.now()))
             time.sleep(period)
-        ctrl = PressController(self.scene, platform, self.position, time.monotonic(),
+        ctrl = PressController(self.scene, platform, self.position, self.dclock.now(),
                                stiffness=self.k, period_s=period, hold_s=s.state_hold_s,
                                surface_hint=self.found.get(platform.id))
         self._take_samples()    # a sample from before the press is not the press's
         cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
         try:
             while not ctrl.done:
-                now = time.monotonic()
+                now = self.dclock.now()
                 fault = self._robot_fault(now)
                 if fault:   # nothing more to command: the robot does not follow
                     raise RobotError(f"{fault} (during {ctrl.phase})")
@@ -696,7 +720,7 @@ class MotionNode(TactexNode):
                         burst = Burst(self.capture, ctrl.s.capture_window_s,
                                       ctrl.s.capture_frames, ctrl.s.capture_deadline_s,
                                       self.settings.min_contact_score, now)
-                    got = burst.poll(time.monotonic())
+                    got = burst.poll(self.dclock.now())
                     if got is not None:
                         ok, reason, cap = got
                         if ok and burst.short:
@@ -705,7 +729,7 @@ class MotionNode(TactexNode):
                                 f"press.capture_frames {ctrl.s.capture_frames}, within "
                                 f"capture_deadline_s ({ctrl.s.capture_deadline_s} s): kept")
                         burst, pose_xyz = None, self.position.copy()
-                        ctrl.captured(ok, reason, time.monotonic())
+                        ctrl.captured(ok, reason, self.dclock.now())
                 elif burst is not None:     # the press ended the capture (limit, deadline)
                     burst.cancel()
                     burst = None
@@ -740,9 +764,9 @@ class MotionNode(TactexNode):
         """After a robot error: does fresh state (not in reflex) come back by itself within
         state_timeout_s? A stopped robot (reflex, controllers down) stays silent until
         recovered; a loaded machine only delays messages."""
-        end = time.monotonic() + self.settings.state_timeout_s
-        while time.monotonic() < end:
-            if not self._robot_fault(time.monotonic()):
+        end = self.dclock.now() + self.settings.state_timeout_s
+        while self.dclock.now() < end:
+            if not self._robot_fault(self.dclock.now()):
                 return True
             time.sleep(0.02)
         return False
@@ -787,9 +811,9 @@ class MotionNode(TactexNode):
             for call, ctype, client in self.reactivate:
                 self._call(client, fill_message(ctype.Request(), call.request), call.ok_field,
                            call.service, lim)
-            end = time.monotonic() + lim
-            while self._robot_fault(time.monotonic()):
-                if time.monotonic() > end:
+            end = self.dclock.now() + lim
+            while self._robot_fault(self.dclock.now()):
+                if self.dclock.now() > end:
                     raise TrialError("no fresh robot state after recovery within "
                                       f"recovery_timeout_s ({lim} s)")
                 time.sleep(0.02)
