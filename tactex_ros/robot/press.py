@@ -675,10 +675,17 @@ class PressController:
         arm's lower bound (its measured height or its target's plus the lift) slows from
         ``descend_fast_speed`` at ``DESCENT_BRAKE_M_S2`` to ``descend_speed``
         ``DESCENT_MARGIN_M`` above the band; after contact the force error over ``K x
-        RAMP_TAU_S``, between the two."""
+        RAMP_TAU_S``, between the two, and ``descend_speed`` whenever the tick's force reads
+        below ``contact_force_n`` with the arm above where it found the surface (thrown off
+        it again)."""
         s = self.s
         fast = max(s.descend_fast_speed, s.descend_speed)
         if self.surface_found is not None:
+            if self.force_n < s.contact_force_n and position[2] > self.surface_found:
+                # thrown back above where it met the surface (a heavy arm on a rigid platform:
+                # the smoothed force still says contact): the next impact at the contact
+                # speed, not at the ramp's (a 6 kg arm with 3.1 N down hit at 12.2 N)
+                return s.descend_speed
             err = s.force_threshold - self.force_avg
             return float(np.clip(err / (self.k * RAMP_TAU_S), s.descend_speed, fast))
         low = min(float(position[2]), float(self.target[2]) + self.lift_n / self.k)
