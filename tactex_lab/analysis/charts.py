@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

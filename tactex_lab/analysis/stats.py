@@ -21,7 +21,8 @@
 from __future__ import annotations
 
 from itertools import combinations
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -175,7 +175,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     return 0
 
 
-def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int = 6,
+def library_descriptors(spec: str, cfg: DescriptorSettings, sim_presses: int = 6,
                         seed: int = 0) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of a library, described as the learner settings ``cfg``
     describe a touch (``core.descriptor.raw_descriptor``: frames, height map, embedding): every

@@ -26,7 +26,7 @@ it).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -47,6 +47,7 @@ class Trajectory:
     match (0..C-1), the touches after the baseline at every decision (steps,), and the two best
     comparisons' separation at every decision (steps,; ``MatchModel.separation``, the stop's
     "not sure" rule)."""
+
     evidence: np.ndarray
     truth: int
     extra: np.ndarray

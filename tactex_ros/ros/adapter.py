@@ -63,7 +63,7 @@ def image_to_array(msg: Image, what: str = "image") -> np.ndarray:
     return arr
 
 
-def images_to_frames(msgs: "list[Image]", what: str = "touch") -> np.ndarray | None:
+def images_to_frames(msgs: list[Image], what: str = "touch") -> np.ndarray | None:
     """A touch's further in-contact frames (``tactex/Touch.extra_images``) -> RGB uint8
     (K, 240, 320, 3), the ``core.touch.Touch.extra`` of the touch; None when there are none.
     InputError (``image_to_array``'s, naming the frame) when one is unusable."""

@@ -27,7 +27,8 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
+from collections.abc import Iterator
 
 from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Schema

@@ -61,7 +61,7 @@ class FabricParams:
     repeat: int = 1
     softness: float = 0.2
 
-    def check(self, where: str = "fabric") -> "FabricParams":
+    def check(self, where: str = "fabric") -> FabricParams:
         """These parameters within their ranges and their family's rules; InputError names the
         field as ``where.field``."""
         if self.family not in FAMILIES:
@@ -91,7 +91,7 @@ class FabricParams:
         return np.array(out)
 
     @staticmethod
-    def from_vector(family: str, vec: np.ndarray) -> "FabricParams":
+    def from_vector(family: str, vec: np.ndarray) -> FabricParams:
         kw: dict[str, Any] = {}
         for (name, (lo, hi)), x in zip(RANGES.items(), np.clip(vec, 0, 1)):
             if name in ("pitch_mm", "yarn_height_mm"):
@@ -137,7 +137,7 @@ class Catalogue(Schema):
     fabrics: list[FabricEntry] = param(..., "the fabrics", min_length=1)  # type: ignore[valid-type]
 
     @model_validator(mode="after")
-    def _unique_and_consistent(self) -> "Catalogue":
+    def _unique_and_consistent(self) -> Catalogue:
         seen: set[str] = set()
         for i, e in enumerate(self.fabrics):
             if e.name in seen:

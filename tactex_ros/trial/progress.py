@@ -21,7 +21,8 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 
 #: [s] a decision still under way after this long (the thesis CNN: 27-98 s) is said so again

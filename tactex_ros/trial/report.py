@@ -189,7 +189,7 @@ def _when(t: float | None) -> str:
     """Epoch seconds as ``YYYY-MM-DD HH:MM:SS UTC``."""
     if not t:
         return ""
-    return _dt.datetime.fromtimestamp(t, _dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return _dt.datetime.fromtimestamp(t, _dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def _duration(s: float | None) -> str:

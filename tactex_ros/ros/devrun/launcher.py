@@ -28,7 +28,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from ...core.errors import InputError, TrialError
 from ..graph import NodeSpec, params_file
@@ -110,7 +110,7 @@ class Graph:
         self.env = ros_env(domain_id)
         self.procs: dict[str, subprocess.Popen] = {}
 
-    def start(self) -> "Graph":
+    def start(self) -> Graph:
         params = params_file(self.nodes, self.log_dir / "params.yaml")
         me = os.getpid()
         try:
@@ -163,7 +163,7 @@ class Graph:
                 p.wait()
         return {k: p.returncode for k, p in self.procs.items()}
 
-    def __enter__(self) -> "Graph":
+    def __enter__(self) -> Graph:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -179,7 +179,7 @@ class _Signals:
         self.received: int | None = None
         self._old: dict[int, object] = {}
 
-    def __enter__(self) -> "_Signals":
+    def __enter__(self) -> _Signals:
         if threading.current_thread() is threading.main_thread():
             for s in self.SIGNALS:
                 self._old[s] = signal.signal(s, self._note)
