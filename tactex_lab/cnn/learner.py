@@ -406,7 +406,7 @@ class OnlineLearner:
             chunk = idx[i:i + bs]
             if chunk.numel() >= 2:
                 self.model(x[chunk])
-        for m, mom in zip(bns, saved):
+        for m, mom in zip(bns, saved, strict=True):
             m.momentum = mom
 
     # ------------------------------------------------------------------ scoring

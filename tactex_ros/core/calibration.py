@@ -124,7 +124,7 @@ def trajectories(presses: dict[str, np.ndarray],
                             temperature=float(beta)).engine()
             ev, extra, sep = [], [], []
 
-            def keep(rec, eng=eng) -> None:
+            def keep(rec, eng=eng, ev=ev, extra=extra, sep=sep) -> None:
                 ev.append(eng.learner.match.log_evidence())
                 extra.append(eng.total_touches - (comparisons + 1))
                 sep.append(eng.learner.match.separation())

@@ -522,7 +522,7 @@ class Ladder:
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, from the highest descriptor rung in use
         (strategy ``infogain``)."""
-        for rung, learner in zip(reversed(self._active_rungs), reversed(self.active)):
+        for rung, learner in zip(reversed(self._active_rungs), reversed(self.active), strict=True):
             if rung in DESCRIPTOR_RUNGS:
                 return learner.info_gain(rng)
         raise InputError("strategy 'infogain' needs a descriptor rung in the ladder")

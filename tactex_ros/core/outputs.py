@@ -11,6 +11,7 @@ same folder and ``os.replace``, so a reader never sees a torn file.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import math
@@ -188,10 +189,8 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
         os.chmod(tmp, 0o644)
         os.replace(tmp, p)
     except BaseException as exc:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         if isinstance(exc, OSError):
             raise WriteError(f"could not write {str(p)!r}: {_why(exc)}") from None
         raise

@@ -268,7 +268,7 @@ class Worlds:
         self._frictionless = not (np.any(self.fc) or np.any(self.fv))
         self._rngs = [np.random.default_rng(f.seed) for f in faults]
         self.gradient = np.stack([f.offset_gradient * np.linalg.qr(r.standard_normal((3, 3)))[0]
-                                  for f, r in zip(faults, self._rngs)])          # (n, 3, 3)
+                                  for f, r in zip(faults, self._rngs, strict=True)])          # (n, 3, 3)
         self.position = np.broadcast_to(np.asarray(start, dtype=float), (n, 3)).copy()
         self.origin = self.position.copy()
         self.velocity = np.zeros((n, 3))

@@ -477,7 +477,7 @@ class PressController:
             self._descend(now, position, dt)
         elif self.phase == SETTLE:
             self._settle(now, position, dt)
-        elif self.phase == RETRACT:
+        elif self.phase == RETRACT:  # noqa: SIM102 - the phase dispatch stays one branch a phase
             if self._arrive(self._retract_point(), self.s.travel_speed, position, dt):
                 self._enter(DONE, now)
         return self.target

@@ -411,7 +411,7 @@ def hold_target(position: Sequence[float], surface_z: float, ws_min: Sequence[fl
     below it, inside the workspace box: at rest it pushes nothing into the platform."""
     x, y, z = (float(v) for v in position)
     held = (x, y, max(z, float(surface_z)))
-    return tuple(min(max(v, float(lo)), float(hi)) for v, lo, hi in zip(held, ws_min, ws_max))
+    return tuple(min(max(v, float(lo)), float(hi)) for v, lo, hi in zip(held, ws_min, ws_max, strict=True))
 
 
 def import_interface(name: str) -> type:

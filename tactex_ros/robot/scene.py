@@ -213,7 +213,7 @@ class Workspace(Schema):
 
     @model_validator(mode="after")
     def _ordered(self) -> Workspace:
-        if not all(lo < hi for lo, hi in zip(self.min, self.max)):
+        if not all(lo < hi for lo, hi in zip(self.min, self.max, strict=True)):
             raise FieldError("min", f"{list(self.min)} must be below max {list(self.max)} on "
                                     "every axis")
         return self

@@ -216,9 +216,9 @@ def markers(scene: Scene, state, t: float) -> MarkerArray:
     touches and uncertainty, the next target highlighted (bigger, opaque, yellow outline)."""
     out = MarkerArray()
     hdr = Header(stamp=stamp(t), frame_id=scene.frame_id)
-    belief = dict(zip(state.platform_ids, state.belief)) if state is not None else {}
-    unc = dict(zip(state.platform_ids, state.uncertainty)) if state is not None else {}
-    touches = dict(zip(state.platform_ids, state.touches)) if state is not None else {}
+    belief = dict(zip(state.platform_ids, state.belief, strict=True)) if state is not None else {}
+    unc = dict(zip(state.platform_ids, state.uncertainty, strict=True)) if state is not None else {}
+    touches = dict(zip(state.platform_ids, state.touches, strict=True)) if state is not None else {}
     nxt = state.next_platform if state is not None else ""
     for i, p in enumerate(scene.ordered):
         x, y, z = p.position

@@ -61,7 +61,7 @@ def recorded_touches(record: dict) -> list[RecordedTouch]:
                                  "unreadable")
             extra = t.get("extra_arrays")
             if extra is not None and any(a is None for a in extra):
-                bad = [n for n, a in zip(t["extra"], extra) if a is None]
+                bad = [n for n, a in zip(t["extra"], extra, strict=True) if a is None]
                 raise InputError(f"resume: extra frame(s) {bad} of touch {seq} are missing or "
                                  "unreadable")
             touch = Touch(frame=arr, no_contact=t.get("no_contact_array"),

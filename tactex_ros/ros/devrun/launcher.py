@@ -19,6 +19,7 @@ SIGKILL leaves no node behind. What ended the trial is appended to the record's
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import signal
@@ -147,19 +148,15 @@ class Graph:
         for a loaded machine: a node in a CNN training step at load 26 needed more than 5 s)."""
         for p in self.procs.values():
             if p.poll() is None:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     p.send_signal(signal.SIGINT)
-                except ProcessLookupError:
-                    pass
         end = time.monotonic() + grace_s
         for p in self.procs.values():
             try:
                 p.wait(timeout=max(0.1, end - time.monotonic()))
             except subprocess.TimeoutExpired:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
                 p.wait()
         return {k: p.returncode for k, p in self.procs.items()}
 
