@@ -122,7 +122,9 @@ def trajectories(presses: dict[str, np.ndarray],
             plat, truth, touch = _scene(held, presses, comparisons, rng)
             eng = TrialSpec(comparisons, cfg, tcfg, seed=seed * 1000 + s, representation=rep,
                             temperature=float(beta)).engine()
-            ev, extra, sep = [], [], []
+            ev: list[np.ndarray] = []
+            extra: list[int] = []
+            sep: list[float] = []
 
             def keep(rec, eng=eng, ev=ev, extra=extra, sep=sep) -> None:
                 ev.append(eng.learner.match.log_evidence())

@@ -10,7 +10,7 @@ composes a preset with overrides of both, and is what the command line and the e
 from __future__ import annotations
 
 import typing
-from typing import Annotated, Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal, Union
 
 from pydantic import Field, TypeAdapter, ValidationError, model_validator
 
@@ -277,8 +277,9 @@ class LadderSettings(DescriptorSettings):
 
 #: The learners' settings: one class per family, told apart by ``model`` (a discriminated
 #: union). A descriptor's settings carry no CNN field, and a CNN field given to it is refused.
-LearnerSettings = Annotated[DescriptorSettings | CnnSettings | AutoSettings | LadderSettings,
-                            Field(discriminator="model")]
+# Union, not A | B: schema.variants and mypy (located(..., cls: type)) take typing.Union
+LearnerSettings = Annotated[Union[DescriptorSettings, CnnSettings, AutoSettings,  # noqa: UP007
+                                  LadderSettings], Field(discriminator="model")]
 LEARNER_CLASSES: tuple[type, ...] = (DescriptorSettings, CnnSettings, AutoSettings,
                                      LadderSettings)
 _LEARNERS = TypeAdapter(LearnerSettings)
