@@ -355,7 +355,8 @@ def _segments(rec: dict) -> list[dict[str, Any]]:
         inside = [m for m in marks if s is not None and s <= m < nxt]
         segs.append({"start": s, "end": max(inside) if inside else s})
     ended = [e for e in events if e.get("event") in ("trial_ended", "failed")]
-    for seg, e in zip(segs, ended, strict=True):
+    # an interrupted trial's last segment has no end yet
+    for seg, e in zip(segs, ended, strict=False):
         seg["reason"] = e.get("reason") or (e.get("result") or {}).get("error")
     return segs
 
@@ -685,7 +686,7 @@ def trial_html(folder: str | Path) -> str:
         elif nxt:
             why = "reference (re-touch)" if ids and nxt == ids[0] else "as scheduled"
         rows.append([_esc(dec.get("round")), _esc(nxt or "-"), why,
-                     " ".join(f"{_esc(c)} {v:.2f}" for c, v in zip(comps, b, strict=True)),
+                     " ".join(f"{_esc(c)} {v:.2f}" for c, v in zip(comps, b, strict=False)),  # b: [] without belief
                      _fmt(dec.get("decision_s"), ".2f")])
     parts.append(_table(["round", "next", "reason", "belief", "decision [s]"], rows, left=4))
 
@@ -773,7 +774,8 @@ def session_html(folder: str | Path) -> str:
     curves: list[list[tuple[int, bool]]] = []
     fabrics: list[str] = []
     conf: dict[tuple[str, str], int] = {}
-    for r, t in zip(summ["trials"], started["trials"], strict=True):
+    # a cut session: started trials past the summarised ones are left out
+    for r, t in zip(summ["trials"], started["trials"], strict=False):
         link = f"<a href='{_esc(r['record'])}/{REPORT}'>{_esc(r['id'])}</a>"
         if not r["done"]:
             state = "not started" if not (d / r["record"]).is_dir() else "unfinished"
