@@ -63,7 +63,9 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | No
     """One decision as text: round k of ``rounds``, belief per comparison platform, the next
     platform; ``elapsed_s`` since the first press and ``rest_s`` (at most) where known."""
     b = dec.get("belief") or []
-    belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b, strict=True))
+    # strict=False: a decision may lack its belief, and the ids may not be known yet (trial.json
+    # not read); a progress line shows what it has rather than failing the follower
+    belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b, strict=False))
     nxt = dec.get("next") or ("done: " + str(dec.get("prediction")) if dec.get("done") else "-")
     k = f"{dec.get('round')}/{rounds}" if rounds else f"{dec.get('round')}"
     text = f"decision {k}: belief {belief} -> next {nxt}"
