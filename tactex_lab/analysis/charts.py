@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -72,7 +72,7 @@ def bars(path: Path, groups: Sequence[str], series: dict[str, tuple[Sequence, Se
         ax.bar(xs + (i - (k - 1) / 2) * width, mean, width, yerr=std, capsize=3, label=name)
     markers = "x*^v"
     for j, (name, vals) in enumerate((reference or {}).items()):
-        pts = [(x, v) for x, v in zip(xs, vals) if v is not None]
+        pts = [(x, v) for x, v in zip(xs, vals, strict=True) if v is not None]
         if pts:
             ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=markers[j % 4],
                        color="black", zorder=5, label=name)
@@ -102,7 +102,7 @@ def confusion_grid(path: Path, cms: dict[str, np.ndarray], labels: Sequence[str]
     side = max(3.2, 0.32 * len(labels) + 1.8)
     fig, axes = plt.subplots(1, n, figsize=(side * n, side + 0.8), squeeze=False)
     small = len(labels) <= 12
-    for ax, (title, cm) in zip(axes[0], cms.items()):
+    for ax, (title, cm) in zip(axes[0], cms.items(), strict=True):
         cm = np.asarray(cm, dtype=float)
         rows = cm.sum(axis=1, keepdims=True)
         shown = np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0) if normalise else cm
@@ -244,8 +244,9 @@ def failure_modes(path: Path, rows: list[tuple[str, dict]], title: str) -> Path:
     fig, ax = plt.subplots(figsize=(max(6, 0.35 * len(rows) + 2), 4.5))
     bottom = np.zeros(len(rows))
     modes = list(rows[0][1]["modes"])
+    # the palette may be longer than the modes: zip stops at the last mode
     colors = dict(zip(modes, ["black", "tab:red", "tab:purple", "tab:orange", "tab:brown",
-                              "tab:gray"]))
+                              "tab:gray"], strict=False))
     for m in modes:
         v = np.array([r["modes"][m] / max(1, r["n"]) for _, r in rows])
         ax.bar(range(len(rows)), v, bottom=bottom, color=colors[m], label=m)
@@ -349,7 +350,8 @@ def accuracy_panels(path: Path, panels: dict[str, dict[str, dict]], title: str) 
     plt = _plt()
     n = max(1, len(panels))
     fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
-    for ax, (xlabel, series) in zip(axes[0], panels.items()):
+    # no panels: the one axis stays empty
+    for ax, (xlabel, series) in zip(axes[0], panels.items(), strict=False):
         _bands(ax, series)
         ax.set_ylim(0.0, 1.02)
         ax.set_xlabel(xlabel, fontsize=8)
@@ -420,7 +422,7 @@ def saliency_panel(ax_row, img: np.ndarray, ixg: np.ndarray, cam: np.ndarray,
     ax_row[1].imshow(ixg, cmap="inferno", vmin=0, vmax=1)
     ax_row[2].imshow(img)
     ax_row[2].imshow(cam, cmap="jet", alpha=0.45, vmin=0, vmax=1)
-    for a, t in zip(ax_row, titles):
+    for a, t in zip(ax_row, titles, strict=True):
         a.set_xticks([])
         a.set_yticks([])
         if t:
@@ -504,7 +506,7 @@ def sim_vs_real(path: Path, real: Sequence, sim: Sequence, ranking: dict | None)
         xs = [rk["settings"][n]["sim"]["accuracy"] for n in names]
         ys = [rk["settings"][n]["real"]["accuracy"] for n in names]
         ax.scatter(xs, ys, s=8)
-        for n, x, y in zip(names, xs, ys):
+        for n, x, y in zip(names, xs, ys, strict=True):
             ax.annotate(n, (x, y), fontsize=4)
         ax.plot([0, 1], [0, 1], lw=0.5, color="grey")
         sp = rk["accuracy_spearman"]
@@ -527,10 +529,12 @@ def library_curve(path: Path, results: dict) -> Path:
     for j, name in enumerate(names):
         cur = results[name]["summary"]["curve"]
         xs = [np.mean(c["trials"]) for c in cur]
-        for arm, style in zip(results[name]["arms"], ("o--", "s-", "^-", "v-", "d-", "x-")):
+        # six marker styles: arms past the sixth are not drawn
+        styles = ("o--", "s-", "^-", "v-", "d-", "x-")
+        for arm, style in zip(results[name]["arms"], styles, strict=False):
             acc = [c["all"][arm]["accuracy"] for c in cur]
-            lo = [a - c["all"][arm]["accuracy_ci95"][0] for a, c in zip(acc, cur)]
-            hi = [c["all"][arm]["accuracy_ci95"][1] - a for a, c in zip(acc, cur)]
+            lo = [a - c["all"][arm]["accuracy_ci95"][0] for a, c in zip(acc, cur, strict=True)]
+            hi = [c["all"][arm]["accuracy_ci95"][1] - a for a, c in zip(acc, cur, strict=True)]
             axes[0, j].errorbar(xs, acc, yerr=[lo, hi], fmt=style, capsize=3,
                                 label=f"learning {arm}")
             axes[1, j].plot(xs, [c["all"][arm]["touches_mean"] for c in cur], style,

@@ -252,7 +252,7 @@ def train_cnn(half: np.ndarray, cls: np.ndarray, steps: int = 800, batch: int = 
         f = rng.integers(x.shape[1], size=batch)
         r, c = rng.integers(h - CROP + 1, size=batch), rng.integers(w - CROP + 1, size=batch)
         xb = torch.stack([x[a, b, :, rr:rr + CROP, cc:cc + CROP]
-                          for a, b, rr, cc in zip(i, f, r, c)])
+                          for a, b, rr, cc in zip(i, f, r, c, strict=True)])
         k = int(rng.integers(4))
         xb = torch.rot90(xb, k, (2, 3))
         if rng.random() < 0.5:

@@ -38,6 +38,7 @@ LOSSES = ("episode", "triplet")
 @dataclass
 class MLPMetric:
     """The whitening (``base``) plus a residual ReLU branch: W1 (H, k), b1 (H,), W2 (k, H)."""
+
     base: representation.Representation
     w1: np.ndarray
     b1: np.ndarray

@@ -143,6 +143,27 @@ def growth(frames_rgb: np.ndarray, no_contact: np.ndarray, scores: np.ndarray,
     return np.asarray(out)
 
 
+def _touch_jobs(t, rgb: np.ndarray, idx, scores, emb, burst: int) -> dict:
+    """The timed jobs of :func:`touch_costs` for one press (touch ``t``, its BGR->RGB frames
+    ``rgb`` and strongest-contact ``idx``/``scores``), bound to this press."""
+    from tactex_ros.core import embedding
+    return {
+        "descriptor": lambda: texture.describe(t.frame, t.no_contact),
+        "descriptor_height_map": lambda: texture.describe(t.frame, t.no_contact, True),
+        "filter_bank_1st": lambda: filter_bank(
+            texture.contact_difference(t.frame, t.no_contact), second_order=False),
+        "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),
+        "height_map": lambda: height_map(texture.contact_difference(t.frame, t.no_contact)),
+        "growth": lambda: growth(rgb, t.no_contact, scores, idx),
+        # the shipped network (core/embedding.py) on the strongest frame, and the whole
+        # touch as learner.descriptor_embedding=sim describes it
+        "embedding": lambda: embedding.embed_touch(t, 1, emb),
+        "embedding_burst": lambda: embedding.embed_touch(t, 4, emb),
+        "descriptor_embedding": lambda: (texture.describe(t.frame, t.no_contact, True),
+                                         embedding.embed_touch(t, burst, emb)),
+    }
+
+
 def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dict]:
     """Per-touch cost [ms] of the descriptor without and with the height map (the shipped
     default since issue 33) and of each candidate, timed side by side
@@ -172,21 +193,7 @@ def touch_costs(root: str, presses: int = 12, repeats: int = 2) -> dict[str, dic
         rgb = np.ascontiguousarray(arr[..., ::-1])
         t = src.touch(path)
         idx, scores = strongest_contact(arr)
-        jobs = {
-            "descriptor": lambda: texture.describe(t.frame, t.no_contact),
-            "descriptor_height_map": lambda: texture.describe(t.frame, t.no_contact, True),
-            "filter_bank_1st": lambda: filter_bank(
-                texture.contact_difference(t.frame, t.no_contact), second_order=False),
-            "filter_bank": lambda: filter_bank(texture.contact_difference(t.frame, t.no_contact)),
-            "height_map": lambda: height_map(texture.contact_difference(t.frame, t.no_contact)),
-            "growth": lambda: growth(rgb, t.no_contact, scores, idx),
-            # the shipped network (core/embedding.py) on the strongest frame, and the whole
-            # touch as learner.descriptor_embedding=sim describes it
-            "embedding": lambda: embedding.embed_touch(t, 1, emb),
-            "embedding_burst": lambda: embedding.embed_touch(t, 4, emb),
-            "descriptor_embedding": lambda: (texture.describe(t.frame, t.no_contact, True),
-                                             embedding.embed_touch(t, burst, emb)),
-        }
+        jobs = _touch_jobs(t, rgb, idx, scores, emb, burst)
         for _ in range(repeats):
             for k, f in jobs.items():
                 t0 = time.perf_counter()

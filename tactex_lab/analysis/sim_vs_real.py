@@ -87,7 +87,7 @@ def band_shares(diff: np.ndarray, edges: tuple[float, ...] = BAND_EDGES) -> np.n
         return np.zeros(len(edges) - 1)
     last = len(edges) - 2        # the last band includes its top edge (hf_share is above it)
     return np.array([p[(f >= a) & ((f < b) | ((f == b) & (i == last)))].sum()
-                     for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]) / total
+                     for i, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True))]) / total
 
 
 @dataclass
@@ -281,7 +281,7 @@ def _group_report(real: list[Press], sim: list[Press]) -> dict[str, Any]:
         for key in ("group", "family"):
             for g in sorted({getattr(p, key) for p in presses}):
                 out[side].setdefault(g, summarise(
-                    [s for p, s in zip(presses, stats) if getattr(p, key) == g]))
+                    [s for p, s in zip(presses, stats, strict=True) if getattr(p, key) == g]))
     checks = []
     for g in ("all", "soft", "firm_textured"):
         r, s = out["real"].get(g), out["sim"].get(g)

@@ -21,7 +21,8 @@
 from __future__ import annotations
 
 from itertools import combinations
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -104,7 +105,7 @@ def pairwise_tests(values: dict[str, Sequence], test: str = "mcnemar",
     for a, b in combinations(names, 2):
         r = fn(values[a], values[b])
         out.append({"a": a, "b": b, **r})
-    for r, ph in zip(out, holm([r["p"] for r in out])):
+    for r, ph in zip(out, holm([r["p"] for r in out]), strict=True):
         r["p_holm"] = ph
         r["significant"] = bool(ph < alpha)
     return out

@@ -124,7 +124,7 @@ class OnlineLearner:
     def labels(self) -> np.ndarray:
         return np.concatenate(self._y_parts) if self._y_parts else np.zeros(0, dtype=np.int64)
 
-    def add_touch(self, img: "Touch | np.ndarray", label: int) -> torch.Tensor:
+    def add_touch(self, img: Touch | np.ndarray, label: int) -> torch.Tensor:
         """Store ``augment`` random rotations of a (240, 320, 3) uint8 frame under ``label``.
 
         A ``Touch`` contributes its contact frame (the CNN sees frames as they are).
@@ -151,7 +151,7 @@ class OnlineLearner:
         m = img.reshape(-1, 3).mean(axis=0)
         return np.clip(img.astype(np.float32) - m + 128.0, 0, 255).astype(np.uint8)
 
-    def add_reference(self, img: "Touch | np.ndarray") -> None:
+    def add_reference(self, img: Touch | np.ndarray) -> None:
         """Store a reference touch's views; decisions average over every reference touch."""
         self._ref_parts.append(self.test_tensor(img))
 
@@ -183,7 +183,7 @@ class OnlineLearner:
         platform."""
         return np.asarray(probs, dtype=np.float64).mean(axis=0)
 
-    def test_tensor(self, img: "Touch | np.ndarray") -> torch.Tensor:
+    def test_tensor(self, img: Touch | np.ndarray) -> torch.Tensor:
         """Reference views for scoring: (V, 3, S, S); V = test_views, the first unrotated."""
         img = self._colour_norm(validate_frame(as_touch(img).frame, "reference touch"))
         if self.cfg.test_views == 1:
@@ -297,7 +297,7 @@ class OnlineLearner:
                           float(np.mean(losses)) if losses else float("nan"), skipped,
                           float(np.median(norms)) if norms else float("nan"), restored)
 
-    def transfer_from(self, other: "OnlineLearner") -> int:
+    def transfer_from(self, other: OnlineLearner) -> int:
         """Start from ``other``'s weights where names and shapes match; returns tensors copied.
 
         Same variant (e.g. a larger input for ``small_inception``): everything, classifier too.
@@ -406,7 +406,7 @@ class OnlineLearner:
             chunk = idx[i:i + bs]
             if chunk.numel() >= 2:
                 self.model(x[chunk])
-        for m, mom in zip(bns, saved):
+        for m, mom in zip(bns, saved, strict=True):
             m.momentum = mom
 
     # ------------------------------------------------------------------ scoring

@@ -382,7 +382,7 @@ class LoadReport:
 _HEAD_KEYS = ("fc.weight", "fc.bias", "AuxLogits.fc.weight", "AuxLogits.fc.bias")
 
 
-def read_checkpoint(path: str | Path) -> "OrderedDict[str, torch.Tensor]":
+def read_checkpoint(path: str | Path) -> OrderedDict[str, torch.Tensor]:
     """Read a state_dict from ``path`` safely (``weights_only=True``).
 
     Accepts a bare state_dict or a dict holding one under ``state_dict`` / ``model``; strips a

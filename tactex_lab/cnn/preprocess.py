@@ -72,7 +72,7 @@ def augment(img: np.ndarray, n: int, size: int, rng: np.random.Generator,
     if include_identity and n > 0:
         xs[0], ys[0] = (w - 1) / 2.0, (h - 1) / 2.0
     return np.stack([view(img, float(a), size, True, (float(x), float(y)))
-                     for a, x, y in zip(angles, xs, ys)])
+                     for a, x, y in zip(angles, xs, ys, strict=True)])
 
 
 def to_tensor(views: np.ndarray, fourier: bool = False) -> torch.Tensor:

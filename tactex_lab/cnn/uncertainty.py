@@ -150,7 +150,7 @@ class LastLayerLaplace:
 
     @classmethod
     def fit(cls, weight: torch.Tensor, bias: torch.Tensor, features: torch.Tensor,
-            labels: torch.Tensor, prior_precision: float = 0.0) -> "LastLayerLaplace":
+            labels: torch.Tensor, prior_precision: float = 0.0) -> LastLayerLaplace:
         """Fit around the trained layer ``weight`` (C, F), ``bias`` (C,) on its inputs
         ``features`` (N, F) with integer ``labels`` (N,). ``prior_precision`` > 0 is used as
         given; 0 picks the grid value (``PRIOR_GRID``) of highest marginal likelihood."""

@@ -54,7 +54,7 @@ def sim_split(source: Any, classes: list[str], counts: tuple[int, int, int], see
     """{"train"|"val"|"test": [(frame, label)]}: fresh presses per class and split."""
     out: dict[str, list] = {"train": [], "val": [], "test": []}
     for ci, c in enumerate(classes):
-        for si, (split, n) in enumerate(zip(out, counts)):
+        for si, (split, n) in enumerate(zip(out, counts, strict=True)):
             rng = np.random.default_rng([seed, 101, ci, si])
             out[split] += [(source.press(c, rng), ci) for _ in range(n)]
     return out

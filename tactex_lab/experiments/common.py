@@ -7,7 +7,8 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Sequence, TypeVar
+from typing import Any, TypeVar
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 

@@ -86,7 +86,7 @@ class BeliefCurve:
         return out
 
     @classmethod
-    def from_json(cls, d: dict[str, Any]) -> "BeliefCurve":
+    def from_json(cls, d: dict[str, Any]) -> BeliefCurve:
         """A curve from its JSON form; InputError names an unknown or missing field."""
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - names)

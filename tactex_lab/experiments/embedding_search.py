@@ -85,7 +85,7 @@ def pick(rows: list[dict], chosen_on: str, judged_on: str, kind: str) -> dict:
     best = key(max(mine, key=lambda r: r["acc_1"] + r["acc_2"]))
     judged = next(r for r in rows if key(r) == best and r["direction"] == judged_on
                   and r["metric"] == kind)
-    return {"setting": dict(zip(("aug", "variants", "steps"), best)), "judged_on": judged_on,
+    return {"setting": dict(zip(("aug", "variants", "steps"), best, strict=True)), "judged_on": judged_on,
             "acc_1": judged["acc_1"], "acc_2": judged["acc_2"],
             "vs_first": {p: judged[f"vs_first_{p}"] for p in (1, 2)}}
 
@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> dict:
               f"n{r['steps']:<5}: {r['acc_1']:.3f} / {r['acc_2']:.3f}  p vs first "
               f"{r['vs_first_1']['p']:.2g} {r['vs_first_2']['p']:.2g}"
               + ("" if "acc_1_seeds" not in r else "  per seed " + ", ".join(
-                  f"{a:.3f} / {b:.3f}" for a, b in zip(r["acc_1_seeds"], r["acc_2_seeds"]))),
+                  f"{a:.3f} / {b:.3f}" for a, b in zip(r["acc_1_seeds"], r["acc_2_seeds"], strict=True))),
               flush=True)
     for name, p in picks.items():
         s = p["setting"]

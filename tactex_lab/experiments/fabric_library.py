@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -103,7 +103,7 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
                "platforms_known": sum(c in known for c in scene[1:]),
                "library": lib.state()}
         logs = {}
-        for arm, w in zip(arm_names(args.weights), [None] + list(args.weights)):
+        for arm, w in zip(arm_names(args.weights), [None] + list(args.weights), strict=True):
             c, logs[arm] = run_trial_arm(x, cls, scene, seed * 1000 + t, args.budget,
                                          None if w is None else lib, w or EVIDENCE_WEIGHT,
                                          rejected)
@@ -151,7 +151,7 @@ def summarise(rows: list[dict], blocks: int, arms: list[str]) -> dict:
     n = max(r["trial"] for r in rows)
     edges = np.linspace(0, n, blocks + 1).round().astype(int)
     curve_rows = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         sub = [r for r in rows if lo < r["trial"] <= hi]
         curve_rows.append({"trials": [int(lo) + 1, int(hi)],
                            "reference_known_share": float(np.mean([r["reference_known"]

@@ -137,7 +137,7 @@ def outcome(trajs: list[cal.Trajectory], beta: float, theta: float,
             ok &= t.separation > s0
         i = int(np.argmax(ok)) if ok.any() else len(b) - 1
         rows.append((bool(ok.any()), int(np.argmax(b[i])) == t.truth, t.extra[i], top[i]))
-    sure, correct, extra, conf = map(np.array, zip(*rows))
+    sure, correct, extra, conf = map(np.array, zip(*rows, strict=True))
     return {"sure": sure, "correct": correct, "extra": extra.astype(float), "conf": conf}
 
 
@@ -213,7 +213,7 @@ def run_families(args: argparse.Namespace) -> dict:
                                              if k != "func"})
     beta0 = feature_settings(args.feature).match_temperature
     fams, base = {}, {}
-    for name, spec in zip(names, args.family):
+    for name, spec in zip(names, args.family, strict=True):
         fams[name] = family_presses(spec, cache, args.per_class, args.feature)
         t0 = time.time()
         base[name] = run_family(name, fams[name], args.seed, args, beta0)

@@ -124,7 +124,7 @@ def run_cached(jobs: list[TrialJob], args, description: str) -> list[dict]:
         res = run_jobs([jobs[i] for i in chunk], backend, threads=args.threads,
                        description=f"{description}: {c0 + len(chunk)}/{len(todo)} to run, "
                                    f"{len(jobs) - len(todo)} cached", quiet=args.quiet)
-        for i, r in zip(chunk, res):
+        for i, r in zip(chunk, res, strict=True):
             out[i] = r.to_dict()      # the cache's file form, as cached results are read
             if cache is not None:
                 write_json(cache / f"{job_key(jobs[i])}.json", out[i])
@@ -161,7 +161,7 @@ def summarise_setting(runs: list[dict], budget: int) -> dict:
     final = [r["correct"] for r in runs]
     lo, hi = wilson(sum(ok), len(ok))
     per_seed = {}
-    for r, c in zip(runs, ok):
+    for r, c in zip(runs, ok, strict=True):
         per_seed.setdefault(r["seed"], []).append(c)
     seed_acc = [float(np.mean(v)) for v in per_seed.values()]
     escal = sum(1 for r in runs if any(d["escalation"] for d in r["decisions"]))
@@ -282,7 +282,7 @@ def run_faithful(args, out: Path) -> dict:
     jobs.sort(key=lambda j: j.tags["setting"] != THESIS_LABEL)
     res = run_cached(jobs, args, "seed-faithful vs default")
     runs = [compact(r) for r in res]
-    for r, x in zip(runs, res):
+    for r, x in zip(runs, res, strict=True):
         r["classes"] = x["classes"]
     summary = {}
     for label, *_ in settings:

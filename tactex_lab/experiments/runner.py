@@ -35,7 +35,8 @@ import functools
 import os
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Iterator, Sequence, TypeVar
+from typing import Any, TypeVar
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -70,7 +71,7 @@ class Backend:
         if self.address is not None and self.name != "ray":
             raise InputError("--address names a Ray cluster: it needs --backend ray")
 
-    def resolved(self) -> "Backend":
+    def resolved(self) -> Backend:
         """This backend with ``workers`` 0 made explicit on this machine (joblib: the number of
         cores); a Ray backend keeps 0 (every CPU of the cluster)."""
         if self.name == "joblib" and self.workers == 0:

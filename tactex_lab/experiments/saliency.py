@@ -106,7 +106,7 @@ def run_classify(args, pool: Pool, kind: str, out: Path) -> dict:
             probs = fold0[3]
         else:
             probs = L.predict_proba(torch.cat([L.test_tensor(f) for f in frames]))
-        correct += int(sum(int(np.argmax(p)) == t for p, t in zip(probs, targets)))
+        correct += int(sum(int(np.argmax(p)) == t for p, t in zip(probs, targets, strict=True)))
         n += len(targets)
     imgs, ixg, cam, probs = fold0
     charts.saliency_rows(out / f"classify_{kind}.png", pool.classes, imgs, ixg, cam, probs,

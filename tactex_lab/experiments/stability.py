@@ -188,10 +188,10 @@ def _sweep(runs: list[dict], axis: str, values: list[float], strategy: str, mode
     ``threshold``, with the failure modes there."""
     blocks = [acc_block(_select(runs, axis=axis, value=v, strategy=strategy, model=model,
                                 guards=True)) for v in values]
-    fail = next((v for v, b in zip(values, blocks) if b["accuracy"] < threshold), None)
+    fail = next((v for v, b in zip(values, blocks, strict=True) if b["accuracy"] < threshold), None)
     modes = (None if fail is None else
              {m: n for m, n in blocks[values.index(fail)]["modes"].items() if n})
-    return dict(zip(map(str, values), blocks)), {"fails_at": fail, "modes_there": modes}
+    return dict(zip(map(str, values), blocks, strict=True)), {"fails_at": fail, "modes_there": modes}
 
 
 def _guards_before_after(runs: list[dict], axes: dict, strategies: list[str]) -> list[dict]:

@@ -67,13 +67,14 @@ class Setting:
     config's (or the prepared file's), a number, or one of ``FAMILY_CHOICES``: the temperature
     that ``tactex experiment families`` chose with the test side's family held out
     (``--families``)."""
+
     label: str
     feature: str = "frame"
     prepare: PrepareSettings = field(default_factory=lambda: PrepareSettings(**LAB_PREPARE))
     temperature: str = ""
 
     @staticmethod
-    def parse(text: str) -> "Setting":
+    def parse(text: str) -> Setting:
         """``label=key:value,...`` (keys feature, temperature and the preparation's kind,
         dims, calibration, shrink)."""
         label, sep, rest = text.partition("=")

@@ -121,7 +121,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
 
     record_dir = args.record_dir or DEFAULT_RECORD_DIR       # a resume: the record's own
     inputs = {"cli": dict(opts, config=settings.config,
-                          platforms=dict(zip(ids, platform_classes)), truth=ids[truth]),
+                          platforms=dict(zip(ids, platform_classes, strict=True)), truth=ids[truth]),
               "learner": cfg.model_dump(), "trial": tcfg.model_dump(), "run": run_info()}
     run = TrialRun(spec, record_dir, args.trial_id or "", press=press, inputs=inputs,
                    resume=resume, guard_reference=False,
@@ -144,7 +144,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     def outcome(out: dict) -> dict:
         pred = ids.index(out["prediction"])
         return {"truth": ids[truth], "correct": pred == truth, "truth_platforms": [ids[truth]],
-                "classes": dict(zip(ids, platform_classes)),
+                "classes": dict(zip(ids, platform_classes, strict=True)),
                 "prediction_class": platform_classes[pred],
                 "truth_class": platform_classes[truth], "config": settings.config,
                 "source": opts["source"]}
@@ -186,7 +186,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     return 0
 
 
-def library_descriptors(spec: str, cfg: "DescriptorSettings", sim_presses: int = 6,
+def library_descriptors(spec: str, cfg: DescriptorSettings, sim_presses: int = 6,
                         seed: int = 0) -> dict[str, np.ndarray]:
     """{class: (n, D) descriptors} of a library, described as the learner settings ``cfg``
     describe a touch (``core.descriptor.raw_descriptor``: frames, height map, embedding): every

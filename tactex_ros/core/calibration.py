@@ -26,7 +26,7 @@ it).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -47,6 +47,7 @@ class Trajectory:
     match (0..C-1), the touches after the baseline at every decision (steps,), and the two best
     comparisons' separation at every decision (steps,; ``MatchModel.separation``, the stop's
     "not sure" rule)."""
+
     evidence: np.ndarray
     truth: int
     extra: np.ndarray
@@ -121,9 +122,11 @@ def trajectories(presses: dict[str, np.ndarray],
             plat, truth, touch = _scene(held, presses, comparisons, rng)
             eng = TrialSpec(comparisons, cfg, tcfg, seed=seed * 1000 + s, representation=rep,
                             temperature=float(beta)).engine()
-            ev, extra, sep = [], [], []
+            ev: list[np.ndarray] = []
+            extra: list[int] = []
+            sep: list[float] = []
 
-            def keep(rec, eng=eng) -> None:
+            def keep(rec, eng=eng, ev=ev, extra=extra, sep=sep) -> None:
                 ev.append(eng.learner.match.log_evidence())
                 extra.append(eng.total_touches - (comparisons + 1))
                 sep.append(eng.learner.match.separation())

@@ -58,7 +58,7 @@ class LearnerBase(Schema):
                                     "no-contact reference is below this [grey levels] (0 = off; "
                                     "needs TrialEngine.set_no_contact_reference)", 0.0, 50.0)
 
-    def as_model(self, model: str, **kw: Any) -> "LearnerSettings":
+    def as_model(self, model: str, **kw: Any) -> LearnerSettings:
         """The settings of learner ``model`` (maybe of another family) with this one's values
         of the fields that learner has, and ``kw``; validated."""
         cls = learner_class(model)
@@ -277,7 +277,8 @@ class LadderSettings(DescriptorSettings):
 
 #: The learners' settings: one class per family, told apart by ``model`` (a discriminated
 #: union). A descriptor's settings carry no CNN field, and a CNN field given to it is refused.
-LearnerSettings = Annotated[Union[DescriptorSettings, CnnSettings, AutoSettings,
+# Union, not A | B: schema.variants and mypy (located(..., cls: type)) take typing.Union
+LearnerSettings = Annotated[Union[DescriptorSettings, CnnSettings, AutoSettings,  # noqa: UP007
                                   LadderSettings], Field(discriminator="model")]
 LEARNER_CLASSES: tuple[type, ...] = (DescriptorSettings, CnnSettings, AutoSettings,
                                      LadderSettings)
@@ -411,7 +412,7 @@ class TrialSettings(Schema):
     trial: TrialConfig = Field(default_factory=TrialConfig)
 
     @model_validator(mode="after")
-    def _strategy_fits_the_learner(self) -> "TrialSettings":
+    def _strategy_fits_the_learner(self) -> TrialSettings:
         if self.trial.strategy in REFERENCE_STRATEGIES and not self.learner.scores_reference:
             raise FieldError("trial.strategy", f"{self.trial.strategy!r} touches the reference "
                                                f"again and needs model 'descriptor' (got "

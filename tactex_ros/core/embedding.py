@@ -189,7 +189,7 @@ def from_torch(state: dict[str, np.ndarray], strides: tuple[int, ...], scale: fl
     if len(convs) != len(strides):
         raise InputError(f"{len(convs)} convolutions but {len(strides)} strides")
     layers = []
-    for c, stride in zip(convs, strides):
+    for c, stride in zip(convs, strides, strict=True):
         bn = str(int(c) + 1)
         g = state[f"{bn}.weight"] / np.sqrt(state[f"{bn}.running_var"] + eps)
         w = state[f"{c}.weight"] * g[:, None, None, None]

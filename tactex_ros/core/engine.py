@@ -51,7 +51,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field, replace
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 
@@ -134,7 +135,7 @@ class TrainingDetail:
     kind: str = "training"
 
     @classmethod
-    def of(cls, stats: TrainStats, input_size: int) -> "TrainingDetail":
+    def of(cls, stats: TrainStats, input_size: int) -> TrainingDetail:
         """The detail of one ``train_round`` (``core/learners.TrainStats``)."""
         return cls(input_size=input_size, train_s=stats.seconds, train_loss=stats.mean_loss,
                    skipped_steps=stats.skipped, restored=stats.restored,
@@ -533,7 +534,7 @@ class TrialEngine:
         self._touch_due = True
 
     # ------------------------------------------------------------------ loop
-    def run(self, touch_fn: Callable[[int], "Touch | np.ndarray"], truth: int | None = None,
+    def run(self, touch_fn: Callable[[int], Touch | np.ndarray], truth: int | None = None,
             on_round: Callable[[RoundRecord], None] | None = None,
             on_rejected: Callable[[int, TouchRejected], None] | None = None) -> TrialOutcome:
         """Baseline, then rounds until done. ``touch_fn(platform)`` returns a ``Touch`` or a
@@ -566,7 +567,7 @@ class TrialEngine:
                 self._touch(rec.platform, touch_fn, on_rejected)
         return self.result(truth)
 
-    def _touch(self, platform: int, touch_fn: Callable[[int], "Touch | np.ndarray"],
+    def _touch(self, platform: int, touch_fn: Callable[[int], Touch | np.ndarray],
                on_rejected: Callable[[int, TouchRejected], None] | None) -> bool:
         """Touch ``platform``, repeating a failed or rejected touch up to ``touch_retries``
         times (each failure recorded); True once a touch is stored."""
@@ -594,7 +595,7 @@ class TrialEngine:
         return False
 
 
-def refusing_no_contact(touch_fn: Callable[[int], "Touch | np.ndarray"],
+def refusing_no_contact(touch_fn: Callable[[int], Touch | np.ndarray],
                         cfg: LearnerSettings) -> Callable[[int], Touch]:
     """``touch_fn`` whose touches the learner's contact guard judges against the no-contact
     frame each one carries (``guards.press_verdict``; ``cfg.guards`` off: ``touch_fn`` as
@@ -673,8 +674,8 @@ class TrialSpec:
     seed: int = 0
     platform_ids: tuple[str, ...] | None = None
     no_contact: np.ndarray | None = None
-    library: "FabricLibrary | None" = None
-    representation: "Representation | None" = None
+    library: FabricLibrary | None = None
+    representation: Representation | None = None
     temperature: float | None = None
     evidence: EvidenceModel | None = None   # trial.stop_rule 'evalue': its fitted null and
     #                                         alternative (core/evidence.py)
@@ -700,7 +701,7 @@ class TrialSpec:
         return eng
 
 
-def run_trial(spec: TrialSpec, touch_fn: Callable[[int], "Touch | np.ndarray"],
+def run_trial(spec: TrialSpec, touch_fn: Callable[[int], Touch | np.ndarray],
               truth: int | None = None,
               on_round: Callable[[RoundRecord], None] | None = None,
               on_rejected: Callable[[int, TouchRejected], None] | None = None) -> TrialOutcome:

@@ -56,7 +56,7 @@ import re
 import struct
 import time
 from dataclasses import asdict, dataclass, field, replace
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -86,15 +86,15 @@ class Rule:
     heldout_acc: float = 0.5   # share of them right below which the rung is not enough
 
     @staticmethod
-    def of(cfg: LadderSettings) -> "Rule":
+    def of(cfg: LadderSettings) -> Rule:
         return Rule(cfg.ladder_patience, cfg.ladder_min_gain, cfg.ladder_sure,
                     cfg.ladder_margin, cfg.ladder_window, cfg.ladder_heldout_acc)
 
-    def reason(self, history: "History") -> "Evidence | None":
+    def reason(self, history: History) -> Evidence | None:
         """``escalation_reason`` on a rung's history."""
         return escalation_reason(history.beliefs, history.heldout, self)
 
-    def describe(self, ev: "Evidence", below: str, above: str) -> str:
+    def describe(self, ev: Evidence, below: str, above: str) -> str:
         """The round record's ``escalation`` of a climb from rung ``below`` to ``above``."""
         return f"{below} -> {above}: {ev}"
 
@@ -167,11 +167,11 @@ class EntropyRule:
     num_classes: int = 2       # C, for the entropy floor
 
     @staticmethod
-    def of(cfg: AutoSettings, num_classes: int) -> "EntropyRule":
+    def of(cfg: AutoSettings, num_classes: int) -> EntropyRule:
         return EntropyRule(cfg.auto_patience, cfg.auto_min_drop, cfg.auto_entropy,
                            cfg.auto_window, cfg.auto_heldout_acc, num_classes)
 
-    def reason(self, history: "History") -> Evidence | None:
+    def reason(self, history: History) -> Evidence | None:
         """``entropy_reason`` on a rung's history."""
         return entropy_reason(history.entropies, history.heldout, self)
 
@@ -522,7 +522,7 @@ class Ladder:
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, from the highest descriptor rung in use
         (strategy ``infogain``)."""
-        for rung, learner in zip(reversed(self._active_rungs), reversed(self.active)):
+        for rung, learner in zip(reversed(self._active_rungs), reversed(self.active), strict=True):
             if rung in DESCRIPTOR_RUNGS:
                 return learner.info_gain(rng)
         raise InputError("strategy 'infogain' needs a descriptor rung in the ladder")

@@ -41,7 +41,7 @@ import hashlib
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -72,7 +72,7 @@ class FabricLibrary:
         """The known fabric names, sorted."""
         return sorted(set(self.names))
 
-    def add(self, name: str, descriptors: np.ndarray, sources: list[str]) -> "FabricLibrary":
+    def add(self, name: str, descriptors: np.ndarray, sources: list[str]) -> FabricLibrary:
         """A new library with ``descriptors`` (n, D) of fabric ``name`` added; a source the
         library holds already is skipped (the same press is never counted twice)."""
         x = np.asarray(descriptors, dtype=np.float64).reshape(len(sources), -1)
@@ -89,7 +89,7 @@ class FabricLibrary:
         return FabricLibrary(np.concatenate([old, x[keep]]), self.names + [name] * len(keep),
                              self.sources + [sources[i] for i in keep])
 
-    def without(self, sources: Iterable[str]) -> "FabricLibrary":
+    def without(self, sources: Iterable[str]) -> FabricLibrary:
         """The library less the entries of ``sources``."""
         drop = set(sources)
         keep = [i for i, s in enumerate(self.sources) if s not in drop]

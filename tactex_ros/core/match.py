@@ -125,7 +125,7 @@ class MatchModel:
             scale = np.ones(means.shape[1])
         ss = np.zeros(means.shape[1])
         dof = 0
-        for s, m in zip(self.samples_by_platform, means):
+        for s, m in zip(self.samples_by_platform, means, strict=True):
             if len(s) > 1:
                 ss += (((np.stack(s) - m) / scale) ** 2).sum(axis=0)
                 dof += len(s) - 1

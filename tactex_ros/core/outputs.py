@@ -11,6 +11,7 @@ same folder and ``os.replace``, so a reader never sees a torn file.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import math
@@ -18,7 +19,8 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
+from collections.abc import Iterable
 
 from .errors import InputError, TrialError
 
@@ -187,10 +189,8 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
         os.chmod(tmp, 0o644)
         os.replace(tmp, p)
     except BaseException as exc:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         if isinstance(exc, OSError):
             raise WriteError(f"could not write {str(p)!r}: {_why(exc)}") from None
         raise

@@ -11,7 +11,7 @@ tag, object = a factory ``(num_classes, cfg, seed) -> learner``, see ``core/lear
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
@@ -21,7 +21,7 @@ LEARNERS = "tactex.learners"
 COMMANDS = "tactex.commands"
 
 
-@lru_cache(maxsize=None)
+@cache
 def available(group: str) -> dict[str, EntryPoint]:
     """{name: entry point} of ``group``, first declaration of a name wins (a name declared by
     two installed distributions is one plug-in)."""

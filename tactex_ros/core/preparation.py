@@ -50,8 +50,8 @@ class PrepareSettings(Schema):
         None, "temperature the left-out trials run with (default: the config's)", 1e-4, 10.0)
 
 
-def prepare(descriptors: dict[str, "np.ndarray"], settings: PrepareSettings,
-            cfg: "DescriptorSettings", seed: int = 0) -> "Representation":
+def prepare(descriptors: dict[str, np.ndarray], settings: PrepareSettings,
+            cfg: DescriptorSettings, seed: int = 0) -> Representation:
     """The representation of the library ``{class: (n, D) descriptors}`` as ``settings`` say:
     the metric fitted on every class, and (``calibration`` not off) the belief temperature
     calibrated on left-out trials run with the learner settings ``cfg``

@@ -209,7 +209,7 @@ def load(path: str | Path) -> Representation:
         arrays = [d[k] for k in ("mean", "std", "whiten")]
     except KeyError as exc:
         raise InputError(f"representation file {p}: missing {exc}") from None
-    for k, v in zip(("mean", "std", "whiten"), arrays):
+    for k, v in zip(("mean", "std", "whiten"), arrays, strict=True):
         if v.dtype.kind not in "biuf":
             raise InputError(f"representation file {p}: field {k!r} must hold numbers, got "
                              f"{v.dtype}")

@@ -274,7 +274,7 @@ def describe_difference(d: np.ndarray, region: np.ndarray | None = None,
     return out
 
 
-_CACHE: "OrderedDict[bytes, np.ndarray]" = OrderedDict()
+_CACHE: OrderedDict[bytes, np.ndarray] = OrderedDict()
 CACHE_SIZE = 4096
 
 
@@ -306,7 +306,7 @@ def describe_cached(frame: np.ndarray, no_contact: np.ndarray | None = None,
     return out
 
 
-def describe_touch(touch: "Touch | np.ndarray", max_frames: int = 1,
+def describe_touch(touch: Touch | np.ndarray, max_frames: int = 1,
                    with_height_map: bool = False) -> np.ndarray:
     """(DIM,) mean descriptor over up to ``max_frames`` contact frames of one touch;
     ``with_height_map``: (``DIM_HEIGHT_MAP``,), the height map's statistics of the strongest

@@ -36,7 +36,7 @@ class Touch:
     descriptor: np.ndarray | None = None
 
 
-def as_touch(touch: "Touch | np.ndarray") -> Touch:
+def as_touch(touch: Touch | np.ndarray) -> Touch:
     """A Touch as it is, or a bare frame wrapped as a Touch without a no-contact frame."""
     return touch if isinstance(touch, Touch) else Touch(frame=touch)
 

@@ -16,7 +16,8 @@ scores on a scene what ``experiment real`` reads off its belief curve at ``theta
 from __future__ import annotations
 
 import statistics
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
+from collections.abc import Callable
 
 import numpy as np
 

@@ -27,7 +27,7 @@ stiffness clamp, error clip, torque rate limit and the activation transient.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace as _replace
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -169,7 +169,7 @@ class ControlLaw:
         """Largest force the law pushes with at rest [N] (``K * error_clip``; inf if unclipped)."""
         return self.k * self.error_clip
 
-    def replace(self, **kw) -> "ControlLaw":
+    def replace(self, **kw) -> ControlLaw:
         return _replace(self, **kw)
 
 
@@ -204,11 +204,11 @@ class Faults:
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
 
-    def replace(self, **kw) -> "Faults":
+    def replace(self, **kw) -> Faults:
         return _replace(self, **kw)
 
     @staticmethod
-    def draw(rng: np.random.Generator) -> "Faults":
+    def draw(rng: np.random.Generator) -> Faults:
         """A world from the ranges a lab meets (docs/simulated_world.md): offset up to 5 N in
         any direction drifting up to 0.02 N/s, a configuration-dependent offset up to 10 N/m,
         noise 0.05-0.3 N, a static force up to 4 N up or down and 3 N sideways, Coulomb friction
@@ -268,7 +268,7 @@ class Worlds:
         self._frictionless = not (np.any(self.fc) or np.any(self.fv))
         self._rngs = [np.random.default_rng(f.seed) for f in faults]
         self.gradient = np.stack([f.offset_gradient * np.linalg.qr(r.standard_normal((3, 3)))[0]
-                                  for f, r in zip(faults, self._rngs)])          # (n, 3, 3)
+                                  for f, r in zip(faults, self._rngs, strict=True)])          # (n, 3, 3)
         self.position = np.broadcast_to(np.asarray(start, dtype=float), (n, 3)).copy()
         self.origin = self.position.copy()
         self.velocity = np.zeros((n, 3))

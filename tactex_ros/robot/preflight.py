@@ -21,7 +21,7 @@ refusal with what the lab does.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -130,7 +130,7 @@ def collision_problem(request: dict, max_force: float, max_offset: float) -> Pro
     if missing:
         return Problem("collision", f"the collision request lacks {missing} (x, y, z at least)")
     lower, upper = (list(map(float, request[f][:3])) for f in FORCE_FIELDS)
-    if any(lo > hi for lo, hi in zip(lower, upper)):
+    if any(lo > hi for lo, hi in zip(lower, upper, strict=True)):
         return Problem("collision", f"lower_force_thresholds_nominal {lower} N above "
                                     f"upper_force_thresholds_nominal {upper} N")
     need = max_force + max_offset
@@ -232,7 +232,7 @@ def push_sign(baseline: Sequence[float], times: Sequence[float], fz: Sequence[fl
     of the hands-off samples). ``times`` [s] and ``fz`` [N] are the samples after the prompt."""
     base = float(np.median(baseline)) if len(baseline) else 0.0
     start = None
-    for i, (t, f) in enumerate(zip(times, fz)):
+    for i, (t, f) in enumerate(zip(times, fz, strict=True)):
         if abs(f - base) < push_n or (start is not None and
                                       np.sign(f - base) != np.sign(fz[start] - base)):
             start = None

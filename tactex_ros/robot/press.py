@@ -51,7 +51,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Protocol, Sequence
+from typing import Protocol
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -139,7 +140,7 @@ class PressOutcome:
     force_n: float               # normal force at capture [N] (0 when not captured)
     depth_m: float               # penetration below the surface at capture [m]
     max_force_n: float           # largest force magnitude seen during the press [N]
-    tare: "TareResult | None" = None   # the tare before the descent (None: not reached)
+    tare: TareResult | None = None   # the tare before the descent (None: not reached)
     surface_z: float | None = None     # z where the descent found the surface [m] (None: not)
     warning: str = ""                  # e.g. the surface moved more than surface_warn_m
     phase_s: dict[str, float] = field(default_factory=dict)   # time spent in each phase [s]
@@ -476,7 +477,7 @@ class PressController:
             self._descend(now, position, dt)
         elif self.phase == SETTLE:
             self._settle(now, position, dt)
-        elif self.phase == RETRACT:
+        elif self.phase == RETRACT:  # noqa: SIM102 - the phase dispatch stays one branch a phase
             if self._arrive(self._retract_point(), self.s.travel_speed, position, dt):
                 self._enter(DONE, now)
         return self.target

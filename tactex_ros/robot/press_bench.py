@@ -56,7 +56,7 @@ def draw_worlds(n: int, seed: int, heavy: bool = False,
     if heavy:
         down = rng.uniform(*HEAVY_DOWN_N, n)
         worlds = [w.replace(static_force=(w.static_force[0], w.static_force[1], -float(d)))
-                  for w, d in zip(worlds, down)]
+                  for w, d in zip(worlds, down, strict=True)]
         mass = np.full(n, HEAVY_MASS_KG)
     return worlds, mass
 
@@ -67,7 +67,7 @@ def _start_points(scene: Scene, ids: list[str], found: list[float] | None) -> np
     order = [p.id for p in scene.ordered]
     s = scene.press
     out = []
-    for i, pid in enumerate(ids):
+    for pid in ids:
         prev = scene.platform(order[(order.index(pid) - 1) % len(order)])
         z = prev.position[2] + s.approach_height
         if found is not None:
@@ -80,7 +80,7 @@ def _figures(scene: Scene, got: list[WorldPress]) -> dict[str, Any]:
     s = scene.press
     tol = s.force_tolerance_n
     ok = [g.outcome.success and abs(g.true_force_n - s.force_threshold) <= tol for g in got]
-    wrong = [g.outcome.success and not k for g, k in zip(got, ok)]
+    wrong = [g.outcome.success and not k for g, k in zip(got, ok, strict=True)]
     reasons = collections.Counter(g.outcome.reason.split(":")[0] for g in got
                                   if not g.outcome.success)
     times = np.array([g.outcome.press_s for g in got if g.outcome.success])

@@ -46,9 +46,10 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
-from typing import Annotated, Any, Literal, Sequence, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
+from collections.abc import Sequence
 
 from pydantic import StringConstraints, field_validator, model_validator
 
@@ -188,7 +189,7 @@ class ControllerSpec(Schema):
                                  0.0, 0.999)
 
     @model_validator(mode="after")
-    def _not_clamped(self) -> "ControllerSpec":
+    def _not_clamped(self) -> ControllerSpec:
         if self.stiffness > self.max_stiffness:
             raise FieldError("stiffness", f"{self.stiffness:g} N/m is above max_stiffness "
                                           f"{self.max_stiffness:g} N/m: the controller would "
@@ -241,7 +242,7 @@ class StateSpec(Schema):
                                      "[Hz]", 0.0, 10000.0)
 
     @model_validator(mode="after")
-    def _one_kind(self) -> "StateSpec":
+    def _one_kind(self) -> StateSpec:
         given = self.model_fields_set - {"pose_qos", "wrench_qos", "qos", "mode_qos",
                                          "min_rate_hz"}
         if given & {"topic", "type"}:
@@ -279,7 +280,7 @@ class RecoverySpec(Schema):
                                      "the controller stays active through it")
 
     @model_validator(mode="after")
-    def _complete(self) -> "RecoverySpec":
+    def _complete(self) -> RecoverySpec:
         if self.kind == "none":
             return self
         if not self.name:
@@ -376,7 +377,7 @@ def load_profile(name_or_path: str) -> RobotProfile:
     return _parsed_profile(str(p.resolve()), p.stat().st_mtime_ns)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _parsed_profile(path: str, mtime_ns: int) -> RobotProfile:
     p = Path(path)
     return parse_profile(read_yaml(p, "robot profile"), origin=f"robot profile {p.name}")
@@ -410,7 +411,7 @@ def hold_target(position: Sequence[float], surface_z: float, ws_min: Sequence[fl
     below it, inside the workspace box: at rest it pushes nothing into the platform."""
     x, y, z = (float(v) for v in position)
     held = (x, y, max(z, float(surface_z)))
-    return tuple(min(max(v, float(lo)), float(hi)) for v, lo, hi in zip(held, ws_min, ws_max))
+    return tuple(min(max(v, float(lo)), float(hi)) for v, lo, hi in zip(held, ws_min, ws_max, strict=True))
 
 
 def import_interface(name: str) -> type:

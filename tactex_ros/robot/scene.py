@@ -120,7 +120,7 @@ class PressSettings(Schema):
                                   0.0001, 0.05)
 
     @model_validator(mode="after")
-    def _limits(self) -> "PressSettings":
+    def _limits(self) -> PressSettings:
         if self.contact_force_n >= self.force_threshold:
             raise FieldError("contact_force_n", f"{self.contact_force_n} N must be below "
                                                 f"force_threshold ({self.force_threshold} N)")
@@ -212,8 +212,8 @@ class Workspace(Schema):
     max: Vec3 = param(..., "upper corner [x, y, z] in the base frame [m]")
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Workspace":
-        if not all(lo < hi for lo, hi in zip(self.min, self.max)):
+    def _ordered(self) -> Workspace:
+        if not all(lo < hi for lo, hi in zip(self.min, self.max, strict=True)):
             raise FieldError("min", f"{list(self.min)} must be below max {list(self.max)} on "
                                     "every axis")
         return self
@@ -238,7 +238,7 @@ class SceneFile(Schema):
         return q
 
     @model_validator(mode="after")
-    def _platforms(self) -> "SceneFile":
+    def _platforms(self) -> SceneFile:
         plats, ws, press = self.platforms, self.workspace, self.press
         refs = [p for p in plats if p.role == "reference"]
         if len(refs) != 1 or len(plats) - 1 < 2:

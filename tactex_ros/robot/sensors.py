@@ -26,7 +26,7 @@ Pure Python (no rclpy, no OpenCV). A profile says:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal, Optional
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, StringConstraints
 
@@ -108,7 +108,7 @@ class SensorFile(Schema):
     capture: CaptureSpec
     crop_fraction: float = param(..., "border cut before the resize", 0.0, 0.45)
     exposure_controls: bool = param(True, "auto exposure / white balance switched off")
-    led_intensity: Optional[int] = param(None, "DIGIT LED level", 0, LED_MAX)
+    led_intensity: int | None = param(None, "DIGIT LED level", 0, LED_MAX)
     portrait_recordings: bool = param(False, "recorded frames are transposed")
     notes: str = param("", "free text")
 

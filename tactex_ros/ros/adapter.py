@@ -63,7 +63,7 @@ def image_to_array(msg: Image, what: str = "image") -> np.ndarray:
     return arr
 
 
-def images_to_frames(msgs: "list[Image]", what: str = "touch") -> np.ndarray | None:
+def images_to_frames(msgs: list[Image], what: str = "touch") -> np.ndarray | None:
     """A touch's further in-contact frames (``tactex/Touch.extra_images``) -> RGB uint8
     (K, 240, 320, 3), the ``core.touch.Touch.extra`` of the touch; None when there are none.
     InputError (``image_to_array``'s, naming the frame) when one is unusable."""
@@ -216,9 +216,9 @@ def markers(scene: Scene, state, t: float) -> MarkerArray:
     touches and uncertainty, the next target highlighted (bigger, opaque, yellow outline)."""
     out = MarkerArray()
     hdr = Header(stamp=stamp(t), frame_id=scene.frame_id)
-    belief = dict(zip(state.platform_ids, state.belief)) if state is not None else {}
-    unc = dict(zip(state.platform_ids, state.uncertainty)) if state is not None else {}
-    touches = dict(zip(state.platform_ids, state.touches)) if state is not None else {}
+    belief = dict(zip(state.platform_ids, state.belief, strict=True)) if state is not None else {}
+    unc = dict(zip(state.platform_ids, state.uncertainty, strict=True)) if state is not None else {}
+    touches = dict(zip(state.platform_ids, state.touches, strict=True)) if state is not None else {}
     nxt = state.next_platform if state is not None else ""
     for i, p in enumerate(scene.ordered):
         x, y, z = p.position

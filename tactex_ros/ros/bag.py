@@ -19,6 +19,7 @@ The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import importlib
 import os
@@ -27,7 +28,8 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
+from collections.abc import Iterator
 
 from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Schema
@@ -137,7 +139,7 @@ class BagWriter:
         self.closed = False
         self.failed: str | None = None
         try:
-            self._f = open(self.path, "wb")
+            self._f = open(self.path, "wb")  # noqa: SIM115 - open until close()
         except OSError as exc:
             raise WriteError(f"could not write {str(self.path)!r}: "
                              f"{exc.strerror or exc}") from None
@@ -164,10 +166,8 @@ class BagWriter:
         except OSError as exc:
             self.failed = f"{exc.strerror or exc}"
             self.closed = True
-            try:
+            with contextlib.suppress(OSError):   # the buffered tail that could not be written
                 self._f.close()
-            except OSError:
-                pass        # the buffered tail that could not be written
             raise WriteError(f"could not write {str(self.path)!r}: {self.failed}; the "
                              "MCAP copy stops here (whole messages before stay readable)") \
                 from None
@@ -326,5 +326,5 @@ def standard_views(topic: str, msg: Any) -> list[tuple[str, Any]]:
     if tn == "tactex/msg/ExplorationState":
         from std_msgs.msg import Float64
         return [(BELIEF_VIEW + pid, Float64(data=float(b)))
-                for pid, b in zip(msg.platform_ids, msg.belief)]
+                for pid, b in zip(msg.platform_ids, msg.belief, strict=True)]
     return []

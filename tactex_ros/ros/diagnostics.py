@@ -23,7 +23,7 @@ from __future__ import annotations
 import collections
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 DIAGNOSTICS_TOPIC = "/diagnostics"
@@ -84,8 +84,8 @@ class Phase:
     def active(self) -> bool:
         return self.name is not None
 
-    def apply(self, result: "tuple[int, str, dict[str, object]]", now: float | None = None
-              ) -> "tuple[int, str, dict[str, object]]":
+    def apply(self, result: tuple[int, str, dict[str, object]], now: float | None = None
+              ) -> tuple[int, str, dict[str, object]]:
         """``result`` (level, message, values) as the phase reports it (see the class doc)."""
         now = time.monotonic() if now is None else now
         level, msg, values = result

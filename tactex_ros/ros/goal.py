@@ -30,7 +30,8 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Time

@@ -153,7 +153,7 @@ def scene_path(sim: bool, scene: str | Path | None, robot: str | None = None) ->
 
 
 def describe(sim: bool, scene_file: str | Path | None = None, *,
-             explorer: "dict[str, Any] | ExplorerSettings | None" = None,
+             explorer: dict[str, Any] | ExplorerSettings | None = None,
              explorer_file: str | Path | None = None,
              gelsight: dict[str, Any] | None = None, mock_image: dict[str, Any] | None = None,
              mock_arm: dict[str, Any] | None = None,

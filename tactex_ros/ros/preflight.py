@@ -116,7 +116,7 @@ class Probe:
             for sub in subs:
                 self.node.destroy_subscription(sub)
         return [([t for t in st if t <= st[0] + window_s] if st else [], lt)
-                for st, lt in zip(stamps, last)]
+                for st, lt in zip(stamps, last, strict=True)]
 
     def call(self, srv_type: type, name: str, request: dict[str, Any], ok_field: str,
              deadline_s: float) -> Any:

@@ -19,7 +19,8 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 from ..core.errors import InputError
 from ..core.schema import flatten, merge, nest, overrides

@@ -260,7 +260,7 @@ class ExplorerSettings(TrialSettings):
                           "the control loop and the sensor (0 = unchanged)", 0, 19)
 
     @model_validator(mode="after")
-    def _goal_answer(self) -> "ExplorerSettings":
+    def _goal_answer(self) -> ExplorerSettings:
         if self.goal_answer_s >= self.press_silence_s:
             raise FieldError("goal_answer_s", f"{self.goal_answer_s} s must be below "
                                               f"press_silence_s ({self.press_silence_s} s): an "

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -61,7 +61,7 @@ class FabricParams:
     repeat: int = 1
     softness: float = 0.2
 
-    def check(self, where: str = "fabric") -> "FabricParams":
+    def check(self, where: str = "fabric") -> FabricParams:
         """These parameters within their ranges and their family's rules; InputError names the
         field as ``where.field``."""
         if self.family not in FAMILIES:
@@ -91,9 +91,9 @@ class FabricParams:
         return np.array(out)
 
     @staticmethod
-    def from_vector(family: str, vec: np.ndarray) -> "FabricParams":
+    def from_vector(family: str, vec: np.ndarray) -> FabricParams:
         kw: dict[str, Any] = {}
-        for (name, (lo, hi)), x in zip(RANGES.items(), np.clip(vec, 0, 1)):
+        for (name, (lo, hi)), x in zip(RANGES.items(), np.clip(vec, 0, 1), strict=True):
             if name in ("pitch_mm", "yarn_height_mm"):
                 kw[name] = float(np.exp(np.log(lo) + x * (np.log(hi) - np.log(lo))))
             elif name == "repeat":
@@ -114,7 +114,7 @@ def _entry_schema() -> type[Schema]:
     fields of ``FabricParams`` with their defaults and ``RANGES`` (one declaration of them)."""
     spec: dict[str, Any] = {
         "name": (str, param(..., "fabric name (unique)", min_length=1)),
-        "number": (Optional[int], param(None, "number of the thesis's set", 1)),
+        "number": (int | None, param(None, "number of the thesis's set", 1)),
         "note": (str, param("", "free text")),
         "family": (Literal[FAMILIES], param(..., "construction family")),
     }
@@ -137,7 +137,7 @@ class Catalogue(Schema):
     fabrics: list[FabricEntry] = param(..., "the fabrics", min_length=1)  # type: ignore[valid-type]
 
     @model_validator(mode="after")
-    def _unique_and_consistent(self) -> "Catalogue":
+    def _unique_and_consistent(self) -> Catalogue:
         seen: set[str] = set()
         for i, e in enumerate(self.fabrics):
             if e.name in seen:
@@ -273,7 +273,7 @@ def height_tile(fab: FabricParams, size: int, mm_per_px: float, seed: int) -> np
         ang = rng.uniform(0, np.pi, n_fibres)
         length = pitch * rng.uniform(2.0, 6.0, n_fibres)
         thick = max(1, int(round(pitch * half_w * 0.5)))
-        for (x0, y0), a, L in zip(pts, ang, length):
+        for (x0, y0), a, L in zip(pts, ang, length, strict=True):
             x1, y1 = x0 + L * np.cos(a), y0 + L * np.sin(a)
             cv2.line(h, (int(x0), int(y0)), (int(x1), int(y1)),
                      float(rng.uniform(0.5, 1.0)), thick, cv2.LINE_AA)
@@ -287,7 +287,7 @@ def height_tile(fab: FabricParams, size: int, mm_per_px: float, seed: int) -> np
         n_hairs = int(400 * fab.fuzz * (size / 512) ** 2)
         pts = rng.uniform(0, size, (n_hairs, 2))
         ang = rng.uniform(0, 2 * np.pi, n_hairs)
-        for (x0, y0), a in zip(pts, ang):
+        for (x0, y0), a in zip(pts, ang, strict=True):
             L = rng.uniform(8, 30)
             cv2.line(fibres, (int(x0), int(y0)),
                      (int(x0 + L * np.cos(a)), int(y0 + L * np.sin(a))), 1.0, 1, cv2.LINE_AA)

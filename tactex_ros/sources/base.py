@@ -8,7 +8,8 @@ Frames are RGB uint8 arrays of shape (240, 320, 3); platform 0 is the reference,
 
 from __future__ import annotations
 
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
+from collections.abc import Callable
 
 import numpy as np
 

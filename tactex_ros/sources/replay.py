@@ -242,7 +242,7 @@ class ReplaySource:
         raise InputError(f"class {cls!r} has no readable press: {'; '.join(errors)}")
 
     def trial(self, platform_classes: list[str], seed: int,
-              depth_spread_mm: float | None = None) -> "ReplayTrial":
+              depth_spread_mm: float | None = None) -> ReplayTrial:
         """Touch function of one trial (``TouchSource.trial``): recorded presses drawn without
         repetition where possible."""
         if depth_spread_mm is not None:

@@ -23,7 +23,8 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 
 #: [s] a decision still under way after this long (the thesis CNN: 27-98 s) is said so again
@@ -64,7 +65,9 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | No
     """One decision as text: round k of ``rounds``, belief per comparison platform, the next
     platform; ``elapsed_s`` since the first press and ``rest_s`` (at most) where known."""
     b = dec.get("belief") or []
-    belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b))
+    # strict=False: a decision may lack its belief, and the ids may not be known yet (trial.json
+    # not read); a progress line shows what it has rather than failing the follower
+    belief = " ".join(f"{p} {v:.2f}" for p, v in zip(platform_ids, b, strict=False))
     nxt = dec.get("next") or ("done: " + str(dec.get("prediction")) if dec.get("done") else "-")
     r = dec.get("round")
     # the answer given after the last capped round is its own decision: never "5/4"

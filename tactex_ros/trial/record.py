@@ -104,9 +104,9 @@ RECORD_FILES = ("touches.jsonl", "config.json", "result.json", "decisions.jsonl"
 
 
 def name_problem(name: str, folder: bool = True) -> str | None:
-    """Why ``name`` is not a plain name for a trial (None: it is): empty or only spaces,
+    r"""Why ``name`` is not a plain name for a trial (None: it is): empty or only spaces,
     spaces around it, a control character (a newline, a tab); a ``folder`` name also '/' or
-    '\\', '.' or '..' (a trial file's id is not: its record folder is ``session.record_name``)."""
+    '\', '.' or '..' (a trial file's id is not: its record folder is ``session.record_name``)."""
     import unicodedata
     if not name.strip():
         return "empty or only spaces"

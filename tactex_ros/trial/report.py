@@ -189,7 +189,7 @@ def _when(t: float | None) -> str:
     """Epoch seconds as ``YYYY-MM-DD HH:MM:SS UTC``."""
     if not t:
         return ""
-    return _dt.datetime.fromtimestamp(t, _dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return _dt.datetime.fromtimestamp(t, _dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def _duration(s: float | None) -> str:
@@ -355,7 +355,8 @@ def _segments(rec: dict) -> list[dict[str, Any]]:
         inside = [m for m in marks if s is not None and s <= m < nxt]
         segs.append({"start": s, "end": max(inside) if inside else s})
     ended = [e for e in events if e.get("event") in ("trial_ended", "failed")]
-    for seg, e in zip(segs, ended):
+    # an interrupted trial's last segment has no end yet
+    for seg, e in zip(segs, ended, strict=False):
         seg["reason"] = e.get("reason") or (e.get("result") or {}).get("error")
     return segs
 
@@ -507,7 +508,7 @@ def _belief_series(decisions: list[dict], comps: list[str], fabrics: dict[str, s
         b = dec.get("belief") or []
         x = x_of(dec)
         if len(b) == len(comps) and x is not None:
-            for name, v in zip(names, b):
+            for name, v in zip(names, b, strict=True):
                 series[name].append((float(x), float(v)))
     return series
 
@@ -692,7 +693,7 @@ def trial_html(folder: str | Path) -> str:
         elif nxt:
             why = "reference (re-touch)" if ids and nxt == ids[0] else "as scheduled"
         rows.append([_esc(dec.get("round")), _esc(nxt or "-"), why,
-                     " ".join(f"{_esc(c)} {v:.2f}" for c, v in zip(comps, b)),
+                     " ".join(f"{_esc(c)} {v:.2f}" for c, v in zip(comps, b, strict=False)),  # b: [] without belief
                      _fmt(dec.get("decision_s"), ".2f")])
     parts.append(_table(["round", "next", "reason", "belief", "decision [s]"], rows, left=4))
 
@@ -786,7 +787,8 @@ def session_html(folder: str | Path) -> str:
     curves: list[list[tuple[int, bool]]] = []
     fabrics: list[str] = []
     conf: dict[tuple[str, str], int] = {}
-    for r, t in zip(summ["trials"], started["trials"]):
+    # a cut session: started trials past the summarised ones are left out
+    for r, t in zip(summ["trials"], started["trials"], strict=False):
         link = f"<a href='{_esc(r['record'])}/{REPORT}'>{_esc(r['id'])}</a>"
         if not r["done"]:
             state = "not started" if not (d / r["record"]).is_dir() else "unfinished"

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -61,7 +61,7 @@ def recorded_touches(record: dict) -> list[RecordedTouch]:
                                  "unreadable")
             extra = t.get("extra_arrays")
             if extra is not None and any(a is None for a in extra):
-                bad = [n for n, a in zip(t["extra"], extra) if a is None]
+                bad = [n for n, a in zip(t["extra"], extra, strict=True) if a is None]
                 raise InputError(f"resume: extra frame(s) {bad} of touch {seq} are missing or "
                                  "unreadable")
             touch = Touch(frame=arr, no_contact=t.get("no_contact_array"),
@@ -82,7 +82,7 @@ class Replay:
     a replayed touch (already on disk) from a new one."""
 
     def __init__(self, recorded: list[RecordedTouch],
-                 live: Callable[[int], "Touch | np.ndarray"], platform_ids: list[str]) -> None:
+                 live: Callable[[int], Touch | np.ndarray], platform_ids: list[str]) -> None:
         self.recorded = list(recorded)
         self.live = live
         self.platform_ids = platform_ids
@@ -94,7 +94,7 @@ class Replay:
         """True while recorded touches remain."""
         return self.pos < len(self.recorded)
 
-    def __call__(self, platform: int) -> "Touch | np.ndarray":
+    def __call__(self, platform: int) -> Touch | np.ndarray:
         if not self.replaying:
             self.current = None
             return self.live(platform)
@@ -152,7 +152,7 @@ def restore_engine(spec: TrialSpec, folder: str | Path, recorded: list[RecordedT
                         f"{sum(r.seq > after for r in recorded)} recorded touches replayed")
 
 
-def load_replay(folder: str | Path, live: Callable[[int], "Touch | np.ndarray"],
+def load_replay(folder: str | Path, live: Callable[[int], Touch | np.ndarray],
                 platform_ids: list[str]) -> tuple[Replay, dict]:
     """A ``Replay`` of the record in ``folder`` and the loaded record."""
     rec = read_record(folder)
@@ -254,7 +254,7 @@ def record_scene(folder: str | Path) -> str:
     return str(orig if same or not copy.is_file() else copy)
 
 
-def catch_up(folder: str | Path, touch_fn: Callable[[int], "Touch | np.ndarray"]) -> int:
+def catch_up(folder: str | Path, touch_fn: Callable[[int], Touch | np.ndarray]) -> int:
     """Bring a touch function whose touches follow from the ones made before (a replayed or
     simulated source, ``sources.TouchSource.trial``) to where the trial recorded in
     ``folder`` left it: ``touch_fn`` is called for every recorded touch (interrupted presses

@@ -140,8 +140,8 @@ def load_session(spec: str | Path, platform_ids: list[str], seed: int = 0,
                               f"{len(platform_ids)} platforms {platform_ids}")
         fabs = [_fabric(f, names, f"{where}, {'reference' if k == 0 else f'comparison {k}'}")
                 for k, f in enumerate(fabrics)]
-        placement = dict(zip(platform_ids, fabs))
-        truth = [pid for pid, f in zip(platform_ids[1:], fabs[1:]) if f == fabs[0]]
+        placement = dict(zip(platform_ids, fabs, strict=True))
+        truth = [pid for pid, f in zip(platform_ids[1:], fabs[1:], strict=True) if f == fabs[0]]
         out.trials.append(SessionTrial(id=t["id"], position=i, seed=seed + i,
                                        placement=placement, truth=truth))
     return out

@@ -17,7 +17,8 @@ import logging
 import os
 import time
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
+from collections.abc import Callable
 
 from ..core.errors import TrialError
 from . import session as sess

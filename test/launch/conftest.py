@@ -22,9 +22,9 @@ def _importable() -> bool:
 
 
 def pytest_ignore_collect(collection_path, config):
-    if collection_path.suffix == ".py" and collection_path.name.startswith("test_"):
-        if _importable() and not _plugin_active(config):
-            return True
+    if (collection_path.suffix == ".py" and collection_path.name.startswith("test_")
+            and _importable() and not _plugin_active(config)):
+        return True
     return None
 
 

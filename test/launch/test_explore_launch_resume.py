@@ -16,6 +16,7 @@ explorer (``ExplorerSettings.record_inputs``), so the resume is accepted. Run wi
 
 from __future__ import annotations
 
+import contextlib
 import json
 import tempfile
 import unittest
@@ -79,10 +80,8 @@ def _interrupted_record(case: str) -> Path:
     run = TrialRun(TrialSpec(len(ids) - 1, s.learner, s.trial, seed=s.seed, platform_ids=ids),
                    RECORD / case, "cut", press=press, inputs=s.record_inputs(s.seed),
                    scene_file=s.scene_file)
-    try:
+    with contextlib.suppress(Died):
         run.run()
-    except Died:
-        pass
     return run.dir
 
 

@@ -13,7 +13,7 @@ rclpy = pytest.importorskip("rclpy")
 
 
 
-def _domain_ids() -> "itertools.cycle[int]":
+def _domain_ids() -> itertools.cycle[int]:
     """DDS domains of this test process: 1..159 shared out among pytest-xdist workers (each its
     own block, so parallel workers never share a graph; 160..199 are the session module's);
     cycled from a place set by the process id, so two test runs at once on one machine rarely

@@ -80,7 +80,7 @@ def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener,
     msgs = list(read_ros2_messages(str(run.record / "topics.mcap")))
     touches = [m.ros_msg for m in msgs if m.channel.topic == TOUCH_TOPIC]
     assert len(touches) == len(accepted)
-    for msg, t in zip(touches, accepted):
+    for msg, t in zip(touches, accepted, strict=True):
         got = [np.frombuffer(bytes(im.data), np.uint8).reshape(240, 320, 3)
                for im in msg.extra_images]
         assert all(np.array_equal(a, b) for a, b in zip(got, t["extra_arrays"], strict=True))

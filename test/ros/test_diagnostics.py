@@ -63,7 +63,7 @@ def test_stopped_camera_turns_error_within_2_s_and_late_joiners_get_the_state(
         hist = [f"{t - since:7.3f} s level {s.level[0]} {s.message}" for t, m in got
                 if t >= since - 1.0 for s in m.status if s.name == "motion: arm"]
         arr = [t for t in poses if t >= since - 1.0] + [time.monotonic()]   # now: the tail
-        gaps = [f"{a - since:7.3f} s +{b - a:.3f} s" for a, b in zip(arr, arr[1:])
+        gaps = [f"{a - since:7.3f} s +{b - a:.3f} s" for a, b in zip(arr, arr[1:], strict=False)
                 if b - a > 0.1]
         return ("motion: arm ERROR; its statuses:\n" + "\n".join(hist) +
                 "\nposes received: " + str(len(arr) - 1) + ", gaps over 0.1 s (the last "

@@ -7,6 +7,7 @@ SingleThreadedExecutor and run slow work with ``common.in_thread``.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -52,10 +53,8 @@ def _spin_node(domain_id):
 
 
 def _spin(ex) -> None:
-    try:
+    with contextlib.suppress(Exception):   # the context shut down at teardown
         ex.spin()
-    except Exception:  # noqa: BLE001 - context shut down at teardown
-        pass
 
 
 def _wait(task, deadline_s: float) -> None:

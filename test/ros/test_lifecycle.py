@@ -6,6 +6,7 @@ goals only while active; shutdown ends in ``finalized``."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
@@ -53,10 +54,8 @@ class Bench:
         self.get = self.manager.create_client(GetState, f"/{name}/get_state")
 
     def _spin(self) -> None:
-        try:
+        with contextlib.suppress(Exception):   # the context shut down at the end
             self.ex.spin()
-        except Exception:  # noqa: BLE001 - context shut down at the end
-            pass
 
     #: the state each transition ends in (lifecycle_msgs Transition -> State ids)
     ENDS_IN = {Transition.TRANSITION_CONFIGURE: State.PRIMARY_STATE_INACTIVE,

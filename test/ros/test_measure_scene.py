@@ -39,7 +39,7 @@ def test_measure_scene_finds_a_shifted_surface(tmp_path: Path, listener) -> None
     report = json.loads(proc.stdout)
     assert set(report["platforms"]) == {"reference", "c3"}
     got = load_scene(out)
-    for p, q in zip(scene.platforms, got.platforms):
+    for p, q in zip(scene.platforms, got.platforms, strict=True):
         assert p.id == q.id and q.position[:2] == p.position[:2]
         if p.id in ("reference", "c3"):
             assert abs(q.position[2] - (p.position[2] + SHIFT)) < 0.0005, (p.id, q.position)

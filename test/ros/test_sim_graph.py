@@ -77,7 +77,7 @@ def test_short_trial_on_easy_scene(tmp_path: Path, listener, force_trace) -> Non
     assert {m.schema.name for m in msgs if m.channel.topic == TOUCH_IMAGE_VIEW} == \
         {"sensor_msgs/msg/Image"}
     assert len(images) == len(accepted)
-    for im, t in zip(images, accepted):
+    for im, t in zip(images, accepted, strict=True):
         assert (im.encoding, im.height, im.width) == ("rgb8", 240, 320)
         assert im.header.frame_id == "gelsight_optical_frame"
         assert np.array_equal(np.frombuffer(bytes(im.data), np.uint8).reshape(240, 320, 3),

@@ -83,7 +83,7 @@ def test_the_changelog_is_a_changelog() -> None:
     sections = re.split(r"^## ", text, flags=re.M)[1:]
     heads = [s.split("\n", 1)[0] for s in sections]
     releases = [RELEASE.fullmatch(h) for h in heads]
-    assert all(releases), [h for h, m in zip(heads, releases) if not m]
+    assert all(releases), [h for h, m in zip(heads, releases, strict=True) if not m]
     assert releases[0].group(1) == "Unreleased" and releases[0].group(2) is None
     versions = [(m.group(1), m.group(2)) for m in releases[1:]]
     assert versions and all(date for _, date in versions)
@@ -94,7 +94,7 @@ def test_the_changelog_is_a_changelog() -> None:
     assert len({v for v, _ in versions}) == len(versions)
     assert [d for _, d in versions] == sorted((d for _, d in versions), reverse=True)
     problems = []
-    for head, body in zip(heads, sections):
+    for head, body in zip(heads, sections, strict=True):
         kinds = re.findall(r"^### (.*)$", body, re.M)
         if any(k not in KINDS for k in kinds) or len(set(kinds)) != len(kinds):
             problems.append(f"{head}: subsections {kinds}")

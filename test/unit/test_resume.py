@@ -96,7 +96,7 @@ def test_resumed_trial_equals_uninterrupted(tmp_path: Path, cut_after: int) -> N
     t_full = read_record(tmp_path / "full")["touches"]
     t_cut = read_record(tmp_path / "cut")["touches"]
     assert [t["platform_id"] for t in t_cut] == [t["platform_id"] for t in t_full]
-    for x, y in zip(t_full, t_cut):
+    for x, y in zip(t_full, t_cut, strict=True):
         assert (x.get("array") is None) == (y.get("array") is None)
         if x.get("array") is not None:
             assert np.array_equal(x["array"], y["array"])

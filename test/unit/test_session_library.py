@@ -86,7 +86,7 @@ def test_session_trials_teach_the_library_and_the_record_says_what_they_saw(tmp_
         assert lib.names[i] == t1.placement[t["platform_id"]]
     # the file holds it; each record states the library it saw
     assert flib.load(lib_path).sha256() == lib.sha256()
-    for t, state in zip(session.trials, seen):
+    for t, state in zip(session.trials, seen, strict=True):
         res = json.loads((run.dir / t.record_name / "result.json").read_text())
         assert res["fabric_library"] == {"used": True, **state}
     # a session continued: the finished trials are filed once, not twice
@@ -125,7 +125,7 @@ def test_the_library_files_a_touch_with_its_further_frames(tmp_path):
     spec = TrialSpec(4, cfg, trial_preset("default", rounds=1, stop_confidence=0), seed=7,
                      platform_ids=tuple(IDS))
     TrialRun(spec, tmp_path, "burst", inputs=_inputs(spec), press=press).run()
-    placement = dict(zip(IDS, fabrics))
+    placement = dict(zip(IDS, fabrics, strict=True))
     filed = trial_presses(tmp_path / "burst", placement, cfg, "t")
     touches = [t for t in read_record(tmp_path / "burst")["touches"] if t["accepted"]]
     first = touches[0]

@@ -5,7 +5,7 @@ values it may take, exit status 2 on the command line (``InputError`` from the A
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import cv2
 import numpy as np

@@ -47,21 +47,21 @@ def _forbidden(modules: list[str]) -> list[str]:
 
 
 def _loaded(module: str) -> list[str]:
-    return _run("import importlib; importlib.import_module(%r)" % module)
+    return _run(f"import importlib; importlib.import_module({module!r})")
 
 
 def test_no_module_imports_torch_or_the_lab() -> None:
     """The modules are imported one after another in one interpreter; the first one after
     which a forbidden module is loaded is named."""
     code = ("import importlib, sys\n"
-            "for m in %r:\n"
+            f"for m in {MODULES + _launch_imports()!r}:\n"
             "    importlib.import_module(m)\n"
             "    bad = [k for k in sys.modules if any(k == f or k.startswith(f + '.') "
-            "for f in %r)]\n"
+            f"for f in {FORBIDDEN!r})]\n"
             "    if bad:\n"
             "        print(m, 'imports', sorted(bad)[:5]); break\n"
             "else:\n"
-            "    print('clean')" % (MODULES + _launch_imports(), FORBIDDEN))
+            "    print('clean')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
@@ -116,5 +116,5 @@ def test_help_imports_only_what_it_shows(argv, absent) -> None:
     plug-in (no plug-in extends ``trial``)."""
     loaded = _run("import contextlib, io; from tactex_ros.cli.main import main\n"
                   "with contextlib.redirect_stdout(io.StringIO()), "
-                  "contextlib.suppress(SystemExit):\n    main(%r)" % argv)
+                  f"contextlib.suppress(SystemExit):\n    main({argv!r})")
     assert not [m for m in loaded if any(m == a or m.startswith(a + ".") for a in absent)]

@@ -119,7 +119,7 @@ def test_a_resumed_trial_ends_as_the_uninterrupted_one(tmp_path: Path, cut: int,
     a = [t for t in read_record(tmp_path / "full")["touches"]]
     b = [t for t in read_record(tmp_path / "cut")["touches"] if not t.get("interrupted")]
     assert [t["platform_id"] for t in b] == [t["platform_id"] for t in a]
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         assert (x.get("array") is None) == (y.get("array") is None)
         if x.get("array") is not None:
             assert np.array_equal(x["array"], y["array"])

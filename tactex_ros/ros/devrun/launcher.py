@@ -19,6 +19,7 @@ SIGKILL leaves no node behind. What ended the trial is appended to the record's
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import signal
@@ -28,7 +29,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from ...core.errors import InputError, TrialError
 from ..graph import NodeSpec, params_file
@@ -110,7 +111,7 @@ class Graph:
         self.env = ros_env(domain_id)
         self.procs: dict[str, subprocess.Popen] = {}
 
-    def start(self) -> "Graph":
+    def start(self) -> Graph:
         params = params_file(self.nodes, self.log_dir / "params.yaml")
         me = os.getpid()
         try:
@@ -147,23 +148,19 @@ class Graph:
         for a loaded machine: a node in a CNN training step at load 26 needed more than 5 s)."""
         for p in self.procs.values():
             if p.poll() is None:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     p.send_signal(signal.SIGINT)
-                except ProcessLookupError:
-                    pass
         end = time.monotonic() + grace_s
         for p in self.procs.values():
             try:
                 p.wait(timeout=max(0.1, end - time.monotonic()))
             except subprocess.TimeoutExpired:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
                 p.wait()
         return {k: p.returncode for k, p in self.procs.items()}
 
-    def __enter__(self) -> "Graph":
+    def __enter__(self) -> Graph:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -179,7 +176,7 @@ class _Signals:
         self.received: int | None = None
         self._old: dict[int, object] = {}
 
-    def __enter__(self) -> "_Signals":
+    def __enter__(self) -> _Signals:
         if threading.current_thread() is threading.main_thread():
             for s in self.SIGNALS:
                 self._old[s] = signal.signal(s, self._note)

@@ -255,7 +255,7 @@ class ExplorerNode(TactexNode):
         values: dict = {"trial": self.trial_id,
                         "touches": sum(st.touches) if st is not None else 0,
                         "belief": (" ".join(f"{p} {b:.2f}" for p, b in
-                                            zip(self.ids[1:], st.belief))
+                                            zip(self.ids[1:], st.belief, strict=True))
                                    if st is not None else ""),
                         "next": st.next_platform if st is not None else "",
                         "stop reason": res.get("stop_reason", ""),
@@ -419,7 +419,7 @@ class ExplorerNode(TactexNode):
                              "warning": touch.warning},
                     pose=[touch.pose.position.x, touch.pose.position.y, touch.pose.position.z],
                     press_s=touch.press_s,
-                    phase_s=dict(zip(touch.phase_names, touch.phase_s)))
+                    phase_s=dict(zip(touch.phase_names, touch.phase_s, strict=True)))
         try:
             img = adapter.image_to_array(touch.image, f"touch of {pid}")
         except InputError as exc:

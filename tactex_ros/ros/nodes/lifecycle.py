@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import rclpy
 from pydantic import ValidationError
@@ -166,7 +167,7 @@ class TactexNode(LifecycleNode):
     def deactivate(self) -> None:
         """Stop threads; timers and rate loops made by ``activate`` are ended by the base."""
 
-    def rate_loop(self, period_s: float, fn: Callable[[], None], name: str) -> "RateLoop":
+    def rate_loop(self, period_s: float, fn: Callable[[], None], name: str) -> RateLoop:
         """A ``RateLoop`` of this node (``fn`` every ``period_s`` [s]); from ``activate`` only:
         the base stops it on deactivation, as it destroys the activation's timers. A tick
         that raises ends the node (``loop_failed``): a device whose loop is dead must not
@@ -340,7 +341,7 @@ def wait_for(fut: Future, timeout_s: float, check: Callable[[], None] | None = N
     return True
 
 
-async def in_thread(node: "rclpy.node.Node", fn: Callable[..., Any], *args: Any) -> Any:
+async def in_thread(node: rclpy.node.Node, fn: Callable[..., Any], *args: Any) -> Any:
     """Await ``fn(*args)`` run in a new thread; the executor goes on serving other callbacks.
 
     For long blocking work inside a callback (a press runs for seconds): the node's single

@@ -22,6 +22,7 @@ while the frames go on (their own thread, ``TactexNode.rate_loop``) and the para
 
 from __future__ import annotations
 
+import contextlib
 import threading
 
 import numpy as np
@@ -114,7 +115,7 @@ class MockImageNode(TactexNode):
         from ...trial.session import parse_placement
         ids = [p.id for p in self.scene.ordered]
         given = parse_placement(text, ids)
-        out = [given.get(pid, p.sim_fabric) for pid, p in zip(ids, self.scene.ordered)]
+        out = [given.get(pid, p.sim_fabric) for pid, p in zip(ids, self.scene.ordered, strict=True)]
         for f in out:
             self.src.fabric(f)               # names an unknown fabric
         return out
@@ -142,7 +143,7 @@ class MockImageNode(TactexNode):
                 self.fabrics = fabrics
                 self.presses = PressCounter()
             self.get_logger().info("placement: " + ", ".join(
-                f"{q.id}={f}" for q, f in zip(self.scene.ordered, fabrics)))
+                f"{q.id}={f}" for q, f in zip(self.scene.ordered, fabrics, strict=True)))
         return SetParametersResult(successful=True)
 
     def _prepare_live(self, fabrics: list[str]) -> None:
@@ -188,10 +189,8 @@ class MockImageNode(TactexNode):
         """The newest pose and wrench since the last frame (none new: the last ones hold)."""
         pose, wrench = self.pose_in.take(), self.wrench_in.take()
         if pose is not None:
-            try:
+            with contextlib.suppress(InputError):
                 self.position = adapter.pose_to_array(pose)[0]
-            except InputError:
-                pass
         if wrench is not None:
             self.force = abs(float(wrench.wrench.force.z))   # either wrench sign convention
 

@@ -258,7 +258,7 @@ class MotionNode(TactexNode):
             problem = probe.other_graph(self._graph_topics())
             if problem:
                 raise InputError(f"pre-flight: {problem}")
-            for (_, topic, _), (stamps, last) in zip(topics, samples):
+            for (_, topic, _), (stamps, last) in zip(topics, samples, strict=True):
                 problem = checks.state_problem(stamps, min_rate, s.preflight_window_s, topic)
                 if problem and problem.check == "state_rate" and prof.name == "sim":
                     from dataclasses import replace

@@ -55,7 +55,7 @@ def test_unseen_screen_mlp_command_writes_the_rows_and_refuses_bad_steps(caches,
     import json
 
     from tactex_ros.cli.main import main
-    for name, c in zip(("liba", "libb"), caches):
+    for name, c in zip(("liba", "libb"), caches, strict=True):
         np.savez(tmp_path / f"{name}.npz", cls=c["cls"], f0=c["f0"],
                  extra=np.repeat(c["f0"][:, None], 3, axis=1))
     base = ["experiment", "unseen", "--a", str(tmp_path / "liba"), "--b",

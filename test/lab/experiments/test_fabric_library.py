@@ -26,7 +26,7 @@ def _presses(per: int = 4) -> tuple[np.ndarray, np.ndarray]:
 def test_a_trial_never_sees_a_video_it_touched(monkeypatch):
     x, cls = _presses()
     lib = FabricLibrary()
-    for i, (v, c) in enumerate(zip(x, cls)):
+    for i, (v, c) in enumerate(zip(x, cls, strict=True)):
         lib = lib.add(str(c), v[None], [str(i)])
     seen: list[int] = []
     real = descriptor.DescriptorLearner.use_library
@@ -72,7 +72,7 @@ def test_a_press_without_contact_never_joins_the_library():
     rows = fl.run_session(x, cls, seed=2, args=args, log=lambda text: None, rejected=rejected)
     filed: set[str] = set()
     touched_bad = 0
-    for t, (row, scene) in enumerate(zip(rows, fl.study_scenes(CLASSES, 6, 4, 2))):
+    for t, (row, scene) in enumerate(zip(rows, fl.study_scenes(CLASSES, 6, 4, 2), strict=True)):
         assert row["library"]["presses"] == len(filed)
         log = fl.run_trial_arm(x, cls, scene, 2 * 1000 + t, 3, None, rejected=rejected)[1]
         touched_bad += sum(bool(rejected[int(v)]) for _, v in log)

@@ -31,7 +31,7 @@ def test_cached_trials_equal_the_replayed_trials(small_library, tmp_path):
     # the cache's "frame" is the 106-number descriptor: replayed with the height map off
     theirs = belief_curves(scenes, [parse_setting("d=descriptor:learner.descriptor_height_map=false")],
                            f"replay:{small_library}", 5, 4, "t", quiet=True)["d"]
-    for a, b in zip(mine, theirs):
+    for a, b in zip(mine, theirs, strict=True):
         assert a.extra == b.extra and a.correct == b.correct
         np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
 
@@ -123,7 +123,7 @@ def test_a_setting_temperature_reaches_the_trials_belief():
     run = lambda t: unseen.scene_curves(unseen.Setting("d", feature="frame_hm"), None, cache,
                                         scenes, seed=2, budget=3, temperature=t)
     default, same, sharp = run(None), run(0.05), run(0.15)
-    for a, b, c in zip(default, same, sharp):
+    for a, b, c in zip(default, same, sharp, strict=True):
         assert a.conf == b.conf                           # 0.05 is the preset's temperature
         # the first decision sees the same touches: a hotter temperature, a sharper belief
         assert c.conf[0] > a.conf[0]
@@ -258,8 +258,8 @@ def test_cached_and_replayed_trials_refuse_the_same_press_without_contact(small_
     setting = [parse_setting("d=descriptor:learner.descriptor_height_map=false")]
     theirs = belief_curves(scenes, setting, f"replay:{lib}", 5, 4, "t", quiet=True,
                            contact_guard=True)["d"]
-    for a, b in zip(mine, theirs):
+    for a, b in zip(mine, theirs, strict=True):
         assert a.extra == b.extra and a.correct == b.correct
         np.testing.assert_allclose(a.conf, b.conf, rtol=1e-9)
     counted = belief_curves(scenes, setting, f"replay:{lib}", 5, 4, "t", quiet=True)["d"]
-    assert any(not np.allclose(a.conf, b.conf) for a, b in zip(theirs, counted))
+    assert any(not np.allclose(a.conf, b.conf) for a, b in zip(theirs, counted, strict=True))

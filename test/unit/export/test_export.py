@@ -77,7 +77,7 @@ def _same_as_record(ds, d: Path, session: str = "") -> None:
     assert len(rows) == len(rec["touches"]) > 0
     scene = load_scene(d / "scene.yaml")
     mats = {p.id: p.sim_fabric for p in scene.ordered}
-    for row, t in zip(rows, rec["touches"]):
+    for row, t in zip(rows, rec["touches"], strict=True):
         assert row["image"]["bytes"] == (d / t["image"]).read_bytes()      # byte for byte
         assert row["no_contact"]["bytes"] == (d / t["no_contact"]).read_bytes()
         assert [x["bytes"] for x in row["extra"]] == [(d / n).read_bytes()

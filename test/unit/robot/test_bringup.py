@@ -100,7 +100,7 @@ def test_collision_thresholds_leave_room_for_the_press(name: str) -> None:
         "lower_force_thresholds_nominal": 6, "upper_force_thresholds_nominal": 6}
     for lo, hi in (("lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal"),
                    ("lower_force_thresholds_nominal", "upper_force_thresholds_nominal")):
-        assert all(0 < a <= b for a, b in zip(req[lo], req[hi])), (lo, hi)
+        assert all(0 < a <= b for a, b in zip(req[lo], req[hi], strict=True)), (lo, hi)
     assert min(req["upper_force_thresholds_nominal"][:3]) >= 2.0 * scene.press.max_force
     assert min(req["lower_force_thresholds_nominal"][:3]) > scene.press.max_force
     assert prof.law.max_static_force <= scene.press.max_force

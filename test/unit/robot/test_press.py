@@ -279,7 +279,7 @@ def test_force_limit_holds_at_every_sample_under_each_profile(name: str) -> None
     check_press(scene, prof.law.stiffness, name, prof.law.error_clip)
     rng = np.random.default_rng(29)
     ok = []
-    for i, p in enumerate(scene.platforms):
+    for p in scene.platforms:
         kp = float(np.exp(rng.uniform(np.log(2e3), np.log(5e4))))
         out, _, peaks, *_ = _simulate(
             scene, p.id, law=prof.law, platform_stiffness=kp, mass=float(rng.uniform(1.0, 5.0)),

@@ -117,6 +117,11 @@ def test_progress_prints_each_press_and_decision_once(tmp_path: Path) -> None:
                        "stamp": 3.5, "accepted": True}) == "press 2: c1 4.0 N 2.5 s"
     assert decision_line({"round": 1, "belief": [0.5, 0.5], "next": "c2"}, ["c1", "c2"]) \
         == "decision 1: belief c1 0.50 c2 0.50 -> next c2"
+    # a decision without its belief, or ids not read yet, still gives a line
+    assert decision_line({"round": 0, "next": "c1"}, ["c1", "c2"]) \
+        == "decision 0: belief  -> next c1"
+    assert decision_line({"round": 1, "belief": [0.5, 0.5], "next": "c2"}, []) \
+        == "decision 1: belief  -> next c2"
 
 
 # ------------------------------------------------------------------ Foxglove: Foxglove's keys

@@ -166,7 +166,7 @@ def test_frame_folder_order_and_portrait_frames(tmp_path: Path) -> None:
             break
         got.append(landscape(bgr, digit))
     assert len(got) == 12                              # frame_10 after frame_9
-    assert all(np.array_equal(a, b) for a, b in zip(got, frames))
+    assert all(np.array_equal(a, b) for a, b in zip(got, frames, strict=True))
     assert ff.set(cv2.CAP_PROP_POS_FRAMES, 0) and ff.read()[0]
     # the GelSight profile leaves frames as recorded
     assert landscape(got[0][:200], load_sensor("gelsight_mini")).shape == (200, 320, 3)

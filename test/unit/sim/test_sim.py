@@ -22,7 +22,7 @@ def radial_spectrum(img: np.ndarray, bins: int = 24) -> np.ndarray:
     yy, xx = np.indices(p.shape)
     r = np.hypot(yy - p.shape[0] / 2, xx - p.shape[1] / 2)
     edges = np.linspace(1, p.shape[0] / 2, bins + 1)
-    return np.log(np.array([p[(r >= a) & (r < b)].mean() for a, b in zip(edges, edges[1:])]))
+    return np.log(np.array([p[(r >= a) & (r < b)].mean() for a, b in zip(edges, edges[1:], strict=False)]))
 
 
 def test_shape_dtype_and_determinism(src):

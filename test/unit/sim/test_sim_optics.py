@@ -59,7 +59,7 @@ def test_optics_reproduce_the_calibration_presses():
     bg = cv2.resize(f0[..., ::-1].astype(np.float32), (320, 240), interpolation=cv2.INTER_AREA)
     yy, xx = np.mgrid[0:240, 0:320].astype(np.float32)
     corr, swapped = [], []
-    for img, (cx, cy), rad in zip(imgs, centres, radii):
+    for img, (cx, cy), rad in zip(imgs, centres, radii, strict=True):
         a, big_r = rad * scale * mmpx, 2.4                       # contact radius, ball [mm]
         rr = np.hypot(xx - cx * scale, yy - cy * scale) * mmpx
         z = np.sqrt(np.clip(big_r ** 2 - rr ** 2, 0, None)) - np.sqrt(big_r ** 2 - a ** 2)
@@ -161,8 +161,8 @@ def test_fast_lookup_equals_the_plain_formula_up_to_float_rounding(src, monkeypa
     frames = [src.press(n, np.random.default_rng([3, i])) for i, n in enumerate(src.classes)]
     monkeypatch.setattr(r, "shading", lambda ind: reference_shading(r, ind).astype(np.float32))
     ref = [src.press(n, np.random.default_rng([3, i])) for i, n in enumerate(src.classes)]
-    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
-    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
+    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref, strict=True)])
+    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref, strict=True)])
     assert diff.max() <= 1 and share < 1e-4, (diff, share)
 
 
@@ -227,8 +227,8 @@ def test_compiled_and_numpy_lookups_give_the_same_frames(step, monkeypatch):
     frames = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
     monkeypatch.setattr(r, "_compiled_lookup", None)
     ref = [src.press(n, np.random.default_rng([4, i])) for i, n in enumerate(src.classes)]
-    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref)])
-    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref)])
+    diff = np.array([np.abs(a.astype(int) - b).max() for a, b in zip(frames, ref, strict=True)])
+    share = np.mean([np.mean(a != b) for a, b in zip(frames, ref, strict=True)])
     assert diff.max() <= 1 and share < 1e-4, (diff, share)
 
 

@@ -66,7 +66,7 @@ def test_one_session_trial_shares_the_first_touch_background(folder):
         np.testing.assert_array_equal(t.no_contact, o[0].no_contact)
         assert abs(float(t.frame.mean()) - 120) < 2
     # the contact pattern is kept: contact minus no contact equal in both
-    for a, b in zip(r, o):
+    for a, b in zip(r, o, strict=True):
         da = a.frame.astype(int) - a.no_contact
         db = b.frame.astype(int) - b.no_contact
         assert np.abs(da - db).mean() < 0.5
