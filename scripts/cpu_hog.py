@@ -19,6 +19,7 @@ import signal
 import subprocess
 import sys
 import time
+import contextlib
 
 
 def _spin(limit_s: float) -> None:
@@ -44,10 +45,8 @@ def stop_hogs(hogs: list[mp.Process], timeout_s: float = 5.0) -> None:
     """Kill every hog by its pid and wait for it (up to ``timeout_s`` [s] each)."""
     for h in hogs:
         if h.is_alive() and h.pid is not None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(h.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
     for h in hogs:
         h.join(timeout_s)
 

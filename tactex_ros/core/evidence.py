@@ -80,7 +80,7 @@ class EvidenceModel:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict, origin: str = "evidence model") -> "EvidenceModel":
+    def from_dict(cls, data: dict, origin: str = "evidence model") -> EvidenceModel:
         """The model from its JSON mapping; InputError names a missing or bad key."""
         try:
             return cls(**{k: float(data[k]) for k in ("mu_same", "sd_same", "mu_diff",

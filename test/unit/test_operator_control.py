@@ -95,9 +95,11 @@ class _Operator:
 
 
 def _press(r: Path, n: int) -> None:
-    with open(r / "touches.jsonl", "a") as f:
-        for _ in range(n):
-            f.write(json.dumps({"seq": sum(1 for _ in open(r / "touches.jsonl")) + 1,
+    path = r / "touches.jsonl"
+    seq = len(path.read_text().splitlines()) if path.exists() else 0
+    with open(path, "a") as f:
+        for k in range(n):
+            f.write(json.dumps({"seq": seq + k + 1,
                                 "platform_id": "c1", "accepted": True}) + "\n")
 
 
