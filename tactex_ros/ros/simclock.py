@@ -64,12 +64,10 @@ class NodeClock:
         """Seconds on this node's deadline clock (see the class doc)."""
         if not self.sim:
             return time.monotonic()
-        t = self.node.get_clock().now().nanoseconds * 1e-9
-        last, since = self._seen
+        self._peek()
+        t, since = self._seen
         wall = time.monotonic()
-        if t != last:
-            self._seen = (t, wall)
-        elif self.stall_s > 0 and wall - since > self.stall_s:
+        if self.stall_s > 0 and wall - since > self.stall_s:
             raise SimClockStalled(
                 (f"no {CLOCK_TOPIC} within {self.stall_s:g} s (is the mock arm, the simulated "
                  "graph's clock source, running?)") if t == 0 else
