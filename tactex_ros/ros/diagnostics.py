@@ -206,10 +206,15 @@ class CameraHealth:
     expected one, age of the newest frame, and the drift of the no-contact frame since the
     start [grey levels]: the mean absolute difference (every 8th pixel) between a frame and the
     first frame seen, at its lowest over the last ``drift_window_s`` (presses are shorter than
-    that, so the lowest is a no-contact frame). ``th``: the node's settings (``diag_*``)."""
+    that, so the lowest is a no-contact frame). ``th``: the node's settings (``diag_*``).
+    ``simulated``: the frames are computed by a simulation (the mock camera), whose rate falls
+    only when the machine cannot compute it in time: a low rate is then at most WARN,
+    "simulation behind", never a camera ERROR."""
 
-    def __init__(self, expected_hz: float, th, drift_window_s: float = 5.0) -> None:
+    def __init__(self, expected_hz: float, th, drift_window_s: float = 5.0,
+                 simulated: bool = False) -> None:
         self.expected_hz = expected_hz
+        self.simulated = simulated
         self.phase = Phase(settle_s=_settle_s(th))
         self.phase.begin("starting: waiting for the first frame", th.diag_startup_s)
         self.th = th
@@ -244,9 +249,7 @@ class CameraHealth:
         th, rate, age, drift = self.th, self.meter.rate(now), self.meter.age(now), self.drift()
         parts = [(grade(age, th.diag_age_warn_s, th.diag_age_error_s),
                   "no frame yet" if age is None else f"newest frame {age:.2f} s old"),
-                 (grade(rate, th.diag_rate_warn * self.expected_hz,
-                        th.diag_rate_error * self.expected_hz, higher_is_worse=False),
-                  f"frame rate {rate:.1f} Hz of {self.expected_hz:g}")]
+                 self._rate_part(rate)]
         if drift is not None:
             parts.append((grade(drift, th.diag_drift_warn, th.diag_drift_error),
                           f"no-contact frame drifted {drift:.1f} grey levels"))
@@ -255,6 +258,18 @@ class CameraHealth:
             "frame rate [Hz]": rate, "expected rate [Hz]": self.expected_hz,
             "newest frame age [s]": age, "frames": self.meter.count,
             "no-contact drift [grey levels]": drift}), now)
+
+
+    def _rate_part(self, rate: float) -> tuple[int, str]:
+        """The frame rate's (level, message)."""
+        th = self.th
+        level = grade(rate, th.diag_rate_warn * self.expected_hz,
+                      th.diag_rate_error * self.expected_hz, higher_is_worse=False)
+        text = f"frame rate {rate:.1f} Hz of {self.expected_hz:g}"
+        if self.simulated and level != OK:
+            return WARN, (f"simulation behind: {text} (the machine cannot compute the "
+                          "simulated camera in real time)")
+        return level, text
 
 
 def _settle_s(th) -> float:

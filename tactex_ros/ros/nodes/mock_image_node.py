@@ -106,7 +106,7 @@ class MockImageNode(TactexNode):
                                               qos_profile_sensor_data)
         serve_capture(self, self.ring, self.lock, s.frame_id, s.capture_service)
         from ..diagnostics import CameraHealth, Diagnostics
-        self.health = CameraHealth(s.fps, s)
+        self.health = CameraHealth(s.fps, s, simulated=True)
         self.diag = Diagnostics(self, s.diag_period_s)
         self.diag.add("camera", f"mock camera ({s.source})", self.health.check)
 

@@ -423,3 +423,21 @@ def test_progress_says_round_k_of_n_time_and_marks_replayed_touches(tmp_path: Pa
     assert decisions[0].startswith("decision 1/8:") and "[replayed]" in decisions[0]
     assert "0:45 elapsed, at most about 2:38 left" in decisions[0]
     assert decisions[1].startswith("decision 2/8:") and "replayed" not in decisions[1]
+
+
+def test_a_starved_simulated_camera_is_behind_not_broken() -> None:
+    """11 frames a second of 25 (the CI machine's starved mock camera): a real camera's
+    ERROR, the simulated camera's WARN "simulation behind"; a stale frame stays ERROR."""
+    th = CameraHealthSettings()
+    frame = np.full((240, 320, 3), 100, np.uint8)
+    real, sim = dg.CameraHealth(25.0, th), dg.CameraHealth(25.0, th, simulated=True)
+    for cam in (real, sim):
+        cam.phase.end(0.0)
+        for k in range(22):
+            cam.observe(frame, 10.0 + k / 11.0)
+    t = 10.0 + 21 / 11.0 + 0.01
+    assert real.check(t)[0] == dg.ERROR
+    level, msg, values = sim.check(t)
+    assert level == dg.WARN and msg.startswith("simulation behind")
+    assert values["frame rate [Hz]"] == pytest.approx(11.0, abs=0.6)
+    assert sim.check(t + 1.0)[0] == dg.ERROR                # the newest frame is 1 s old
