@@ -64,6 +64,7 @@ class Confirmer:
         self.service, self.domain_id, self.timeout_s = service, domain_id, timeout_s
         self.caller = caller_name()
         self._node = None
+        self._clients: dict = {}
         self._lock = threading.Lock()
 
     def _ensure(self):
@@ -77,68 +78,55 @@ class Confirmer:
             kw = {} if self.domain_id is None else {"domain_id": self.domain_id}
             rclpy.init(context=self._ctx, signal_handler_options=SignalHandlerOptions.NO, **kw)
             self._node = rclpy.create_node("tactex_operator", context=self._ctx)
-            self._clients: dict = {}
+            self._clients = {}
         return self._node
 
-    def _client(self, service: str):
-        """The client of ``service`` (made once)."""
+    def _client(self, srv_type: type, service: str):
+        """The client of ``service`` (made once). Call with the lock held."""
         if service not in self._clients:
-            from tactex.srv import Confirm
-            self._clients[service] = self._ensure().create_client(Confirm, service)
+            self._clients[service] = self._ensure().create_client(srv_type, service)
         return self._clients[service]
+
+    def _call(self, srv_type: type, service: str, request, timeout_s: float):
+        """``request`` to ``service``: (response or None, '' or why not) within ``timeout_s``
+        [s] for the service to show up and as long again for the answer. Call with the lock
+        held."""
+        from rclpy.executors import SingleThreadedExecutor
+        client = self._client(srv_type, service)
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            return None, f"service {service} not available within {timeout_s} s"
+        fut = client.call_async(request)
+        ex = SingleThreadedExecutor(context=self._ctx)
+        ex.add_node(self._ensure())
+        try:
+            ex.spin_until_future_complete(fut, timeout_sec=timeout_s)
+        finally:
+            ex.remove_node(self._node)
+            ex.shutdown()
+        if not fut.done() or fut.result() is None:
+            return None, f"no answer from {service} within {timeout_s} s"
+        return fut.result(), ""
 
     def confirm(self, by: str, service: str | None = None) -> tuple[bool, str]:
         """(success, message) of one call saying ``by`` (``yes_flag`` | ``enter`` | ``key``)
         to ``service`` (a ``tactex/srv/Confirm`` service; default: the confirm service);
         (False, why) on a deadline."""
-        from rclpy.executors import SingleThreadedExecutor
         from tactex.srv import Confirm
         with self._lock:
-            node = self._ensure()
-            name = service or self.service
-            client = self._client(name)
-            if not client.wait_for_service(timeout_sec=self.timeout_s):
-                return False, f"service {name} not available within {self.timeout_s} s"
-            fut = client.call_async(Confirm.Request(by=by, caller=self.caller))
-            ex = SingleThreadedExecutor(context=self._ctx)
-            ex.add_node(node)
-            try:
-                ex.spin_until_future_complete(fut, timeout_sec=self.timeout_s)
-            finally:
-                ex.remove_node(node)
-                ex.shutdown()
-            if not fut.done():
-                return False, f"no answer from {name} within {self.timeout_s} s"
-            r = fut.result()
-            return bool(r.success), str(r.message)
+            r, why = self._call(Confirm, service or self.service,
+                                Confirm.Request(by=by, caller=self.caller), self.timeout_s)
+            return (False, why) if r is None else (bool(r.success), str(r.message))
 
     def states(self, names: list[str], timeout_s: float = 2.0) -> dict[str, str]:
         """Each node's lifecycle state label (``/<name>/get_state``,
         ``lifecycle_msgs/srv/GetState``): 'active', 'inactive', ...; '' when it did not
         answer within ``timeout_s`` [s]."""
         from lifecycle_msgs.srv import GetState
-        from rclpy.executors import SingleThreadedExecutor
         out: dict[str, str] = {}
         with self._lock:
-            node = self._ensure()
             for name in names:
-                key = f"/{name}/get_state"
-                if key not in self._clients:
-                    self._clients[key] = node.create_client(GetState, key)
-                cli = self._clients[key]
-                out[name] = ""
-                if not cli.wait_for_service(timeout_sec=timeout_s):
-                    continue
-                fut = cli.call_async(GetState.Request())
-                ex = SingleThreadedExecutor(context=self._ctx)
-                ex.add_node(node)
-                try:
-                    ex.spin_until_future_complete(fut, timeout_sec=timeout_s)
-                finally:
-                    ex.remove_node(node)
-                    ex.shutdown()
-                if fut.done() and fut.result() is not None:
-                    out[name] = str(fut.result().current_state.label)
+                r, _ = self._call(GetState, f"/{name}/get_state", GetState.Request(), timeout_s)
+                out[name] = "" if r is None else str(r.current_state.label)
         return out
 
     def close(self) -> None:
