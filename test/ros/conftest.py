@@ -120,6 +120,29 @@ def quick_scene() -> str:
     return str(config_dir() / "scene_sim.yaml")
 
 
+#: The small scene's platforms: the shipped simulated scene's reference and its first two
+#: comparisons (c1 holds the reference's fabric)
+SMALL_PLATFORMS = ("reference", "c1", "c2")
+
+
+@pytest.fixture(scope="session")
+def small_scene(tmp_path_factory) -> str:
+    """config/scene_sim.yaml as shipped with its reference and first two comparisons only
+    (``SMALL_PLATFORMS``, 1 + 2): the shipped press settings, layout and fabrics, a baseline
+    of 3 presses instead of 5. For the tests whose point is a trial's or a session's course
+    (resume, faults, operator actions, outputs), not how many platforms a scene has; the
+    sessions they run list two comparisons (test/data/session_*_small.yaml)."""
+    import yaml
+    from tactex_ros.paths import config_dir
+    doc = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
+    doc["platforms"] = [p for p in doc["platforms"] if p["id"] in SMALL_PLATFORMS]
+    if [p["id"] for p in doc["platforms"]] != list(SMALL_PLATFORMS):
+        raise ValueError(f"config/scene_sim.yaml no longer has platforms {SMALL_PLATFORMS}")
+    path = tmp_path_factory.mktemp("scene") / "scene_sim_small.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return str(path)
+
+
 @pytest.fixture
 def domain_id() -> int:
     return next(_domains)

@@ -49,10 +49,10 @@ def _checkpoint_round(rec: Path) -> int:
 
 
 def test_resume_restores_the_learner_checkpoint(tmp_path: Path, domain_id: int,
-                                                quick_scene: str) -> None:
+                                                small_scene: str) -> None:
     rec = tmp_path / "rec" / "t"
     first = subprocess.Popen(_cmd(domain_id, [
-        "--scene", quick_scene, "--config", "cnn", "--rounds", str(ROUNDS), "--seed", "2", "--record-dir",
+        "--scene", small_scene, "--config", "cnn", "--rounds", str(ROUNDS), "--seed", "2", "--record-dir",
         str(rec.parent), "--trial-id", "t", "--log-dir", str(tmp_path / "l1")]),
         env=ros_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 400

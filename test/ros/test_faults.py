@@ -29,7 +29,7 @@ from tactex_ros.robot.scene import load_scene
 
 pytestmark = pytest.mark.ros
 
-ROUNDS = 4                      # 5 baseline touches + 4 rounds = 9 touches
+ROUNDS = 4                      # on the small scene: 3 baseline touches + 4 rounds = 7
 DEADLINE_S = 150.0              # per graph run
 CLEAR_S = 15.0                  # fault -> the runner has a clear result and every node stopped
 
@@ -171,12 +171,12 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     return run, rec, clear
 
 
-def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_scene: str,
+def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, small_scene: str,
                                               force_trace) -> None:
     """One trial, interrupted four times and resumed each time: kill -9 of the motion node
     (after the mock arm was frozen for 5 s), of the mock camera, of the mock arm, SIGINT of
     the explorer mid-round; the last resume finishes it. No touch lost, none twice."""
-    scene = load_scene(quick_scene)
+    scene = load_scene(small_scene)
     truth = next(p.id for p in scene.comparisons if p.sim_fabric == scene.reference.sim_fabric)
     trace = force_trace
     presses = Presses(listener)
@@ -193,7 +193,7 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
         kill("motion")(g)
     f = Fault(record, 2, freeze_then_kill, presses)
     run, rec, clear = _run(tmp_path, listener, "freeze_arm_5s_then_kill_motion", f,
-                           scene=quick_scene, trace=trace)
+                           scene=small_scene, trace=trace)
     assert run.failed_node == "motion" and run.node_exit["motion"] == -signal.SIGKILL
     assert run.result is None and clear is not None and clear < CLEAR_S
     n = len(rec["touches"])
@@ -203,7 +203,7 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
              ("sigint_explorer", "explorer", kill("explorer", signal.SIGINT))]
     for name, node, act in steps:
         f = Fault(record, n + 1, act, presses)
-        run, rec, clear = _run(tmp_path, listener, name, f, resume=record, scene=quick_scene,
+        run, rec, clear = _run(tmp_path, listener, name, f, resume=record, scene=small_scene,
                                trace=trace)
         if run.result is not None:            # the trial ended before the fault could land
             break
@@ -214,12 +214,12 @@ def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, quick_sce
 
     if run.result is None:
         run, rec, _ = _run(tmp_path, listener, "resume_to_the_end", None, resume=record,
-                           scene=quick_scene, trace=trace)
+                           scene=small_scene, trace=trace)
     res = run.result
     assert res is not None and "error" not in res, res
     assert res["prediction"] == truth and res["stop_reason"] == "rounds"
     accepted = [t for t in rec["touches"] if t["accepted"]]
-    assert res["touches"] == len(accepted) == 5 + ROUNDS      # none lost, none twice
+    assert res["touches"] == len(accepted) == 3 + ROUNDS      # none lost, none twice
     assert len(rec["decisions"]) == ROUNDS + 1                # every decision once
     assert [d["round"] for d in rec["decisions"]] == list(range(1, ROUNDS + 2))
     assert len(res["resumed"]) >= 2
@@ -280,14 +280,16 @@ def test_runner_signalled_leaves_no_node(tmp_path: Path, domain_id: int, sig: in
 SILENCE_S = 6.0
 
 
-def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listener) -> None:
+def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listener,
+                                                          small_scene: str) -> None:
     """Without the runner's supervision (as under `launch`): the motion node is killed during a
     press; the explorer ends the trial within press_silence_s (not press_timeout_s, 120 s) with
     an error result, and the cut-off press is recorded as interrupted."""
     from tactex_ros.ros.devrun.launcher import Graph
-    nodes = describe(True, explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
-                                     "record_dir": str(tmp_path), "trial_id": "gone",
-                                     "exit_when_done": True, "press_silence_s": SILENCE_S})
+    nodes = describe(True, small_scene,
+                     explorer={"trial": {"rounds": 2, "stop_confidence": 0.0},
+                               "record_dir": str(tmp_path), "trial_id": "gone",
+                               "exit_when_done": True, "press_silence_s": SILENCE_S})
     record = tmp_path / "gone"
     presses = Presses(listener)
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
@@ -307,15 +309,15 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
 
 
 def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener,
-                                                       quick_scene: str) -> None:
+                                                       small_scene: str) -> None:
     """SIGSTOP of the explorer during its 4th press for more than press_silence_s, then
     SIGCONT: the press server was healthy, so the trial goes on and ends with its result; the
     press whose result arrived during the stall is used, none is marked interrupted."""
     # 22 s: longer than press_silence_s (10 s) and than Fast DDS's default participant lease
     # (20 s), after which the other nodes forget the stalled one until it announces itself again
     f = Fault(tmp_path / "trial", 3, freeze("explorer", 22.0), Presses(listener))
-    run, rec, _ = _run(tmp_path, listener, "stall_explorer", f, scene=quick_scene)
+    run, rec, _ = _run(tmp_path, listener, "stall_explorer", f, scene=small_scene)
     assert f.t is not None                                 # the stall happened
     assert run.result is not None and "error" not in run.result, run.failure
     assert not [t for t in rec["touches"] if t.get("interrupted")]
-    assert run.result["touches"] == 5 + ROUNDS
+    assert run.result["touches"] == 3 + ROUNDS

@@ -21,7 +21,7 @@ from tactex_ros.trial.record import read_record
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-THREE = Path(__file__).parents[1] / "data" / "session_three.yaml"
+THREE = Path(__file__).parents[1] / "data" / "session_three_small.yaml"   # 1 + 2 platforms
 
 
 def _lines(f: Path) -> int:
@@ -29,10 +29,10 @@ def _lines(f: Path) -> int:
 
 
 def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_id, listener,
-                                                         quick_scene: str) -> None:
+                                                         small_scene: str) -> None:
     from std_srvs.srv import Trigger
     d = tmp_path / "sess"
-    nodes = describe(True, quick_scene, explorer={
+    nodes = describe(True, small_scene, explorer={
         "trial": {"rounds": 2, "stop_confidence": 0.0}, "seed": 3,
         "record_dir": str(tmp_path), "session_file": str(THREE)})
     seen: dict = {"answers": []}
@@ -122,13 +122,13 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
 
 @pytest.mark.soak   # 125 s of graph (make test-soak); test_operator_control covers the record side
 def test_an_abort_from_the_terminal_loses_no_press_and_the_session_resumes(
-        tmp_path: Path, domain_id, listener, quick_scene: str) -> None:
+        tmp_path: Path, domain_id, listener, small_scene: str) -> None:
     """``/explorer/abort_by`` (tactex/srv/Confirm, as the terminal's ``a`` key calls it) in
     trial 1: the session ends with trial 1 resumable; a second start of the folder finishes
     it with every press of the first run kept once."""
     from tactex.srv import Confirm
     d = tmp_path / "sess"
-    nodes = describe(True, quick_scene, explorer={
+    nodes = describe(True, small_scene, explorer={
         "trial": {"rounds": 1, "stop_confidence": 0.0}, "seed": 3,
         "record_dir": str(tmp_path), "session_file": str(THREE)})
     seen: dict = {}

@@ -33,7 +33,7 @@ def _touches(record: Path) -> int:
 
 
 def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: int,
-                                                    quick_scene: str) -> None:
+                                                    small_scene: str) -> None:
     rec = tmp_path / "t"
 
     def kill_after_3_touches(graph) -> None:
@@ -46,7 +46,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
                 time.sleep(0.05)
         threading.Thread(target=watch, daemon=True).start()
 
-    first = describe(True, quick_scene, explorer={"trial": {"rounds": 2, "strategy": "random",
+    first = describe(True, small_scene, explorer={"trial": {"rounds": 2, "strategy": "random",
                                                "stop_confidence": 0.0},
                                      "seed": 5, "record_dir": str(tmp_path), "trial_id": "t"})
     run = run_graph(first, tmp_path / "logs1", timeout_s=DEADLINE_S, domain_id=domain_id,
@@ -57,7 +57,7 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
     config = (rec / "config.json").read_bytes()
 
     # a parameter that contradicts the record: refused at configure, exit status 2
-    bad = describe(True, quick_scene, explorer={"resume": str(rec), "seed": 6})
+    bad = describe(True, small_scene, explorer={"resume": str(rec), "seed": 6})
     run = run_graph(bad, tmp_path / "logs2", timeout_s=DEADLINE_S, domain_id=domain_id)
     assert run.result is None and run.node_exit["explorer"] == 2, run.failure
     assert "seed = 6" in (run.reason or "") and "seed = 5" in (run.reason or ""), run.reason
@@ -65,12 +65,12 @@ def test_the_explorer_resumes_from_its_record_alone(tmp_path: Path, domain_id: i
 
     # only `resume` (as `ros2 run tactex explorer_node --ros-args -p resume:=RECORD`): the
     # record's settings, the trial finished in its own folder
-    only = describe(True, quick_scene)
+    only = describe(True, small_scene)
     next(x for x in only if x.name == "explorer").parameters = {"resume": str(rec)}
     run = run_graph(only, tmp_path / "logs3", timeout_s=DEADLINE_S, domain_id=domain_id)
     res = run.result
     assert res is not None and "error" not in res, (run.failure, run.reason)
     assert res["strategy"] == "random" and res["stop_reason"] == "rounds"
-    assert res["touches"] == 5 + 2 and res["resumed"]
+    assert res["touches"] == 3 + 2 and res["resumed"]
     assert (rec / "config.json").read_bytes() == config        # the record's settings kept
     assert json.loads(config)["explorer"]["seed"] == 5

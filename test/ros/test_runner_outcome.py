@@ -65,11 +65,11 @@ def test_no_camera_is_a_run_time_failure(tmp_path: Path, domain_id: int) -> None
 
 
 def test_reused_trial_id_is_refused_not_reported_as_success(tmp_path: Path, domain_id: int,
-                                                          quick_scene: str) -> None:
+                                                          small_scene: str) -> None:
     """Run 1 finishes; run 2 with the same trial id is refused up front (exit 2, the record
     named, nothing started or overwritten); resuming the finished record is refused too."""
     rec = tmp_path / "rec"
-    args = ["--scene", quick_scene, "--rounds", "1", "--record-dir", str(rec), "--trial-id",
+    args = ["--scene", small_scene, "--rounds", "0", "--record-dir", str(rec), "--trial-id",
             "same"]
     first = _run(args + ["--log-dir", str(tmp_path / "l1")], domain_id, tmp_path)
     assert first.returncode == 0, first.stderr
@@ -85,10 +85,10 @@ def test_reused_trial_id_is_refused_not_reported_as_success(tmp_path: Path, doma
 
 
 def test_nodes_ignore_modules_in_the_current_folder(tmp_path: Path, domain_id: int,
-                                                    quick_scene: str) -> None:
+                                                    small_scene: str) -> None:
     """A folder holding inspect.py (a standard module name) is no reason to fail."""
     (tmp_path / "inspect.py").write_text("raise SystemExit('the local inspect.py was imported')\n")
-    r = _run(["--scene", quick_scene, "--rounds", "0", "--record-dir", str(tmp_path / "rec"),
+    r = _run(["--scene", small_scene, "--rounds", "0", "--record-dir", str(tmp_path / "rec"),
               "--trial-id", "t", "--log-dir", str(tmp_path / "logs")], domain_id, tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "rec" / "t" / "result.json").is_file()
@@ -107,7 +107,7 @@ def test_shipped_replay_scene_runs_on_recorded_presses(tmp_path: Path, domain_id
 
 
 def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int,
-                                                  quick_scene: str) -> None:
+                                                  small_scene: str) -> None:
     """Ctrl-C in `--rounds 3 --seed 0 --yes` after two touches: exit 130 and a hint that is
     `--resume DIR` alone; run as printed (plus this test's DDS domain and log folder) the trial
     goes on with the record's options (the sim graph, 3 rounds, seed 0) to its result, exit 0."""
@@ -118,7 +118,7 @@ def test_ctrl_c_then_resume_with_the_record_alone(tmp_path: Path, domain_id: int
     script = Path(sys.executable).parent / "tactex"
     entry = [str(script)] if script.is_file() else [sys.executable, "-P", "-m",
                                                     "tactex_ros.cli.main"]
-    p = subprocess.Popen(entry + ["graph", "run", "--sim", "--scene", quick_scene,
+    p = subprocess.Popen(entry + ["graph", "run", "--sim", "--scene", small_scene,
                                   "--rounds", "3", "--seed", "0",
                                   "--yes", "--record-dir", str(rec.parent), "--trial-id", "t",
                                   "--domain-id", str(domain_id), "--log-dir",

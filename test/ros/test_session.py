@@ -18,39 +18,40 @@ from tactex_ros.trial import session as sess
 from tactex_ros.trial.record import read_record
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.devrun.session_runner import run_session
+from tactex_ros.robot.scene import load_scene
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SHORT = Path(__file__).parents[1] / "data" / "session_short.yaml"
+SHORT = Path(__file__).parents[1] / "data" / "session_short_small.yaml"   # 1 + 2 platforms
 ARTIFACTS = Path(__file__).parents[2] / "test-artifacts"
 
 
-def _nodes(tmp: Path, scene: str | None = None):
-    """The simulated graph running SHORT's trials (one round each) in ``scene`` (default
-    config/scene_sim.yaml)."""
+def _nodes(tmp: Path, scene: str):
+    """The simulated graph running SHORT's trials (one round each) in ``scene`` (the small
+    scene: conftest.small_scene)."""
     return describe(True, scene, explorer={"trial": {"rounds": 1, "stop_confidence": 0.0},
                                            "seed": 3, "record_dir": str(tmp),
                                            "session_file": str(SHORT)})
 
 
 @pytest.fixture(scope="module")
-def session_run(tmp_path_factory, quick_scene):
+def session_run(tmp_path_factory, small_scene):
     """One scripted 2-trial session (module-wide: the browser test reads its records)."""
     tmp = tmp_path_factory.mktemp("session")
     lines: list[tuple[str, str]] = []
     domain = 160 + os.getpid() % 40
-    run = run_session(_nodes(tmp, quick_scene), tmp / "logs", tmp / "sess", confirm="yes",
+    run = run_session(_nodes(tmp, small_scene), tmp / "logs", tmp / "sess", confirm="yes",
                       timeout_s=900, domain_id=domain,
                       out=lambda text, kind: lines.append((kind, text)))
     return run, lines, tmp
 
 
-def test_scripted_session_runs_every_trial_with_its_truth(session_run) -> None:
+def test_scripted_session_runs_every_trial_with_its_truth(session_run, small_scene: str) -> None:
     run, lines, tmp = session_run
     assert run.result is not None, (run.failure, tmp / "logs" / "explorer.log")
     assert run.exit_code == 0 and run.confirmations == 2
     d = run.session_dir
-    trials = sess.load_session(SHORT, ["reference", "c1", "c2", "c3", "c4"], seed=3).trials
+    trials = sess.load_session(SHORT, [p.id for p in load_scene(small_scene).platforms], seed=3).trials
     assert run.result["done"] == 2 and run.result["total"] == 2
     correct = []
     for t in trials:
@@ -130,7 +131,7 @@ def test_trial_report_in_a_real_browser(session_run, tmp_path: Path) -> None:
         widths = [drv.execute_script("return arguments[0].naturalWidth", i) for i in imgs]
         assert all(w == 320 for w in widths), widths
         lines = drv.find_elements("css selector", "#belief-chart polyline.series")
-        assert len(lines) == 4                               # one per comparison platform
+        assert len(lines) == 2                               # one per comparison platform
         box = drv.execute_script("const b = document.querySelector('#belief-chart')"
                                  ".getBBox(); return [b.width, b.height];")
         assert box[0] > 100 and box[1] > 50
@@ -149,7 +150,7 @@ def test_trial_report_in_a_real_browser(session_run, tmp_path: Path) -> None:
 
 
 def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path, domain_id,
-                                                                 quick_scene: str) -> None:
+                                                                 small_scene: str) -> None:
     d = tmp_path / "sess"
     killed: dict = {}
 
@@ -165,14 +166,14 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path, 
                 time.sleep(0.05)
         threading.Thread(target=watch, daemon=True).start()
 
-    first = run_session(_nodes(tmp_path, quick_scene), tmp_path / "logs1", d, confirm="yes",
+    first = run_session(_nodes(tmp_path, small_scene), tmp_path / "logs1", d, confirm="yes",
                         timeout_s=900, domain_id=domain_id, on_start=kill_after_touches,
                         out=lambda *_: None)
     assert first.result is None and first.node_exit["explorer"] == -signal.SIGKILL
     before = [json.loads(x) for x in (d / "trial_1" / "touches.jsonl").read_text()
               .splitlines() if x.strip()]
     assert len(before) >= killed["touches"]
-    second = run_session(_nodes(tmp_path, quick_scene), tmp_path / "logs2", d, confirm="yes",
+    second = run_session(_nodes(tmp_path, small_scene), tmp_path / "logs2", d, confirm="yes",
                          timeout_s=900, domain_id=domain_id, out=lambda *_: None)
     assert second.result is not None, (second.failure, tmp_path / "logs2" / "explorer.log")
     assert second.result["done"] == 2
@@ -191,8 +192,9 @@ def test_killed_explorer_resumes_with_no_touch_lost_or_repeated(tmp_path: Path, 
     assert asked.count("1") == 1            # its confirmed placement was not asked again
 
 
-def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_id) -> None:
-    nodes = _nodes(tmp_path)
+def test_unconfirmed_placement_ends_the_session_cleanly(tmp_path: Path, domain_id,
+                                                         small_scene: str) -> None:
+    nodes = _nodes(tmp_path, small_scene)
     # 20 s: every other node has started before the session ends
     next(n for n in nodes if n.name == "explorer").parameters["confirm_timeout_s"] = 20.0
     d = tmp_path / "sess"

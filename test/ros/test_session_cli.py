@@ -24,7 +24,7 @@ from tactex_ros.trial.record import read_record
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-THREE = Path(__file__).parents[1] / "data" / "session_three.yaml"
+THREE = Path(__file__).parents[1] / "data" / "session_three_small.yaml"   # 1 + 2 platforms
 DEADLINE_S = 900.0           # one command, at load 10 on 2 cores
 # load-proof /diagnostics thresholds (test_diagnostics.py: at load 10-25 the mock camera's
 # 25 Hz timer falls to 11-13 Hz and an image gap reached 0.55 s)
@@ -73,7 +73,7 @@ def _start(args: list[str], domain_id: int, cwd: Path) -> subprocess.Popen:
 
 
 def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener,
-                                                         quick_scene: str) -> None:
+                                                         small_scene: str) -> None:
     from diagnostic_msgs.msg import DiagnosticArray
     got: list[tuple[float, object]] = []
     listener.node.create_subscription(DiagnosticArray, "/diagnostics",
@@ -81,7 +81,7 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
     d = tmp_path / "sess"
     params = tmp_path / "nodes.yaml"
     params.write_text(NODE_PARAMS)
-    proc = _start(["--sim", "--scene", quick_scene, "--session", str(THREE),
+    proc = _start(["--sim", "--scene", small_scene, "--session", str(THREE),
                    "--session-dir", str(d), "--yes", "--seed", "3", "--set", "trial.rounds=1",
                    "--set", "trial.stop_confidence=0.0", "--set", "server_timeout_s=120",
                    "--node-params", str(params)], listener.domain_id, tmp_path)
@@ -141,7 +141,7 @@ def test_ctrl_c_in_trial_2_then_only_the_session_folder(tmp_path: Path, listener
 
 def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
                                                                  domain_id: int,
-                                                                 quick_scene: str) -> None:
+                                                                 small_scene: str) -> None:
     d = tmp_path / "sess"
 
     def run(*args: str) -> tuple[int, str, str]:
@@ -152,8 +152,8 @@ def test_trials_runs_part_of_a_session_and_the_folder_continues(tmp_path: Path,
             if p.poll() is None:
                 p.kill()
         return p.returncode, out, err
-    # the baseline's five touches alone (rounds 0): which trials run is the point here
-    code, out, err = run("--sim", "--scene", quick_scene, "--session", str(THREE),
+    # the baseline's three touches alone (rounds 0): which trials run is the point here
+    code, out, err = run("--sim", "--scene", small_scene, "--session", str(THREE),
                          "--session-dir", str(d), "--yes", "--set", "trial.rounds=0",
                          "--set", "trial.stop_confidence=0.0", "--trials", "3")
     assert code == 0, err[-3000:]
@@ -193,7 +193,7 @@ def _screenshots(d: Path, art: Path, tmp: Path) -> None:
         assert drv.find_element("id", "verdict").text in ("correct", "wrong")
         assert drv.find_elements("css selector", ".platform.chosen, .platform.wrong")
         for chart in ("belief-chart", "belief-time-chart"):
-            assert len(drv.find_elements("css selector", f"#{chart} polyline.series")) == 4
+            assert len(drv.find_elements("css selector", f"#{chart} polyline.series")) == 2   # c1, c2
         assert "resumed after touch" in drv.find_element("id", "timeline").text
         drv.save_screenshot(str(art / "session_trial_2_report.png"))
         drv.get((d / "report.html").as_uri())
