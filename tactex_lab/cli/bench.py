@@ -41,8 +41,8 @@ def cmd_bench_sim(args: argparse.Namespace) -> int:
 
 def cmd_bench_env(args: argparse.Namespace) -> int:
     from tactex_ros.core.config import SHIPPED_STOP, preset, trial_preset
-    from tactex_ros.env.agents import EngineAgent, evaluate
-    from tactex_ros.env.touch_env import TouchEnv, parse_seeds
+    from tactex_lab.env.agents import EngineAgent, evaluate
+    from tactex_lab.env.touch_env import TouchEnv, parse_seeds
     from tactex_lab.experiments.curves import parse_setting
     from tactex_lab.experiments.real import DEFAULT_SETTINGS
     seeds = parse_seeds(args.seeds)

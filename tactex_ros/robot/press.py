@@ -87,6 +87,14 @@ class PressSettings(Protocol):
     tare_max_motion_m: float
     tare_max_offset_n: float
     tare_deadline_s: float
+    surface_search: float
+    contact_force_n: float
+    surface_warn_m: float
+    force_tolerance_n: float
+    hold_deadline_s: float
+    rest_speed: float
+    rest_s: float
+    rest_tolerance: float
 
 
 class Platform(Protocol):

@@ -88,7 +88,6 @@ ALLOWED = {
     "trial": {"core", "paths", "trial"},
     "ros": {"core", "robot", "sim", "sources", "paths", "trial", "ros"},
     "export": {"core", "robot", "sources", "trial", "export"},   # tactex export (open data)
-    "env": {"core", "sources", "env"},          # the benchmark environment (Gymnasium)
 }
 PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
 
@@ -99,7 +98,8 @@ LAB_ALLOWED = {
     "analysis": ({"analysis"}, {"core", "robot", "sim", "sources", "paths"}),
     "experiments": ({"cnn", "analysis", "experiments"},
                     {"core", "robot", "sim", "sources", "paths", "trial"}),
-    "cli": ({"cnn", "analysis", "experiments", "cli"}, PRODUCT_BELOW_CLI | {"cli"}),
+    "env": ({"env"}, {"core", "sources"}),     # the benchmark environment (Gymnasium)
+    "cli": ({"cnn", "analysis", "experiments", "env", "cli"}, PRODUCT_BELOW_CLI | {"cli"}),
 }
 
 

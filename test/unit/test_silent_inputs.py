@@ -141,7 +141,7 @@ def prepare_frames(tmp: Path) -> tuple[int, list[str]]:
 
 def _env(tmp: Path):
     pytest.importorskip("gymnasium")
-    from tactex_ros.env.touch_env import TouchEnv
+    from tactex_lab.env.touch_env import TouchEnv
     return TouchEnv(f"replay:{_images(tmp, classes=3, presses=2)}", comparisons=2, budget=1)
 
 

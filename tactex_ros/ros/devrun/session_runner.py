@@ -97,11 +97,12 @@ class Confirmer:
             return None, f"service {service} not available within {timeout_s} s"
         fut = client.call_async(request)
         ex = SingleThreadedExecutor(context=self._ctx)
-        ex.add_node(self._ensure())
+        node = self._ensure()
+        ex.add_node(node)
         try:
             ex.spin_until_future_complete(fut, timeout_sec=timeout_s)
         finally:
-            ex.remove_node(self._node)
+            ex.remove_node(node)
             ex.shutdown()
         if not fut.done() or fut.result() is None:
             return None, f"no answer from {service} within {timeout_s} s"

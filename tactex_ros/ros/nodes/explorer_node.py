@@ -30,6 +30,7 @@ import os
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from action_msgs.msg import GoalStatus
@@ -52,6 +53,9 @@ from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
 from ..goal import GoalRequest, Silence
+
+if TYPE_CHECKING:
+    from .operator import SessionOperator
 
 
 #: Times the explorer asks again for a result after it was stopped (``goal_answer_s`` apart):
@@ -93,7 +97,7 @@ class ExplorerNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
         self.session: SessionRun | None = None
-        self.operator = None             # a session's (``operator.SessionOperator``)
+        self.operator: SessionOperator | None = None     # a session's
         self.trial = None
         self.bag = self.last_state = None
         self._bag_warned = False
@@ -268,13 +272,13 @@ class ExplorerNode(TactexNode):
             done, n = self.session.done(), len(self.session.session.trials)
             values.update(session=self.session.session.name, **{"trials done": done,
                                                                  "trials": n})
-            waiting = self.operator.awaiting
-            paused = self.operator.control.paused
+            waiting = self._op.awaiting
+            paused = self._op.control.paused
             values["operator"] = "paused" if paused else ""
             msg = (f"session {done}/{n} trials done"
                    + (f"; waiting for the operator to confirm trial {waiting}" if waiting
                       else "")
-                   + (f"; trial {self.operator.control.trial} paused by the operator"
+                   + (f"; trial {self._op.control.trial} paused by the operator"
                       if paused else ""))
         if "error" in res:
             return ERROR, f"trial failed: {res['error']}", values
@@ -374,7 +378,7 @@ class ExplorerNode(TactexNode):
         from tactex.action import Press
         self._wait_running()
         if self.operator is not None:     # a session: paused, or the trial ends (abort, ...)
-            self.operator.control.gate(self.settings.pause_timeout_s, self._is_stopping)
+            self._op.control.gate(self.settings.pause_timeout_s, self._is_stopping)
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
         meta["requested"] = self._now()
@@ -527,13 +531,34 @@ class ExplorerNode(TactexNode):
         from .operator import SessionOperator
         self.operator = SessionOperator(self, s, self._is_stopping, record=self._record_operator)
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
-                               f"folder {d}{' (resumed)' if self.session.resumed else ''}")
+                               f"folder {d}{' (resumed)' if self._sess.resumed else ''}")
+
+    @property
+    def _sess(self) -> SessionRun:
+        """The running session (only in a session's methods)."""
+        if self.session is None:
+            raise TrialError("explorer: no session is running")
+        return self.session
+
+    @property
+    def _op(self) -> SessionOperator:
+        """The session's operator (only in a session's methods)."""
+        if self.operator is None:
+            raise TrialError("explorer: no session operator")
+        return self.operator
+
+    @property
+    def _trial_run(self) -> TrialRun:
+        """The running trial."""
+        if self.trial is None:
+            raise TrialError("explorer: no trial is running")
+        return self.trial
 
     def _outcome(self, trial: sess.SessionTrial, result: dict) -> dict:
         """A session trial's result fields (``trial_outcome``); the time the operator held it
         paused is not part of its ``elapsed_s`` (kept as ``paused_s``)."""
         out = trial_outcome(trial, result)
-        paused = self.operator.control.paused_s
+        paused = self._op.control.paused_s
         if paused > 0 and isinstance(result.get("elapsed_s"), float):
             out.update(elapsed_s=result["elapsed_s"] - paused, paused_s=paused)
         return out
@@ -543,13 +568,13 @@ class ExplorerNode(TactexNode):
         times) on the log and ``progress_topic``."""
         from std_msgs.msg import String
         from ...trial.session_run import progress_text
-        text = progress_text(sess.summary(self.session.dir), self.session.only, trial.id)
+        text = progress_text(sess.summary(self._sess.dir), self._sess.only, trial.id)
         self.get_logger().info(text)
-        self.operator.progress_pub.publish(String(data=text))
+        self._op.progress_pub.publish(String(data=text))
 
     def _record_operator(self, event: dict) -> None:
         """An operator's request: into the session's events and the running trial's."""
-        sess.add_event(self.session.dir, event)
+        sess.add_event(self._sess.dir, event)
         if self.record is not None:
             from ...trial.record import append_event
             try:
@@ -562,20 +587,20 @@ class ExplorerNode(TactexNode):
         by the operator: a skip's result (``skipped``) is recorded; an abort or a redo gives
         ``{"operator": action, "by": ..., "caller": ...}`` and the record stays resumable."""
         self.session_trial, self.result = trial, None
-        self._open_trial(trial.seed, resume, trial.record_name, str(self.session.dir),
-                         **self.session.trial_inputs(trial, self.settings.scene_file))
-        self.session.trial_started(trial, resume is not None, self.record.n_touches)
-        self.operator.control.start(trial.id)
+        self._open_trial(trial.seed, resume, trial.record_name, str(self._sess.dir),
+                         **self._sess.trial_inputs(trial, self.settings.scene_file))
+        self._sess.trial_started(trial, resume is not None, self.record.n_touches)
+        self._op.control.start(trial.id)
         self._say_progress(trial)
         try:
             self._trial(finish_node=False)
         finally:
-            self.operator.control.end()
+            self._op.control.end()
         stop = self.operator_stop
         if stop is not None:
             said = {"by": stop.by, "caller": stop.caller or None}
             if stop.action == "skip":
-                self.result = self.trial.skip(said)
+                self.result = self._trial_run.skip(said)
                 return self.result
             self.record.close()           # every press made is on disk
             return {"operator": stop.action, **said}
@@ -587,7 +612,7 @@ class ExplorerNode(TactexNode):
         """The session's worker thread: every trial not yet done, in order; then the session's
         result and report. Ends the node's work (``exit_when_done``) in every case."""
         try:
-            code = self.session.run(self.operator, self._session_trial, self._is_stopping)
+            code = self._sess.run(self._op, self._session_trial, self._is_stopping)
             if code:
                 self.exit_code = code
         finally:

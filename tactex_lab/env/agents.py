@@ -21,10 +21,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..core.config import SHIPPED_STOP, TrialConfig
-from ..core.engine import TrialSpec
-from ..core.errors import InputError
-from ..core.touch import Touch
+from tactex_ros.core.config import SHIPPED_STOP, TrialConfig
+from tactex_ros.core.engine import TrialSpec
+from tactex_ros.core.errors import InputError
+from tactex_ros.core.touch import Touch
 from .touch_env import TouchEnv
 
 

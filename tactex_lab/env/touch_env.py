@@ -47,9 +47,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..core.engine import TouchFailed
-from ..core.errors import InputError
-from ..core.touch import as_touch
+from tactex_ros.core.engine import TouchFailed
+from tactex_ros.core.errors import InputError
+from tactex_ros.core.touch import as_touch
 
 H, W = 240, 320
 EXTRA = 3                    # in-contact frames per press besides the strongest (replay's)
@@ -60,7 +60,7 @@ def scene_of(classes: list[str], comparisons: int, seed: int) -> tuple[list[str]
     """The scene of seed ``seed``: classes [reference, comparisons...] and the match (1..C),
     ``experiment real``'s draw (``curves.draw_scenes``: ``assign_platforms`` over the sorted
     classes)."""
-    from ..sources import assign_platforms
+    from tactex_ros.sources import assign_platforms
     return assign_platforms(sorted(classes), comparisons, None, None, seed)
 
 
@@ -123,7 +123,7 @@ class TouchEnv(gym.Env):
 
     def __init__(self, source: str, comparisons: int = 4, budget: int = 15,
                  touch_cost: float = 0.0) -> None:
-        from ..sources import open_source
+        from tactex_ros.sources import open_source
         if comparisons < 2:
             raise InputError(f"comparisons must be >= 2, got {comparisons}")
         if budget < 0:

@@ -15,8 +15,8 @@ gym = pytest.importorskip("gymnasium")
 
 from tactex_ros.core.config import preset  # noqa: E402
 from tactex_ros.core.errors import InputError  # noqa: E402
-from tactex_ros.env.agents import EngineAgent, evaluate, run_episode  # noqa: E402
-from tactex_ros.env.touch_env import TouchEnv, parse_seeds, scene_of  # noqa: E402
+from tactex_lab.env.agents import EngineAgent, evaluate, run_episode  # noqa: E402
+from tactex_lab.env.touch_env import TouchEnv, parse_seeds, scene_of  # noqa: E402
 
 
 def _library(root: Path, classes: int = 5, presses: int = 3) -> str:
@@ -128,7 +128,7 @@ def test_the_active_perception_interface(tmp_path):
 
 def test_the_loss_without_ap_gym_is_ap_gyms():
     ap_gym = pytest.importorskip("ap_gym", reason="ap_gym not installed (requirements-test.txt)")
-    from tactex_ros.env.touch_env import CrossEntropyLoss
+    from tactex_lab.env.touch_env import CrossEntropyLoss
     rng = np.random.default_rng(1)
     logits, target = rng.normal(size=(50, 4)) * 3, rng.integers(0, 4, 50)
     ours = CrossEntropyLoss(4).numpy(logits, target)
