@@ -235,7 +235,7 @@ def _nodes(context, *args, **kwargs):
     from launch_ros.actions import Node
 
     from tactex_ros.core.errors import InputError
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in arguments()}
     # the trial's settings by dotted name, undeclared (they depend on learner.model)
     given.update({k: v for k, v in context.launch_configurations.items()

@@ -83,7 +83,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     fabrics = [f for f in args.fabrics.split(",") if f] if args.fabrics else None
     if fabrics:
         from tactex_ros.sim.fabrics import load_catalogue
-        from tactex_ros.paths import config_dir
+        from tactex_ros.core.paths import config_dir
         known = load_catalogue(config_dir() / "fabrics.yaml")
         unknown = [f for f in fabrics if f not in known]
         if unknown:

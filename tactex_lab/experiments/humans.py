@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_file, read_yaml
+from tactex_ros.core.paths import config_file, read_yaml
 from tactex_lab.analysis import charts, stats
 from tactex_lab.experiments.common import decision_at_budget, results_dir, write_json
 from tactex_lab.experiments.trials import find_trial_file, load_trials, platform_classes

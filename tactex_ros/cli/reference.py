@@ -177,7 +177,7 @@ def presets() -> list[str]:
 
 def launch_file() -> Path:
     """launch/explore.launch.py of the source tree or the install (beside ``config/``)."""
-    from ..paths import config_dir
+    from ..core.paths import config_dir
     return config_dir().parent / "launch" / "explore.launch.py"
 
 

@@ -120,7 +120,7 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
     from ..core.outputs import write_bytes
     import yaml
 
-    from ..paths import read_yaml
+    from ..core.paths import read_yaml
     from ..robot.measure import corrected_scene, light_press
     from ..robot.press import PressController, check_press
     from ..robot.robots import import_interface, load_profile

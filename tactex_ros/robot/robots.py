@@ -55,7 +55,7 @@ from pydantic import StringConstraints, field_validator, model_validator
 
 from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
-from ..paths import config_dir, config_file, read_yaml
+from ..core.paths import config_dir, config_file, read_yaml
 from .mock_world import ControlLaw
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"

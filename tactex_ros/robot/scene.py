@@ -30,7 +30,7 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from ..core.contact import EXTRA_FRAMES
 from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
-from ..paths import read_yaml
+from ..core.paths import read_yaml
 
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]

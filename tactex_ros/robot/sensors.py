@@ -32,7 +32,7 @@ from pydantic import Field, StringConstraints
 
 from ..core.schema import Schema, param
 from ..core.errors import InputError
-from ..paths import config_file, read_yaml
+from ..core.paths import config_file, read_yaml
 
 SERIAL_LOOKUPS = ("", "digit_interface")
 LED_MAX = 15

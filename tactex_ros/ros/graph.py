@@ -17,7 +17,7 @@ from ..core.schema import FieldSpec, field_spec, merge, nest, parse_text, typed
 from ..core.errors import InputError
 from .settings import (ExplorerSettings, GelsightSettings, MockArmSettings, MockImageSettings,
                        MotionSettings)
-from ..paths import config_dir, read_yaml
+from ..core.paths import config_dir, read_yaml
 from ..robot.scene import load_scene
 
 PACKAGE = "tactex"

@@ -101,7 +101,7 @@ def resolve_run(options: Mapping[str, Any] | None = None,
     settings given, nested, before the ``set`` items. ``defaults``: the explorer's settings
     beneath what is given, flat (the explorer node: its parameters; None: the settings file
     ``settings``, else config/explorer.yaml, and the scene). InputError names what is wrong."""
-    from ..paths import config_dir
+    from ..core.paths import config_dir
     from ..trial.resume import record_scene, settings_from_record
     opts = dict(options or {})
     folder = _options_from_record(opts)

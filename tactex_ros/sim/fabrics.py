@@ -31,7 +31,7 @@ from pydantic import create_model, model_validator
 
 from ..core.schema import FieldError, Schema, param
 from ..core.errors import InputError
-from ..paths import read_yaml
+from ..core.paths import read_yaml
 
 FAMILIES = ("plain", "twill", "satin", "basket", "rib", "jersey", "corduroy", "felt")
 WOVEN = ("plain", "twill", "satin", "basket")

@@ -36,7 +36,7 @@ def open_source(spec: str) -> TouchSource:
         from .replay import ReplaySource
         return ReplaySource(folder, one_session=one)
     if kind == "sim":
-        from ..paths import config_dir
+        from ..core.paths import config_dir
         from .simulated import SimSource
         parts = arg.split(":") if arg else []
         recorded = bool(parts) and parts[-1] == "recorded"

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.touch import Touch
-from ..paths import cache_dir
+from ..core.paths import cache_dir
 from ..sim.fabrics import FabricParams, height_tile, load_catalogue
 from ..sim.render import MM_PER_PX, GelSightRenderer
 

@@ -98,7 +98,7 @@ def check_record_names(ids: list[str], where: str) -> None:
 
 def catalogue_names(path: str | Path | None = None) -> list[str]:
     """Fabric names of the catalogue (``config/fabrics.yaml``) in number order (1-based)."""
-    from ..paths import config_dir, read_yaml
+    from ..core.paths import config_dir, read_yaml
     p = Path(path) if path else config_dir() / "fabrics.yaml"
     doc = read_yaml(p, "fabric catalogue")
     try:

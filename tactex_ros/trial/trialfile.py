@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
-from ..paths import config_file, read_yaml
+from ..core.paths import config_file, read_yaml
 from .record import name_problem
 
 

@@ -116,7 +116,7 @@ def quick_scene() -> str:
     """config/scene_sim.yaml as shipped: its press is the lab scene's (config/scene.yaml, about
     3 s a press: docs/research/press_speed.md), so the graph tests press as a lab does. (It
     used to be a shortened copy of a 22 s press.)"""
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     return str(config_dir() / "scene_sim.yaml")
 
 
@@ -133,7 +133,7 @@ def small_scene(tmp_path_factory) -> str:
     (resume, faults, operator actions, outputs), not how many platforms a scene has; the
     sessions they run list two comparisons (test/data/session_*_small.yaml)."""
     import yaml
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     doc = yaml.safe_load((config_dir() / "scene_sim.yaml").read_text())
     doc["platforms"] = [p for p in doc["platforms"] if p["id"] in SMALL_PLATFORMS]
     if [p["id"] for p in doc["platforms"]] != list(SMALL_PLATFORMS):

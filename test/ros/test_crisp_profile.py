@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.robot.robots import load_profile
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.devrun.launcher import Graph

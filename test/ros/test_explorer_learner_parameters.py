@@ -10,7 +10,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from tactex_ros.paths import config_dir  # noqa: E402
+from tactex_ros.core.paths import config_dir  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -29,7 +29,7 @@ from sensor_msgs.msg import Image  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from tactex_ros.ros.nodes.lifecycle import entities, wait_for  # noqa: E402
-from tactex_ros.paths import config_dir  # noqa: E402
+from tactex_ros.core.paths import config_dir  # noqa: E402
 
 pytestmark = pytest.mark.ros
 SCENE = str(config_dir() / "scene_sim.yaml")

@@ -53,7 +53,7 @@ def test_measure_scene_finds_a_shifted_surface(tmp_path: Path, listener) -> None
 
 
 def test_measure_scene_refuses_an_unknown_platform(tmp_path: Path) -> None:
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     cmd = [sys.executable, "-c", "import sys; from tactex_ros.cli.main import main; "
            "sys.exit(main())", "robot", "measure-scene", "--robot", "sim", "--scene",
            str(config_dir() / "scene_sim.yaml"), "--out", str(tmp_path / "o.yaml"),

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.graph import NodeSpec
 from tactex_ros.ros.devrun.launcher import Graph
 from tactex_ros.ros.settings import POSE_TOPIC, WRENCH_TOPIC

@@ -24,7 +24,7 @@ from geometry_msgs.msg import WrenchStamped
 
 from tactex_ros.core.contact import strongest_contact
 from tactex_ros.core.errors import InputError, TrialError
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.graph import SIM_MIN_STATE_RATE_HZ, NodeSpec
 from tactex_ros.ros.devrun.launcher import Graph, ros_env
 

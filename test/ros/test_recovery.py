@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from tactex_ros.ros.graph import describe
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.devrun.launcher import Graph
 
 pytestmark = pytest.mark.ros

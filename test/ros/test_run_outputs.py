@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.devrun.launcher import ros_env, run_graph
 from tactex_ros.trial.record import TrialRecord, read_record

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.devrun.launcher import ros_env
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -12,7 +12,7 @@ import pytest
 
 from tactex_ros.cli.main import main
 from tactex_ros.core.config import preset, trial_preset
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.trial.record import TrialRecord
 
 

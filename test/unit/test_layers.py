@@ -81,12 +81,11 @@ def test_the_import_reader_resolves_relative_imports():
 # what each layer may import of the package (cli: everything, nothing imports cli)
 ALLOWED = {
     "core": {"core"},
-    "robot": {"core", "robot", "paths"},
-    "sim": {"core", "robot", "sim", "paths"},       # paths: read_yaml only (test below)
-    "sources": {"core", "robot", "sim", "sources", "paths"},
-    "paths": {"core", "paths"},
-    "trial": {"core", "paths", "trial"},
-    "ros": {"core", "robot", "sim", "sources", "paths", "trial", "ros"},
+    "robot": {"core", "robot"},
+    "sim": {"core", "robot", "sim"},   # core.paths: read_yaml only (test below)
+    "sources": {"core", "robot", "sim", "sources"},
+    "trial": {"core", "trial"},
+    "ros": {"core", "robot", "sim", "sources", "trial", "ros"},
     "export": {"core", "robot", "sources", "trial", "export"},   # tactex export (open data)
 }
 PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
@@ -95,9 +94,9 @@ PRODUCT_BELOW_CLI = set(ALLOWED) - {"cli"}
 # product (the lab's cli: everything but ros, nothing of the lab imports it)
 LAB_ALLOWED = {
     "cnn": ({"cnn"}, {"core"}),
-    "analysis": ({"analysis"}, {"core", "robot", "sim", "sources", "paths"}),
+    "analysis": ({"analysis"}, {"core", "robot", "sim", "sources"}),
     "experiments": ({"cnn", "analysis", "experiments"},
-                    {"core", "robot", "sim", "sources", "paths", "trial"}),
+                    {"core", "robot", "sim", "sources", "trial"}),
     "env": ({"env"}, {"core", "sources"}),     # the benchmark environment (Gymnasium)
     "cli": ({"cnn", "analysis", "experiments", "env", "cli"}, PRODUCT_BELOW_CLI | {"cli"}),
 }
@@ -191,7 +190,7 @@ def test_robot_domain_imports_no_torch():
 def test_sim_takes_its_paths_and_knows_no_ros():
     """The simulator reads files through the one YAML reader but finds none itself."""
     def bad(p, mod, names):
-        return ((mod == "tactex_ros.paths" and set(names) != {"read_yaml"})
+        return ((mod == "tactex_ros.core.paths" and set(names) != {"read_yaml"})
                 or mod.split(".")[0] == "rclpy")
     assert _violations(_files(PKG / "sim"), bad) == []
 

@@ -11,7 +11,7 @@ import pytest
 
 from tactex_ros.core.errors import InputError
 from tactex_ros.core.schema import flatten, nest
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.settings import ExplorerSettings
 from tactex_ros.trial.resume import record_scene, settings_from_record
 

@@ -29,7 +29,7 @@ def _file(tmp_path: Path) -> Path:
 def _measure_scene(out: str) -> list[str]:
     """``tactex robot measure-scene`` on the simulated scene; no robot state arrives here (the
     command would give up after 0.5 s with exit status 1)."""
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     return ["robot", "measure-scene", "--robot", "sim", "--scene",
             str(config_dir() / "scene_sim.yaml"), "--state-deadline-s", "0.5", "--out", out]
 

@@ -9,7 +9,7 @@ import pytest
 
 from tactex_ros.trial import session as sess
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 
 IDS = ["reference", "c1", "c2", "c3", "c4"]
 

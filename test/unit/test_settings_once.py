@@ -16,7 +16,7 @@ from unittest import mock
 
 from tactex_ros.core.config import LearnerBase, TrialConfig
 from tactex_ros.core.schema import Schema, flatten, nest
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.ros.settings import ExplorerSettings
 
 LAUNCH = Path(__file__).resolve().parents[2] / "launch" / "explore.launch.py"

@@ -14,7 +14,7 @@ import yaml
 
 from tactex_ros.cli.main import main
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 
 SESSION = str(Path(__file__).parents[1] / "data" / "session_short.yaml")
 

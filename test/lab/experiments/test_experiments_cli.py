@@ -13,7 +13,7 @@ from tactex_lab.experiments.common import decision_at_budget
 from tactex_lab.experiments.humans import load_humans
 from tactex_lab.experiments.runner import TrialJob, run_job
 from tactex_lab.experiments.trials import find_trial_file, load_trials
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 
 TINY = ["--set", "learner.input_size=32", "--set", "learner.mc_passes=4",
         "--set", "learner.steps=2",

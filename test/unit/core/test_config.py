@@ -330,7 +330,7 @@ def test_the_launch_remembers_what_the_cli_remembers(tmp_path, monkeypatch) -> N
 
     from tactex_ros.cli.graph_commands import _nodes
     from tactex_ros.cli.main import build_parser
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     from tactex_ros.ros.run_settings import RUN_FILE, save_run_file
     launch = _launch_module()
     monkeypatch.setenv("ROS_DOMAIN_ID", "7")
@@ -365,7 +365,7 @@ def test_a_launch_resume_with_another_threshold_is_refused_before_anything_start
     (the setting and both values named), nothing written into the record."""
     import json
 
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     launch = _launch_module()
     d = tmp_path / "cut"
     d.mkdir()

@@ -19,7 +19,7 @@ from tactex_ros.cli.main import main  # noqa: E402
 from tactex_ros.core.config import preset, trial_preset  # noqa: E402
 from tactex_ros.core.engine import TrialSpec, run_trial  # noqa: E402
 from tactex_ros.core.touch import Touch, as_touch  # noqa: E402
-from tactex_ros.paths import config_dir  # noqa: E402
+from tactex_ros.core.paths import config_dir  # noqa: E402
 from tactex_ros.robot.scene import load_scene  # noqa: E402
 from tactex_ros.sources import open_source  # noqa: E402
 from tactex_ros.trial.record import TrialRecord, read_record  # noqa: E402

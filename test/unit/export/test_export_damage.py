@@ -20,7 +20,7 @@ datasets = pytest.importorskip("datasets")
 
 from tactex_ros.cli.main import main  # noqa: E402
 from tactex_ros.core.errors import InputError  # noqa: E402
-from tactex_ros.paths import config_dir  # noqa: E402
+from tactex_ros.core.paths import config_dir  # noqa: E402
 from tactex_ros.trial.record import TrialRecord, read_record  # noqa: E402
 
 

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from tactex_ros.core.schema import flatten
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.robot.robots import load_profile
 from tactex_ros.robot.scene import load_scene
 

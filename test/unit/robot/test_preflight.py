@@ -96,7 +96,7 @@ def test_panda_state_rate_of_the_bring_up_passes_the_profile() -> None:
     is refused."""
     import yaml
 
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     from tactex_ros.robot.robots import load_profile
     prof = load_profile("panda_crisp")
     bringup = yaml.safe_load((config_dir() / "bringup" / "panda_crisp_controller.yaml")

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_dir, config_names
+from tactex_ros.core.paths import config_dir, config_names
 from tactex_ros.robot.mock_world import (ArmModel, ControlLaw, Faults, platform_under,
                                         press_in_worlds)
 from tactex_ros.robot.press import (DONE, SETTLE, PressController, approach_brake, check_press,

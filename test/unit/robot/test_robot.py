@@ -11,7 +11,7 @@ import yaml
 from tactex_ros.ros import adapter
 from tactex_ros.core.errors import InputError
 from tactex_ros.ros.graph import describe, fixed_frame
-from tactex_ros.paths import config_dir, config_names
+from tactex_ros.core.paths import config_dir, config_names
 from tactex_ros.robot.robots import (fill_message, import_interface, load_profile, parse_profile,
                                      with_profile)
 

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.robot.mock_world import ArmModel, ControlLaw
 from tactex_ros.robot.press import DESCEND, PressController, Tare, TareResult, tared
 from tactex_ros.robot.scene import load_scene

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.robot import press_bench
 from tactex_ros.robot.mock_world import (CRISP_23, ArmModel, ControlLaw, Faults,
                                          press_in_worlds)

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from tactex_ros.core.errors import InputError
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.robot.scene import load_scene, parse_scene
 
 

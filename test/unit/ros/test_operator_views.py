@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tactex_ros.paths import config_dir
+from tactex_ros.core.paths import config_dir
 from tactex_ros.trial.progress import Progress, decision_line, press_line
 from tactex_ros.trial.record import TrialRecord, read_record
 from tactex_ros.trial.report import regenerate, trial_html

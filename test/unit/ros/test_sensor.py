@@ -16,7 +16,7 @@ from tactex_ros.core.errors import DeviceError, InputError
 from tactex_ros.ros.settings import GelsightSettings
 from tactex_ros.ros.nodes.gelsight_node import (FrameFolder, camera_setup, landscape,
                                             resolve_device)
-from tactex_ros.paths import config_names
+from tactex_ros.core.paths import config_names
 from tactex_ros.robot.sensors import digit_led_value, load_sensor, parse_sensor, sensor_config
 
 from test_gelsight_setup import RecordingCapture
@@ -49,7 +49,7 @@ def test_modes_match_digit_interface_where_installed() -> None:
 def _digit_data() -> dict:
     import yaml
 
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     return yaml.safe_load((config_dir() / "sensors" / "digit.yaml").read_text())
 
 

@@ -11,7 +11,7 @@ from tactex_ros.sources.simulated import TILE_PX, cached_tile, tile_file
 
 
 def _fabric():
-    from tactex_ros.paths import config_dir
+    from tactex_ros.core.paths import config_dir
     from tactex_ros.sim.fabrics import load_catalogue
     return load_catalogue(config_dir() / "fabrics.yaml")["satin"]
 

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .core.errors import InputError
+from .errors import InputError
 
 
 def config_dir() -> Path:
@@ -17,7 +17,7 @@ def config_dir() -> Path:
     cands: list[Path] = []
     if os.environ.get("TACTEX_CONFIG_DIR"):
         cands.append(Path(os.environ["TACTEX_CONFIG_DIR"]))
-    cands.append(Path(__file__).resolve().parent.parent / "config")
+    cands.append(Path(__file__).resolve().parents[2] / "config")
     cands.append(Path(sys.prefix) / "share" / "tactex" / "config")
     try:
         from ament_index_python.packages import get_package_share_directory
