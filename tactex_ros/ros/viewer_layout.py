@@ -15,8 +15,10 @@ wrench, the camera, the prompt, the diagnostics) are not recorded there and stay
 config types (github.com/foxglove/studio, packages/studio-base/src/panels/):
 ``ThreeDeeRender/IRenderer.ts`` ``RendererConfig`` (the 3D and Image panels: ``followTf``,
 ``followMode``, ...), ``Plot/types.ts`` ``PlotConfig`` (+ ``Plot/internalTypes.ts``
-``PlotPath``), ``CallService/types.ts`` ``CallServiceConfig``, ``RawMessages`` and the
-diagnostics panels' configs; every panel's title is ``foxglovePanelTitle`` (``PANEL_TITLE``: the
+``PlotPath``), ``CallService/types.ts`` ``CallServiceConfig``, ``RawMessages``, the
+diagnostics panels' configs, ``Log/types.ts`` ``Config`` (panel type ``RosOut``: the log on
+``/rosout``) and ``Indicator/types.ts`` ``IndicatorConfig`` (the explorer's state: its
+``explorer: trial`` status level on ``/diagnostics``); every panel's title is ``foxglovePanelTitle`` (``PANEL_TITLE``: the
 app keeps a panel's title in its config under that key; the Foxglove SDK's layout model,
 ``foxglove.layouts`` of the foxglove-sdk package, has no ``title`` in ``PlotConfig``: the
 title is the panel's, not the plot's). The CallService buttons set ``editingMode: false``
@@ -37,6 +39,7 @@ from typing import Any
 
 from ..robot.robots import load_profile
 from .bag import WRENCH_VIEW
+from .diagnostics import ERROR, OK, WARN
 from .settings import (IMAGE_TOPIC, MARKER_TOPIC, PROMPT_TOPIC, STATE_TOPIC,
                        TOUCH_IMAGE_TOPIC)
 
@@ -53,6 +56,13 @@ ACTION_BUTTONS = {
     "redo": ("Redo trial", "#1d4ed8", "the trial starts again; its presses are kept as "
                                       "superseded"),
 }
+
+#: the explorer's trial status on ``/diagnostics`` (``<node>: trial``; the graph's explorer is
+#: ``explorer``) and the state indicator's rules: level (0 OK, 1 WARN, 2 ERROR), colour, label
+EXPLORER_STATUS = "explorer: trial"
+STATE_RULES = ((OK, "#17803d", "explorer OK: exploring or done"),
+               (WARN, "#b58900", "explorer WARN: starting, waiting for the operator or paused"),
+               (ERROR, "#b91c1c", "explorer ERROR: the trial failed"))
 
 _RENDERER = {"cameraState", "followTf", "followMode", "scene", "publish", "transforms",
              "topics", "layers", "imageMode"}
@@ -72,10 +82,13 @@ PANEL_KEYS: dict[str, set[str]] = {
                           "sortByLevel"},
     "DiagnosticStatusPanel": {"topicToRender", "selectedHardwareId", "selectedName",
                               "splitFraction", "numericPrecision", "collapsedSections"},
+    "RosOut": {"searchTerms", "minLogLevel", "topicToRender", "nameFilter"},
+    "Indicator": {"path", "style", "fallbackColor", "fallbackLabel", "rules"},
 }
 #: keys of nested objects Foxglove reads (``PlotPath``, ``ImageModeConfig``)
 NESTED_KEYS = {("Plot", "paths"): {"value", "enabled", "color", "label", "timestampMethod",
                                    "showLine", "lineSize"},
+               ("Indicator", "rules"): {"operator", "rawValue", "color", "label"},
                ("3D", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"},
                ("Image", "imageMode"): {"imageTopic", "calibrationTopic", "annotations"}}
 #: the key of a panel's title in its config (every panel type)
@@ -168,12 +181,22 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
         "DiagnosticSummary!health": {"topicToRender": "/diagnostics", "minLevel": 0,
                                      "pinnedIds": [], "hardwareIdFilter": ""},
         "DiagnosticStatusPanel!detail": {"topicToRender": "/diagnostics"},
+        "RosOut!log": {"topicToRender": "/rosout", "minLogLevel": 2, "searchTerms": []},
+        "Indicator!state": {
+            "foxglovePanelTitle": "explorer",
+            "path": f'/diagnostics.status[:]{{name=="{EXPLORER_STATUS}"}}.level',
+            "style": "background", "fallbackColor": "#6b7280",
+            "fallbackLabel": "explorer: no status yet",
+            "rules": [{"operator": "=", "rawValue": str(level), "color": colour,
+                       "label": label} for level, colour, label in STATE_RULES]},
     }
     tree = {
         "direction": "row", "splitPercentage": 50,
         "first": {"direction": "column", "splitPercentage": 30,
                   "first": {"direction": "row", "splitPercentage": 70,
-                            "first": "RawMessages!prompt",
+                            "first": {"direction": "column", "splitPercentage": 30,
+                                      "first": "Indicator!state",
+                                      "second": "RawMessages!prompt"},
                             "second": _column(["CallService!confirm"]
                                               + [f"CallService!{a}" for a in ACTION_BUTTONS])},
                   "second": {"direction": "column", "splitPercentage": 55,
@@ -187,7 +210,9 @@ def foxglove_layout(robot: str = "fr3_crisp", comparisons: tuple[str, ...] =
                                         "second": "Plot!wrench"},
                               "second": {"direction": "row",
                                          "first": "DiagnosticSummary!health",
-                                         "second": "DiagnosticStatusPanel!detail"}}}}
+                                         "second": {"direction": "column",
+                                                    "first": "DiagnosticStatusPanel!detail",
+                                                    "second": "RosOut!log"}}}}}
     return {"configById": configs, "globalVariables": {}, "userNodes": {},
             "linkedGlobalVariables": [], "playbackConfig": {"speed": 1}, "layout": tree}
 

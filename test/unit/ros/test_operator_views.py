@@ -159,6 +159,14 @@ def test_foxglove_layouts_use_only_keys_foxglove_reads() -> None:
         if name.startswith("Plot!"):
             assert {p["value"].split(".")[0] for p in panel["paths"]} & recorded, name
     assert cfg["Plot!wrench"]["paths"][1]["value"] == f"{WRENCH_VIEW}.wrench.force.z"
+    # the state indicator reads the level of the explorer's trial status; the log is /rosout
+    from tactex_ros.ros.diagnostics import ERROR, OK, WARN
+    ind = cfg["Indicator!state"]
+    assert ind["path"] == '/diagnostics.status[:]{name=="explorer: trial"}.level'
+    assert [(r["operator"], r["rawValue"]) for r in ind["rules"]] == [
+        ("=", str(OK)), ("=", str(WARN)), ("=", str(ERROR))]
+    assert cfg["RosOut!log"]["topicToRender"] == "/rosout"
+    assert cfg["RosOut!log"]["minLogLevel"] == 2          # INFO and above
 
 
 def test_foxglove_layout_check_names_a_key_foxglove_ignores() -> None:
@@ -172,7 +180,8 @@ def test_foxglove_layout_check_names_a_key_foxglove_ignores() -> None:
     lay["configById"]["3D!tactex"]["followMode"] = "follow"
     lay["configById"]["Plot!belief"]["paths"][0]["colour"] = "red"
     lay["configById"]["Image!orphan"] = {}
-    assert len(check_layout(lay)) == 3
+    lay["configById"]["Indicator!state"]["rules"][0]["value"] = "0"
+    assert len(check_layout(lay)) == 4
 
 
 def test_aggregator_has_an_analyzer_for_every_node() -> None:
