@@ -175,8 +175,14 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
         # target is another graph; nothing is published until the pre-flight passed
         pub = node.create_publisher(import_interface(prof.target_type), prof.target_topic, 10)
         if checked.preflight:
-            robot_preflight(probe, prof, scene.press, checked, arm_topics(checked, prof),
-                            node.get_logger(), by_hand="--collision-set-by-hand")
+            graph = arm_topics(checked, prof)
+            robot_preflight(probe, prof, scene.press, checked, graph, node.get_logger(),
+                            by_hand="--collision-set-by-hand")
+            # one graph per arm until the first target, as the motion node's until its first
+            # goal: discovery is given its time (the arm moves right after)
+            problem = probe.settled_graph(graph)
+            if problem:
+                raise InputError(f"pre-flight: {problem}")
         else:
             print("pre-flight off (--no-preflight): robot state rate, one graph per arm, "
                   "robot mode and collision thresholds not checked", file=sys.stderr,

@@ -117,6 +117,15 @@ def test_measure_scene_holds_the_target_on_stale_state_then_stops(tmp_path: Path
     assert not [t for t, k, _ in list(force_trace.rows) if k == "target" and t > t_stop + 3.0]
 
 
+def _wait_for_state(force_trace, deadline_s: float = 120.0) -> None:
+    """Until the listener hears the mock arm's wrench (the arm is up), or fail at the
+    deadline."""
+    end = time.monotonic() + deadline_s
+    while not force_trace.forces() and time.monotonic() < end:
+        time.sleep(0.02)
+    assert force_trace.forces(), f"no robot state from the mock arm within {deadline_s} s"
+
+
 def _targets(force_trace) -> list[float]:
     """[m] every target height the listener received."""
     return [v for _, k, v in list(force_trace.rows) if k == "target"]
@@ -146,12 +155,13 @@ def test_measure_scene_preflight_refuses_before_any_target(tmp_path: Path, liste
         listener.node.create_publisher(PoseStamped, TARGET_TOPIC, 10)
     out = tmp_path / "measured.yaml"
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
+        if arm is not None:
+            _wait_for_state(force_trace)
         proc = subprocess.run(_measure(scene_file, out, *extra), capture_output=True,
                               text=True, timeout=300, env=ros_env(listener.domain_id))
         if arm is not None:
             assert g.wait("mock_arm", 0.1) is None      # its state was there throughout
-            assert force_trace.forces(), "the listener heard no robot state"
-    assert proc.returncode == status, (case, proc.stdout + proc.stderr)
+    assert proc.returncode == status, (case, proc.returncode, proc.stderr)
     assert named in proc.stderr, proc.stderr
     assert _targets(force_trace) == []
     assert not out.exists()
@@ -166,10 +176,7 @@ def test_measure_scene_refuses_an_unwritable_out_before_any_target(tmp_path: Pat
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     with Graph(nodes, tmp_path / "logs", listener.domain_id) as g:
-        end = time.monotonic() + 120.0
-        while not force_trace.forces() and time.monotonic() < end:   # the arm is up
-            time.sleep(0.02)
-        assert force_trace.forces(), "no robot state from the mock arm within 120 s"
+        _wait_for_state(force_trace)
         proc = subprocess.run(_measure(scene_file, blocker / "measured.yaml",
                                        "--state-deadline-s", "30", *SIM_RATE),
                               capture_output=True, text=True, timeout=120,
