@@ -107,7 +107,10 @@ def add_commands(sub, command: str | None = None) -> None:
 
 
 def cmd_measure_scene(args: argparse.Namespace) -> int:
-    """Light presses on every platform (or ``--platforms``); writes the corrected scene."""
+    """Light presses on every platform (or ``--platforms``); writes the corrected scene. Before
+    the arm moves, the motion node's pre-flight (``ros.preflight.robot_preflight``; off with
+    ``--no-preflight``): a refusal names the problem, exit 1 (state silent or slow, not in move
+    mode) or 2 (another graph, collision thresholds), nothing published to the target."""
     import time
 
     import numpy as np
@@ -123,10 +126,11 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
     from ..core.paths import read_yaml
     from ..robot.measure import corrected_scene, light_press
     from ..robot.press import PressController, check_press
-    from ..robot.robots import import_interface, load_profile
+    from ..robot.robots import import_interface, load_profile, with_profile
     from ..robot.scene import load_scene
     from ..ros import adapter
-    from ..ros.preflight import Probe, Stopped
+    from ..ros.preflight import Probe, Stopped, arm_topics, robot_preflight
+    from ..ros.settings import MotionSettings
 
     prof = load_profile(args.robot)
     if prof.franka_state:
@@ -140,6 +144,11 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
     wanted = args.platforms.split(",") if args.platforms else ids
     for pid in wanted:
         scene.platform(pid)      # InputError names the unknown id and the scene's
+    # the motion node's pre-flight settings, the profile's topics and rate filled in
+    checked = with_profile(MotionSettings(
+        robot=args.robot, preflight=not args.no_preflight,
+        preflight_deadline_s=args.state_deadline_s, min_state_rate_hz=args.min_state_rate_hz,
+        collision_set_by_hand=args.collision_set_by_hand), prof)
     state: dict = {}
 
     def on_pose(msg) -> None:
@@ -162,7 +171,22 @@ def cmd_measure_scene(args: argparse.Namespace) -> int:
                                  qos_profile_sensor_data)
         node.create_subscription(WrenchStamped, prof.wrench_topic, on_wrench,
                                  qos_profile_sensor_data)
+        # created before the pre-flight, as the motion node's: a second publisher of the
+        # target is another graph; nothing is published until the pre-flight passed
         pub = node.create_publisher(import_interface(prof.target_type), prof.target_topic, 10)
+        if checked.preflight:
+            graph = arm_topics(checked, prof)
+            robot_preflight(probe, prof, scene.press, checked, graph, node.get_logger(),
+                            by_hand="--collision-set-by-hand")
+            # one graph per arm until the first target, as the motion node's until its first
+            # goal: discovery is given its time (the arm moves right after)
+            problem = probe.settled_graph(graph)
+            if problem:
+                raise InputError(f"pre-flight: {problem}")
+        else:
+            print("pre-flight off (--no-preflight): robot state rate, one graph per arm, "
+                  "robot mode and collision thresholds not checked", file=sys.stderr,
+                  flush=True)
         end = time.monotonic() + args.state_deadline_s
         while ("xyz" not in state or "f" not in state) and time.monotonic() < end:
             probe._spin()
@@ -244,9 +268,21 @@ def add_measure_scene(rsub) -> None:
     m.add_argument("--rate-hz", type=bounded(float, 5.0, 500.0), default=50.0,
                    help="control loop rate [Hz] (5..500)")
     m.add_argument("--state-deadline-s", type=bounded(float, 0.5, 60.0), default=5.0,
-                   help="the robot state must arrive within this [s] (0.5..60)")
+                   help="the robot state (and franka's collision service) must answer within "
+                        "this [s] (0.5..60; the motion node's preflight_deadline_s)")
     from ..ros.settings import MotionSettings
     motion = MotionSettings.model_fields
+    m.add_argument("--min-state-rate-hz", type=bounded(float, 0.0, 10000.0),
+                   default=motion["min_state_rate_hz"].default,
+                   help="robot state slower than this refuses the start, exit 1 [Hz] "
+                        "(0 = the profile's state.min_rate_hz; the motion node's "
+                        "min_state_rate_hz)")
+    m.add_argument("--collision-set-by-hand", action="store_true",
+                   help="franka's collision thresholds were set with the `ros2 service call` "
+                        "a refused start printed (the motion node's collision_set_by_hand)")
+    m.add_argument("--no-preflight", action="store_true",
+                   help="skip the pre-flight (robot state rate, one graph per arm, robot "
+                        "mode, collision thresholds; the motion node's preflight: false)")
     m.add_argument("--state-hold-s", type=bounded(float, 0.01, 30.0),
                    default=motion["state_hold_s"].default,
                    help="robot state older than this holds the target where it is [s] "

@@ -51,7 +51,7 @@ from .. import adapter
 from ...core.errors import InputError, TrialError
 from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
-from ..preflight import Probe, other_graph
+from ..preflight import Probe, arm_topics, other_graph, robot_preflight
 from ..settings import MotionSettings
 from ...robot.robots import (fill_message, hold_target, import_interface, load_profile,
                              with_profile)
@@ -231,105 +231,15 @@ class MotionNode(TactexNode):
                                       "mode and collision thresholds not checked")
 
     def _preflight(self) -> None:
-        """The robot's pre-flight (module doc): the first problem raised as DeviceError (state
-        silent or slow), DeviceNotReady (not in move mode) or InputError (another graph,
-        collision thresholds, no robot_mode message)."""
-        s, prof, press = self.settings, self.profile, self.scene.press
-        if prof.collision is not None:
-            problem = checks.collision_problem(prof.collision.request, press.max_force,
-                                               press.tare_max_offset_n)
-            if problem:
-                raise InputError(str(problem))
+        """The robot's pre-flight (module doc; ``ros.preflight.robot_preflight``): the first
+        problem raised as DeviceError (state silent), DeviceNotReady (state slow, not in move
+        mode) or InputError (another graph, collision thresholds, no robot_mode message)."""
         probe = Probe(self.context, f"{self.get_name()}_preflight", sim_time=self.dclock.sim)
         try:
-            if prof.franka_state:
-                topics = [(import_interface(prof.state_type), s.state_topic,
-                           prof.state_qos)]
-            else:
-                topics = [(PoseStamped, s.pose_topic, prof.pose_qos),
-                          (WrenchStamped, s.wrench_topic, prof.wrench_qos)]
-            mode = None
-            min_rate = s.min_state_rate_hz
-            samples = probe.sample_all([(mtype, topic, adapter.qos_profile(qos))
-                                        for mtype, topic, qos in topics],
-                                       s.preflight_window_s, s.preflight_deadline_s)
-            # one graph per arm, checked once the sampling gave discovery its time (and
-            # again until the first goal: ``_watch_graph``)
-            problem = probe.other_graph(self._graph_topics())
-            if problem:
-                raise InputError(f"pre-flight: {problem}")
-            for (_, topic, _), (stamps, last) in zip(topics, samples, strict=True):
-                problem = checks.state_problem(stamps, min_rate, s.preflight_window_s, topic)
-                if problem and problem.check == "state_rate" and prof.name == "sim":
-                    from dataclasses import replace
-                    problem = replace(problem, text=problem.text + "; in this simulated graph "
-                                      "the simulation is behind: the mock arm could not keep "
-                                      "its rate on this machine")
-                if problem:     # silent: DeviceError; slow: DeviceNotReady (exit status 1)
-                    raise problem.error()
-                self.get_logger().info(f"pre-flight: {topic} at "
-                                       f"{checks.rate_hz(stamps):.0f} Hz")
-                if prof.franka_state:
-                    mode = int(last.robot_mode)
-            if mode is None and prof.mode_topic:
-                mode = self._preflight_mode(probe)
-            problem = checks.mode_problem(mode)
-            if problem:
-                raise problem.error()       # not in move mode: DeviceNotReady (exit status 1)
-            if prof.collision is not None:
-                self._preflight_collision(probe)
-            else:
-                self.get_logger().info(f"pre-flight: robot profile {prof.name!r} names no "
-                                       "collision-threshold service (nothing to set)")
+            robot_preflight(probe, self.profile, self.scene.press, self.settings,
+                            self._graph_topics(), self.get_logger())
         finally:
             probe.close()
-
-    def _preflight_mode(self, probe: Probe) -> int | None:
-        """robot_mode from the profile's full state topic; None where its type is missing."""
-        s, prof = self.settings, self.profile
-        try:
-            mtype = import_interface(prof.mode_type)
-        except InputError as exc:
-            self.get_logger().warning(f"pre-flight: robot mode not checked: {exc}")
-            return None
-        topic = s.mode_topic
-        stamps, last = probe.sample(mtype, topic, adapter.qos_profile(prof.mode_qos), 0.0,
-                                    s.preflight_deadline_s)
-        if last is None:
-            raise InputError(str(checks.Problem(
-                "robot_mode", f"no message on {topic} within preflight_deadline_s "
-                              f"({s.preflight_deadline_s} s)")))
-        return int(last.robot_mode)
-
-    def _preflight_collision(self, probe: Probe) -> None:
-        """Set franka's collision thresholds (the profile's request) through the profile's
-        service; refuse with the command to run where its type is not installed or franka
-        refuses (it takes the call only while no controller claims the arm), unless
-        ``collision_set_by_hand``."""
-        s, col = self.settings, self.profile.collision
-        command = checks.collision_command(col.service, col.type, col.request)
-        if s.collision_set_by_hand:
-            self.get_logger().warning("pre-flight: collision thresholds set by hand "
-                                      f"(collision_set_by_hand; {col.request_file}), not "
-                                      "verified here")
-            return
-        try:
-            ctype = import_interface(col.type)
-        except InputError as exc:
-            raise InputError(str(checks.Problem(
-                "collision", f"the thresholds cannot be set from here ({exc}); set them with "
-                             f"`{command}` and start again with the motion parameter "
-                             "collision_set_by_hand: true"))) from None
-        try:
-            probe.call(ctype, col.service, col.request, "success", s.preflight_deadline_s)
-        except TrialError as exc:
-            raise InputError(str(checks.Problem(
-                "collision", f"{exc}; franka takes the call only while no controller claims "
-                             f"the arm: run `{command}` before the controller is spawned (the "
-                             "bring-up in docs/hardware.md does) and start again with the "
-                             "motion parameter collision_set_by_hand: true"))) from None
-        self.get_logger().info(f"pre-flight: franka collision thresholds set "
-                               f"({col.request_file})")
 
     def _setup_diagnostics(self) -> None:
         """/diagnostics: the arm (robot mode by name, state rate and age, last press) and the
@@ -437,12 +347,7 @@ class MotionNode(TactexNode):
 
     def _graph_topics(self) -> list[tuple[str, str]]:
         """(what, topic) that only this graph publishes: ``preflight.other_graph``."""
-        s = self.settings
-        state = ([s.state_topic] if self.profile.franka_state
-                 else [s.pose_topic, s.wrench_topic])
-        return ([("the arm's target", s.target_topic),
-                 ("the press action's status", f"{s.press_action}/_action/status")]
-                + [("the robot state", t) for t in state])
+        return arm_topics(self.settings, self.profile, self.settings.press_action)
 
     def _newcomer_refused(self) -> bool:
         """One graph per arm after the pre-flight: discovery may show the other graph only
