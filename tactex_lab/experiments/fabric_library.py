@@ -54,19 +54,55 @@ def study_scenes(classes: list[str], trials: int, comparisons: int, seed: int
     return out
 
 
+#: ``--learner``: the shipped default (descriptor, height map and the sim embedding, each press
+#: described by the product's own ``raw_descriptor``) or the earlier study's 106-number
+#: strongest-frame descriptor without height map or embedding (``press_cache`` "frame").
+LEARNERS = ("shipped", "descriptor")
+
+
+def learner_cfg(learner: str, dim: int, library: bool):
+    """The learner settings a trial of ``--learner`` runs with (contact guards off: the cache
+    marks refused presses itself), for cached descriptors of size ``dim``."""
+    if learner == "shipped":
+        return preset("default", guards=False, fabric_library=library)
+    if learner == "descriptor":
+        return preset("descriptor", guards=False, fabric_library=library,
+                      descriptor_height_map=dim != texture.DIM)
+    raise InputError(f"--learner must be one of {', '.join(LEARNERS)}, got {learner!r}")
+
+
+def shipped_features(cache: dict[str, np.ndarray], root: str | Path, cache_dir: str | Path
+                     ) -> np.ndarray:
+    """(n, D) every cached press described as the shipped default learner describes a touch
+    (``core.descriptor.raw_descriptor``, D = ``descriptor_size``), in the cache's row order;
+    kept in ``<cache_dir>/<folder>_shipped.npz`` with the paths it was made from."""
+    from tactex_ros.core.descriptor import raw_descriptor
+    from tactex_ros.sources.replay import ReplaySource
+    path = Path(cache_dir) / f"{Path(root).name}_shipped.npz"
+    paths = cache["path"].astype(str)
+    if path.is_file():
+        with np.load(path) as z:
+            if z["path"].astype(str).tolist() == paths.tolist():
+                return z["x"]
+    print(f"describing every press of {root} with the shipped learner -> {path}", flush=True)
+    cfg = preset("default")
+    src = ReplaySource(root)
+    x = np.stack([raw_descriptor(src.touch(Path(p)), cfg) for p in paths])
+    np.savez(path, x=x, path=paths)
+    return x
+
+
 def run_trial_arm(x: np.ndarray, cls: np.ndarray, scene: list[str], seed: int, budget: int,
                   library: FabricLibrary | None, weight: float = EVIDENCE_WEIGHT,
-                  rejected: np.ndarray | None = None
+                  rejected: np.ndarray | None = None, learner: str = "shipped"
                   ) -> tuple[BeliefCurve, list[tuple[int, str]]]:
     """One trial on the cached presses (no stop rule, ``budget`` touches after the baseline):
     its belief curve and the (platform, press row) it touched (a ``rejected`` press included:
     it failed and was pressed again, ``CachedPresses``). With ``library`` the belief asks it,
-    less the videos touched so far."""
+    less the videos touched so far. ``x`` holds the descriptors ``learner`` makes."""
     from tactex_ros.core.engine import TrialSpec
     from tactex_ros.sources.replay import ReplayTrial
-    # the cached "frame" feature: the descriptor without the height map (the study's)
-    cfg = preset("descriptor", guards=False, fabric_library=library is not None,
-                 descriptor_height_map=x.shape[1] != texture.DIM)
+    cfg = learner_cfg(learner, x.shape[1], library is not None)
     spec = TrialSpec(len(scene) - 1, cfg, TrialConfig(strategy="infogain", rounds=budget,
                                                       stop_confidence=0.0),
                      seed=seed, library=library)
@@ -106,7 +142,7 @@ def run_session(x: np.ndarray, cls: np.ndarray, seed: int, args: argparse.Namesp
         for arm, w in zip(arm_names(args.weights), [None] + list(args.weights), strict=True):
             c, logs[arm] = run_trial_arm(x, cls, scene, seed * 1000 + t, args.budget,
                                          None if w is None else lib, w or EVIDENCE_WEIGHT,
-                                         rejected)
+                                         rejected, args.learner)
             ok, extra, sure = at_stop(c, args.stop)
             row[arm] = {"correct": bool(ok), "touches_after_baseline": int(extra),
                         "stopped": bool(sure), "wrong_stop": bool(sure and not ok),
@@ -176,7 +212,9 @@ def run(args: argparse.Namespace) -> dict:
             print(f"describing every press of {root} -> {path}")
             build_cache(root, path)
         cache = load_cache(path)
-        x, cls = FEATURES["frame"](cache), cache["cls"]
+        cls = cache["cls"]
+        x = (shipped_features(cache, root, args.cache_dir) if args.learner == "shipped"
+             else FEATURES["frame"](cache))
         rejected = None
         if args.contact_guard == "on":
             add_contact_verdicts(cache, root, args.cache_dir)
@@ -185,7 +223,8 @@ def run(args: argparse.Namespace) -> dict:
         for s in range(args.sessions):
             rows += run_session(x, cls, args.seed + s, args, rejected=rejected)
         arms = arm_names(args.weights)
-        results[Path(root).name] = {"sessions": args.sessions, "classes": len(set(cls.tolist())),
+        results[Path(root).name] = {"learner": args.learner, "descriptor_size": int(x.shape[1]),
+                                    "sessions": args.sessions, "classes": len(set(cls.tolist())),
                                     "presses": int(len(cls)), "arms": arms,
                                     "contact_rejected": ([] if rejected is None else
                                                          cache["path"][rejected].tolist()),
@@ -213,6 +252,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--replay", nargs="+", required=True,
                    help="replay folders (each a library of classes, e.g. ../shared/datasets/"
                         "octopi-dev ../shared/datasets/octopi-objects)")
+    p.add_argument("--learner", choices=LEARNERS, default="shipped",
+                   help="shipped: the default learner as it ships (descriptor, height map, "
+                        "embedding); descriptor: the earlier study's 106-number descriptor")
     p.add_argument("--cache-dir", required=True,
                    help="where per-press descriptors are cached, e.g. under /tmp (never the "
                         "repository)")
