@@ -302,7 +302,9 @@ class TrialEngine:
                 raise InputError("trial.stop_rule 'evalue' needs model 'descriptor', got "
                                  f"{self.learner_cfg.model!r}")
             if evidence is None:      # the shipped one, fitted on the simulator's fabrics
-                evidence = shipped_evidence(self.learner_cfg)
+                rep = getattr(self.learner, "representation", None)
+                evidence = shipped_evidence(self.learner_cfg,
+                                            prepared=rep.evidence if rep is not None else None)
             self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha)
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:

@@ -100,28 +100,32 @@ def normalised_distance(x: np.ndarray, others: list[np.ndarray]) -> float:
     return float(np.linalg.norm(np.asarray(x, float) - m) / math.sqrt(1.0 + 1.0 / len(others)))
 
 
-def fit_evidence(descriptors: dict[str, np.ndarray], max_pairs: int = 20000,
-                 seed: int = 0) -> EvidenceModel:
+def fit_evidence(descriptors: dict[str, np.ndarray] | list[dict[str, np.ndarray]],
+                 max_pairs: int = 20000, seed: int = 0) -> EvidenceModel:
     """Fit ``EvidenceModel`` on a library: ``descriptors`` maps class -> (n_k, D) touches (>= 2
-    classes, >= 2 touches in at least one). Pairs of one class give H1, pairs of two classes
-    the null; at most ``max_pairs`` of each, drawn with ``seed``. z of a pair is
-    ``||a - b|| / sqrt(2)`` (n = 1). Both hypotheses get the larger of the two spreads: the log
-    ratio is then linear and falling in log z (a far touch never speaks for a match), and a
-    true null narrower than the fitted one only makes the bound conservative
-    (E_0[ratio] < 1)."""
-    groups = [np.asarray(v, float) for v in descriptors.values()]
-    if len(groups) < 2:
-        raise InputError(f"evidence model: needs >= 2 classes, got {len(groups)}")
-    if any(g.ndim != 2 or len(g) == 0 for g in groups) or len({g.shape[1] for g in groups}) != 1:
-        raise InputError("evidence model: every class needs (n >= 1, D) descriptors of one D")
+    classes, >= 2 touches in at least one), or is a list of such maps, each in its own space
+    (pairs are formed only within one map: e.g. class folds each described by a representation
+    fitted on the other folds). Pairs of one class give H1, pairs of two classes the null; at
+    most ``max_pairs`` of each, drawn with ``seed``. z of a pair is ``||a - b|| / sqrt(2)``
+    (n = 1). Both hypotheses get the larger of the two spreads: the log ratio is then linear
+    and falling in log z (a far touch never speaks for a match), and a true null narrower than
+    the fitted one only makes the bound conservative (E_0[ratio] < 1)."""
+    spaces = [descriptors] if isinstance(descriptors, dict) else list(descriptors)
     same: list[float] = []
     diff: list[float] = []
-    for i, a in enumerate(groups):
-        for p in range(len(a)):
-            for q in range(p + 1, len(a)):
-                same.append(float(np.linalg.norm(a[p] - a[q])))
-            for b in groups[i + 1:]:
-                diff.extend(np.linalg.norm(b - a[p], axis=1).tolist())
+    for space in spaces:
+        groups = [np.asarray(v, float) for v in space.values()]
+        if len(groups) < 2:
+            raise InputError(f"evidence model: needs >= 2 classes, got {len(groups)}")
+        if (any(g.ndim != 2 or len(g) == 0 for g in groups)
+                or len({g.shape[1] for g in groups}) != 1):
+            raise InputError("evidence model: every class needs (n >= 1, D) descriptors of one D")
+        for i, a in enumerate(groups):
+            for p in range(len(a)):
+                for q in range(p + 1, len(a)):
+                    same.append(float(np.linalg.norm(a[p] - a[q])))
+                for b in groups[i + 1:]:
+                    diff.extend(np.linalg.norm(b - a[p], axis=1).tolist())
     if len(same) < 2:
         raise InputError("evidence model: needs >= 2 pairs of touches of one class")
     rng = np.random.default_rng(seed)
@@ -197,14 +201,20 @@ def descriptor_space(cfg: Any) -> dict[str, Any]:
     return {k: getattr(cfg, k) for k in SPACE_FIELDS}
 
 
-def shipped_evidence(cfg: Any, path: Path = SHIPPED_EVIDENCE) -> EvidenceModel:
-    """The shipped evidence model for learner settings ``cfg`` (a descriptor learner without a
-    prepared representation, in the space the file was fitted in); InputError naming what
-    differs otherwise."""
+def shipped_evidence(cfg: Any, path: Path = SHIPPED_EVIDENCE,
+                     prepared: dict | None = None) -> EvidenceModel:
+    """The evidence model for learner settings ``cfg``: with a prepared representation
+    (``learner.representation``) the one ``tactex prepare`` fitted in its space (``prepared``:
+    the file's ``evidence``); else the shipped file's, in the space it was fitted in.
+    InputError naming what is missing or differs otherwise."""
     if getattr(cfg, "representation", ""):
-        raise InputError("trial.stop_rule 'evalue': the shipped evidence model is of the raw "
-                         "descriptor; with learner.representation set, give a model fitted in "
-                         "its space (TrialSpec.evidence) or use trial.stop_rule=threshold")
+        if prepared:
+            return EvidenceModel.from_dict(prepared, f"representation file {cfg.representation}"
+                                                     " (its evidence model)")
+        raise InputError(f"trial.stop_rule 'evalue': representation file {cfg.representation} "
+                         "holds no evidence model (made before it was fitted, or from a library "
+                         "too small for class folds: >= 4 classes); remake it with `tactex "
+                         "prepare`, or use trial.stop_rule=threshold")
     try:
         data = json.loads(Path(path).read_text())
     except (OSError, ValueError) as exc:

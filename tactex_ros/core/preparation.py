@@ -10,6 +10,7 @@ numpy modules when it runs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Literal
 
 from .config import SHIPPED_STOP
@@ -67,6 +68,8 @@ def prepare(descriptors: dict[str, np.ndarray], settings: PrepareSettings,
     emb = embedding_of(cfg)
     rep.embedding = emb.identity if emb is not None else ""
     rep.embedding_frames = int(cfg.descriptor_embedding_frames) if emb is not None else 0
+    evidence = heldout_evidence(descriptors, fit, s.calibration_folds, seed)
+    rep.evidence = evidence.to_dict() if evidence is not None else {}
     if s.calibration != "off":
         trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
                                          scenes=s.calibration_scenes,
@@ -79,3 +82,30 @@ def prepare(descriptors: dict[str, np.ndarray], settings: PrepareSettings,
                                method=s.calibration, folds=s.calibration_folds,
                                budget=s.calibration_budget)
     return rep
+
+
+def heldout_evidence(descriptors: dict[str, np.ndarray],
+                     fit_rep: Callable[[dict[str, np.ndarray]], Representation], folds: int,
+                     seed: int = 0):
+    """The e-value stop's evidence model (``core/evidence.py``) in the prepared space, fitted
+    as a new material meets it: the library's classes in ``folds`` class folds, each fold
+    described by the representation ``fit_rep`` fits on the other folds (pairs only within a
+    fold). A fold is skipped when it has fewer than 2 classes or the others cannot be fitted;
+    None when no fold is left (a library too small: its file then holds no evidence model)."""
+    from .calibration import class_split
+    from .errors import InputError
+    from .evidence import fit_evidence
+    classes = sorted(descriptors)
+    spaces = []
+    for held in class_split(classes, folds, seed):
+        if len(held) < 2:
+            continue
+        try:
+            rep = fit_rep({c: descriptors[c] for c in classes if c not in held})
+        except InputError:                 # the other folds too few to fit a metric
+            continue
+        spaces.append({c: rep.apply(descriptors[c]) for c in held})
+    try:
+        return fit_evidence(spaces, seed=seed) if spaces else None
+    except InputError:                     # no class with two presses in any fold
+        return None

@@ -62,6 +62,7 @@ class Representation:
     frames: int = 0        # contact frames per press it was prepared from; 0 = not recorded
     embedding: str = ""    # identity of the learned embedding in its descriptors ('' = none)
     embedding_frames: int = 0   # frames per press averaged into that embedding; 0 = as frames
+    evidence: dict = field(default_factory=dict)   # the e-value stop's model in this space
 
     @property
     def descriptor_dim(self) -> int:
@@ -185,7 +186,8 @@ def save(rep: Representation, path: str | Path) -> Path:
                  descriptor_embedding=np.array(rep.embedding),
                  embedding_frames=np.array(rep.embedding_frames),
                  temperature=np.array(rep.temperature),
-                 calibration=np.array(json.dumps(rep.calibration)))
+                 calibration=np.array(json.dumps(rep.calibration)),
+                 evidence=np.array(json.dumps(rep.evidence)))
     return path
 
 
@@ -241,6 +243,16 @@ def load(path: str | Path) -> Representation:
     if not isinstance(calib, dict):
         raise InputError(f"representation file {p}: field 'calibration' must be a JSON "
                          f"object, got {type(calib).__name__}")
+    try:
+        evidence = json.loads(str(d.get("evidence", "{}")))
+    except ValueError:
+        raise InputError(f"representation file {p}: evidence is not JSON") from None
+    if not isinstance(evidence, dict):
+        raise InputError(f"representation file {p}: field 'evidence' must be a JSON object, got "
+                         f"{type(evidence).__name__}")
+    if evidence:
+        from .evidence import EvidenceModel
+        EvidenceModel.from_dict(evidence, f"representation file {p} (its evidence model)")
     frames = number("descriptor_frames", 0)
     if frames != int(frames) or frames < 0:
         raise InputError(f"representation file {p}: field 'descriptor_frames' must be a whole "
@@ -251,4 +263,4 @@ def load(path: str | Path) -> Representation:
                          f"number >= 0 (0: as descriptor_frames), got {eframes}")
     return Representation(mean, std, w, int(number("classes", 0)), int(number("presses", 0)),
                           number("shrink", 0.0), kind, temp, calib, int(frames), embedding,
-                          int(eframes))
+                          int(eframes), evidence)

@@ -202,3 +202,46 @@ def test_cli_evalue_trial_records_the_bound(capsys, tmp_path) -> None:
     (folder,) = [p.parent for p in tmp_path.glob("*/result.json")]
     html = write_trial_report(folder).read_text()
     assert "id='stop-bound'" in html and f"{max(b['evalues']):.3g}" in html
+
+
+def test_fit_over_spaces_pairs_only_within_a_space():
+    """Two spaces far apart: the null takes only pairs of classes of one space, so it equals
+    the fit of each space's pairs pooled, and cross-space distances never enter."""
+    a = {"a": np.array([[0.0], [1.0]]), "b": np.array([[3.0]])}
+    b = {"c": np.array([[100.0], [102.0]]), "d": np.array([[104.0]])}
+    m = fit_evidence([a, b])
+    same = np.log(np.array([1.0, 2.0]) / math.sqrt(2.0))
+    diff = np.log(np.array([3.0, 2.0, 4.0, 2.0]) / math.sqrt(2.0))
+    assert m.mu_same == pytest.approx(same.mean(), abs=1e-12)
+    assert m.mu_diff == pytest.approx(diff.mean(), abs=1e-12)
+    assert m.sd_same == pytest.approx(max(same.std(), diff.std()), abs=1e-12)
+
+
+def test_prepare_fits_the_evidence_in_its_space_and_an_evalue_trial_uses_it(tmp_path):
+    """`tactex prepare` keeps an evidence model fitted on class folds described by
+    representations of the other folds; the representation file carries it, an e-value trial
+    with that file stops on it, and a file without one is refused by name."""
+    from tactex_ros.core import representation
+    from tactex_ros.core.descriptor import descriptor_size
+    from tactex_ros.core.preparation import PrepareSettings, heldout_evidence, prepare
+    cfg = preset("descriptor", guards=False)
+    d = descriptor_size(cfg)
+    rng = np.random.default_rng(3)
+    lib = {f"k{i}": rng.normal(rng.normal(0, 1, d), 0.2, size=(4, d)) for i in range(9)}
+    s = PrepareSettings()
+    rep = prepare(lib, s, cfg, seed=1)
+    from functools import partial
+    fit = partial(representation.fit, shrink=s.shrink, kind=s.kind, dims=s.dims)
+    assert rep.evidence == heldout_evidence(lib, fit, s.calibration_folds, 1).to_dict()
+    assert heldout_evidence({k: lib[k] for k in ("k0", "k1", "k2")}, fit, 3, 1) is None
+    m = EvidenceModel.from_dict(rep.evidence)
+    assert m.mu_same < m.mu_diff
+    path = representation.save(rep, tmp_path / "rep.npz")
+    assert representation.load(path).evidence == rep.evidence
+    tc = trial_preset("default", rounds=6, stop_rule="evalue", stop_alpha=0.03)
+    eng = TrialEngine(3, cfg.replace(representation=str(path)), tc)
+    assert eng.eprocess is not None and eng.eprocess.model == m
+    rep.evidence = {}
+    old = representation.save(rep, tmp_path / "old.npz")
+    with pytest.raises(InputError, match="holds no evidence model"):
+        TrialEngine(3, cfg.replace(representation=str(old)), tc)
