@@ -225,7 +225,8 @@ class LibraryPressing:
         self.out = Path(self.out).resolve()
         check_presses(self.presses)
         parse_materials(",".join(self.materials))
-        self.resumed = open_library(self.out, self.sim)
+        open_library(self.out, self.sim)    # ``tactex graph library`` opens it first
+        self.resumed = any(e.get("event") in ("started", "resumed") for e in events(self.out))
         add_event(self.out, {"event": "resumed" if self.resumed else "started",
                              "materials": self.materials, "presses": self.presses,
                              "platform": self.platform, "have": self.counts(),
@@ -262,7 +263,8 @@ class LibraryPressing:
         if got is None:
             return False
         by, caller = got
-        add_event(self.out, {"event": "confirmed", "trial": trial.id, "by": by,
+        add_event(self.out, {"event": "confirmed", "trial": trial.id, "what": "material",
+                             "by": by,
                              "caller": caller or None, "time": time.time()})
         return True
 

@@ -259,7 +259,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                         "std_srvs/srv/Trigger", "prompt")
             elif kind == "confirmed":
                 awaited.clear()
-                out(f"trial {e['trial']}: placement confirmed by {e.get('by')}"
+                out(f"{e.get('what', 'trial')} {e['trial']}: placement confirmed by "
+                    f"{e.get('by')}"
                     + (f" ({e['caller']})" if e.get("caller") else ""), "info")
             elif kind == "operator":
                 out(f"trial {e.get('trial')}: {e.get('action')} by {e.get('by')}"
