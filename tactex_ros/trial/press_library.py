@@ -175,7 +175,7 @@ def write_press(path: str | Path, touch: Any) -> Path:
     h, w = frames[0].shape[:2]
     with tempfile.TemporaryDirectory(prefix="tactex-press-") as tmp:
         f = Path(tmp) / ("press" + PRESS_SUFFIX)
-        vw = cv2.VideoWriter(str(f), cv2.VideoWriter_fourcc(*"FFV1"), 25.0, (w, h))
+        vw = cv2.VideoWriter(str(f), cv2.VideoWriter.fourcc(*"FFV1"), 25.0, (w, h))
         if not vw.isOpened():
             raise TrialError("this OpenCV cannot write FFV1 video (its FFmpeg backend is "
                              f"missing): press file {str(path)!r} not written")

@@ -31,6 +31,7 @@ import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 from action_msgs.msg import GoalStatus
@@ -231,7 +232,7 @@ class ExplorerNode(TactexNode):
         self.create_timer(1.0, self._publish_markers)
         self._running.set()
         if self.worker is None:
-            target = self._trial
+            target: Callable[[], None] = self._trial
             if self.session is not None:
                 target = self._run_session
             elif self.library is not None:
@@ -573,6 +574,8 @@ class ExplorerNode(TactexNode):
         node's work (``exit_when_done``) in every case."""
         from ...core.guards import press_verdict
         lib, learner = self.library, self.settings.learner
+        if lib is None:
+            raise TrialError("explorer: no press library is open")
         index = self.ids.index(lib.platform)
 
         def accept(touch: Touch) -> tuple[bool, str]:
