@@ -16,12 +16,13 @@ EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
 
 
-def _nodes(args: argparse.Namespace):
+def _nodes(args: argparse.Namespace, explorer: dict | None = None):
     """The graph these options ask for, as ``launch/explore.launch.py`` builds it from its
     arguments: the run's settings resolved once (``ros.run_settings.resolve_run``: the
-    options, ``--settings`` (the launch's ``settings:=``) and ``--set`` (its
-    ``explorer_set:=``) over config/explorer.yaml; a resume's from its record), then the
-    nodes. The options the record gave are put into ``args``."""
+    options, ``explorer`` (more explorer settings, nested), ``--settings`` (the launch's
+    ``settings:=``) and ``--set`` (its ``explorer_set:=``) over config/explorer.yaml; a
+    resume's from its record), then the nodes. The options the record gave are put into
+    ``args``."""
     from ..core.schema import merge
     from ..ros.graph import describe, node_params_file, option_overrides
     from ..ros.run_settings import RUN_OPTIONS, resolve_run
@@ -29,7 +30,7 @@ def _nodes(args: argparse.Namespace):
     names = EXPLORER_OPTIONS + DEVICE_OPTIONS + RUN_OPTIONS + ("resume",)
     options = {k: getattr(args, k, None) for k in names}
     options["robot"] = (more.get("motion") or {}).get("robot")
-    run = resolve_run(options)
+    run = resolve_run(options, explorer)
     for k in names:
         if k in run.options:
             setattr(args, k, run.options[k])
@@ -153,19 +154,8 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     if run.result is None or run.failure is not None:
         how = ("before its last trial" if run.result is None else
                "with its result, but the run failed")
-        print(f"tactex: session ended {how}: {run.failure}; logs in {logs}", file=sys.stderr)
-        from ..ros.devrun.launcher import node_reason
-        refused = [n for n, c in run.node_exit.items() if c == 2]
-        failed = [n for n, c in run.node_exit.items() if c == 1]
-        for n in refused + failed:   # the node's reason on the console, not only in its log
-            why = node_reason(Path(logs) / f"{n}.log")
-            if why:
-                print(f"tactex: {n}: {why} (from {Path(logs) / f'{n}.log'})", file=sys.stderr)
-        if refused:
-            return 2                 # a refusal: continuing the same way would fail again
-        print(f"tactex: continue with: {session_resume_hint(run.session_dir, args)}",
-              file=sys.stderr)
-        return 128 + run.signal if run.signal else 1
+        return run_failed(run, logs, f"session ended {how}",
+                          session_resume_hint(run.session_dir, args))
     r = run.result
     if r["done"] < r["total"]:          # --trials: a part of the session
         import shlex
@@ -175,6 +165,77 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
         return 0
     print(session_done_text(r, run.elapsed_s))
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
+    return 0
+
+
+def run_failed(run, logs: Path, what: str, hint: str) -> int:
+    """A session's or a library's run that ended without its result (``run``:
+    ``session_runner.SessionRun``), on the console: ``what`` and why, each refusing or
+    failing node's reason from its log, then (no node refused its input) how to continue,
+    ``hint``. The exit status: 2 for a refusal (continuing the same way would fail again),
+    128 + the signal that stopped it, else 1."""
+    print(f"tactex: {what}: {run.failure}; logs in {logs}", file=sys.stderr)
+    from ..ros.devrun.launcher import node_reason
+    refused = [n for n, c in run.node_exit.items() if c == 2]
+    failed = [n for n, c in run.node_exit.items() if c == 1]
+    for n in refused + failed:   # the node's reason on the console, not only in its log
+        why = node_reason(Path(logs) / f"{n}.log")
+        if why:
+            print(f"tactex: {n}: {why} (from {Path(logs) / f'{n}.log'})", file=sys.stderr)
+    if refused:
+        return 2
+    print(f"tactex: continue with: {hint}", file=sys.stderr)
+    return 128 + run.signal if run.signal else 1
+
+
+def library_command(args: argparse.Namespace) -> str:
+    """The ``tactex graph library`` command of these options: run again, it presses only
+    what is missing."""
+    import shlex
+    words = ["tactex", "graph", "library", "--materials", args.materials, "--presses",
+             str(args.presses), "--out", str(args.out)]
+    for flag, value in (("--scene", args.scene), ("--platform", args.platform),
+                        ("--settings", args.settings), ("--node-params", args.node_params),
+                        ("--domain-id", args.domain_id)):
+        if value is not None:
+            words += [flag, str(value)]
+    for item in args.set or []:
+        words += ["--set", item]
+    return shlex.join(words + (["--sim"] if args.sim else []) + (["--yes"] if args.yes else []))
+
+
+def cmd_library(args: argparse.Namespace) -> int:
+    """``tactex graph library``: the robot presses the lab's materials into a library folder
+    ``tactex prepare`` reads (``trial/press_library.py``), in one graph start; the operator
+    places each material and confirms, as in a session."""
+    from ..core.outputs import check_dir
+    from ..ros.devrun.session_runner import run_session
+    from ..trial import press_library as plib
+    from ..trial.session import catalogue_names
+    materials = plib.parse_materials(args.materials, catalogue_names() if args.sim else None)
+    out = Path(args.out).resolve()
+    plib.check_library_dir(out, args.sim)     # a foreign folder: refused, nothing written
+    nodes = _nodes(args, explorer={"library_materials": ",".join(materials),
+                                   "library_presses": args.presses, "library_dir": str(out),
+                                   "library_platform": args.platform or ""})
+    plib.open_library(out, args.sim)
+    logs = Path(args.log_dir) if args.log_dir else out / ".logs" / time.strftime(
+        "%Y%m%d_%H%M%S")
+    check_dir(logs, "--log-dir")
+    print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
+    confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
+    run = run_session(nodes, logs, out, confirm=confirm,
+                      timeout_s=args.timeout if args.timeout is not None else 86400.0,
+                      domain_id=args.domain_id)
+    if run.result is None or run.failure is not None:
+        return run_failed(run, logs, "library run ended before every press was made",
+                          library_command(args) + " (presses only what is missing)")
+    r = run.result
+    import shlex
+    print(f"library {out}: {len(r['materials'])} materials x {r['presses']} presses "
+          f"({r['made']} pressed in this run, {run.elapsed_s / 60:.1f} min)"
+          + ("" if r["complete"] else "; some materials were skipped: run again for them"))
+    print(f"next: tactex prepare --library {shlex.quote('replay:' + str(out))} --out lab.npz")
     return 0
 
 
@@ -352,6 +413,44 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                            help="with --session: confirm every placement at once (scripted "
                                 "sessions, CI); without it a terminal asks for Enter")
         p.set_defaults(func=fn)
+    lb = gsub.add_parser("library", help="the robot presses the lab's own materials into a "
+                                         "library folder for `tactex prepare`")
+    lb.add_argument("--materials", required=True,
+                    help="the materials, comma-separated, in the order the operator places "
+                         "them (plain folder names; with --sim catalogue fabrics, `tactex sim "
+                         "fabrics`)")
+    lb.add_argument("--presses", type=bounded(int, 1, 1000), required=True,
+                    help="presses kept per material, 1..1000 (a press the contact guard "
+                         "refuses is pressed again)")
+    lb.add_argument("--out", required=True,
+                    help="the library folder: new, empty, or a press library to continue "
+                         "(only missing presses are made); a folder holding anything else is "
+                         "refused")
+    lb.add_argument("--platform", help="the platform the operator places each material on "
+                                       "(default: the scene's reference)")
+    lb.add_argument("--sim", action="store_true", help="mock arm + mock image replace the "
+                                                       "hardware (the presses are simulated)")
+    lb.add_argument("--scene", help="scene YAML (default config/scene_sim.yaml or "
+                                    "config/scene.yaml)")
+    add_option(lb, "sensor")
+    add_option(lb, "device")
+    lb.add_argument("--settings", metavar="FILE",
+                    help="YAML of explorer parameters over config/explorer.yaml")
+    lb.add_argument("--node-params", metavar="FILE",
+                    help="ROS 2 parameters YAML (<node>: {ros__parameters: ...}) for motion, "
+                         "mock_arm, mock_image or gelsight")
+    lb.add_argument("--set", action="append", metavar="PATH=VALUE",
+                    help="an explorer setting, dotted (e.g. learner.contact_min=1.0, the "
+                         "contact guard a press must pass); repeatable")
+    lb.add_argument("--timeout", type=bounded(float, 1.0, 86400.0), default=None,
+                    help="deadline of the whole run [s], 1..86400 (default: none)")
+    lb.add_argument("--log-dir", help="the nodes' logs (default <out>/.logs/<time>)")
+    lb.add_argument("--domain-id", type=bounded(int, 0, 232),
+                    help="ROS_DOMAIN_ID for the nodes (0..232)")
+    lb.add_argument("--yes", action="store_true",
+                    help="confirm every placement at once (scripted runs, CI); without it a "
+                         "terminal asks for Enter")
+    lb.set_defaults(func=cmd_library)
     sm = gsub.add_parser("summary", help="where a recorded trial's time went")
     sm.add_argument("record", help="trial record folder, or an MCAP file of a trial "
                                    "(<record>/topics.mcap; a crashed one is read up to its "

@@ -194,6 +194,8 @@ def describe(sim: bool, scene_file: str | Path | None = None, *,
                                         {"scene_file": scene_file}, explorer))
     if ex.get("session_file"):
         check_session(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
+    elif ex.get("library_materials"):
+        check_library(ex, scene, sim, (mock_image or {}).get("source") or scene.source or "sim")
     elif ex.get("trials"):
         raise InputError(f"trials {ex['trials']!r}: picks trials of a session; give the "
                           "session (session / --session, or --session-dir of a session)")
@@ -241,6 +243,27 @@ def check_session(explorer: dict[str, Any], scene, sim: bool, source: str) -> No
         explorer.setdefault("placement_service", "/mock_image/set_parameters")
         if not explorer["placement_service"]:
             explorer["placement_service"] = "/mock_image/set_parameters"
+
+
+def check_library(explorer: dict[str, Any], scene, sim: bool, source: str) -> None:
+    """A press library's materials and platform checked before anything starts
+    (``trial.press_library``): plain names, and in simulation catalogue fabrics the mock
+    camera shows on the platform (the explorer drives its placement); the platform one of
+    the scene's (InputError naming them)."""
+    from ..trial.press_library import check_presses, parse_materials
+    from ..trial.session import catalogue_names
+    ids = [p.id for p in scene.ordered]
+    if sim and not source.startswith("sim"):
+        raise InputError(f"a simulated press library presses catalogue fabrics; source "
+                         f"{source!r} cannot show them (use source sim)")
+    parse_materials(explorer["library_materials"], catalogue_names() if sim else None)
+    check_presses(int(explorer.get("library_presses", 0)))
+    pid = explorer.get("library_platform") or ids[0]
+    if pid not in ids:
+        raise InputError(f"--platform {pid!r}: not a platform of the scene (its platforms: "
+                         f"{', '.join(ids)})")
+    if sim and not explorer.get("placement_service"):
+        explorer["placement_service"] = "/mock_image/set_parameters"
 
 
 def fixed_frame(nodes: list[NodeSpec]) -> str:

@@ -139,7 +139,8 @@ def resolve_run(options: Mapping[str, Any] | None = None,
             flat["scene_file"] = scene = record_scene(resume)
     else:
         flat = {**base, **given}
-    if opts.get("sim") and flat.get("session_file") and not flat.get("placement_service"):
+    if opts.get("sim") and (flat.get("session_file") or flat.get("library_materials")) and \
+            not flat.get("placement_service"):
         flat["placement_service"] = "/mock_image/set_parameters"   # the mock camera's
     settings = ExplorerSettings.check(nest(flat), origin)            # the one validation
     eff = flatten(settings.model_dump())

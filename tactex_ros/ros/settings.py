@@ -258,6 +258,27 @@ class ExplorerSettings(TrialSettings):
                                        "operator places the fabrics)")
     nice: int = param(10, "CPU priority increment of this process, so training never starves "
                           "the control loop and the sensor (0 = unchanged)", 0, 19)
+    library_materials: str = param("", "press a library instead of running trials: the "
+                                       "materials, separated by commas, each placed by the "
+                                       "operator and pressed library_presses times into "
+                                       "library_dir/<material>/ (trial/press_library.py; "
+                                       "'' = trials)")
+    library_presses: int = param(10, "presses kept per material of library_materials", 1,
+                                 1000)
+    library_dir: str = param("", "the press library's folder (new, empty, or a press library "
+                                 "to continue: only missing presses are made)")
+    library_platform: str = param("", "the platform the operator places each material on "
+                                      "('' = the scene's reference)")
+
+    @model_validator(mode="after")
+    def _library(self) -> ExplorerSettings:
+        if self.library_materials and not self.library_dir:
+            raise FieldError("library_dir", "library_materials needs the library's folder")
+        if self.library_materials and self.session_file:
+            raise FieldError("library_materials", "a press library and a session "
+                                                  f"({self.session_file!r}) are two runs: "
+                                                  "give one of them")
+        return self
 
     @model_validator(mode="after")
     def _goal_answer(self) -> ExplorerSettings:

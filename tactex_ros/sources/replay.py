@@ -1,6 +1,6 @@
 """Touch source that replays real GelSight press recordings.
 
-Folder layout: ``<root>/<class>/<file>``; each file is one press, a video readable by OpenCV
+Folder layout: ``<root>/<class>/<file>`` (hidden folders, ``.name``, are no class); each file is one press, a video readable by OpenCV
 (``.mov .mp4 .avi .mkv``) or a single image (``.png .jpg .jpeg .bmp``). For a video the contact
 frame is chosen deliberately: the strongest contact against the press's own no-contact frames
 (see ``core.contact``). A touch is a ``core.touch.Touch``: that frame, the press's no-contact
@@ -180,8 +180,8 @@ class ReplaySource:
             raise InputError(f"replay folder does not exist: {self.root}")
         self.files: dict[str, list[Path]] = {}
         for d in sorted(self.root.iterdir()):
-            if not d.is_dir():
-                continue
+            if not d.is_dir() or d.name.startswith("."):
+                continue           # a hidden folder is no class (a press library's logs)
             files = sorted(f for f in d.iterdir()
                            if f.is_file() and f.suffix.lower() in VIDEO_EXT | IMAGE_EXT)
             self.files[d.name] = files

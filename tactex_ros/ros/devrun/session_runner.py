@@ -152,24 +152,32 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 out: Callable[[str, str], None] | None = None,
                 on_start: Callable[[Graph], None] | None = None) -> SessionRun:
     """Start the graph once, run the explorer's session to its end (or a node's exit, a
-    signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'."""
+    signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'. An
+    explorer with ``library_materials`` presses a library (``trial/press_library.py``) in
+    ``session_dir`` instead, followed through its own events and result files, whose
+    events are a session's (``trial``: the material) and ``press_saved`` lines."""
     from ...trial import session as sess
+    from ...trial import press_library as plib
     from ...trial.progress import Progress, console_printer, tail_jsonl
     from ...trial.control import KEYS
     from ...trial.session_run import trial_done_text
     if confirm not in ("yes", "key", "none"):
         raise InputError(f"confirm {confirm!r}: use yes, key or none")
     ex = next((n for n in nodes if n.executable == "explorer_node"), None)
-    if ex is None or not ex.parameters.get("session_file"):
-        raise InputError("the graph has no explorer with a session_file")
+    library = ex is not None and bool(ex.parameters.get("library_materials"))
+    if ex is None or not (ex.parameters.get("session_file") or library):
+        raise InputError("the graph has no explorer with a session_file or library_materials")
     d = Path(session_dir).resolve()
-    ex.parameters.update(exit_when_done=True, session_dir=str(d))
+    ex.parameters.update(exit_when_done=True, **{"library_dir" if library else "session_dir":
+                                                 str(d)})
+    events_file, result_file = ((plib.EVENTS_FILE, plib.RESULT_FILE) if library else
+                                (sess.EVENTS_FILE, sess.RESULT_FILE))
     out = out or console_printer()
     progress = Progress(out)
     confirmer = Confirmer(f"/{ex.name}/confirm_by", domain_id)
-    res_path = d / sess.RESULT_FILE      # a result from before this start is not this run's
+    res_path = d / result_file      # a result from before this start is not this run's
     stale = _stamp(res_path)
-    events_path, offset = d / sess.EVENTS_FILE, 0
+    events_path, offset = d / events_file, 0
     if events_path.is_file():                    # a resumed session: only what is new
         offset = events_path.stat().st_size
     start_offset = offset
@@ -223,7 +231,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
             kind = e.get("event")
             if kind == "awaiting_confirmation":
                 progress.nodes_up()         # the prompt is not followed by start-up lines
-                out(f"trial {e['trial']} ({e['number']}/{e['of']}): place", "prompt")
+                out(f"{e.get('what', 'trial')} {e['trial']} ({e['number']}/{e['of']}): "
+                    "place", "prompt")
                 for pid, fab in e["placement"].items():
                     out(f"  platform {pid}: {fab}", "prompt")
                 awaited[:] = [str(e["trial"])]
@@ -250,7 +259,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                         "std_srvs/srv/Trigger", "prompt")
             elif kind == "confirmed":
                 awaited.clear()
-                out(f"trial {e['trial']}: placement confirmed by {e.get('by')}"
+                out(f"{e.get('what', 'trial')} {e['trial']}: placement confirmed by "
+                    f"{e.get('by')}"
                     + (f" ({e['caller']})" if e.get("caller") else ""), "info")
             elif kind == "operator":
                 out(f"trial {e.get('trial')}: {e.get('action')} by {e.get('by')}"
@@ -263,14 +273,21 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
             elif kind == "trial_done":
                 progress.poll()
                 out(trial_done_text(e), "info")
+            elif kind == "press_saved":
+                force = (e.get("meta") or {}).get("force_n")
+                out(f"{e['trial']}: press {e['press']}/{e['of']} saved ({e['file']}"
+                    + (f", {force:.1f} N" if isinstance(force, (int, float)) else "") + ")",
+                    "info")
+            elif kind == "press_refused":
+                out(f"{e['trial']}: press not kept ({e.get('reason')}); pressed again", "info")
             elif kind == "session_ended":
                 out(f"session ended: {e.get('reason')}", "info")
             elif kind == "part_done":
                 out(f"trials {', '.join(e.get('trials_asked') or [])} done; "
                     f"{e.get('done')} of {e.get('of')} trials of the session done", "info")
             elif kind == "session_done":
-                out(f"session: every trial done, {time.monotonic() - t_run:.0f} s in this "
-                    "run", "info")
+                out(f"{'library: every press made' if library else 'session: every trial done'}"
+                    f", {time.monotonic() - t_run:.0f} s in this run", "info")
         progress.poll()
 
     def ended(name: str, code: int | None, elapsed: float) -> str | None:
@@ -303,8 +320,9 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
         confirmer.close()
     failure, exits = run.failure, run.exits
     if failure is not None and d.is_dir():
-        sess.add_event(d, {"event": "run_ended", "reason": failure, "signal": run.signal,
-                           "node_exit": exits, "time": time.time()})
+        (plib.add_event if library else sess.add_event)(
+            d, {"event": "run_ended", "reason": failure, "signal": run.signal,
+                "node_exit": exits, "time": time.time()})
     result = (json.loads(res_path.read_text()) if fresh_result() else
               sess.summary(d) if failure is None and part_done() else None)
     code = exits.get(ex.name)

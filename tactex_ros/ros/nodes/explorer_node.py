@@ -31,6 +31,7 @@ import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 from action_msgs.msg import GoalStatus
@@ -49,6 +50,7 @@ from ...trial import session as sess
 from ...trial.control import OperatorStop
 from ...trial.run import TouchInterrupted, TrialRun
 from ...trial.session_run import SessionRun, trial_outcome
+from ...trial.press_library import LibraryPressing
 from ...robot.scene import load_scene
 from .lifecycle import TactexNode
 from .process import run
@@ -97,12 +99,15 @@ class ExplorerNode(TactexNode):
         self.scene = load_scene(s.scene_file)
         self.ids = [p.id for p in self.scene.ordered]
         self.session: SessionRun | None = None
-        self.operator: SessionOperator | None = None     # a session's
+        self.library: LibraryPressing | None = None      # a press library's run
+        self.operator: SessionOperator | None = None     # a session's or a library's
         self.trial = None
         self.bag = self.last_state = None
         self._bag_warned = False
         if s.session_file:
             self._configure_session()    # checks the trial file, opens the session folder
+        elif s.library_materials:
+            self._configure_library()    # checks the materials, opens the library folder
         else:
             self._open_trial(s.seed, s.resume or None, s.trial_id, s.record_dir)
         import uuid
@@ -227,9 +232,11 @@ class ExplorerNode(TactexNode):
         self.create_timer(1.0, self._publish_markers)
         self._running.set()
         if self.worker is None:
-            target = self._trial
+            target: Callable[[], None] = self._trial
             if self.session is not None:
                 target = self._run_session
+            elif self.library is not None:
+                target = self._run_library
             self.worker = threading.Thread(target=target, name="trial", daemon=True)
             self.worker.start()
 
@@ -265,6 +272,13 @@ class ExplorerNode(TactexNode):
                         "stop reason": res.get("stop_reason", ""),
                         "prediction": res.get("prediction", "")}
         msg = "trial running" if self.result is None else "trial done"
+        if self.library is not None:
+            lib = self.library
+            waiting = self._op.awaiting
+            msg = (f"library {lib.done()}/{len(lib.materials) * lib.presses} presses"
+                   + (f"; waiting for the operator to confirm material {waiting}" if waiting
+                      else ""))
+            values.update(library=str(lib.out), **{"presses done": lib.done()})
         if self.result is None and not self.press.server_is_ready():
             msg = "starting: waiting for the press server (motion node)"
             values["state"] = "starting"
@@ -533,6 +547,58 @@ class ExplorerNode(TactexNode):
         self.get_logger().info(f"session {session.name}: {len(session.trials)} trials, "
                                f"folder {d}{' (resumed)' if self._sess.resumed else ''}")
 
+    def _configure_library(self) -> None:
+        """Check the materials and the platform, open the library folder
+        (``trial/press_library.py``: new, empty or a press library to continue) and make its
+        operator (``operator.SessionOperator``, as a session's)."""
+        from ...trial.press_library import LibraryPressing, parse_materials
+        s = self.settings
+        sim = bool(s.placement_service)          # the mock camera shows catalogue fabrics
+        materials = parse_materials(s.library_materials,
+                                    sess.catalogue_names() if sim else None)
+        pid = s.library_platform or self.ids[0]
+        if pid not in self.ids:
+            raise InputError(f"library_platform {pid!r}: not a platform of the scene (its "
+                             f"platforms: {', '.join(self.ids)})")
+        self.library = LibraryPressing(Path(s.library_dir), materials, s.library_presses, pid,
+                                       sim=sim, log=self._log)
+        from .operator import SessionOperator
+        self.operator = SessionOperator(self, s, self._is_stopping, record=self._record_operator)
+        self.get_logger().info(f"press library {self.library.out}: {len(materials)} materials "
+                               f"x {s.library_presses} presses on platform {pid}"
+                               f"{' (continued)' if self.library.resumed else ''}")
+
+    def _run_library(self) -> None:
+        """The library's worker thread: every material's missing presses (``_press`` on the
+        library's platform), each kept only when the contact guard accepts it. Ends the
+        node's work (``exit_when_done``) in every case."""
+        from ...core.guards import press_verdict
+        lib, learner = self.library, self.settings.learner
+        if lib is None:
+            raise TrialError("explorer: no press library is open")
+        index = self.ids.index(lib.platform)
+
+        def accept(touch: Touch) -> tuple[bool, str]:
+            if not learner.guards:
+                return True, ""
+            return press_verdict(touch, learner.contact_flat_min, learner.contact_min)
+        try:
+            if not self.press.server_is_ready() and not self.press.wait_for_server(
+                    timeout_sec=self.settings.server_timeout_s):
+                raise DeviceError(f"press action {self.settings.press_action!r} not "
+                                  "available within server_timeout_s "
+                                  f"({self.settings.server_timeout_s} s)")
+            code = lib.run(self._op, lambda meta: self._press(index, meta), self._is_stopping,
+                           accept=accept, control=self._op.control)
+            if code:
+                self.exit_code = code
+        except DeviceError as exc:
+            self.get_logger().error(str(exc))
+            self.exit_code = 1
+        finally:
+            if self.settings.exit_when_done:
+                self.finished.set()
+
     @property
     def _sess(self) -> SessionRun:
         """The running session (only in a session's methods)."""
@@ -573,7 +639,12 @@ class ExplorerNode(TactexNode):
         self._op.progress_pub.publish(String(data=text))
 
     def _record_operator(self, event: dict) -> None:
-        """An operator's request: into the session's events and the running trial's."""
+        """An operator's request: into the session's (or the library's) events and the
+        running trial's."""
+        if self.library is not None:
+            from ...trial.press_library import add_event
+            add_event(self.library.out, event)
+            return
         sess.add_event(self._sess.dir, event)
         if self.record is not None:
             from ...trial.record import append_event
