@@ -1,0 +1,159 @@
+"""The HTML reports of fixed records, byte for byte against the pages kept in
+``test/unit/data/reports/`` (the report package's split changed no page), and what the
+session report and the report index say.
+
+``TACTEX_WRITE_GOLDEN=1`` rewrites the kept pages from the code (after a deliberate change of a
+page: review the diff)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactex_ros.core.paths import config_dir
+from tactex_ros.trial import session as sess
+from tactex_ros.trial.record import TrialRecord, append_event
+
+GOLDEN = Path(__file__).parent / "data" / "reports"
+T0 = 1_764_000_000.0          # [s] epoch of the fixed records (2025-11-24)
+PLACEMENT = {"reference": "satin", "c1": "denim", "c2": "satin", "c3": "felt", "c4": "linen"}
+
+
+def _img(rng: np.random.Generator) -> np.ndarray:
+    return rng.integers(0, 255, (6, 8, 3), dtype=np.uint8)     # small: the pages stay small
+
+
+def finished_trial(root: Path, name: str = "trial_1", answer: str = "c2",
+                   sure: bool = True, session: str | None = None) -> Path:
+    """A finished record: five touches (one with a failed attempt), two decisions, the run's
+    context; ``session``: its session's name (a session trial)."""
+    rec = TrialRecord(root, name)
+    cfg = {"explorer": {"seed": 5, "config": "default",
+                        "scene_file": str(config_dir() / "scene_sim.yaml")},
+           "trial": {"strategy": "infogain", "stop_confidence": 0.9, "rounds": 4},
+           "learner": {"model": "descriptor"},
+           "run": {"started": T0, "version": "9.9.9", "commit": "abc123def456",
+                   "host": "lab", "command": "tactex graph run --sim --session s.yaml",
+                   "non_default": {"explorer.seed": 5}}}
+    if session is not None:
+        cfg["session"] = {"name": session, "trial": name.removeprefix("trial_"),
+                          "truth": ["c2"], "placement": PLACEMENT}
+    rec.save_inputs(config_dir() / "scene_sim.yaml", cfg)
+    rng = np.random.default_rng(1)
+    ids = list(PLACEMENT)
+    nc = np.full((6, 8, 3), 90, np.uint8)
+    for k, pid in enumerate(ids):
+        rec.add_touch(_img(rng), {"platform_id": pid, "platform_index": k, "accepted": True,
+                                  "force_n": 4.0 + 0.1 * k, "depth_m": 4e-4,
+                                  "attempts": 2 if k == 0 else 1,
+                                  "attempt_failures": "attempt 1: capture failed" if k == 0
+                                  else None,
+                                  "requested": T0 + 10 + 10 * k, "stamp": T0 + 12 + 10 * k},
+                      no_contact=nc)
+    best = ids.index(answer) - 1
+    for r, t in ((1, T0 + 55.0), (2, T0 + 70.0)):
+        b = [0.1] * 4
+        b[best] = 0.6 if r == 1 else (0.95 if sure else 0.55)
+        rec.add_decision({"round": r, "next": "c1" if r == 1 else "", "belief": b,
+                          "uncertainty": [0.5, 0.2, 0.2, 0.1], "touches": [r, 1, 1, 1],
+                          "decision_s": 1.5, "done": r == 2, "time": t,
+                          "prediction": answer if r == 2 else ""})
+    rec.finish({"prediction": answer, "touches": 5,
+                "stop_reason": "confident" if sure else "rounds", "sure": sure,
+                "strategy": "infogain", "model": "descriptor", "elapsed_s": 60.0,
+                "truth_platforms": ["c2"], "correct": answer == "c2"})
+    return rec.dir
+
+
+def unfinished_trial(root: Path) -> Path:
+    """A record interrupted twice and resumed once, with no result."""
+    rec = TrialRecord(root, "t9")
+    rec.save_inputs(config_dir() / "scene_sim.yaml",
+                    {"trial": {"stop_confidence": 0.9, "rounds": 4},
+                     "run": {"command": "tactex graph run --sim --scene x.yaml"}})
+    rng = np.random.default_rng(2)
+    for k in range(3):
+        rec.add_touch(_img(rng), {"platform_id": "c1", "platform_index": 1, "accepted": True,
+                                  "requested": T0 + 100 + 10 * k, "stamp": T0 + 102 + 10 * k})
+    append_event(rec.dir, {"event": "trial_ended", "reason": "SIGINT", "time": T0 + 125})
+    append_event(rec.dir, {"event": "resumed", "after_touch": 3, "touches_replayed": 3,
+                           "time": T0 + 500, "how": "re-training"})
+    rec.add_touch(_img(rng), {"platform_id": "c2", "platform_index": 2, "accepted": True,
+                              "requested": T0 + 510, "stamp": T0 + 512})
+    append_event(rec.dir, {"event": "trial_ended", "reason": "node motion ended",
+                           "time": T0 + 520})
+    return rec.dir
+
+
+def session_folder(root: Path, n_trials: int = 6) -> Path:
+    """A session of ``n_trials`` (at least 4) trials: 1 sure and right, 2 not sure, 3 skipped,
+    4 started and interrupted, the rest never started; operator events and an interruption."""
+    d = root / "s"
+    d.mkdir(parents=True)
+    trials = [{"id": str(k), "position": k - 1, "seed": k, "truth": ["c2"],
+               "placement": PLACEMENT} for k in range(1, n_trials + 1)]
+    (d / sess.SESSION_FILE).write_text(json.dumps({
+        "name": "s", "path": "s.yaml", "session_id": "s-1", "trial_file_sha256": "0" * 64,
+        "trials": trials, "settings": {"seed": 0, "rounds": 4}}))
+    sess.add_event(d, {"event": "started", "time": T0})
+    sess.add_event(d, {"event": "trial_started", "trial": "1", "time": T0 + 1})
+    finished_trial(d, "trial_1", "c2", True, session="s")
+    sess.add_event(d, {"event": "trial_done", "trial": "1", "prediction": "c2",
+                       "correct": True, "touches": 5, "time": T0 + 80})
+    sess.add_event(d, {"event": "trial_started", "trial": "2", "time": T0 + 81})
+    sess.add_event(d, {"event": "operator", "action": "pause", "trial": "2", "by": "key",
+                       "caller": "", "time": T0 + 90})
+    sess.add_event(d, {"event": "operator", "action": "resume", "trial": "2",
+                       "by": "service", "caller": "foxglove", "time": T0 + 95})
+    finished_trial(d, "trial_2", "c1", False, session="s")
+    sess.add_event(d, {"event": "trial_done", "trial": "2", "prediction": "c1",
+                       "correct": False, "sure": False, "touches": 5, "time": T0 + 160})
+    sess.add_event(d, {"event": "trial_started", "trial": "3", "time": T0 + 161})
+    sess.add_event(d, {"event": "operator", "action": "skip", "trial": "3",
+                       "by": "service", "caller": "", "time": T0 + 170})
+    skipped = TrialRecord(d, "trial_3")
+    skipped.save_inputs(config_dir() / "scene_sim.yaml", {"trial": {"rounds": 4}})
+    skipped.finish({"skipped": True, "touches": 0})
+    sess.add_event(d, {"event": "trial_done", "trial": "3", "skipped": True,
+                       "touches": 0, "time": T0 + 171})
+    sess.add_event(d, {"event": "trial_started", "trial": "4", "time": T0 + 172})
+    started = TrialRecord(d, "trial_4")
+    started.save_inputs(config_dir() / "scene_sim.yaml", {"trial": {"rounds": 4}})
+    sess.add_event(d, {"event": "run_ended", "reason": "SIGINT", "time": T0 + 900})
+    return d
+
+
+def _pages(root: Path) -> dict[str, str]:
+    """The pages of the fixed records, their folder written as ``ROOT``."""
+    from tactex_ros.trial.report import session_html, trial_html
+    out = {"trial": trial_html(finished_trial(root / "a")),
+           "unfinished": trial_html(unfinished_trial(root / "b"))}
+    sd = session_folder(root / "c")
+    out["session"] = session_html(sd)
+    out["session_trial"] = trial_html(sd / "trial_2")
+    return {k: v.replace(str(root.resolve()), "ROOT").replace(str(root), "ROOT")
+            for k, v in out.items()}
+
+
+def test_the_pages_of_fixed_records_are_the_kept_ones(tmp_path: Path) -> None:
+    pages = _pages(tmp_path)
+    if os.environ.get("TACTEX_WRITE_GOLDEN"):
+        GOLDEN.mkdir(parents=True, exist_ok=True)
+        for k, v in pages.items():
+            (GOLDEN / f"{k}.html").write_text(v)
+    for k, v in pages.items():
+        kept = (GOLDEN / f"{k}.html").read_text()
+        assert v == kept, f"{k}.html differs from {GOLDEN / k}.html"
+    assert len(pages["trial"]) > 10_000
+
+
+def test_the_pages_do_not_depend_on_where_the_records_lie(tmp_path: Path) -> None:
+    assert _pages(tmp_path / "x") == _pages(tmp_path / "y")
+
+
+if __name__ == "__main__":        # pragma: no cover
+    pytest.main([__file__])
