@@ -12,7 +12,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from tactex_ros.core.paths import config_dir
 from tactex_ros.trial import session as sess
@@ -155,5 +154,20 @@ def test_the_pages_do_not_depend_on_where_the_records_lie(tmp_path: Path) -> Non
     assert _pages(tmp_path / "x") == _pages(tmp_path / "y")
 
 
-if __name__ == "__main__":        # pragma: no cover
-    pytest.main([__file__])
+def test_the_page_template_ships_as_package_data() -> None:
+    """``page.html`` lies beside the report modules and setup.cfg ships it (a wheel and the
+    colcon install carry it); the skeleton takes the title, the page's CSS and the body."""
+    import configparser
+    from fnmatch import fnmatch
+
+    from tactex_ros.trial.report import page
+    here = Path(page.__file__).parent
+    assert (here / page.TEMPLATE).is_file()
+    cfg = configparser.ConfigParser()
+    cfg.read(Path(__file__).parents[2] / "setup.cfg")
+    pats = [x.strip() for x in cfg["options.package_data"]["tactex_ros.trial.report"].split(",")]
+    assert any(fnmatch(page.TEMPLATE, x) for x in pats)
+    html = page.page("a <b>", "<p id='x'>$body</p>", ".x{color:red}")
+    assert html.startswith("<!DOCTYPE html>") and html.endswith("</body></html>")
+    assert "<title>a &lt;b&gt;</title>" in html and ".x{color:red}</style>" in html
+    assert "<p id='x'>$body</p>" in html          # a $ in the body is the body's own text
