@@ -26,10 +26,9 @@ def _img(rng: np.random.Generator) -> np.ndarray:
     return rng.integers(0, 255, (6, 8, 3), dtype=np.uint8)     # small: the pages stay small
 
 
-def finished_trial(root: Path, name: str = "trial_1", answer: str = "c2",
-                   sure: bool = True, session: str | None = None) -> Path:
-    """A finished record: five touches (one with a failed attempt), two decisions, the run's
-    context; ``session``: its session's name (a session trial)."""
+def _started(root: Path, name: str, session: str | None = None) -> TrialRecord:
+    """A record with its inputs (scene, config.json with the run's context) and nothing else;
+    ``session``: its session's name (a session trial)."""
     rec = TrialRecord(root, name)
     cfg = {"explorer": {"seed": 5, "config": "default",
                         "scene_file": str(config_dir() / "scene_sim.yaml")},
@@ -42,6 +41,14 @@ def finished_trial(root: Path, name: str = "trial_1", answer: str = "c2",
         cfg["session"] = {"name": session, "trial": name.removeprefix("trial_"),
                           "truth": ["c2"], "placement": PLACEMENT}
     rec.save_inputs(config_dir() / "scene_sim.yaml", cfg)
+    return rec
+
+
+def finished_trial(root: Path, name: str = "trial_1", answer: str = "c2",
+                   sure: bool = True, session: str | None = None) -> Path:
+    """A finished record: five touches (one with a failed attempt), two decisions, the run's
+    context; ``session``: its session's name (a session trial)."""
+    rec = _started(root, name, session)
     rng = np.random.default_rng(1)
     ids = list(PLACEMENT)
     nc = np.full((6, 8, 3), 90, np.uint8)
@@ -114,15 +121,15 @@ def session_folder(root: Path, n_trials: int = 6) -> Path:
     sess.add_event(d, {"event": "trial_started", "trial": "3", "time": T0 + 161})
     sess.add_event(d, {"event": "operator", "action": "skip", "trial": "3",
                        "by": "service", "caller": "", "time": T0 + 170})
-    skipped = TrialRecord(d, "trial_3")
-    skipped.save_inputs(config_dir() / "scene_sim.yaml", {"trial": {"rounds": 4}})
-    skipped.finish({"skipped": True, "touches": 0})
+    _started(d, "trial_3", "s").finish({"skipped": True, "touches": 0})
     sess.add_event(d, {"event": "trial_done", "trial": "3", "skipped": True,
                        "touches": 0, "time": T0 + 171})
     sess.add_event(d, {"event": "trial_started", "trial": "4", "time": T0 + 172})
-    started = TrialRecord(d, "trial_4")
-    started.save_inputs(config_dir() / "scene_sim.yaml", {"trial": {"rounds": 4}})
+    _started(d, "trial_4", "s")
     sess.add_event(d, {"event": "run_ended", "reason": "SIGINT", "time": T0 + 900})
+    from tactex_ros.trial.report import write_trial_report
+    for k in (1, 2, 3):                 # as a session writes them: each trial that ended
+        write_trial_report(d / f"trial_{k}")
     return d
 
 
@@ -152,6 +159,74 @@ def test_the_pages_of_fixed_records_are_the_kept_ones(tmp_path: Path) -> None:
 
 def test_the_pages_do_not_depend_on_where_the_records_lie(tmp_path: Path) -> None:
     assert _pages(tmp_path / "x") == _pages(tmp_path / "y")
+
+
+def _cells(page: str, table_id: str) -> dict[str, str]:
+    """First cell -> second cell (tags dropped) of each row of the table ``table_id``."""
+    import html
+    import re
+    t = page[page.index(f"id='{table_id}'"):]
+    t = t[:t.index("</table>")]
+    rows = [re.findall(r"<td[^>]*>(.*?)</td>", r) for r in t.split("<tr>")[1:]]
+    return {html.unescape(re.sub("<[^>]+>", "", r[0])): html.unescape(re.sub("<[^>]+>", "",
+                                                                            r[1]))
+            for r in rows if len(r) >= 2}
+
+
+def test_the_session_report_gives_the_trials_context_and_links_only_to_reports(
+        tmp_path: Path) -> None:
+    import re
+
+    from tactex_ros.trial.report import regenerate, session_html
+    d = session_folder(tmp_path, n_trials=32)
+    page = session_html(d)
+    ctx = _cells(page, "context")
+    assert ctx["tactex"] == "9.9.9 · commit abc123def456"
+    assert ctx["command"] == "tactex graph run --sim --session s.yaml"
+    assert ctx["stop threshold"] == "belief ≥ 0.9" and ctx["rounds cap"] == "4"
+    assert "trial.rounds=4" in ctx["settings changed from the preset"]
+    assert ctx["model"] == "descriptor" and ctx["simulation or robot"].startswith("simulation")
+    # a link only where the trial's report is: 1, 2 (answered) and 3 (skipped); 4 started
+    # without a report, 5..32 never started: listed, no link (was: 29 dead links)
+    links = re.findall(r"<a href='(trial_\d+)/report.html'", page)
+    assert links == ["trial_1", "trial_2", "trial_3"]
+    assert all((d / x / "report.html").is_file() for x in links)
+    rows = re.findall(r"<tr><td class='l'>(?:<a [^>]*>)?(\d+)<", page[page.index("<h2>Trials"):])
+    assert rows == [str(k) for k in range(1, 33)]
+    assert page.count("not started<") == 28
+    regenerate(d)                       # `tactex report`: the started trial 4 gets its report
+    assert re.findall(r"<a href='(trial_\d+)/report.html'", session_html(d)) == [
+        "trial_1", "trial_2", "trial_3", "trial_4"]
+    # each operator action named: when, what, which trial, who
+    ops = page[page.index("id='operator-actions'"):]
+    ops = ops[:ops.index("</table>")]
+    got = [[re.sub("<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r)]
+           for r in ops.split("<tr>")[2:]]
+    assert got == [["2025-11-24 16:01:30 UTC", "pause", "2", "key"],
+                   ["2025-11-24 16:01:35 UTC", "resume", "2", "service, foxglove"],
+                   ["2025-11-24 16:02:50 UTC", "skip", "3", "service"]]
+    assert re.search(r"id='operator-count'>3<", page)
+
+
+def test_the_session_context_says_which_trials_ran_otherwise(tmp_path: Path) -> None:
+    from tactex_ros.trial.report import session_html
+    d = session_folder(tmp_path)
+    cfg_path = d / "trial_2" / "config.json"
+    cfg = json.loads(cfg_path.read_text())
+    cfg["run"]["commit"] = "fedcba987654"                 # trial 2 resumed on another commit
+    cfg["trial"].update(stop_rule="evalue", stop_alpha=0.03)
+    cfg_path.write_text(json.dumps(cfg))
+    ctx = _cells(session_html(d), "context")
+    assert ctx["tactex"] == ("9.9.9 · commit abc123def456 (trials 1, 3, 4)"
+                             "9.9.9 · commit fedcba987654 (trial 2)")
+    assert ctx["stop threshold"] == "belief ≥ 0.9"          # trials 1, 3 and 4
+    assert ctx["stop rule"] == "e-value: P(ever stopping wrong) ≤ alpha = 0.03"
+    empty = tmp_path / "e"
+    d2 = session_folder(empty)
+    for k in (1, 2, 3, 4):
+        import shutil
+        shutil.rmtree(d2 / f"trial_{k}")
+    assert "no trial started" in _cells(session_html(d2), "context")["how it ran"]
 
 
 def test_the_page_template_ships_as_package_data() -> None:

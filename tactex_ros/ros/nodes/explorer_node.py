@@ -483,7 +483,7 @@ class ExplorerNode(TactexNode):
             self.exit_code = 1
         finally:
             self.bag.close()              # never raises (ros/bag.py)
-            if not self.bag.failed:
+            if self.bag is not None and not self.bag.failed:
                 self._merge_bags()        # a resumed trial: one topics.mcap
             self.incomplete = self._incomplete()
             if finish_node and self.settings.exit_when_done:

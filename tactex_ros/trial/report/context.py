@@ -147,8 +147,26 @@ def failed_attempts(touches: list[dict]) -> int:
                else int(t.get("attempts") or 0) for t in touches)
 
 
+MISSING = "<span class='muted'>not recorded</span>"
 
-def context_rows(d: Path, cfg: dict, res: dict, rec: dict) -> list[list[str]]:
+
+def stop_cell(trial: dict) -> tuple[str, str]:
+    """(label, HTML) of a record's stop: the threshold on the belief, or the e-value rule
+    with its bound on ever stopping wrong; ``trial``: config.json's ``trial`` section."""
+    if trial.get("stop_rule") == "evalue":
+        return ("stop rule", f"e-value: P(ever stopping wrong) &le; alpha = "
+                             f"{esc(trial.get('stop_alpha'))}")
+    return "stop threshold", f"belief &ge; {esc(trial.get('stop_confidence'))}"
+
+
+def run_context(cfg: dict, res: dict | None = None, command_id: str = "command"
+                ) -> dict[str, str]:
+    """How a record was made, label -> HTML cell, in the context table's order: tactex's
+    version and commit, the command (``command_id``: its element id, '' for none), preset,
+    model, strategy, the stop, the rounds cap, the settings changed from the preset, seed,
+    simulation or robot, robot and sensor profiles, host. ``cfg``: its config.json; ``res``:
+    its result (the model and strategy it names win)."""
+    res = res or {}
     run = cfg.get("run") or {}
     ex, tr, le = cfg.get("explorer") or {}, cfg.get("trial") or {}, cfg.get("learner") or {}
     prof = command_profiles(run.get("command", ""))
@@ -157,36 +175,46 @@ def context_rows(d: Path, cfg: dict, res: dict, rec: dict) -> list[list[str]]:
         ex = cli
         prof = {"mode": f"no robot: touches from source {cli.get('source')}",
                 "robot": "none", "sensor": "the source's recorded or simulated frames"}
-    first = min([t.get("requested") or 1e18 for t in rec["touches"]] or [1e18])
-    started = run.get("started") or (first if first < 1e18 else None)
     changes = dict(run.get("non_default") or {})
     changes.update(preset_changes(cfg))
     nd = ", ".join(f"<code>{esc(k)}={esc(json.dumps(v))}</code>"
                    for k, v in sorted(changes.items())) or "none"
+    ident = f" id='{command_id}'" if command_id else ""
+    stop_label, stop = stop_cell(tr)
+    return {"tactex": (esc(run.get("version")) or MISSING) + " &middot; commit "
+            + (f"<code>{esc(run['commit'])}</code>" if run.get("commit") else MISSING),
+            "command": f"<code{ident}>{esc(run['command'])}</code>"
+            if run.get("command") else MISSING,
+            "preset": esc(ex.get("config") or "default"),
+            "model": esc(res.get("model") or le.get("model")),
+            "strategy": esc(res.get("strategy") or tr.get("strategy")),
+            stop_label: stop,
+            "rounds cap": esc(tr.get("rounds")),
+            "settings changed from the preset": nd,
+            "seed": esc(ex.get("seed")),
+            "simulation or robot": esc(prof.get("mode")) or MISSING,
+            "robot profile": esc(prof.get("robot")) or MISSING,
+            "sensor": esc(prof.get("sensor")) or MISSING,
+            "host": esc(run.get("host")) or MISSING}
+
+
+def context_rows(d: Path, cfg: dict, res: dict, rec: dict) -> list[list[str]]:
+    """The trial report's context table: the session trial, the date, how it was made
+    (``run_context``) and the scene with each platform's fabric."""
+    run = cfg.get("run") or {}
+    ex = cfg.get("cli") or cfg.get("explorer") or {}
+    first = min([t.get("requested") or 1e18 for t in rec["touches"]] or [1e18])
+    started = run.get("started") or (first if first < 1e18 else None)
     ids, fabrics = scene_fabrics(d)
     scene = ", ".join(f"{esc(p)}: {esc(fabrics.get(p, '?'))}" for p in ids)
-    missing = "<span class='muted'>not recorded</span>"
-    sess = cfg.get("session") or {}
-    rows = [["date", esc(when(started)) or missing],
-            ["tactex", (esc(run.get("version")) or missing) + " &middot; commit "
-             + (f"<code>{esc(run['commit'])}</code>" if run.get("commit") else missing)],
-            ["command", f"<code id='command'>{esc(run['command'])}</code>"
-             if run.get("command") else missing],
-            ["preset", esc(ex.get("config") or "default")],
-            ["model", esc(res.get("model") or le.get("model"))],
-            ["strategy", esc(res.get("strategy") or tr.get("strategy"))],
-            ["stop threshold", f"belief &ge; {esc(tr.get('stop_confidence'))}"],
-            ["rounds cap", esc(tr.get("rounds"))],
-            ["settings changed from the preset", nd],
-            ["seed", esc(ex.get("seed"))],
-            ["simulation or robot", esc(prof.get("mode")) or missing],
-            ["robot profile", esc(prof.get("robot")) or missing],
-            ["sensor", esc(prof.get("sensor")) or missing],
+    cells = run_context(cfg, res)
+    host = cells.pop("host")
+    rows = [["date", esc(when(started)) or MISSING], *([k, v] for k, v in cells.items()),
             ["scene", f"{esc(Path(ex.get('scene_file') or '').name or ex.get('source'))} "
                       f"&middot; {scene}"],
-            ["host", esc(run.get("host")) or missing]]
+            ["host", host]]
+    sess = cfg.get("session") or {}
     if sess:
         rows.insert(0, ["session trial", f"{esc(sess.get('name'))}, trial "
                                           f"{esc(sess.get('trial'))}"])
     return rows
-

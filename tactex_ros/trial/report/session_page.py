@@ -11,6 +11,7 @@ from pathlib import Path
 from ...core.stats import wilson
 from ..record import not_sure, read_config, read_record, read_result, stop_text
 from .chart import line_chart
+from .context import MISSING, run_context
 from .page import REPORT, duration, esc, fmt, page, table, when, write_page
 from .timing import time_split
 
@@ -24,6 +25,32 @@ def anytime_answers(rec: dict, comps: list[str]) -> list[tuple[int, str]]:
             out.append((int(sum(dec.get("touches") or [0])),
                         comps[max(range(len(b)), key=b.__getitem__)]))
     return out
+
+
+def run_rows(d: Path, trials: list[dict]) -> list[list[str]]:
+    """The trial report's context rows (``run_context``: version and commit, command, preset,
+    model, strategy, stop, rounds cap, settings changed from the preset, simulation or robot,
+    profiles, host) over the session's started trials: each value once, with the trials it
+    holds for where they differ (a resume with other options, another commit)."""
+    cells: dict[str, dict[str, list[str]]] = {}
+    for r in trials:
+        rd = d / r["record"]
+        if not (rd / "config.json").is_file():
+            continue
+        for k, v in run_context(read_config(rd), read_result(rd), command_id="").items():
+            if k != "seed":                      # each trial's own (the session's seeds)
+                cells.setdefault(k, {}).setdefault(v, []).append(str(r["id"]))
+    if not cells:
+        return [["how it ran", MISSING + " (no trial started)"]]
+    rows = []
+    for k, by_value in cells.items():
+        if len(by_value) == 1:
+            rows.append([k, next(iter(by_value))])
+        else:
+            rows.append([k, "<br>".join(f"{v} <span class='muted'>(trial{'s' * (len(ids) > 1)} "
+                                        f"{esc(', '.join(ids))})</span>"
+                                        for v, ids in by_value.items())])
+    return rows
 
 
 def session_html(folder: str | Path) -> str:
@@ -57,14 +84,9 @@ def session_html(folder: str | Path) -> str:
                          f"event; {len(starts)} start(s), {len(ends)} interruption(s))"],
             ["settings", ", ".join(f"<code>{esc(k_)}={esc(json.dumps(v))}</code>"
                                    for k_, v in sorted(set_.items())) or "not recorded"]]
+    info += run_rows(d, summ["trials"])
     for e in ends:
         info.append(["interrupted", f"{esc(when(e.get('time')))}: {esc(e.get('reason'))}"])
-    for e in evs:                    # the operator's pause / resume / abort / skip / redo
-        if e.get("event") == "operator":
-            who = esc(e.get("by")) + (f", {esc(e['caller'])}" if e.get("caller") else "")
-            info.append(["operator", f"<span class='operator'>{esc(when(e.get('time')))}: "
-                                     f"{esc(e.get('action'))} trial {esc(e.get('trial'))} "
-                                     f"(by {who})</span>"])
     if summ["done"] < summ["total"]:
         # the last run's --trials while one of them is not done: its interrupted trial first
         asked = (starts[-1].get("trials_asked") if starts else None) or []
@@ -75,20 +97,32 @@ def session_html(folder: str | Path) -> str:
         info.append(["continue with", f"<code id='resume-command'>"
                                       f"{esc(shlex.join(words))}</code>"])
     parts.append(table([], info, left=2, cls="context", tid="context"))
+    ops = [e for e in evs if e.get("event") == "operator"]
+    parts.append(f"<h2>Operator actions</h2><p class='muted'>pause, resume, abort, skip and "
+                 f"redo, each as asked (key: the terminal; service: a ROS service call, the "
+                 f"layout's buttons); <span id='operator-count'>{len(ops)}</span> in all</p>")
+    parts.append(table(["time", "action", "trial", "by"], [
+        [esc(when(e.get("time"))), f"<span class='operator'>{esc(e.get('action'))}</span>",
+         esc(e.get("trial")),
+         esc(e.get("by")) + (f", {esc(e['caller'])}" if e.get("caller") else "")]
+        for e in ops], left=4, cls="operator-actions", tid="operator-actions") if ops else
+        "<p class='muted' id='operator-actions-none'>none</p>")
     rows = []
     curves: list[list[tuple[int, bool]]] = []
     fabrics: list[str] = []
     conf: dict[tuple[str, str], int] = {}
     # a cut session: started trials past the summarised ones are left out
     for r, t in zip(summ["trials"], started["trials"], strict=False):
-        link = f"<a href='{esc(r['record'])}/{REPORT}'>{esc(r['id'])}</a>"
+        # a link only to a report on disk (a trial never started has none)
+        link = (f"<a href='{esc(r['record'])}/{REPORT}'>{esc(r['id'])}</a>"
+                if (d / r["record"] / REPORT).is_file() else esc(r["id"]))
         if not r["done"]:
             state = "not started" if not (d / r["record"]).is_dir() else "unfinished"
             rows.append([link, esc(list(t["placement"].values())[0]), "", "", "", "", "",
                          f"<span class='muted'>{state}</span>"])
             continue
         if r.get("skipped"):
-            rows.append([esc(r["id"]), esc(list(t["placement"].values())[0]), "",
+            rows.append([link, esc(list(t["placement"].values())[0]), "",
                          esc(r["touches"]), "", "", "skipped by the operator",
                          "<span class='muted skipped'>skipped</span>"])
             continue
