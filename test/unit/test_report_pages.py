@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tactex_ros.core.paths import config_dir
 from tactex_ros.trial import session as sess
@@ -227,6 +228,69 @@ def test_the_session_context_says_which_trials_ran_otherwise(tmp_path: Path) -> 
         import shutil
         shutil.rmtree(d2 / f"trial_{k}")
     assert "no trial started" in _cells(session_html(d2), "context")["how it ran"]
+
+
+def test_a_folder_of_records_gets_an_index_of_them(tmp_path: Path) -> None:
+    import re
+
+    from tactex_ros.core.errors import InputError
+    from tactex_ros.trial.report import regenerate
+    root = tmp_path / "lab"
+    finished_trial(root / "2025" / "week1", "t_sure", "c2", True)
+    finished_trial(root / "2025" / "week1", "t_unsure", "c1", False)
+    unfinished_trial(root / "2025" / "week2")
+    session_folder(root / "study")
+    bad = root / "old" / "broken"
+    bad.mkdir(parents=True)
+    (bad / "config.json").write_text("{}")
+    (bad / "touches.jsonl").write_text('{"seq": 1}\nnot json\n{"seq": 3}\n')
+    (root / ".hidden" / "t").mkdir(parents=True)
+    (root / ".hidden" / "t" / "config.json").write_text("{}")
+    out = regenerate(root)
+    assert out[-1] == root / "index.html"
+    assert {p.name for p in out[:-1]} == {"report.html"}
+    page = (root / "index.html").read_text()
+    trials = _rows(page, "trials")
+    # the lone trials and the session's 4 started (superseded ones left out), newest first
+    got = {r[2]: r for r in trials}
+    assert set(got) == {"t_sure", "t_unsure", "t9", "trial_1", "trial_2", "trial_3",
+                        "trial_4"}
+    assert got["t_sure"][5:8] == ["correct", "5", "60.0"]
+    assert got["t_sure"][4].startswith("c2 (") and got["trial_1"][4] == "c2 (satin)"
+    assert got["t_unsure"][5] == "not sure"                       # never "correct"
+    assert got["trial_2"][4:6] == ["c1 (denim)", "not sure"]
+    assert got["t9"][5:8] == ["unfinished", "4", "34.0"]
+    assert got["trial_3"][5] == "skipped" and got["trial_1"][1] == "s"
+    assert got["t_sure"][0] == "2025-11-24 16:00:00 UTC" and got["t_sure"][3] == "scene_sim.yaml"
+    dates = [r[0] for r in trials if r[0]]
+    assert dates == sorted(dates, reverse=True)
+    sessions = _rows(page, "sessions")
+    assert sessions == [["2025-11-24 16:00:00 UTC", "s", "3 of 6", "0.500 (1 not sure, "
+                         "1 skipped)", "1", "15 min 0 s"]]
+    # every link opens a report on disk; the damaged record is named, not linked
+    links = re.findall(r"href='([^']+)'", page)
+    assert len(links) == 1 + 7 and all((root / x).is_file() for x in links)
+    assert "week1/t_sure/report.html" in [Path(x).as_posix().removeprefix("2025/")
+                                          for x in links]
+    damaged = _rows(page, "damaged")
+    assert [r[0] for r in damaged] == ["old/broken"] and "touches.jsonl" in damaged[0][1]
+    assert ".hidden" not in page
+    # a single record still gives its report alone; a folder with none is refused
+    assert regenerate(root / "2025" / "week1" / "t_sure") == [
+        root / "2025" / "week1" / "t_sure" / "report.html"]
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError):
+        regenerate(tmp_path / "empty")
+
+
+def _rows(page: str, table_id: str) -> list[list[str]]:
+    """The data rows of table ``table_id`` as text cells."""
+    import html
+    import re
+    t = page[page.index(f"id='{table_id}'"):]
+    t = t[:t.index("</table>")]
+    return [[html.unescape(re.sub("<[^>]+>", "", c)) for c in
+             re.findall(r"<td[^>]*>(.*?)</td>", r)] for r in t.split("<tr>")[2:]]
 
 
 def test_the_page_template_ships_as_package_data() -> None:

@@ -6,11 +6,11 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
-from ..record import not_sure, read_config, read_record, stop_text
+from ..record import read_config, read_record, stop_text
 from .chart import line_chart
-from .context import (command_profiles, context_rows, failed_attempts, scene_fabrics,
-                      scene_truth, session_of)
+from .context import command_profiles, context_rows, failed_attempts, session_of
 from .page import REPORT, duration, esc, fmt, page, png_data, table, when, write_page
+from .outcome import outcome
 from .timing import decision_seconds, time_split
 
 
@@ -108,21 +108,12 @@ def trial_html(folder: str | Path) -> str:
     d = Path(folder)
     rec = read_record(d, images=False)
     res, cfg = rec["result"] or {}, read_config(d)
-    ids, fabrics = scene_fabrics(d)
+    out = outcome(d, rec, cfg)
+    ids, fabrics, comps = out.ids, out.fabrics, out.comps
     touches, decisions = rec["touches"], rec["decisions"]
-    comps = ids[1:] if ids else sorted({t.get("platform_id") for t in touches} - {None})
     strategy = res.get("strategy") or (cfg.get("trial") or {}).get("strategy", "")
     conf = (cfg.get("trial") or {}).get("stop_confidence")
-    pred = res.get("prediction")
-    truth = res.get("truth_platforms")
-    if truth is None and (cfg.get("session") or {}).get("truth") is not None:
-        truth = cfg["session"]["truth"]
-    if truth is None and res and "error" not in res:
-        truth = scene_truth(d)             # a record written before result.json kept it
-    n_touch = len([t for t in touches if t.get("accepted")])
-    final_belief = (decisions[-1].get("belief") if decisions else None) or []
-    p_belief = (final_belief[comps.index(pred)] if pred in comps and
-                len(final_belief) == len(comps) else None)
+    pred, truth, p_belief, n_touch = out.prediction, out.truth, out.belief, out.touches
     sd = session_of(d)
     parts = [f"<h1>Trial {esc(d.name)}</h1>"]
     if sd is not None:
@@ -136,12 +127,12 @@ def trial_html(folder: str | Path) -> str:
                      f"id='resume-command'>{esc(_resume_command(d, cfg))}</code> (the "
                      "recorded touches are replayed, none is pressed twice).</p>")
     else:
-        unsure = not_sure(res, conf, p_belief)
+        unsure = out.unsure
         sure = "<span id='not-sure'>not sure</span>; best guess " if unsure else ""
         fab = f" ({esc(fabrics[pred])})" if pred in fabrics else ""
         verdict = "<span id='verdict' class='muted'>truth unknown</span>"
-        if isinstance(res.get("correct"), bool) or truth is not None:
-            ok = res.get("correct") if isinstance(res.get("correct"), bool) else pred in truth
+        if out.correct is not None:
+            ok = out.correct
             tfab = ", ".join(f"{esc(p)}" + (f" ({esc(fabrics[p])})" if p in fabrics else "")
                              for p in truth or [])
             # a not-sure answer is never called correct (its best guess may be right)
