@@ -310,3 +310,56 @@ def test_the_page_template_ships_as_package_data() -> None:
     assert html.startswith("<!DOCTYPE html>") and html.endswith("</body></html>")
     assert "<title>a &lt;b&gt;</title>" in html and ".x{color:red}</style>" in html
     assert "<p id='x'>$body</p>" in html          # a $ in the body is the body's own text
+
+
+def test_session_and_not_sure_trial_reports_in_a_real_browser(tmp_path: Path) -> None:
+    """Headless Chromium on a session's reports: the session's context table and operator
+    actions, the not-sure trial's verdict and both of its belief charts drawn, the accuracy
+    chart; screenshots kept in test-artifacts/."""
+    import shutil
+    wd = pytest.importorskip("selenium.webdriver")
+    chrome, driver = shutil.which("chromium"), shutil.which("chromedriver")
+    if not chrome or not driver:
+        pytest.skip("headless chromium + chromedriver not installed")
+    from selenium.webdriver.chrome.service import Service
+
+    from tactex_ros.trial.report import regenerate
+    d = session_folder(tmp_path)
+    regenerate(d)
+    opts = wd.ChromeOptions()
+    opts.binary_location = chrome
+    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+              "--disable-background-networking", "--disable-component-update",
+              "--disable-sync", "--window-size=1200,2400",
+              f"--user-data-dir={tmp_path / 'chrome-profile'}"):
+        opts.add_argument(a)
+    drv = wd.Chrome(service=Service(driver), options=opts)
+    art = Path(__file__).parents[2] / "test-artifacts"
+    art.mkdir(exist_ok=True)
+
+    def width(chart: str) -> float:
+        return drv.execute_script(f"return document.getElementById('{chart}').getBBox().width")
+    try:
+        drv.get((d / "report.html").as_uri())
+        ctx = drv.find_element("id", "context")
+        assert ctx.is_displayed()
+        for text in ("abc123def456", "belief ≥ 0.9", "rounds cap", "trial.rounds=4",
+                     "tactex graph run --sim --session s.yaml"):
+            assert text in ctx.text, text
+        assert len(drv.find_elements("css selector", "#operator-actions .operator")) == 3
+        assert drv.find_elements("css selector", "#accuracy-chart polyline.series")
+        assert width("accuracy-chart") > 300
+        drv.save_screenshot(str(art / "session_report.png"))
+        drv.find_element("css selector", "a[href='trial_2/report.html']").click()
+        # not sure, and its best guess is not the true match
+        assert drv.find_element("id", "not-sure").text == "not sure"
+        assert drv.find_element("id", "not-sure").is_displayed()
+        assert drv.find_element("id", "verdict").text == "wrong"
+        assert "abc123def456" in drv.find_element("id", "context").text
+        for chart in ("belief-chart", "belief-time-chart"):
+            lines = drv.find_elements("css selector", f"#{chart} polyline.series")
+            assert len(lines) == 4 and all(x.get_attribute("points") for x in lines)
+            assert width(chart) > 300
+        drv.save_screenshot(str(art / "trial_report_not_sure.png"))
+    finally:
+        drv.quit()
