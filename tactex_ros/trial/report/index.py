@@ -66,15 +66,15 @@ def _regenerate(d: Path) -> list[Path]:
     if not sessions and not trials:
         raise InputError(f"{str(d)!r} is neither a trial record (config.json, touches.jsonl) "
                          f"nor a session folder ({sess.SESSION_FILE}) and holds none")
-    out: list[Path] = []
+    written: list[Path] = []
     problems: dict[Path, str] = {}
     for p in sessions + trials:
         try:
-            out += _regenerate(p)
+            written += _regenerate(p)
         except (InputError, *_DAMAGED) as exc:        # listed as damaged, the rest go on
             problems[p] = str(exc) if isinstance(exc, InputError) else \
                 f"{type(exc).__name__}: {exc}"
-    return out + [write_page(d / INDEX, index_html(d, problems))]
+    return written + [write_page(d / INDEX, index_html(d, problems))]
 
 
 def find_records(root: Path) -> tuple[list[Path], list[Path]]:

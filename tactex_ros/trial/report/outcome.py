@@ -60,13 +60,15 @@ def outcome(folder: str | Path, rec: dict | None = None, cfg: dict | None = None
     if truth is None and finished:
         truth = scene_truth(d)             # a record written before result.json kept it
     final_belief = (decisions[-1].get("belief") if decisions else None) or []
-    p_belief = (final_belief[comps.index(pred)] if pred in comps and
-                len(final_belief) == len(comps) else None)
+    p_belief = (final_belief[comps.index(pred)] if isinstance(pred, str) and pred in comps
+                and len(final_belief) == len(comps) else None)
     skipped = bool(res.get("skipped"))
     unsure = finished and not_sure(res, conf, p_belief)
-    correct = None
-    if finished and (isinstance(res.get("correct"), bool) or truth is not None):
-        correct = res["correct"] if isinstance(res.get("correct"), bool) else pred in truth
+    correct: bool | None = None
+    if finished and isinstance(res.get("correct"), bool):
+        correct = res["correct"]
+    elif finished and truth is not None:
+        correct = pred in truth
     return Outcome(ids=ids, fabrics=fabrics, comps=comps, prediction=pred, belief=p_belief,
                    truth=truth, finished=finished, skipped=skipped, unsure=bool(unsure),
                    correct=correct, touches=len([t for t in touches if t.get("accepted")]))

@@ -132,13 +132,13 @@ def trial_html(folder: str | Path) -> str:
         fab = f" ({esc(fabrics[pred])})" if pred in fabrics else ""
         verdict = "<span id='verdict' class='muted'>truth unknown</span>"
         if out.correct is not None:
-            ok = out.correct
+            right = out.correct
             tfab = ", ".join(f"{esc(p)}" + (f" ({esc(fabrics[p])})" if p in fabrics else "")
                              for p in truth or [])
             # a not-sure answer is never called correct (its best guess may be right)
             verdict = ("<span id='verdict' class='muted'>not sure</span> (the best guess is "
-                       "the true match)" if ok and unsure else
-                       "<span id='verdict' class='ok'>correct</span>" if ok else
+                       "the true match)" if right and unsure else
+                       "<span id='verdict' class='ok'>correct</span>" if right else
                        f"<span id='verdict' class='bad'>wrong</span>: the true match is "
                        f"<b id='truth'>{tfab}</b>")
         parts.append(f"<p class='answer' id='answer'>The reference matches <b "
