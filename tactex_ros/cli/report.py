@@ -1,4 +1,5 @@
-"""``tactex report RECORD_OR_SESSION``: (re)write the HTML reports of a trial or a session.
+"""``tactex report FOLDER``: (re)write the HTML reports of a trial, a session, or every record
+under a folder and its ``index.html``.
 ``tactex layout --robot PROFILE``: the operator's Foxglove layout for a robot profile."""
 
 from __future__ import annotations
@@ -42,8 +43,10 @@ def add_commands(sub: argparse._SubParsersAction, command: str | None = None) ->
                          help="file to write (default: standard output)")
         lay.set_defaults(func=cmd_layout)
     p = sub.add_parser("report", help="write report.html of a trial record, or of a session "
-                                      "folder and each of its trials")
+                                      "folder and each of its trials, or of every record "
+                                      "under a folder and its index.html")
     if not builds(command, "report"):
         return
-    p.add_argument("folder", help="a trial record folder or a session folder")
+    p.add_argument("folder", help="a trial record folder, a session folder or a folder "
+                                  "holding them (at any depth)")
     p.set_defaults(func=cmd_report)

@@ -13,6 +13,11 @@ of a crashed file.
 A bag in a trial record folder (one with ``config.json``) is listed in the record when it is
 started: an ``mcap_started`` line in ``events.jsonl`` names the file (``topics.mcap``, then
 ``topics.<k>.mcap`` for the k-th resume); ``recorded_bags`` gives a record's files in order.
+``merge_bags`` makes them one ``topics.mcap`` when a resumed run ends: every part's schemas,
+channels and messages, in order, written beside them, read back and counted; only then does it
+replace ``topics.mcap``, list the merge (``mcap_merged``: ``file``, ``parts``, ``messages``) and
+remove the other parts. A merge that fails keeps every part and lists why
+(``mcap_merge_failed``).
 
 The record folder (PNG + JSONL, ``trial/record.py``) stays the ground truth; the bag is for ROS tools.
 """
@@ -47,6 +52,9 @@ COMPRESSION = CompressionType.ZSTD   # rosbag2's MCAP storage default (its "zstd
 CHUNK_BYTES = 1024 * 1024       # [bytes] the mcap writer's default chunk size: a chunk also
 #                                 ends at every write (one touch and its views: about 2.3 MB)
 STARTED_EVENT = "mcap_started"  # events.jsonl: a bag of the trial was started (``file``)
+MERGED_EVENT = "mcap_merged"    # events.jsonl: the parts (``parts``) are now ``file``
+MERGE_FAILED_EVENT = "mcap_merge_failed"   # events.jsonl: the parts were kept (``reason``)
+BAG_FILE = "topics.mcap"        # a trial record's bag (its first part before a merge)
 
 
 def _share_dirs() -> list[Path]:
@@ -119,9 +127,93 @@ def recorded_bags(folder: str | Path) -> list[Path]:
     started; a listed file that is gone is left out."""
     from ..trial.record import read_record
     events = read_record(folder, images=False).get("events") or []
-    names = [e.get("file") for e in events if e.get("event") == STARTED_EVENT]
-    return [Path(folder) / n for n in dict.fromkeys(names)
-            if isinstance(n, str) and (Path(folder) / n).is_file()]
+    names: list[str] = []
+    for e in events:
+        f = e.get("file")
+        if not isinstance(f, str):
+            continue
+        if e.get("event") == STARTED_EVENT and f not in names:
+            names.append(f)
+        elif e.get("event") == MERGED_EVENT:      # the parts are one file now, at the first's place
+            parts = [p for p in e.get("parts") or [] if p in names]
+            at = names.index(parts[0]) if parts else len(names)
+            names = [n for n in names if n not in parts and n != f]
+            names.insert(min(at, len(names)), f)
+    return [Path(folder) / n for n in names if (Path(folder) / n).is_file()]
+
+
+def count_messages(path: str | Path) -> int:
+    """The whole messages of an MCAP file (a crashed one: up to its torn tail)."""
+    return sum(isinstance(r, Message) for r in _records(Path(path)))
+
+
+def _merge_into(parts: list[Path], out: Path) -> int:
+    """Write every whole message of ``parts`` (in order; each part's schemas and channels
+    registered once, the same schema or channel in two parts shared) into ``out``, closed and
+    fsync'ed; returns the messages written."""
+    n = 0
+    with open(out, "wb") as f:
+        w = _writer(f)
+        w.start(profile="ros2", library="tactex")
+        schema_ids: dict[tuple[str, str, bytes], int] = {}
+        channel_ids: dict[tuple[str, str, int, tuple], int] = {}
+        for part in parts:
+            sids: dict[int, int] = {}
+            cids: dict[int, int] = {}
+            for r in _records(part):
+                if isinstance(r, Schema):
+                    key = (r.name, r.encoding, bytes(r.data))
+                    if key not in schema_ids:
+                        schema_ids[key] = w.register_schema(r.name, r.encoding, r.data)
+                    sids[r.id] = schema_ids[key]
+                elif isinstance(r, Channel):
+                    sid = sids.get(r.schema_id, 0)
+                    ckey = (r.topic, r.message_encoding, sid, tuple(sorted(r.metadata.items())))
+                    if ckey not in channel_ids:
+                        channel_ids[ckey] = w.register_channel(r.topic, r.message_encoding,
+                                                               sid, dict(r.metadata))
+                    cids[r.id] = channel_ids[ckey]
+                elif isinstance(r, Message) and r.channel_id in cids:
+                    w.add_message(cids[r.channel_id], log_time=r.log_time, data=r.data,
+                                  publish_time=r.publish_time, sequence=r.sequence)
+                    n += 1
+        w.finish()
+        f.flush()
+        os.fsync(f.fileno())
+    return n
+
+
+def merge_bags(folder: str | Path) -> Path | None:
+    """One ``topics.mcap`` of the bags a trial record lists (module doc): the merged file, the
+    only bag when there is one, None when there is none or the merge failed (the parts are
+    kept and ``mcap_merge_failed`` says why; nothing recorded is lost)."""
+    from ..trial.record import append_event
+    d = Path(folder)
+    parts = recorded_bags(d)
+    if len(parts) < 2:
+        return parts[0] if parts else None
+    tmp = d / (BAG_FILE + ".merging")
+    names = [p.name for p in parts]
+    try:
+        expected = sum(count_messages(p) for p in parts)
+        n = _merge_into(parts, tmp)
+        got = count_messages(tmp)
+        if not n == got == expected:
+            raise WriteError(f"the merged file holds {got} messages, the parts {expected}")
+        os.replace(tmp, d / BAG_FILE)
+    except Exception as exc:  # noqa: BLE001 - any failure keeps every part as it is
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        append_event(d, {"event": MERGE_FAILED_EVENT, "parts": names, "reason": str(exc),
+                         "time": time.time()})
+        return None
+    append_event(d, {"event": MERGED_EVENT, "file": BAG_FILE, "parts": names, "messages": n,
+                     "time": time.time()})
+    for p in parts:
+        if p.name != BAG_FILE:
+            with contextlib.suppress(OSError):
+                p.unlink()
+    return d / BAG_FILE
 
 
 class BagWriter:

@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 
 from tactex_ros.trial import session as sess
-from tactex_ros.trial.report import write_session_report
+from tactex_ros.trial.report import regenerate
 from tactex_ros.trial.session_run import SessionRun, trial_done_text
 
 from test_session_trials import IDS, THREE, _Operator     # noqa: I001 - sibling test module
@@ -64,7 +64,7 @@ def test_a_not_sure_trial_is_counted_apart_never_as_correct(tmp_path: Path) -> N
 def test_the_session_report_shows_not_sure_instead_of_the_stop_reason(tmp_path: Path) -> None:
     d = tmp_path / "s"
     _session(d)
-    write_session_report(d)
+    regenerate(d)            # each trial's report (what links to it), then the session's
     html = (d / "report.html").read_text()
     rows = re.findall(r"<tr>(.*?)</tr>", html, flags=re.S)
     row = {k: next(r for r in rows if f"{sess.record_name(k)}/report.html" in r)

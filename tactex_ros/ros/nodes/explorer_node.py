@@ -183,9 +183,9 @@ class ExplorerNode(TactexNode):
                               placed_scene=placed_scene, check_record=self._check_scene,
                               log=self._log, min_free_mb=s.min_free_mb)
         self.trial_id = self.trial.trial_id
+        self._not_written: list[str] = []    # the trial's writes besides its record's that failed
         self.bag = self._open_bag()
         self._bag_warned = False
-        self._not_written: list[str] = []    # the trial's writes besides its record's that failed
         self.last_state = None
 
     def _check_scene(self, d: Path) -> None:
@@ -205,10 +205,24 @@ class ExplorerNode(TactexNode):
         return self.trial.engine
 
     def _open_bag(self):
-        """``topics.mcap`` in the record (``topics.<k>.mcap`` for the k-th resume)."""
+        """``topics.mcap`` in the record; a resumed run writes ``topics.<k>.mcap`` beside it
+        (the parts of interrupted runs made one ``topics.mcap`` first), merged into
+        ``topics.mcap`` when the trial ends (``bag.merge_bags``)."""
         from ..bag import BagWriter
+        self._merge_bags()
         k = len(list(self.record.dir.glob("topics*.mcap")))
         return BagWriter(self.record.dir / ("topics.mcap" if k == 0 else f"topics.{k}.mcap"))
+
+    def _merge_bags(self) -> None:
+        """The record's bags as one ``topics.mcap``; a merge that fails keeps every part and
+        lists why in ``events.jsonl`` (warned here; the trial goes on)."""
+        from ..bag import merge_bags, recorded_bags
+        try:
+            if len(recorded_bags(self.record.dir)) > 1 and merge_bags(self.record.dir) is None:
+                self.get_logger().warning("the MCAP parts of the trial could not be merged; "
+                                          "each is kept (events.jsonl: mcap_merge_failed)")
+        except TrialError as why:        # the event could not be written (the disk is full)
+            self._not_written.append(str(why))
 
     def _bag_write(self, topic: str, msg) -> None:
         """Copy a message into the MCAP file; a failure there never stops the trial."""
@@ -483,6 +497,8 @@ class ExplorerNode(TactexNode):
             self.exit_code = 1
         finally:
             self.bag.close()              # never raises (ros/bag.py)
+            if self.bag is not None and not self.bag.failed:
+                self._merge_bags()        # a resumed trial: one topics.mcap
             self.incomplete = self._incomplete()
             if finish_node and self.settings.exit_when_done:
                 self.finished.set()

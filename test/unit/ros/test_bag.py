@@ -169,3 +169,96 @@ def test_a_resumed_trials_bags_are_listed_in_its_record(tmp_path: Path) -> None:
     plain = tmp_path / "elsewhere.mcap"                               # not in a record
     BagWriter(plain).close()
     assert not (tmp_path / "events.jsonl").exists()
+
+
+def _two_part_record(tmp_path: Path) -> tuple[Path, int]:
+    """A trial record whose run was interrupted and resumed: ``topics.mcap`` (2 touches and a
+    state) and ``topics.1.mcap`` (1 touch and 2 states, the first part's schemas again);
+    returns the folder and the messages of both parts."""
+    from tactex_ros.ros.bag import count_messages
+    rec = tmp_path / "trial"
+    rec.mkdir()
+    (rec / "config.json").write_text("{}")
+    first = BagWriter(rec / "topics.mcap")
+    for i in (1, 2):
+        first.write_all(TOUCH_TOPIC, _touch(i), i * 10**9)
+    first.write("/tactex/state", _state(1, False), 3 * 10**9)
+    first.close()
+    second = BagWriter(rec / "topics.1.mcap")
+    second.write_all(TOUCH_TOPIC, _touch(3), 10 * 10**9)
+    second.write("/tactex/state", _state(2, False), 11 * 10**9)
+    second.write("/tactex/state", _state(3, True), 12 * 10**9)
+    second.close()
+    n = count_messages(rec / "topics.mcap") + count_messages(rec / "topics.1.mcap")
+    return rec, n
+
+
+def test_a_resumed_trials_parts_merge_into_one_bag(tmp_path: Path) -> None:
+    from tactex_ros.ros.bag import merge_bags, recorded_bags
+    from tactex_ros.trial.record import read_record
+    rec, n = _two_part_record(tmp_path)
+    # each touch: the touch, its image and its force; the first part 2 + 1, the second 1 + 2
+    assert n == (2 * 3 + 1) + (3 + 2)
+    before = read_bag(rec / "topics.mcap", decode=False) + read_bag(rec / "topics.1.mcap",
+                                                                    decode=False)
+    assert merge_bags(rec) == rec / "topics.mcap"
+    assert sorted(p.name for p in rec.glob("*.mcap*")) == ["topics.mcap"]
+    after = read_bag(rec / "topics.mcap", decode=False)
+    assert len(after) == n and after == before            # every message, in order, same bytes
+    assert [m.platform_id for t, _, m in read_bag(rec / "topics.mcap") if t == TOUCH_TOPIC] \
+        == ["c1", "c2", "c3"]
+    with open(rec / "topics.mcap", "rb") as f:            # indexed, one schema per type
+        summary = make_reader(f).get_summary()
+        assert summary.statistics.message_count == n
+        names = [s.name for s in summary.schemas.values()]
+        assert len(names) == len(set(names)) == 4          # Touch, Image, Wrench, State
+        assert len(summary.channels) == 4
+    assert recorded_bags(rec) == [rec / "topics.mcap"]
+    merged = [e for e in read_record(rec, images=False)["events"] if e["event"] == "mcap_merged"]
+    assert merged[0]["parts"] == ["topics.mcap", "topics.1.mcap"]
+    assert merged[0]["messages"] == n
+    # the next resume writes a part again: listed after the merged file, merged again
+    third = BagWriter(rec / "topics.1.mcap")
+    third.write("/tactex/state", _state(4, True), 20 * 10**9)
+    third.close()
+    assert recorded_bags(rec) == [rec / "topics.mcap", rec / "topics.1.mcap"]
+    assert merge_bags(rec) == rec / "topics.mcap"
+    assert len(read_bag(rec / "topics.mcap", decode=False)) == n + 1
+    assert merge_bags(rec) == rec / "topics.mcap"         # one bag: nothing to do
+
+
+def test_a_crashed_part_merges_up_to_its_last_whole_message(tmp_path: Path) -> None:
+    from tactex_ros.ros.bag import merge_bags
+    rec, n = _two_part_record(tmp_path)
+    part = rec / "topics.1.mcap"
+    data = part.read_bytes()
+    with open(rec / "topics.1.mcap", "rb") as f:
+        cut = make_reader(f).get_summary().chunk_indexes[-1].chunk_start_offset + 10
+    part.write_bytes(data[:cut])                   # the second run crashed in its last chunk
+    assert merge_bags(rec) == rec / "topics.mcap"
+    assert len(read_bag(rec / "topics.mcap", decode=False)) == n - 1    # its last state lost
+
+
+def test_a_failed_merge_keeps_every_part_and_says_so(tmp_path: Path, monkeypatch) -> None:
+    from tactex_ros.ros import bag
+    from tactex_ros.trial.record import read_record
+    rec, n = _two_part_record(tmp_path)
+    sizes = {p.name: p.stat().st_size for p in rec.glob("*.mcap")}
+
+    def full(parts, out):
+        out.write_bytes(b"\x89MCAP0\r\n")                # a torn file, then the disk is full
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(bag, "_merge_into", full)
+    assert bag.merge_bags(rec) is None
+    assert {p.name: p.stat().st_size for p in rec.glob("*.mcap*")} == sizes
+    ev = [e for e in read_record(rec, images=False)["events"]
+          if e["event"] == "mcap_merge_failed"]
+    assert ev and ev[0]["parts"] == ["topics.mcap", "topics.1.mcap"]
+    assert bag.recorded_bags(rec) == [rec / "topics.mcap", rec / "topics.1.mcap"]
+    # a merged file that reads back short is not taken either
+    monkeypatch.undo()
+    real = bag.count_messages
+    monkeypatch.setattr(bag, "count_messages",
+                        lambda p: real(p) - (Path(p).name.endswith(".merging")))
+    assert bag.merge_bags(rec) is None
+    assert {p.name: p.stat().st_size for p in rec.glob("*.mcap*")} == sizes

@@ -342,6 +342,7 @@ def test_session_report_has_n_wilson_bands_duration_and_links_both_ways(tmp_path
         res.update(prediction="c2" if k == 1 else "c1", correct=k == 1, sure=k == 1)
         (r / "result.json").write_text(json.dumps(res))
     sess.add_event(d, {"event": "run_ended", "reason": "SIGINT", "time": 1_764_000_900.0})
+    regenerate(d)                          # the trial reports the session links to
     html = session_html(d)
     lo, hi = wilson(1, 2)
     assert f"{lo:.2f}&ndash;{hi:.2f}" in html and re.search(r"id='n'>2<", html)
