@@ -531,8 +531,9 @@ class Ladder:
         """(2, C + 1) stop chances (strategy ``lookahead``) from the highest descriptor rung in
         use."""
         for rung, learner in zip(reversed(self._active_rungs), reversed(self.active), strict=True):
-            if rung in DESCRIPTOR_RUNGS:
-                return learner.stop_chance(rng, theta)
+            chance = getattr(learner, "stop_chance", None)
+            if rung in DESCRIPTOR_RUNGS and chance is not None:
+                return np.asarray(chance(rng, theta), dtype=np.float64)
         raise InputError("strategy 'lookahead' needs a descriptor rung in the ladder")
 
     def _climb(self, transfer: bool) -> Learner:
