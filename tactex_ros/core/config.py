@@ -22,10 +22,10 @@ from .schema import TAG, FieldError, Schema, located, param
 CNN_MODELS = ("small_inception", "inception_v3", "inception_v3_random")
 # the strategies of core/strategies.py (STRATEGIES; a test keeps the two equal): named here so
 # that the schema, and with it `tactex trial --help`, imports no numpy
-STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain")
+STRATEGY_NAMES = ("variance", "entropy", "random", "yoto", "bald", "infogain", "lookahead")
 # ... and those that may touch the reference again (``Strategy.includes_reference``): they
 # need a learner whose belief takes reference touches (``LearnerBase.scores_reference``)
-REFERENCE_STRATEGIES = ("infogain",)
+REFERENCE_STRATEGIES = ("infogain", "lookahead")
 MODEL_NAMES = ("descriptor",) + CNN_MODELS + ("cnn_auto", "auto")
 MODEL_HELP = ("model: 'descriptor' (texture descriptor + Gaussian match belief, no training), "
               "a CNN variant, 'auto' (a ladder: descriptor, then the prepared representation, "

@@ -5,7 +5,7 @@ is trained; each touch becomes a rotation-invariant descriptor (``core/texture.p
 when it is added, and a decision recomputes the belief over which comparison matches (``core/match.py``) in closed form.
 It is a ``core.learners.Learner`` (``add_touch``, ``add_reference``, ``heldout_proba``,
 ``reference_probs``, ``belief``; no ``train_round``: nothing is trained) plus ``info_gain`` for
-the ``infogain`` strategy.
+the ``infogain`` strategy and ``stop_chance`` for ``lookahead``.
 """
 
 from __future__ import annotations
@@ -177,3 +177,8 @@ class DescriptorLearner:
     def info_gain(self, rng: np.random.Generator) -> np.ndarray:
         """(C + 1,) expected entropy drop per platform, 0 = reference (``MatchModel``)."""
         return self.match.info_gain(rng)
+
+    def stop_chance(self, rng: np.random.Generator, theta: float) -> np.ndarray:
+        """(2, C + 1) chance of reaching belief ``theta`` within one / two more touches, the
+        first of each platform, 0 = reference (``MatchModel.stop_chance``)."""
+        return self.match.stop_chance(rng, theta)

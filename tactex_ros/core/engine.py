@@ -270,7 +270,7 @@ class TrialEngine:
         self.trial_cfg = trial_cfg or TrialConfig()     # settings: validated at the edge
         self.learner_cfg = learner_cfg
         self.seed = seed
-        self.strategy = make_strategy(self.trial_cfg.strategy)
+        self.strategy = make_strategy(self.trial_cfg.strategy, self.trial_cfg.stop_confidence)
         self.platform_ids = platform_ids or default_platform_ids(n_comparisons)
         if len(self.platform_ids) != n_comparisons + 1:
             raise InputError(f"platform_ids needs {n_comparisons + 1} names, "

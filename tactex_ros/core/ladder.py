@@ -527,6 +527,15 @@ class Ladder:
                 return learner.info_gain(rng)
         raise InputError("strategy 'infogain' needs a descriptor rung in the ladder")
 
+    def stop_chance(self, rng: np.random.Generator, theta: float) -> np.ndarray:
+        """(2, C + 1) stop chances (strategy ``lookahead``) from the highest descriptor rung in
+        use."""
+        for rung, learner in zip(reversed(self._active_rungs), reversed(self.active), strict=True):
+            chance = getattr(learner, "stop_chance", None)
+            if rung in DESCRIPTOR_RUNGS and chance is not None:
+                return np.asarray(chance(rng, theta), dtype=np.float64)
+        raise InputError("strategy 'lookahead' needs a descriptor rung in the ladder")
+
     def _climb(self, transfer: bool) -> Learner:
         """Build the next rung's learner from every touch so far (from the weights of the
         rung below where ``transfer``); the rung below stays in use only if it is a

@@ -179,7 +179,8 @@ class MatchModel:
         For each platform: draw ``draws`` hypotheses h from the belief; under h, a new touch of
         the reference or of comparison h comes from their pooled mean, any other comparison's
         from its own mean, plus within-platform noise (predictive variance sigma^2 (1 + 1/n));
-        the belief is recomputed with that descriptor added (sums updated in closed form).
+        the belief is recomputed with that descriptor added (sums updated in closed form,
+        ``_one_more``).
         """
         means, counts, sigma2 = self.stats()
         b = softmax(self._logits(means, counts, sigma2))
@@ -188,20 +189,79 @@ class MatchModel:
         hyp = rng.choice(C, size=draws, p=b) + 1                       # (M,) platform of h
         noise = rng.standard_normal((C + 1, draws, D))
         gains = np.zeros(C + 1)
+        m0 = np.broadcast_to(means, (draws,) + means.shape)
+        n0 = np.broadcast_to(counts, (draws,) + counts.shape)
         for a in range(C + 1):
-            if a == 0:
-                pooled_n = counts[0] + counts[hyp]
-                mu = (means[0] * counts[0] + means[hyp] * counts[hyp, None]) / pooled_n[:, None]
-            else:
-                same = hyp == a
-                pooled_n = np.where(same, counts[0] + counts[a], counts[a])
-                mu = np.where(same[:, None], (means[0] * counts[0] + means[a] * counts[a]) /
-                              (counts[0] + counts[a]), means[a])
-            x = mu + noise[a] * np.sqrt(sigma2 * (1.0 + 1.0 / pooled_n[:, None]))
-            new_means = np.broadcast_to(means, (draws,) + means.shape).copy()
-            new_counts = np.broadcast_to(counts, (draws,) + counts.shape).copy()
-            new_means[:, a] = (means[a] * counts[a] + x) / (counts[a] + 1.0)
-            new_counts[:, a] += 1.0
+            new_means, new_counts = _one_more(m0, n0, sigma2, a, hyp, noise[a])
             post = softmax(self._logits(new_means, new_counts, sigma2))
             gains[a] = h0 - float(np.mean([entropy(p) for p in post]))
         return gains
+
+    def stop_chance(self, rng: np.random.Generator, theta: float, draws: int = 16,
+                    inner: int = 8) -> np.ndarray:
+        """(2, C + 1) the chance that the belief reaches ``theta`` within one (row 0) and
+        within two (row 1) more touches, the first of platform a (column a, 0 = the
+        reference), the second of the platform with the best one-touch chance from there.
+
+        Simulated as ``info_gain`` simulates a touch (``_one_more``): ``draws`` hypotheses from
+        the belief, one descriptor each (the same standard-normal draws for every platform:
+        common random numbers); from each simulated state, ``inner`` hypotheses from that
+        state's belief and one descriptor each per second platform. Row 0 is a multiple of
+        1 / ``draws``, row 1 of 1 / (``draws`` ``inner``). The scale of the units and sigma^2
+        stay those of now.
+        """
+        if draws < 1 or inner < 1:
+            raise InputError(f"stop_chance: draws and inner must be >= 1, got {draws}, {inner}")
+        means, counts, sigma2 = self.stats()
+        b = softmax(self._logits(means, counts, sigma2))
+        C, D = self.C, means.shape[1]
+        hyp = rng.choice(C, size=draws, p=b) + 1
+        noise = rng.standard_normal((draws, D))
+        noise2 = rng.standard_normal((draws * inner, D))
+        u = rng.random((draws, inner))
+        m0 = np.broadcast_to(means, (draws,) + means.shape)
+        n0 = np.broadcast_to(counts, (draws,) + counts.shape)
+        out = np.zeros((2, C + 1))
+        for a in range(C + 1):
+            m1, n1 = _one_more(m0, n0, sigma2, a, hyp, noise)
+            p1 = softmax(self._logits(m1, n1, sigma2))                       # (M, C)
+            hit = p1.max(axis=-1) >= theta
+            cdf = np.cumsum(p1, axis=-1)
+            hyp2 = np.minimum((u[..., None] > cdf[:, None, :]).sum(-1), C - 1).ravel() + 1
+            m2 = np.repeat(m1, inner, axis=0)
+            n2 = np.repeat(n1, inner, axis=0)
+            best = np.zeros(draws)
+            for a2 in range(C + 1):
+                mm, nn = _one_more(m2, n2, sigma2, a2, hyp2, noise2)
+                hit2 = softmax(self._logits(mm, nn, sigma2)).max(axis=-1) >= theta
+                best = np.maximum(best, hit2.reshape(draws, inner).mean(axis=1))
+            out[0, a] = hit.mean()
+            out[1, a] = np.where(hit, 1.0, best).mean()
+        return out
+
+
+def _one_more(means: np.ndarray, counts: np.ndarray, sigma2: np.ndarray, a: int,
+              hyp: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per state m, one more simulated touch of platform ``a`` (0 = the reference): ``means``
+    (M, C + 1, D) and ``counts`` (M, C + 1) in scene units, ``hyp`` (M,) the matching
+    comparison (1..C) of each state, ``noise`` (M, D) standard normal. Under h the touch comes
+    from the pooled mean of the reference and comparison h when ``a`` is either of them, else
+    from ``a``'s own mean, with predictive variance sigma^2 (1 + 1/n) (n: the touches of that
+    mean). Returns the new (means, counts), copies."""
+    rows = np.arange(means.shape[0])
+    c_h = counts[rows, hyp]
+    if a == 0:
+        pooled_n = counts[:, 0] + c_h
+        mu = (means[:, 0] * counts[:, :1] + means[rows, hyp] * c_h[:, None]) / pooled_n[:, None]
+    else:
+        same = hyp == a
+        both = counts[:, 0] + counts[:, a]
+        pooled_n = np.where(same, both, counts[:, a])
+        mu = np.where(same[:, None], (means[:, 0] * counts[:, :1] + means[:, a] *
+                                      counts[:, a, None]) / both[:, None], means[:, a])
+    x = mu + noise * np.sqrt(sigma2 * (1.0 + 1.0 / pooled_n[:, None]))
+    new_means = np.array(means, dtype=np.float64)
+    new_counts = np.array(counts, dtype=np.float64)
+    new_means[:, a] = (means[:, a] * counts[:, a, None] + x) / (counts[:, a, None] + 1.0)
+    new_counts[:, a] += 1.0
+    return new_means, new_counts

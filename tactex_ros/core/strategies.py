@@ -51,10 +51,13 @@ def predictive_entropy(probs: np.ndarray) -> float:
 
 
 class Strategy:
-    """Base class; subclasses override ``score`` only."""
+    """Base class; subclasses override ``score`` only. ``stop_confidence``: the belief the
+    trial stops at (``make_strategy`` sets the trial's), for a strategy that plans to the
+    stop."""
 
     name = "base"
     includes_reference = False
+    stop_confidence = 0.9
 
     def score(self, probs: np.ndarray, touches: np.ndarray, rng: np.random.Generator,
               model: object = None) -> np.ndarray | None:
@@ -150,16 +153,52 @@ class InfoGainStrategy(Strategy):
         return gain(rng)
 
 
+#: ``lookahead``: weight of the information gain [per nat] beside the stop chances, so that it
+#: only breaks their ties (at most ln C nats: below the chances' step 1 / (16 x 8) for C <= 4000)
+GAIN_WEIGHT = 1e-3
+
+
+class LookaheadStrategy(Strategy):
+    """Touches for the fewest touches to a sure answer: per platform (incl. the reference),
+    the chance that the belief reaches the stop within one touch plus the chance within two
+    (``stop_chance``: the second touch the best one from the simulated state), i.e. minus the
+    expected number of touches to the stop counted up to a horizon of three; plus
+    ``GAIN_WEIGHT`` x the information gain, which decides where no touch can reach the stop
+    within two (far from it) and between equal chances.
+
+    Needs a learner with ``stop_chance(rng, theta) -> (2, C + 1)`` and ``info_gain`` (the
+    descriptor model, ``core/match.py``); plans to the belief ``stop_confidence`` (the trial's;
+    with the e-value stop rule, the threshold rule's), on the scene belief (a fabric
+    library's evidence is not simulated).
+    """
+
+    name = "lookahead"
+    includes_reference = True
+
+    def score(self, probs, touches, rng, model=None):
+        chance = getattr(model, "stop_chance", None)
+        if chance is None or getattr(model, "info_gain", None) is None:
+            raise InputError("strategy 'lookahead' needs the descriptor model (model "
+                             "'descriptor'); with a CNN model choose another strategy, e.g. "
+                             "--strategy variance")
+        c = np.asarray(chance(rng, self.stop_confidence), dtype=np.float64)
+        return c[0] + c[1] + GAIN_WEIGHT * np.asarray(model.info_gain(rng), dtype=np.float64)
+
+
 STRATEGIES: dict[str, type[Strategy]] = {
     cls.name: cls for cls in (VarianceStrategy, EntropyStrategy, RandomStrategy, YotoStrategy,
-                              BaldStrategy, InfoGainStrategy)
+                              BaldStrategy, InfoGainStrategy, LookaheadStrategy)
 }
 
 
-def make_strategy(name: str) -> Strategy:
-    """Strategy by name; InputError naming the choices for an unknown one."""
+def make_strategy(name: str, stop_confidence: float = 0.0) -> Strategy:
+    """Strategy by name, planning to the stop at belief ``stop_confidence`` (0: the class's
+    0.9); InputError naming the choices for an unknown one."""
     try:
-        return STRATEGIES[name]()
+        s = STRATEGIES[name]()
     except KeyError:
         raise InputError(f"unknown strategy {name!r}; choose one of "
                          f"{', '.join(STRATEGIES)}") from None
+    if stop_confidence > 0:
+        s.stop_confidence = float(stop_confidence)
+    return s
