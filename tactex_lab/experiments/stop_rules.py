@@ -24,17 +24,20 @@ from tactex_ros.core.errors import InputError
 
 def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, theta: float,
         alpha: float, strategies: list[str] | None = None, scene_protocol: str = "random",
-        metric_library: str | None = None) -> dict:
+        metric_library: str | None = None, representation: str = "") -> dict:
     """Run every scene under both arms (the two rules, or the two ``strategies`` under the
-    threshold rule); returns the summary (per arm and the paired tests)."""
+    threshold rule); returns the summary (per arm and the paired tests). ``representation``:
+    a ``tactex prepare`` file both arms run with (its evidence model for the e-value rule)."""
     from tactex_ros.core.config import preset, trial_preset
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources import open_source
     from tactex_ros.core.stats import wilson
     from tactex_lab.analysis.stats import mcnemar_exact, wilcoxon_paired
+    from tactex_ros.core.calibration import ece_of
     from tactex_lab.experiments.scenes import SceneDraw
 
     src = open_source(source)
+    learner = preset("default", representation=representation)
     if strategies:
         rules = {st: dict(stop_rule="threshold", stop_confidence=theta, strategy=st)
                  for st in strategies}
@@ -49,14 +52,15 @@ def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, thet
         classes, truth = scene.draw(seed + i)
         drawn.append(classes)
         for name, over in rules.items():
-            res = run_trial(TrialSpec(comparisons, preset("default"),
+            res = run_trial(TrialSpec(comparisons, learner,
                                       trial_preset("default", rounds=rounds, **over),
                                       seed=seed + i), src.trial(classes, seed + i), truth=truth)
             rows[name].append({"correct": bool(res.correct), "sure": bool(res.sure),
-                               "extra": res.touches - (comparisons + 1)})
+                               "extra": res.touches - (comparisons + 1),
+                               "confidence": res.confidence})
     out: dict = {"source": source, "scenes": scenes, "comparisons": comparisons,
                  "rounds": rounds, "seed": seed, "theta": theta, "alpha": alpha,
-                 "scene_protocol": scene_protocol,
+                 "scene_protocol": scene_protocol, "representation": representation or None,
                  "metric_library": metric_library if scene_protocol == "hard" else None,
                  "arms": {}, "scene_classes": drawn}
     for name, rs in rows.items():
@@ -65,6 +69,8 @@ def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, thet
         out["arms"][name] = {
             "accuracy": k / len(rs), "wilson95": [lo, hi],
             "touches": float(np.mean([r["extra"] for r in rs])),
+            "ece": ece_of(np.array([r["confidence"] for r in rs]),
+                          np.array([r["correct"] for r in rs])),
             "sure_and_wrong": float(np.mean([r["sure"] and not r["correct"] for r in rs])),
             "not_sure": float(np.mean([not r["sure"] for r in rs]))}
     a, b = list(rules)
@@ -95,6 +101,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--metric-library", default=None,
                    help="replay:DIR whose classes are not the source's: fits the hard scenes' "
                         "metric")
+    p.add_argument("--representation", default="",
+                   help="a tactex prepare file both arms run with (prepare it on another "
+                        "library: class-disjoint)")
     p.add_argument("--file", required=True, help="summary JSON to write")
 
     def func(args: argparse.Namespace) -> int:
@@ -109,13 +118,14 @@ def register(esub: argparse._SubParsersAction) -> None:
                                  f"ones of {', '.join(STRATEGY_NAMES)}")
         out = run(args.source, args.scenes, args.comparisons, args.rounds, args.seed,
                   args.theta, args.alpha, args.strategies, args.scene_protocol,
-                  args.metric_library)
+                  args.metric_library, args.representation)
         Path(args.file).parent.mkdir(parents=True, exist_ok=True)
         Path(args.file).write_text(json.dumps(out, indent=1) + "\n")
         for name, r in out["arms"].items():
             print(f"{name}: accuracy {r['accuracy']:.3f} [{r['wilson95'][0]:.3f}, "
                   f"{r['wilson95'][1]:.3f}], touches {r['touches']:.2f}, sure and wrong "
-                  f"{r['sure_and_wrong']:.1%}, not sure {r['not_sure']:.1%}")
+                  f"{r['sure_and_wrong']:.1%}, not sure {r['not_sure']:.1%}, final-belief "
+                  f"ECE {r['ece']:.3f}")
         print(f"McNemar p = {out['mcnemar_p']:.3g}, touches Wilcoxon p = "
               f"{out['wilcoxon_touches']['p']:.3g}")
         return 0

@@ -15,7 +15,8 @@ PKG = Path(tactex_ros.__file__).resolve().parent
 LAB = Path(tactex_lab.__file__).resolve().parent
 EXPERIMENTS = LAB / "experiments"
 # shared helpers of the experiments; every other module there is one command
-SHARED = {"__init__", "common", "runner", "trials", "curves", "protocol", "press_cache"}
+SHARED = {"__init__", "common", "runner", "trials", "curves", "protocol", "press_cache",
+          "scenes"}
 
 
 def _module(path: Path) -> str:
