@@ -219,7 +219,7 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
 #: Seconds per press for the time axis when no --press-s is given: the press benchmark's median
 #: on the lab scene as shipped (`tactex bench press --scene config/scene.yaml --worlds 1000`,
 #: docs/results/press_bench/scene.json: approach start to lift-off, the travel included)
-PRESS_S = 2.98
+PRESS_S = 2.76
 
 THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
 PRESS_S_HELP = "seconds per press for the time axis, 0.1..3600"
