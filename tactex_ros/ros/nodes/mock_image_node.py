@@ -89,6 +89,7 @@ class MockImageNode(TactexNode):
                 np.full((240, 320, 3), 120, np.uint8)
         self.kind = kind
         self.ring = FrameRing(max(2, int(s.buffer_s * s.fps)))
+        self._last_stamp = float("-inf")   # [s] the newest frame's stamp
         self.ring.set_reference(self.no_contact)
         self.lock = threading.Lock()      # the ring, the placement and the press count
         self.position = None
@@ -219,6 +220,9 @@ class MockImageNode(TactexNode):
 
     def _tick(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
+        if now <= self._last_stamp:       # simulated time stood still (a starved /clock):
+            return                        # no new instant, so no new frame (one per stamp)
+        self._last_stamp = now
         with self.lock:                   # a new placement is swapped in between two frames
             frame = self._frame()
             self.ring.push(now, frame)
