@@ -372,12 +372,12 @@ def touches_and_time(out: Path, rows: dict[str, tuple[np.ndarray, float]], basel
         ks = list(range(np.asarray(correct).shape[1]))
         by_touch[lab] = band_series(correct, ks)
         by_time[lab] = band_series(correct, trial_time(ks, baseline, press_s, decision_s))
-    note = f"; {press_note}" if press_note else ""
+    note = f" ({press_note})" if press_note else ""
     return [accuracy_bands(Path(out) / "accuracy_vs_touches.png", by_touch,
                            "touches after the baseline", title),
             accuracy_bands(Path(out) / "accuracy_vs_time.png", by_time,
-                           f"trial time [s]: {baseline} baseline + k presses x {press_s:g} s"
-                           f"{note}, + decisions", title)]
+                           f"trial time [s]: ({baseline} + k) presses x {press_s:.2f} s{note}"
+                           " + decisions", title)]
 
 
 def stop_sweep(path: Path, rows: list[dict], labels: Sequence[str]) -> Path:

@@ -5,24 +5,30 @@ Each ``--runs`` folder holds ``runs.json`` (per setting, the belief curve of eve
 and ``summary.json`` (budget, comparisons). Folders of the same protocol with other seeds (other
 folds and scenes) are pooled per setting: a setting's line counts the scenes of every folder
 that ran it, and the legend says how many. Each line has its 95 % Wilson band
-(``charts.touches_and_time``). The time axis counts ``--press-s`` seconds per press (the
-baseline's presses included) and the setting's median decision time per decision: give it the
-press time of the robot the figure speaks for (``tactex graph summary RECORD``'s
-``press_s_median``) and say where it comes from with ``--press-note``.
+(``charts.touches_and_time``). A folder without ``runs.json`` is redrawn from the counts its
+``summary.json`` (``per_setting``) or ``pooled.json`` (``right_after``) keeps: the charts only,
+as every point is a count of scenes right after k touches (no paired tests then).
+
+The time axis counts a measured press time per press (``--press-time``:
+``protocol.press_time``, a press benchmark's result or recorded trials; the baseline's presses
+included) and the setting's median decision time per decision.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import asdict
 from pathlib import Path
+
+import numpy as np
 
 from tactex_ros.core.errors import InputError
 from tactex_lab.analysis import charts
 from tactex_lab.experiments.common import write_json
 from tactex_lab.experiments.curves import BeliefCurve, paired_at_budgets, paired_at_thresholds
-from tactex_lab.experiments.protocol import (DEFAULT_THRESHOLDS, band_rows, per_class,
-                                             score_pairs)
+from tactex_lab.experiments.protocol import (DEFAULT_THRESHOLDS, PRESS_TIME_HELP, band_rows,
+                                             per_class, press_time, score_pairs)
 
 
 def load_runs(folders: list[str | Path], settings: list[str] | None = None
@@ -77,16 +83,56 @@ def pooled_figures(curves: dict[str, list[BeliefCurve]], thresholds: list[float]
     return out
 
 
+def _counts_of(folder: Path) -> dict | None:
+    """{label: {"n", "right" (per k = 0..K), "decision_s_median"}}, budget and comparisons of a
+    folder without runs.json, from its summary.json's ``per_setting`` or its pooled.json's
+    ``right_after``; None when neither holds them."""
+    for name in ("summary.json", "pooled.json"):
+        f = folder / name
+        if not f.is_file():
+            continue
+        try:
+            d = json.loads(f.read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"--runs {folder}: {name} not readable ({exc})") from None
+        if "right_after" in d:
+            return d
+        if "per_setting" in d and "budget" in d and "comparisons" in d:
+            rows = {}
+            for lab, ps in d["per_setting"].items():
+                n = int(ps["scenes"])
+                rows[lab] = {"n": n, "decision_s_median": ps.get("decision_s_median") or 0.0,
+                             "right": [round(a["accuracy"] * n)
+                                       for a in ps["accuracy_vs_touches"]]}
+            return {"budget": int(d["budget"]), "comparisons": int(d["comparisons"]),
+                    "right_after": rows}
+    return None
+
+
+def rows_from_counts(counts: dict) -> dict[str, tuple[np.ndarray, float]]:
+    """``band_rows``' form from counts (``_counts_of``): per setting a (n, K + 1) bool array
+    whose column k has ``right[k]`` scenes right (the charts read column sums only) and the
+    median decision time [s]."""
+    rows = {}
+    for lab, r in counts["right_after"].items():
+        n, right = int(r["n"]), [int(v) for v in r["right"]]
+        if n < 1 or any(not 0 <= v <= n for v in right):
+            raise InputError(f"setting {lab!r}: counts {right} of {n} scenes")
+        m = np.zeros((n, len(right)), dtype=bool)
+        for k, v in enumerate(right):
+            m[:v, k] = True
+        rows[lab] = (m, float(r["decision_s_median"]))
+    return rows
+
+
 def register(esub: argparse._SubParsersAction) -> None:
     p = esub.add_parser("accuracy-charts", help="accuracy against touches and trial time from "
                                                 "run JSONs, Wilson bands, seeds pooled")
     p.add_argument("--runs", nargs="+", required=True,
-                   help="results folders with runs.json and summary.json (pooled per setting)")
+                   help="results folders with runs.json and summary.json (pooled per setting); "
+                        "one folder without runs.json: the charts from its counts")
     p.add_argument("--settings", nargs="+", help="labels to draw, in order (default: all)")
-    p.add_argument("--press-s", type=float, required=True,
-                   help="seconds per press (tactex graph summary's press_s_median)")
-    p.add_argument("--press-note", default="",
-                   help="where the press time comes from (shown on the time axis)")
+    p.add_argument("--press-time", metavar="FILE|DIR", help=PRESS_TIME_HELP)
     p.add_argument("--title", default="real presses, report scenes, no stop rule")
     p.add_argument("--thresholds", type=float, nargs="+",
                    help="stop thresholds of pooled.json (default: experiment real's)")
@@ -101,26 +147,44 @@ def register(esub: argparse._SubParsersAction) -> None:
                         "figures at the stop and paired tests)")
 
     def func(args: argparse.Namespace) -> int:
-        if not args.press_s > 0:
-            raise InputError(f"--press-s must be > 0, got {args.press_s}")
         if args.per_class is not None and not 0.0 < args.per_class <= 1.0:
             raise InputError(f"--per-class must be in (0, 1], got {args.per_class}")
-        curves, budget, comparisons = load_runs(args.runs, args.settings)
-        against = args.paired_against or [next(iter(curves))]
-        unknown = [a for a in against if a not in curves]
-        if unknown:
-            raise InputError(f"--paired-against {unknown}: not in the runs {list(curves)}")
-        rows = band_rows(curves, budget)
+        press = press_time(args.press_time)
+        folders = [Path(f) for f in args.runs]
+        counts = (_counts_of(folders[0]) if len(folders) == 1
+                  and not (folders[0] / "runs.json").is_file() else None)
+        if counts is not None:
+            rows = rows_from_counts(counts)
+            if args.settings:
+                missing = [s for s in args.settings if s not in rows]
+                if missing:
+                    raise InputError(f"--settings {missing}: not in {list(rows)}")
+                rows = {lab: rows[lab] for lab in args.settings}
+            budget, comparisons, figures = counts["budget"], counts["comparisons"], None
+        else:
+            curves, budget, comparisons = load_runs(folders, args.settings)
+            against = args.paired_against or [next(iter(curves))]
+            unknown = [a for a in against if a not in curves]
+            if unknown:
+                raise InputError(f"--paired-against {unknown}: not in the runs {list(curves)}")
+            rows = band_rows(curves, budget)
+            figures = pooled_figures(curves, sorted(args.thresholds or DEFAULT_THRESHOLDS),
+                                     against, args.per_class)
         for path in charts.touches_and_time(Path(args.out), rows, comparisons + 1,
-                                            args.press_s, args.title, args.press_note):
+                                            press.seconds, args.title, press.note):
             print(path)
-        figures = pooled_figures(curves, sorted(args.thresholds or DEFAULT_THRESHOLDS),
-                                 against, args.per_class)
-        print(write_json(Path(args.out) / "pooled.json", figures))
+        if figures is not None:
+            figures.update(budget=budget, comparisons=comparisons,
+                           press_time=asdict(press),
+                           right_after={lab: {"n": len(r), "right": r.sum(axis=0).tolist(),
+                                              "decision_s_median": dec}
+                                        for lab, (r, dec) in rows.items()})
+            print(write_json(Path(args.out) / "pooled.json", figures))
+        print(f"  press time {press.seconds:.2f} s ({press.note}: {press.source})")
         for lab, (right, dec) in rows.items():
             print(f"  {lab:>14}: n = {len(right)}, +0 {right[:, 0].mean():.3f}, "
                   f"+{budget} {right[:, -1].mean():.3f}, decision {dec:.4f} s")
-            for r in figures.get("per_class", {}).get("rows", {}).get(lab, [])[:5]:
+            for r in (figures or {}).get("per_class", {}).get("rows", {}).get(lab, [])[:5]:
                 print(f"  {'':>14}  {r['class']}: wrong {r['wrong']} / {r['scenes']} "
                       f"({r['wrong_stops']} sure), {r['touches']:.2f} touches")
         return 0

@@ -220,7 +220,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=10, help="touches after the baseline")
     p.add_argument("--thresholds", type=float, nargs="+",
                    help=protocol.THRESHOLD_HELP)
-    p.add_argument("--press-s", type=float, default=protocol.PRESS_S, help=protocol.PRESS_S_HELP)
+    p.add_argument("--press-time", metavar="FILE|DIR", help=protocol.PRESS_TIME_HELP)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out")

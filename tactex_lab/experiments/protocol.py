@@ -6,7 +6,9 @@ measuring it on the fold's report scenes, the summary, its charts and its printe
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -164,8 +166,10 @@ def write_outputs(out: Path, summary: dict, labels: list[str], args: argparse.Na
     """runs.json (the report curves), summary.json, the charts and the printed table."""
     curves = summary.pop("report_curves")
     write_json(out / "runs.json", {lab: [c.to_json() for c in cs] for lab, cs in curves.items()})
+    press = PressTime(**args.press) if getattr(args, "press", None) else press_time()
+    summary["press_time"] = asdict(press)
     write_json(out / "summary.json", summary)
-    _charts(out, summary, curves, labels, args.budget, getattr(args, "press_s", PRESS_S))
+    _charts(out, summary, curves, labels, args.budget, press)
     _print(summary, labels, args)
 
 
@@ -216,36 +220,80 @@ def band_rows(curves: dict[str, list[BeliefCurve]], budget: int
     return rows
 
 
-#: Seconds per press for the time axis when no --press-s is given: the press benchmark's median
-#: on the lab scene as shipped (`tactex bench press --scene config/scene.yaml --worlds 1000`,
-#: docs/results/press_bench/scene.json: approach start to lift-off, the travel included)
-PRESS_S = 2.76
+#: Where the time axis takes its seconds per press when no --press-time is given: the press
+#: benchmark's result on the lab scene as shipped (`tactex bench press --scene
+#: config/scene.yaml --worlds 1000 --json docs/results/press_bench/scene.json`)
+DEFAULT_PRESS_TIME = Path(__file__).resolve().parents[2] / "docs/results/press_bench/scene.json"
 
 THRESHOLD_HELP = "stop thresholds on the leading belief, 0..1.01 (above 1: never stops)"
-PRESS_S_HELP = "seconds per press for the time axis, 0.1..3600"
+PRESS_TIME_HELP = ("where the time axis's seconds per press come from: a `tactex bench press "
+                   "--json` file (its press_s_median) or a trial record, a session or a folder "
+                   "of them (the median of every recorded press time); default: "
+                   "the benchmark on the lab scene, docs/results/press_bench/scene.json")
+
+
+@dataclass(frozen=True)
+class PressTime:
+    """Seconds per press for a time axis [s], measured, and where they were measured
+    (``source``: the file or folder; ``note``: a short label for the axis)."""
+
+    seconds: float
+    source: str
+    note: str
+
+
+def press_time(source: str | Path | None = None) -> PressTime:
+    """The measured press time of ``source`` (``PRESS_TIME_HELP``; None: the default bench
+    file). InputError (exit status 2) naming the source when it holds no press time or one
+    outside 0.1..3600 s."""
+    from tactex_ros.trial.record import press_durations, read_record
+    p = Path(source) if source is not None else DEFAULT_PRESS_TIME
+    if p.is_file():
+        try:
+            d = json.loads(p.read_text())
+            s = float(d["press_s_median"])
+        except (OSError, ValueError, TypeError, KeyError) as exc:
+            raise InputError(f"--press-time {str(p)!r}: not a `tactex bench press --json` "
+                             f"result with press_s_median ({exc!r})") from None
+        note = f"bench press, {Path(str(d.get('scene', '?'))).name}"
+    elif p.is_dir():
+        folders = sorted({f.parent for f in p.rglob("touches.jsonl")})
+        times = [t for f in folders for t in press_durations(read_record(f, False)["touches"])]
+        if not times:
+            raise InputError(f"--press-time {str(p)!r}: no recorded press (no touches.jsonl "
+                             "with request and capture times below it)")
+        s = statistics.median(times)
+        note = f"{len(times)} recorded presses"
+    else:
+        raise InputError(f"--press-time {str(p)!r}: not found ({PRESS_TIME_HELP})")
+    if not 0.1 <= s <= 3600.0:
+        raise InputError(f"--press-time {str(p)!r}: {s:g} s a press, outside 0.1..3600")
+    shown = "docs/results/press_bench/scene.json" if source is None else str(p)
+    return PressTime(s, shown, note)
 
 
 def check_options(args: argparse.Namespace) -> None:
     """Before any work: ``--thresholds`` are stop thresholds on the leading belief, 0..1 (up
     to 1.01: above 1 never stops, the whole budget, as the default sweep's last);
-    ``--press-s`` seconds per press, 0.1..3600. InputError (exit status 2) naming the option,
+    ``--press-time`` a measured press time (``press_time``, kept as ``args.press``, a dict).
+    InputError (exit status 2) naming the option,
     the value and the range otherwise (NaN included)."""
     for th in getattr(args, "thresholds", None) or []:
         if not 0.0 <= th <= 1.01:
             raise InputError(f"--thresholds {th:g}: outside 0..1.01 ({THRESHOLD_HELP})")
-    ps = getattr(args, "press_s", PRESS_S)
-    if not 0.1 <= ps <= 3600.0:
-        raise InputError(f"--press-s {ps:g}: outside 0.1..3600 ({PRESS_S_HELP})")
+    if hasattr(args, "press_time"):           # kept as a dict: config.json records it
+        args.press = asdict(press_time(args.press_time))
 
 
 def _charts(out: Path, summary: dict, curves: dict[str, list[BeliefCurve]], labels: list[str],
-            budget: int, press_s: float = PRESS_S) -> None:
+            budget: int, press: PressTime) -> None:
     """accuracy_vs_touches.png and accuracy_vs_time.png (``charts.touches_and_time``: Wilson
-    bands, scenes per line; ``press_s`` seconds per press) from the report ``curves``;
+    bands, scenes per line; ``press``: the measured press time) from the report ``curves``;
     pareto.png (the stop-threshold sweep)."""
     rows = band_rows({lab: curves[lab] for lab in labels}, budget)
-    charts.touches_and_time(out, rows, summary["comparisons"] + 1, press_s,
-                            f"real presses, report scenes, no stop rule (budget {budget})")
+    charts.touches_and_time(out, rows, summary["comparisons"] + 1, press.seconds,
+                            f"real presses, report scenes, no stop rule (budget {budget})",
+                            press.note)
     charts.stop_sweep(out / "pareto.png", summary["report_rows"], labels)
 
 

@@ -44,7 +44,7 @@ import argparse
 from tactex_ros.core.errors import InputError
 from tactex_lab.experiments.common import results_dir
 from tactex_lab.experiments.curves import BeliefCurve, belief_curves, parse_setting
-from tactex_lab.experiments.protocol import (PRESS_S, THRESHOLD_HELP, check_options,
+from tactex_lab.experiments.protocol import (PRESS_TIME_HELP, THRESHOLD_HELP, check_options,
                                              protocol, write_outputs)
 from tactex_lab.experiments.runner import add_runner_args, backend_of
 
@@ -100,8 +100,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--paired-against", nargs="+", metavar="LABEL",
                    help="paired tests of every setting against these settings (default: the "
                         "first --setting)")
-    p.add_argument("--press-s", type=float, default=PRESS_S,
-                   help="seconds per touch for the time axis of accuracy_vs_time.png")
+    p.add_argument("--press-time", metavar="FILE|DIR", help=PRESS_TIME_HELP)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
     add_runner_args(p)

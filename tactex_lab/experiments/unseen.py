@@ -49,7 +49,7 @@ from tactex_lab.experiments.curves import BeliefCurve, curve
 from tactex_lab.analysis.learned_features import AUGS, SIM_VARIANTS, library_view
 from tactex_lab.experiments.press_cache import (FEATURES, CachedPresses, add_contact_verdicts,
                                                 by_class, cached)
-from tactex_lab.experiments.protocol import (PRESS_S, THRESHOLD_HELP, check_options,
+from tactex_lab.experiments.protocol import (PRESS_TIME_HELP, THRESHOLD_HELP, check_options,
                                              protocol, write_outputs)
 
 
@@ -461,9 +461,7 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--target-touches", type=float, default=3.0)
     p.add_argument("--report-only", action="store_true")
     p.add_argument("--paired-against", nargs="+", metavar="LABEL")
-    p.add_argument("--press-s", type=float, default=PRESS_S,
-                   help="seconds per press for the time axis (protocol.PRESS_S: the press "
-                        "benchmark's median on the lab scene)")
+    p.add_argument("--press-time", metavar="FILE|DIR", help=PRESS_TIME_HELP)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out")
 

@@ -309,10 +309,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def summarise(record: dict) -> dict:
-    """Where a trial's time went: press durations [s] (request -> capture), decision times [s]."""
+    """Where a trial's time went: press durations [s] (``trial.record.press_durations``: the
+    motion node's approach-to-lift-off time, else request -> capture), decision times [s]."""
     import numpy as np
+    from ..trial.record import press_durations
     touches = record["touches"]
-    press = [t["stamp"] - t["requested"] for t in touches if t.get("stamp")]
+    press = press_durations(touches)
     dec = [d["decision_s"] for d in record["decisions"]]
     out = {"touches": len(touches), "accepted": sum(bool(t.get("accepted")) for t in touches),
            "decisions": len(dec),

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import threading
 import time
@@ -561,6 +562,20 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------ the answer
+
+def press_durations(touches: list[dict]) -> list[float]:
+    """Each press's recorded time [s]: its ``press_s`` (the motion node's, approach start to
+    lift-off, as ``tactex bench press`` counts) where the touch has one, else request to
+    capture (``stamp - requested``); touches with neither are left out."""
+    out = []
+    for t in touches:
+        ps = t.get("press_s")
+        if isinstance(ps, (int, float)) and math.isfinite(ps) and ps > 0:
+            out.append(float(ps))
+        elif t.get("stamp") is not None and t.get("requested") is not None:
+            out.append(float(t["stamp"]) - float(t["requested"]))
+    return out
+
 
 def read_config(folder: str | Path) -> dict:
     """``config.json`` of a record ({} when absent or unreadable); InputError naming the file

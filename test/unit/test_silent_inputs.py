@@ -75,8 +75,10 @@ def thresholds(tmp: Path, value: str) -> tuple[int, list[str]]:
 
 def press_s(tmp: Path) -> tuple[int, list[str]]:
     pytest.importorskip("tactex_lab")
-    return cli(["experiment", "real", "--source", "replay:x", "--press-s", "-1",
-                "--out", str(tmp / "out")]), ["--press-s -1", "0.1..3600"]
+    bench = tmp / "bench.json"
+    bench.write_text('{"press_s_median": -1}')
+    return cli(["experiment", "real", "--source", "replay:x", "--press-time", str(bench),
+                "--out", str(tmp / "out")]), ["--press-time", str(bench), "0.1..3600"]
 
 
 def ladder_rung(tmp: Path) -> tuple[int, list[str]]:

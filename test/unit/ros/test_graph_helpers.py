@@ -152,3 +152,8 @@ def test_record_summary(tmp_path) -> None:
     assert s["touches"] == 4 and s["accepted"] == 3 and s["decisions"] == 2
     assert s["press_s_median"] == pytest.approx(3.0) and s["press_s_total"] == pytest.approx(10.0)
     assert s["decision_s_median"] == pytest.approx(1.0) and s["prediction"] is None
+    # the motion node's own press time (approach start to lift-off) counts where recorded
+    r.add_touch(img, {"platform_id": "c5", "requested": 60.0, "stamp": 69.0, "press_s": 4.0,
+                      "accepted": True})
+    s = summarise(read_record(r.dir))
+    assert s["press_s_median"] == pytest.approx(3.5) and s["press_s_total"] == pytest.approx(14.0)
