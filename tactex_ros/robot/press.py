@@ -486,7 +486,10 @@ class PressController:
         elif self.phase == SETTLE:
             self._settle(now, position, dt)
         elif self.phase == RETRACT:  # noqa: SIM102 - the phase dispatch stays one branch a phase
-            if self._arrive(self._retract_point(), self.s.travel_speed, position, dt):
+            # off the surface again, the arm rests the travel's sag below its target, as at
+            # the approach's waypoints (else a sagging arm waits rest_s there)
+            if self._arrive(self._retract_point(), self.s.travel_speed, position, dt,
+                            self._free_sag()):
                 self._enter(DONE, now)
         return self.target
 
@@ -521,6 +524,11 @@ class PressController:
         return off <= self.s.position_tolerance or (
             off <= self.s.rest_tolerance and self._at_rest(self._now))
 
+    def _free_sag(self) -> float:
+        """[m] How far below its target the arm rests in free air: the travel's sag
+        (``sag_m``), at most ``approach_height`` either way."""
+        return float(np.clip(self.sag_m, -self.s.approach_height, self.s.approach_height))
+
     def _approach(self, now: float, position: np.ndarray, dt: float) -> None:
         """Through the waypoints (lift, travel, approach point); then tare. Into the approach
         point the target slows at ``approach_brake``: an impedance-controlled arm lags
@@ -536,8 +544,7 @@ class PressController:
         # the sag is known once the travel has begun: the arm rests that far below the
         # travel's end and the approach point (else an arm sagging more than
         # position_tolerance waits rest_s at each: a 6 kg arm with 3 N down, 0.4 s)
-        sag = float(np.clip(self.sag_m, -self.s.approach_height, self.s.approach_height))
-        if self._arrive(self._waypoints[0], speed, position, dt, sag):
+        if self._arrive(self._waypoints[0], speed, position, dt, self._free_sag()):
             self._waypoints.pop(0)
             if len(self._waypoints) == 1:
                 # a payload or cable pulling down holds the arm below its target: raise the
