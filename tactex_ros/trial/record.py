@@ -566,13 +566,14 @@ def read_record(folder: str | Path, images: bool = True) -> dict[str, Any]:
 def press_durations(touches: list[dict]) -> list[float]:
     """Each press's recorded time [s]: its ``press_s`` (the motion node's, approach start to
     lift-off, as ``tactex bench press`` counts) where the touch has one, else request to
-    capture (``stamp - requested``); touches with neither are left out."""
+    capture (``stamp - requested``); touches with neither (or a request time of 0, never
+    taken) are left out."""
     out = []
     for t in touches:
         ps = t.get("press_s")
         if isinstance(ps, (int, float)) and math.isfinite(ps) and ps > 0:
             out.append(float(ps))
-        elif t.get("stamp") is not None and t.get("requested") is not None:
+        elif t.get("stamp") and t.get("requested"):       # 0.0: a request time never taken
             out.append(float(t["stamp"]) - float(t["requested"]))
     return out
 

@@ -143,13 +143,15 @@ def test_record_summary(tmp_path) -> None:
     r = TrialRecord(tmp_path, "s")
     img = np.random.default_rng(2).integers(0, 255, (240, 320, 3), dtype=np.uint8)
     for k, dur in enumerate([2.0, 3.0, 5.0]):
-        r.add_touch(img, {"platform_id": f"c{k}", "requested": 10.0 * k,
-                          "stamp": 10.0 * k + dur, "accepted": True})
+        r.add_touch(img, {"platform_id": f"c{k}", "requested": 10.0 * k + 1.0,
+                          "stamp": 10.0 * k + 1.0 + dur, "accepted": True})
     r.add_touch(None, {"platform_id": "c9", "requested": 50.0, "accepted": False})
+    # a request time never taken (0.0: before a simulated clock's first tick) is left out
+    r.add_touch(None, {"platform_id": "c8", "requested": 0.0, "stamp": 1.8e9, "accepted": False})
     r.add_decision({"decision_s": 0.5})
     r.add_decision({"decision_s": 1.5})
     s = summarise(read_record(r.dir))
-    assert s["touches"] == 4 and s["accepted"] == 3 and s["decisions"] == 2
+    assert s["touches"] == 5 and s["accepted"] == 3 and s["decisions"] == 2
     assert s["press_s_median"] == pytest.approx(3.0) and s["press_s_total"] == pytest.approx(10.0)
     assert s["decision_s_median"] == pytest.approx(1.0) and s["prediction"] is None
     # the motion node's own press time (approach start to lift-off) counts where recorded
