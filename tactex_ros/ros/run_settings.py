@@ -80,9 +80,9 @@ def resolve_run(options: Mapping[str, Any] | None = None,
                 s = base["scene_file"] = record_scene(record)
             scene.append(s)
             return base
-        s = opts.get("scene")
-        s = scene_path(bool(opts.get("sim")),
-                       record_scene(record) if record is not None and not s else s,
+        given_scene = opts.get("scene")
+        s = scene_path(bool(opts.get("sim")), record_scene(record)
+                       if record is not None and not given_scene else given_scene,
                        opts.get("robot"))
         settings = opts.get("settings") or config_dir() / "explorer.yaml"
         if not Path(settings).is_file():
