@@ -74,7 +74,7 @@ def resume_hint(run, args: argparse.Namespace) -> str | None:
     """``tactex graph run --resume <record>`` when a resume of this run can work: the record
     exists and can be continued, and no node refused its input (exit status 2: the same
     input would be refused again). Nothing else: the record keeps the run's options."""
-    from ..ros.run_settings import RUN_FILE
+    from ..trial.settings import RUN_FILE
     from ..trial.record import check_resumable
     if run.record is None or 2 in run.node_exit.values():
         return None

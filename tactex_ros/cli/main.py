@@ -39,36 +39,77 @@ DEFAULT_COMPARISONS = 4
 DEFAULT_RECORD_DIR = "runs/trials"      # as the explorer's record_dir (config/explorer.yaml)
 
 
+#: how ``run.json`` names ``tactex trial`` (``trial.settings.ENTRANCE_KEY``)
+TRIAL_ENTRANCE = "trial"
+#: what `tactex trial`'s run.json keeps (``_remembered``): its own options and the settings
+#: options' values, given or not; a resume takes those not given from there
+TRIAL_REMEMBER = CLI_TRIAL_OPTIONS + ("config", "strategy", "model", "rounds")
+
+
+def _option(name: str) -> str:
+    """The option of a dotted setting of ``TRIAL_OPTIONS`` (``trial.rounds`` -> ``rounds``)."""
+    return name.rsplit(".", 1)[-1]
+
+
+def _trial_entrance():
+    """``tactex trial`` as ``trial.settings.resolve_settings`` sees it: its options
+    (``CLI_TRIAL_OPTIONS``, ``config``, ``TRIAL_OPTIONS`` by their last part, ``set``,
+    ``resume``, ``record_dir``, ``trial_id``) give the flat settings (``source`` ... ``seed``,
+    ``config``, ``learner.*``, ``trial.*``), nothing beneath them (the preset's and the
+    defaults come after, in ``cmd_trial``)."""
+    from ..core.config import TrialSettings
+    from ..core.schema import flatten, merge, overrides
+    from ..trial.settings import Entrance
+
+    def given(opts: dict) -> dict:
+        out = flatten(merge(schema_values(argparse.Namespace(**opts), ("config",) + TRIAL_OPTIONS),
+                            overrides(TrialSettings, opts.get("set"), "--set")))
+        out.update({k: opts[k] for k in CLI_TRIAL_OPTIONS if opts.get(k) is not None})
+        if opts.get("resume"):
+            out["resume"] = opts["resume"]
+        return out
+
+    return Entrance(TRIAL_ENTRANCE, "tactex trial", given, lambda opts, record: {},
+                    remember=TRIAL_REMEMBER,
+                    labels={_option(n): n for n in TRIAL_OPTIONS})
+
+
 def _trial_request(args: argparse.Namespace) -> tuple[dict, str | None]:
     """``tactex trial``'s options and settings, flat (``source`` ... ``seed``, ``config``,
-    ``learner.*``, ``trial.*``): those given, or for ``--resume`` the record's with the given
-    ones checked against them (``trial.resume.settings_from_record``; a contradiction is
-    refused, both values named). Returns them and the record folder to continue (None: a
-    new trial)."""
-    from ..core.schema import flatten, merge, overrides
-    from ..core.config import TrialSettings
-    given = flatten(merge(schema_values(args, ("config",) + TRIAL_OPTIONS),
-                          overrides(TrialSettings, args.set, "--set")))
-    classes = args.classes.split(",") if args.classes else None
-    given.update({k: v for k, v in (("source", args.source), ("comparisons", args.comparisons),
-                                    ("classes", classes), ("reference", args.reference),
-                                    ("seed", args.seed)) if v is not None})
+    ``learner.*``, ``trial.*``), resolved by the one resolver of every entrance
+    (``trial.settings.resolve_settings``): those given, or for ``--resume`` the record's
+    (its run.json, its config.json) with the given ones checked against them (a
+    contradiction is refused, both values named). Returns them and the record folder to
+    continue (None: a new trial)."""
+    from ..trial.settings import resolve_settings
+    if not args.resume and args.source is None:
+        raise InputError("--source is required (replay:DIR or sim[:difficulty]), unless "
+                         "--resume continues a recorded trial")
+    names = CLI_TRIAL_OPTIONS + ("config", "set", "resume", "record_dir", "trial_id") + \
+        tuple(_option(n) for n in TRIAL_OPTIONS)
+    options = {k: getattr(args, k) for k in names}
+    options["classes"] = args.classes.split(",") if args.classes else None
+    got = resolve_settings(options, _trial_entrance())
     if not args.resume:
-        if args.source is None:
-            raise InputError("--source is required (replay:DIR or sim[:difficulty]), unless "
-                             "--resume continues a recorded trial")
-        return given, None
-    from pathlib import Path
-    from ..trial.resume import settings_from_record
-    if args.record_dir is not None or args.trial_id is not None:
-        raise InputError("--resume names the record; --record-dir and --trial-id do not "
-                         "apply")
-    d = Path(args.resume)
-    flat = settings_from_record(d, given)
-    if "source" not in flat:
-        raise InputError(f"resume {str(d)!r}: not a record of `tactex trial` (the graph's "
-                         "records continue with `tactex graph run --resume`)")
-    return flat, str(d.resolve())
+        return got.flat, None
+    if got.record is None:
+        raise InputError(f"resume {args.resume!r}: not a trial record with a config.json")
+    if "source" not in got.flat:
+        raise InputError(f"resume {args.resume!r}: not a record of `tactex trial` (the "
+                         "graph's records continue with `tactex graph run --resume`)")
+    return got.flat, str(got.record)
+
+
+def _remembered(opts: dict, settings) -> dict:
+    """What a ``tactex trial`` run keeps in its record's run.json (``TRIAL_REMEMBER``):
+    ``opts`` (its own options, defaults applied) and the values of ``settings``
+    (``TrialSettings``) that options set."""
+    from ..trial.settings import ENTRANCE_KEY
+    out = {ENTRANCE_KEY: TRIAL_ENTRANCE, "config": settings.config,
+           "strategy": settings.trial.strategy, "model": settings.learner.model,
+           "rounds": settings.trial.rounds}
+    out.update({k: opts[k] for k in CLI_TRIAL_OPTIONS if opts.get(k) is not None})
+    return out
 
 
 def cmd_trial(args: argparse.Namespace) -> int:
@@ -126,6 +167,8 @@ def cmd_trial(args: argparse.Namespace) -> int:
     run = TrialRun(spec, record_dir, args.trial_id or "", press=press, inputs=inputs,
                    resume=resume, guard_reference=False,
                    log=lambda level, text: print(f"tactex: {text}", file=sys.stderr))
+    from ..trial.settings import save_run_file
+    save_run_file(run.dir, _remembered(opts, settings))     # a resume keeps the first one
     if resume:
         from ..trial.resume import catch_up
         catch_up(resume, touch)          # the source's next touch: the one the trial needs

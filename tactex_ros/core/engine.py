@@ -61,6 +61,7 @@ from .errors import InputError, TrialError
 from .evidence import EProcess, EvidenceModel, shipped_evidence
 from .guards import ContactGuard
 from .build import make_learner
+from .descriptor import DescriptorLearner
 from .learners import Learner, TrainStats, can_checkpoint, train_round
 from .strategies import make_strategy, predictive_entropy
 from .touch import Touch, as_touch, validate_frame
@@ -298,11 +299,11 @@ class TrialEngine:
         self._touch_due = False          # restored from a checkpoint: next_platform not touched
         self.eprocess: EProcess | None = None   # stop_rule 'evalue' (core/evidence.py)
         if self.trial_cfg.stop_rule == "evalue":
-            if not hasattr(self.learner, "match"):
+            if not isinstance(self.learner, DescriptorLearner):
                 raise InputError("trial.stop_rule 'evalue' needs model 'descriptor', got "
                                  f"{self.learner_cfg.model!r}")
             if evidence is None:      # the shipped one, fitted on the simulator's fabrics
-                rep = getattr(self.learner, "representation", None)
+                rep = self.learner.representation
                 evidence = shipped_evidence(self.learner_cfg,
                                             prepared=rep.evidence if rep is not None else None)
             self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha)

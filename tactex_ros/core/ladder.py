@@ -60,7 +60,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .descriptor import raw_descriptor
+from .descriptor import DescriptorLearner, raw_descriptor
 from .config import (CNN_MODELS, PRESETS, AutoSettings, LadderSettings, LearnerSettings,
                      learner_class, learner_settings, preset)
 from .errors import InputError
@@ -531,9 +531,8 @@ class Ladder:
         """(2, C + 1) stop chances (strategy ``lookahead``) from the highest descriptor rung in
         use."""
         for rung, learner in zip(reversed(self._active_rungs), reversed(self.active), strict=True):
-            chance = getattr(learner, "stop_chance", None)
-            if rung in DESCRIPTOR_RUNGS and chance is not None:
-                return np.asarray(chance(rng, theta), dtype=np.float64)
+            if rung in DESCRIPTOR_RUNGS and isinstance(learner, DescriptorLearner):
+                return np.asarray(learner.stop_chance(rng, theta), dtype=np.float64)
         raise InputError("strategy 'lookahead' needs a descriptor rung in the ladder")
 
     def _climb(self, transfer: bool) -> Learner:

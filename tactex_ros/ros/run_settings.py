@@ -1,6 +1,8 @@
-"""One resolution of a graph run's settings, new or resumed (``resolve_run``): the launch
+"""The graph's resolution of a run's settings, new or resumed (``resolve_run``): the launch
 file (``launch/explore.launch.py``), ``tactex graph describe|run`` (``cli/graph_commands.py``)
 and the explorer node (its parameters) call it, and nothing after it validates them again.
+It is the graph's layer over the one resolver of every entrance into a trial
+(``trial.settings.resolve_settings``, which ``tactex trial`` calls too).
 
 What a run was given is its *options* (the names of ``graph.OPTIONS`` and ``RUN_OPTIONS``;
 None: not given) and further explorer settings (``--set``, ``explorer_set:=``,
@@ -15,7 +17,6 @@ scene (``record_scene``). A value given now that contradicts the record is refus
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,25 +25,18 @@ from collections.abc import Mapping
 
 from ..core.errors import InputError
 from ..core.schema import flatten, merge, nest, overrides
+from ..trial.settings import ENTRANCE_KEY, Entrance, given_option
 from .graph import OPTIONS, option_overrides, params_from_file, scene_path
 from .settings import ExplorerSettings
 
-#: what a run's folder keeps of the options it was given (``save_run_file``)
-RUN_FILE = "run.json"
 #: the graph options a run remembers as given (paths absolute) and a resume takes from there
 RUN_OPTIONS = ("sim", "scene", "settings", "node_params", "set", "yes", "source", "sensor",
                "device", "domain_id")
 #: the setting options whose value, given or not, a run remembers (``graph.OPTIONS`` names)
 SETTING_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "session")
 _PATHS = ("scene", "settings", "node_params", "session")
-
-
-def _given(options: Mapping[str, Any], name: str) -> Any:
-    """Option ``name`` as given (None: not given; a file path made absolute)."""
-    v = options.get(name)
-    if v is None or v is False or v == []:
-        return None
-    return str(Path(v).resolve()) if name in _PATHS and Path(str(v)).is_file() else v
+#: how ``run.json`` names the graph (``trial.settings.ENTRANCE_KEY``)
+GRAPH = "graph"
 
 
 @dataclass(frozen=True)
@@ -58,39 +52,6 @@ class RunSettings:
     remembered: Mapping[str, Any] = field(default_factory=dict)
 
 
-def _options_from_record(options: dict[str, Any]) -> Path | None:
-    """``options`` with every option the run in the ``resume`` / ``session_dir`` folder was
-    given (its ``run.json``), in place; a contradiction refused. The folder, or None."""
-    folder = options.get("resume") or options.get("session_dir")
-    if not folder or not (Path(folder) / RUN_FILE).is_file():
-        return None
-    p = Path(folder) / RUN_FILE
-    try:
-        was = json.loads(p.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{str(p)!r}: not readable ({exc})") from None
-    for k in RUN_OPTIONS + SETTING_OPTIONS:
-        if k == "scene" and options.get("resume"):
-            continue            # a trial's scene: its record's copy (``record_scene``)
-        given, rec = _given(options, k), was.get(k)
-        if given is None:
-            options[k] = rec if rec is not None or k not in ("sim", "yes") else False
-        elif given != rec:
-            name = OPTIONS[k][1] if k in OPTIONS else k
-            raise InputError(f"--{k} {given!r} given but the record {str(folder)!r} has "
-                             f"{name} = {rec!r}; a resumed run keeps what it was given "
-                             "(leave the option out)")
-    if options.get("resume") and not (Path(folder) / "config.json").is_file():
-        # the run stopped before its trial recorded anything (e.g. no camera): the trial
-        # starts in that folder with the options the run was given
-        if options.get("record_dir") is not None or options.get("trial_id") is not None:
-            raise InputError("--resume names the record; --record-dir and --trial-id do not "
-                             "apply")
-        d = Path(folder).resolve()
-        options.update(resume=None, record_dir=str(d.parent), trial_id=d.name)
-    return Path(folder)
-
-
 def resolve_run(options: Mapping[str, Any] | None = None,
                 explorer: Mapping[str, Any] | None = None, *,
                 defaults: Mapping[str, Any] | None = None, set_origin: str = "--set",
@@ -102,63 +63,58 @@ def resolve_run(options: Mapping[str, Any] | None = None,
     beneath what is given, flat (the explorer node: its parameters; None: the settings file
     ``settings``, else config/explorer.yaml, and the scene). InputError names what is wrong."""
     from ..core.paths import config_dir
-    from ..trial.resume import record_scene, settings_from_record
-    opts = dict(options or {})
-    folder = _options_from_record(opts)
-    node_opts = {k: opts.get(k) for k in OPTIONS if OPTIONS[k][0] == "explorer"}
-    given = flatten(merge(option_overrides(node_opts).get("explorer"), explorer,
-                          overrides(ExplorerSettings, opts.get("set"), set_origin)))
-    resume = given.get("resume") or (defaults or {}).get("resume") or ""
-    record = bool(resume) and (Path(resume) / "config.json").is_file() and \
-        not (given.get("session_file") or (defaults or {}).get("session_file"))
-    if record:             # the record's folder is where the trial goes on
-        d = Path(resume).resolve()
-        for k, there in (("record_dir", str(d.parent)), ("trial_id", d.name)):
-            v = opts.get(k)
-            if v not in (None, "") and (str(Path(v).resolve()) if k == "record_dir"
-                                        else v) != there:
-                raise InputError(f"--{k.replace('_', '-')} {v!r} given but --resume names "
-                                 f"the record {str(d)!r}, in {there!r} (leave it out)")
-    scene = opts.get("scene")
-    if defaults is None:
-        scene = scene_path(bool(opts.get("sim")),
-                           record_scene(resume) if record and not scene else scene,
-                           opts.get("robot"))
+    from ..trial.resume import record_scene
+    from ..trial.settings import resolve_settings
+    scene: list[str] = []                   # the graph's scene file (``defaults_of``)
+
+    def given_of(opts: dict[str, Any]) -> dict[str, Any]:
+        node_opts = {k: opts.get(k) for k in OPTIONS if OPTIONS[k][0] == "explorer"}
+        return flatten(merge(option_overrides(node_opts).get("explorer"), explorer,
+                             overrides(ExplorerSettings, opts.get("set"), set_origin)))
+
+    def defaults_of(opts: dict[str, Any], record: Path | None) -> dict[str, Any]:
+        if defaults is not None:            # the node: its parameters
+            base = dict(defaults)
+            s = str(given_of(opts).get("scene_file") or base.get("scene_file") or "")
+            if record is not None and not s:        # the node given only ``resume``
+                s = base["scene_file"] = record_scene(record)
+            scene.append(s)
+            return base
+        given_scene = opts.get("scene")
+        s = scene_path(bool(opts.get("sim")), record_scene(record)
+                       if record is not None and not given_scene else given_scene,
+                       opts.get("robot"))
         settings = opts.get("settings") or config_dir() / "explorer.yaml"
         if not Path(settings).is_file():
             raise InputError(f"explorer settings file {str(settings)!r} not found")
-        base = dict(flatten(params_from_file(settings, "explorer")), scene_file=scene)
-    else:
-        base = dict(defaults)
-        scene = str(given.get("scene_file") or base.get("scene_file") or "")
-    if record:
-        # a value counts as given when it was given, not when it is only a default beneath
-        flat = settings_from_record(resume, {**base, **given},
-                                    [{k: v for k, v in base.items() if k not in given}])
-        if not flat.get("scene_file"):           # the node given only ``resume``
-            flat["scene_file"] = scene = record_scene(resume)
-    else:
-        flat = {**base, **given}
+        scene.append(s)
+        return dict(flatten(params_from_file(settings, "explorer")), scene_file=s)
+
+    got = resolve_settings(options, Entrance(
+        GRAPH, "tactex graph run", given_of, defaults_of, remember=RUN_OPTIONS + SETTING_OPTIONS,
+        paths=_PATHS, flags=("sim", "yes"), own=("scene",),
+        labels={k: OPTIONS[k][1] for k in OPTIONS}))
+    opts, flat = got.options, got.flat
     if opts.get("sim") and (flat.get("session_file") or flat.get("library_materials")) and \
             not flat.get("placement_service"):
         flat["placement_service"] = "/mock_image/set_parameters"   # the mock camera's
     settings = ExplorerSettings.check(nest(flat), origin)            # the one validation
     eff = flatten(settings.model_dump())
-    remembered = {k: v for k in RUN_OPTIONS if (v := _given(opts, k)) is not None}
+    remembered: dict[str, Any] = {ENTRANCE_KEY: GRAPH}
+    remembered.update({k: v for k in RUN_OPTIONS
+                       if (v := given_option(opts, k, _PATHS)) is not None})
     remembered.update({k: eff[OPTIONS[k][1]] for k in SETTING_OPTIONS})
     if not remembered["session"]:
         del remembered["session"]
-    return RunSettings(settings, opts, scene, folder, remembered)
+    return RunSettings(settings, opts, scene[0], got.folder, remembered)
 
 
 def save_run_file(folder: str | Path, run: RunSettings) -> None:
     """``<folder>/run.json`` (the trial record or session folder) before any node starts,
-    unless the folder has one: a resume keeps the run's first one."""
-    from ..core.outputs import dumps
-    p = Path(folder) / RUN_FILE
-    if not p.is_file():
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(dumps(dict(run.remembered)))
+    unless the folder has one: a resume keeps the run's first one
+    (``trial.settings.save_run_file``)."""
+    from ..trial.settings import save_run_file as save
+    save(folder, run.remembered)
 
 
 def ros_domain_id() -> int | None:

@@ -219,8 +219,8 @@ def settings_from_record(folder: str | Path, now: dict, unset: list[dict] = ()) 
     resume needs no option but the record. A value of ``now`` counts as given when it is
     none of the ``unset`` ones (flat settings with nothing given, e.g. the node's defaults
     under the default preset and under the record's); a given value other than the record's
-    is refused (InputError, exit status 2) naming the setting and both values. The
-    explorer node (``resume`` parameter) and ``tactex graph run --resume`` both call this."""
+    is refused (InputError, exit status 2) naming the setting and both values. Called by
+    the one resolver of every entrance (``trial.settings.resolve_settings``) alone."""
     rec = record_settings(folder)
     for k in sorted(rec):
         if k in now and now[k] != rec[k] and all(u.get(k) != now[k] for u in unset):

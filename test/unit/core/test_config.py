@@ -331,7 +331,8 @@ def test_the_launch_remembers_what_the_cli_remembers(tmp_path, monkeypatch) -> N
     from tactex_ros.cli.graph_commands import _nodes
     from tactex_ros.cli.main import build_parser
     from tactex_ros.core.paths import config_dir
-    from tactex_ros.ros.run_settings import RUN_FILE, save_run_file
+    from tactex_ros.ros.run_settings import save_run_file
+    from tactex_ros.trial.settings import RUN_FILE
     launch = _launch_module()
     monkeypatch.setenv("ROS_DOMAIN_ID", "7")
     p = launch.plan({"sim": "true", "source": "sim:easy", "seed": "3",
