@@ -22,7 +22,7 @@ added. Then it checks, and prints as JSON:
 - ``clocks``: the terminal's times against the recorded ones: each trial's last decision
   line ``[m:ss elapsed`` against the record's trial time (``report.timing.time_split``), the
   progress topic's mean trial time against the results' ``elapsed_s``, ``interrupted by
-  SIGINT N s into the session`` and ``N min in this run`` against this script's own clock and
+  SIGINT N s into the session`` and ``m:ss in this run`` against this script's own clock and
   the session's events; ``ok`` within 10 % (or the printed value's rounding, whichever is
   larger).
 
@@ -375,14 +375,14 @@ def main(argv: list[str] | None = None) -> int:
     if cut is not None:
         clocks["sigint_into_the_session"] = within(float(cut[1].group(1)), t_cut - t_start, 0.05)
         clocks["sigint_into_the_session"]["recorded_by"] = "this script, from the command's start"
-    done_line = so2.find(r"; (\d+\.\d) min in this run")
+    done_line = so2.find(r"; (\d+:\d\d) in this run")
     runs = [e for e in ev if e.get("event") in ("started", "resumed")]
     part = [e for e in ev if e.get("event") == "part_done"]
     if done_line is not None and runs and part:
-        printed = 60.0 * float(done_line[1].group(1))
-        clocks["min_in_this_run"] = within(printed, t_end - t_restart, 3.0)
-        clocks["min_in_this_run"]["recorded_by"] = "this script, from the command's start"
-        clocks["min_in_this_run"]["events_start_to_part_done_s"] = round(
+        printed = clock_s(done_line[1].group(1))
+        clocks["in_this_run"] = within(printed, t_end - t_restart, 0.5)
+        clocks["in_this_run"]["recorded_by"] = "this script, from the command's start"
+        clocks["in_this_run"]["events_start_to_part_done_s"] = round(
             part[-1]["time"] - runs[-1]["time"], 1)
     mean = [m for _, m in ros.progress if "the mean of" in m]
     if mean:

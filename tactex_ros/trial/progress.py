@@ -56,7 +56,8 @@ def press_line(t: dict[str, Any], replayed: bool = False) -> str:
     return text
 
 
-def _clock(s: float) -> str:
+def clock_text(s: float) -> str:
+    """``s`` [s] as m:ss (rounded to the second)."""
     s = int(round(max(0.0, s)))
     return f"{s // 60}:{s % 60:02d}"
 
@@ -77,9 +78,9 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | No
          f"{r} (final, after the rounds cap {rounds})" if rounds else f"{r}")
     text = f"decision {k}: belief {belief} -> next {nxt}"
     if elapsed_s is not None:
-        text += f" [{_clock(elapsed_s)} elapsed"
+        text += f" [{clock_text(elapsed_s)} elapsed"
         if rest_s is not None and not dec.get("done"):
-            text += f", at most about {_clock(rest_s)} left"
+            text += f", at most about {clock_text(rest_s)} left"
         text += "]"
     if replayed:
         text += " [replayed]"
