@@ -79,6 +79,11 @@ class Stream:
         with self._lock:
             return [line for _, line in self.lines]
 
+    def timed(self, t0: float) -> str:
+        """Every line after its arrival [s since ``t0``], for the files the walk leaves."""
+        with self._lock:
+            return "\n".join(f"{t - t0:8.2f} {line}" for t, line in self.lines)
+
 
 class Ros:
     """This script's own rclpy node: Trigger calls, /diagnostics and the progress topic."""
@@ -312,11 +317,11 @@ def main(argv: list[str] | None = None) -> int:
                     pr.kill()
         time.sleep(1.0)
         ros.close()
-    (out / "stdout1.txt").write_text("\n".join(so.text()))
-    (out / "stderr1.txt").write_text("\n".join(se.text()))
+    (out / "stdout1.txt").write_text(so.timed(t_start))
+    (out / "stderr1.txt").write_text(se.timed(t_start))
     if second is not None:
-        (out / "stdout2.txt").write_text("\n".join(so2.text()))
-        (out / "stderr2.txt").write_text("\n".join(se2.text()))
+        (out / "stdout2.txt").write_text(so2.timed(t_restart))
+        (out / "stderr2.txt").write_text(se2.timed(t_restart))
     summary["actions"] = {k: v[0] for k, v in actions.items()}
     if "error" in summary:
         summary["stderr_tail"] = (se2.text() if second is not None else se.text())[-8:]

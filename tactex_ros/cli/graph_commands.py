@@ -14,9 +14,21 @@ from ..core.errors import InputError
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
                     "session", "session_dir", "trials")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
-# [s, monotonic] this command's start, as near as the parser is (``tactex`` loads this module
-# to build it): "in this run" counts from here to the last line, the nodes' stop included
-STARTED = time.monotonic()
+# [s, monotonic] when ``tactex`` loaded this module to build its parser: the command's start
+# where /proc cannot tell (``command_started``)
+LOADED = time.monotonic()
+
+
+def command_started() -> float:
+    """When this command's process started (time.monotonic [s]): "in this run" and an
+    interruption's "s into the session" count from it, the Python start-up and imports
+    included (9 s at load 11 on 2 cores)."""
+    import os
+    from ..ros.devrun.launcher import process_age_s
+    try:
+        return time.monotonic() - process_age_s(os.getpid())
+    except (OSError, ValueError, IndexError):
+        return LOADED
 
 
 def _nodes(args: argparse.Namespace, explorer: dict | None = None):
@@ -153,9 +165,10 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     save_run_file(d, args.run)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
+    started = command_started()
     run = run_session(nodes, logs, d, confirm=confirm,
                       timeout_s=args.timeout if args.timeout is not None else 86400.0,
-                      domain_id=args.domain_id)
+                      domain_id=args.domain_id, started=started)
     if run.result is None or run.failure is not None:
         how = ("before its last trial" if run.result is None else
                "with its result, but the run failed")
@@ -163,7 +176,7 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
                           session_resume_hint(run.session_dir, args))
     r = run.result
     from ..trial.progress import clock_text
-    took = time.monotonic() - STARTED       # the command's time, start-up and stop included
+    took = time.monotonic() - started       # the command's time, start-up and stop included
     if r["done"] < r["total"]:          # --trials: a part of the session
         import shlex
         print(f"session {r['name']}: {r['done']} of {r['total']} trials done; "
