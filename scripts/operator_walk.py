@@ -370,7 +370,12 @@ def main(argv: list[str] | None = None) -> int:
     err_run = sorted({f"{n}: {m}" for t, n, lv, m in diag if lv >= 2
                       and not t_cut <= t <= t_restart})
     behind = sorted({f"{n}: {m}" for _, n, lv, m in diag if lv == 1 and "behind" in m})
-    summary["diagnostics"] = {"messages": len(diag), "worst_level": worst,
+    warns: dict[str, int] = {}         # each status's WARN texts (numbers left out), counted
+    for _, n, lv, m in diag:
+        if lv == 1:
+            key = f"{n}: " + re.sub(r"\d+(\.\d+)?", "#", m)[:160]
+            warns[key] = warns.get(key, 0) + 1
+    summary["diagnostics"] = {"messages": len(diag), "worst_level": worst, "warn": warns,
                               "errors": err_all[:10], "errors_outside_the_stop": err_run[:10],
                               "warn_simulation_behind": behind[:5], "ok": not err_run}
 
