@@ -198,11 +198,11 @@ class Progress:
                     self.out(f"resume: {e['how']}", "info")
                     printed = True
             elif e.get("event") == "operator" and isinstance(e.get("time"), (int, float)):
-                t = float(e["time"])
+                at = float(e["time"])
                 if e.get("action") == "pause":
-                    self._pauses.append([t, None])
+                    self._pauses.append([at, None])
                 elif self._pauses and self._pauses[-1][1] is None:    # resume, skip, ...
-                    self._pauses[-1][1] = t
+                    self._pauses[-1][1] = at
         for t in self._new_lines("touches.jsonl"):
             if self._first is None and t.get("requested"):
                 self._first = float(t["requested"])
