@@ -14,6 +14,21 @@ from ..core.errors import InputError
 EXPLORER_OPTIONS = ("config", "strategy", "model", "rounds", "seed", "record_dir", "trial_id",
                     "session", "session_dir", "trials")
 DEVICE_OPTIONS = ("source", "sensor", "device")     # mock image; GelSight node
+# [s, monotonic] when ``tactex`` loaded this module to build its parser: the command's start
+# where /proc cannot tell (``command_started``)
+LOADED = time.monotonic()
+
+
+def command_started() -> float:
+    """When this command's process started (time.monotonic [s]): "in this run" and an
+    interruption's "s into the session" count from it, the Python start-up and imports
+    included (9 s at load 11 on 2 cores)."""
+    import os
+    from ..ros.devrun.launcher import process_age_s
+    try:
+        return time.monotonic() - process_age_s(os.getpid())
+    except (OSError, ValueError, IndexError):
+        return LOADED
 
 
 def _nodes(args: argparse.Namespace, explorer: dict | None = None):
@@ -107,12 +122,14 @@ def session_resume_hint(folder: str | Path, args: argparse.Namespace) -> str:
 def session_done_text(result: dict, elapsed_s: float) -> str:
     """The terminal's last line of a finished session (``result``: its result.json): trials,
     accuracy (sure right answers over the trials done) and the not-sure answers counted
-    apart; ``elapsed_s`` [s] of this run."""
+    apart; ``elapsed_s`` [s] of this run, as m:ss (to the second: a short run's tenth of a
+    minute was 6 s)."""
+    from ..trial.progress import clock_text
     acc = "n/a" if result.get("accuracy") is None else f"{result['accuracy']:.3f}"
     skipped = f", {result['skipped']} skipped" if result.get("skipped") else ""
     return (f"session {result['name']}: {result['done']} trials, accuracy "
             f"{acc}, {result.get('not_sure', 0)} not sure{skipped}; "
-            f"{elapsed_s / 60:.1f} min in this run")
+            f"{clock_text(elapsed_s)} in this run")
 
 
 def session_dir(args: argparse.Namespace, nodes: list) -> str:
@@ -148,22 +165,25 @@ def cmd_session(args: argparse.Namespace, nodes: list, logs: Path) -> int:
     save_run_file(d, args.run)
     print(f"starting {', '.join(n.name for n in nodes)} (logs: {logs})", file=sys.stderr)
     confirm = "yes" if args.yes else ("key" if sys.stdin.isatty() else "none")
+    started = command_started()
     run = run_session(nodes, logs, d, confirm=confirm,
                       timeout_s=args.timeout if args.timeout is not None else 86400.0,
-                      domain_id=args.domain_id)
+                      domain_id=args.domain_id, started=started)
     if run.result is None or run.failure is not None:
         how = ("before its last trial" if run.result is None else
                "with its result, but the run failed")
         return run_failed(run, logs, f"session ended {how}",
                           session_resume_hint(run.session_dir, args))
     r = run.result
+    from ..trial.progress import clock_text
+    took = time.monotonic() - started       # the command's time, start-up and stop included
     if r["done"] < r["total"]:          # --trials: a part of the session
         import shlex
         print(f"session {r['name']}: {r['done']} of {r['total']} trials done; "
-              f"{run.elapsed_s / 60:.1f} min in this run; the rest with: tactex graph run "
+              f"{clock_text(took)} in this run; the rest with: tactex graph run "
               f"--session-dir {shlex.quote(str(run.session_dir))}")
         return 0
-    print(session_done_text(r, run.elapsed_s))
+    print(session_done_text(r, took))
     print(f"session folder: {run.session_dir} (report: {run.session_dir / 'report.html'})")
     return 0
 

@@ -5,11 +5,13 @@
 press (platform, force [N], press time [s], failed attempts), a decision (round k of the
 rounds cap N; the answer after the last capped round is "final", never "5/4"), belief per
 platform, the next platform, the time since the trial's first press (the time it was
-interrupted, from its last record line to the resume, left out: ``interrupted_s``) and an
+interrupted, from its last record line to the resume, left out: ``interrupted_s``; the
+operator's pauses too, as the result's ``elapsed_s`` leaves them out) and an
 estimate of the rest: the mean round so far times the rounds left, an upper bound as the
 trial may stop earlier) and how a resume went (learner checkpoint restored, or re-training).
 Touches and decisions a resumed trial had on disk before its interruption are marked
-"replayed": they were pressed before, not now. Until the record folder exists (the nodes are
+"replayed": they were pressed before, not now. A record folder replaced at the same path (a
+redo) is followed afresh from its first line. Until the record folder exists (the nodes are
 starting, 10-25 s) it says so once after ``STARTING_EVERY_S``, then every
 ``STARTING_AGAIN_S``, and no more once the nodes are up (``nodes_up``: a session's placement
 prompt is not buried under it); while nothing new arrives (a thesis
@@ -54,7 +56,8 @@ def press_line(t: dict[str, Any], replayed: bool = False) -> str:
     return text
 
 
-def _clock(s: float) -> str:
+def clock_text(s: float) -> str:
+    """``s`` [s] as m:ss (rounded to the second)."""
     s = int(round(max(0.0, s)))
     return f"{s // 60}:{s % 60:02d}"
 
@@ -75,9 +78,9 @@ def decision_line(dec: dict[str, Any], platform_ids: list[str], rounds: int | No
          f"{r} (final, after the rounds cap {rounds})" if rounds else f"{r}")
     text = f"decision {k}: belief {belief} -> next {nxt}"
     if elapsed_s is not None:
-        text += f" [{_clock(elapsed_s)} elapsed"
+        text += f" [{clock_text(elapsed_s)} elapsed"
         if rest_s is not None and not dec.get("done"):
-            text += f", at most about {_clock(rest_s)} left"
+            text += f", at most about {clock_text(rest_s)} left"
         text += "]"
     if replayed:
         text += " [replayed]"
@@ -128,15 +131,22 @@ class Progress:
         self._first: float | None = None     # epoch s of the first press request
         self._times: list[float] = []        # epoch s of every press and decision seen
         self._resumes: list[float] = []      # epoch s of each resume of the record
+        self._pauses: list[list[float | None]] = []    # [pause, resume] epoch s (operator)
+        self._inode: int | None = None       # the followed folder's (a redo replaces it)
 
     def follow(self, folder: str | Path | None) -> None:
         """Follow another record folder (the next trial of a session)."""
         folder = Path(folder) if folder else None
         if folder != self.folder:
-            self.folder, self._offsets, self._ids = folder, {}, []
-            self._deciding, self._rounds, self._first = None, None, None
-            self._times, self._resumes = [], []
-            self._replayed_touches = self._replayed_decisions = self._seen_decisions = 0
+            self.folder = folder
+            self._afresh()
+
+    def _afresh(self) -> None:
+        """Nothing of the followed folder seen yet."""
+        self._offsets, self._ids, self._inode = {}, [], None
+        self._deciding, self._rounds, self._first = None, None, None
+        self._times, self._resumes, self._pauses = [], [], []
+        self._replayed_touches = self._replayed_decisions = self._seen_decisions = 0
 
     def nodes_up(self) -> None:
         """Every node is up (e.g. a session's placement prompt is out): the start-up line is
@@ -144,9 +154,13 @@ class Progress:
         self._up = True
 
     def _interrupted(self, until: float) -> float:
-        """[s] the trial was interrupted (stopped, then resumed) before ``until``: not part
-        of its elapsed time nor of the estimate of the rest."""
-        return interrupted_s(self._times, self._resumes, until)
+        """[s] the trial was interrupted (stopped, then resumed) or held by the operator's
+        pause before ``until``: not part of its elapsed time (nor of the result's
+        ``elapsed_s``) nor of the estimate of the rest."""
+        first = self._first if self._first is not None else -float("inf")
+        held = sum(max(0.0, min(r if r is not None else until, until) - max(p, first))
+                   for p, r in self._pauses if p is not None)
+        return interrupted_s(self._times, self._resumes, until) + held
 
     def _new_lines(self, name: str) -> list[dict]:
         lines, self._offsets[name] = tail_jsonl(self.folder / name, self._offsets.get(name, 0))
@@ -162,6 +176,13 @@ class Progress:
                 self.out(f"starting the nodes: {now - self._started:.0f} s (the first press "
                          "follows once every node is up)", "info")
             return
+        try:
+            inode = self.folder.stat().st_ino
+        except OSError:
+            return
+        if self._inode is not None and inode != self._inode:
+            self._afresh()         # a redo moved the record away: a new one at the same path
+        self._inode = inode
         if not self._ids:
             self._ids = _comparison_ids(self.folder)
         if self._rounds is None:
@@ -176,6 +197,12 @@ class Progress:
                 if e.get("how"):
                     self.out(f"resume: {e['how']}", "info")
                     printed = True
+            elif e.get("event") == "operator" and isinstance(e.get("time"), (int, float)):
+                at = float(e["time"])
+                if e.get("action") == "pause":
+                    self._pauses.append([at, None])
+                elif self._pauses and self._pauses[-1][1] is None:    # resume, skip, ...
+                    self._pauses[-1][1] = at
         for t in self._new_lines("touches.jsonl"):
             if self._first is None and t.get("requested"):
                 self._first = float(t["requested"])

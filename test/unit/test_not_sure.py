@@ -103,5 +103,8 @@ def test_the_sessions_last_line_counts_the_not_sure_apart(tmp_path: Path) -> Non
     _session(d)
     res = json.loads((d / sess.RESULT_FILE).read_text())      # what cmd_session prints from
     assert res["not_sure"] == 1
-    nums = [float(x) for x in re.findall(r"\d+(?:\.\d+)?", session_done_text(res, 120.0))]
-    assert nums[-4:] == [3.0, round(1 / 3, 3), 1.0, 2.0]      # trials, accuracy, not sure, min
+    nums = [float(x) for x in re.findall(r"\d+(?:\.\d+)?", session_done_text(res, 125.0))]
+    assert nums[-5:] == [3.0, round(1 / 3, 3), 1.0, 2.0, 5.0]  # trials, accuracy, not sure, m:ss
+    # to the second (the operator walk: a 20.7 s run printed as 0.3 min, 18 s)
+    assert re.search(r"(\d+):(\d\d) in this run", session_done_text(res, 20.7)).groups() == (
+        "0", "21")

@@ -46,3 +46,50 @@ def test_a_resumed_trial_does_not_count_its_interruption(tmp_path: Path) -> None
     # 40 s of trial (640 - 600 interrupted): 40 / 3 rounds x 2 left = 27 s at most
     assert "0:40 elapsed, at most about 0:27 left" in lines[1], lines
     assert "0:30 elapsed" in lines[0]
+
+
+def _press(rec: TrialRecord, t: float) -> None:
+    rec.add_touch(None, {"platform_id": "c1", "accepted": False, "reason": "x",
+                         "requested": t, "stamp": t + 2.0})
+
+
+def test_the_operator_pause_is_not_the_trial_time(tmp_path: Path) -> None:
+    """A trial paused for 100 s between its first and second press: the decision line's
+    elapsed time leaves the pause out, as the result's ``elapsed_s`` does (operator walk of
+    issue 47: 25 s printed against 16 s recorded)."""
+    rec = TrialRecord(tmp_path, "t")
+    (rec.dir / "config.json").write_text('{"trial": {"rounds": 4}}')
+    t0 = 1_000_000.0
+    _press(rec, t0)
+    append_event(rec.dir, {"event": "operator", "action": "pause", "time": t0 + 1.0})
+    append_event(rec.dir, {"event": "operator", "action": "resume", "time": t0 + 101.0})
+    _press(rec, t0 + 103.0)
+    rec.add_decision({"round": 1, "belief": [0.5, 0.5], "next": "c1", "done": False,
+                      "time": t0 + 110.0})
+    lines: list[str] = []
+    p = Progress(lambda text, kind: lines.append(text) if kind == "decision" else None)
+    p.follow(rec.dir)
+    p.poll()
+    assert "0:10 elapsed" in lines[0], lines           # 110 s - the 100 s paused
+
+
+def test_a_redone_trial_is_followed_afresh(tmp_path: Path) -> None:
+    """A redo moves the trial's record away and starts a new one at the same path: the new
+    record's presses are printed from its first (operator walk of issue 47: the redone
+    trial's first presses were never shown)."""
+    rec = TrialRecord(tmp_path, "t")
+    for k in range(3):
+        _press(rec, 1000.0 + k)
+    lines: list[str] = []
+    p = Progress(lambda text, kind: lines.append(text) if kind == "press" else None)
+    p.follow(rec.dir)
+    p.poll()
+    assert len(lines) == 3
+    rec.dir.rename(tmp_path / "t.superseded.1")
+    p.poll()                                   # the folder is gone for a moment
+    again = TrialRecord(tmp_path, "t")
+    _press(again, 2000.0)
+    _press(again, 2003.0)
+    p.follow(again.dir)                        # the same path: the session's trial_started
+    p.poll()
+    assert [t.split(":")[0] for t in lines[3:]] == ["press 1", "press 2"], lines

@@ -210,15 +210,17 @@ def supervise(nodes: list[NodeSpec], log_dir: str | Path, domain_id: int | None,
               deadline: Callable[[float], str | None],
               poll: Callable[[], None] | None = None,
               on_start: Callable[[Graph], None] | None = None,
-              poll_s: float = 0.1) -> Supervised:
+              poll_s: float = 0.1, origin: float | None = None) -> Supervised:
     """Start the graph of ``nodes``, ``on_start(graph)`` once, then every ``poll_s``:
     ``poll()``; the first node to exit ends the run (``on_exit(name, code, elapsed_s)`` gives
     the failure, None when that exit is the expected end); a signal ends it (``what``: the trial,
-    the session); ``deadline(elapsed_s)`` ends it with a failure once passed. Every node is
-    stopped in every case, signals are noted (not fatal) meanwhile."""
+    the session; its time counted from ``origin``, time.monotonic [s], e.g. the command's
+    start; default the graph's start); ``deadline(elapsed_s)`` ends it with a failure once
+    passed. Every node is stopped in every case, signals are noted (not fatal) meanwhile."""
     with _Signals() as sig:
         g = Graph(nodes, log_dir, domain_id)
         t0 = time.monotonic()
+        origin = t0 if origin is None else origin
         failure: str | None = None
         try:
             g.start()
@@ -233,7 +235,7 @@ def supervise(nodes: list[NodeSpec], log_dir: str | Path, domain_id: int | None,
                     break
                 if sig.received is not None:
                     failure = (f"interrupted by {signal.Signals(sig.received).name} "
-                               f"{time.monotonic() - t0:.1f} s into the {what}")
+                               f"{time.monotonic() - origin:.1f} s into the {what}")
                     break
                 failure = deadline(time.monotonic() - t0)
                 if failure is not None:
@@ -366,6 +368,15 @@ def process_cpu_s(pid: int) -> float:
     import os
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def process_age_s(pid: int) -> float:
+    """Wall time [s] since process ``pid`` started (``/proc/<pid>/stat`` start time against
+    ``/proc/uptime``, 10 ms steps); OSError when it is gone or there is no /proc."""
+    import os
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    uptime = float(Path("/proc/uptime").read_text().split()[0])
+    return max(0.0, uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK"))
 
 
 def run_graph(nodes: list[NodeSpec], log_dir: str | Path, timeout_s: float | None = 600.0,

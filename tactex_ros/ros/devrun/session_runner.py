@@ -150,9 +150,12 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 confirm: str = "yes", timeout_s: float = 86400.0,
                 domain_id: int | None = None, poll_s: float = 0.1,
                 out: Callable[[str, str], None] | None = None,
-                on_start: Callable[[Graph], None] | None = None) -> SessionRun:
+                on_start: Callable[[Graph], None] | None = None,
+                started: float | None = None) -> SessionRun:
     """Start the graph once, run the explorer's session to its end (or a node's exit, a
-    signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'. An
+    signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'.
+    ``started``: when the command began (time.monotonic [s]; an interruption's time counts
+    from it; default this call). An
     explorer with ``library_materials`` presses a library (``trial/press_library.py``) in
     ``session_dir`` instead, followed through its own events and result files, whose
     events are a session's (``trial``: the material) and ``press_saved`` lines."""
@@ -313,7 +316,7 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     watcher.start()
     try:
         run = supervise(nodes, log_dir, domain_id, "session", ended, deadline, poll=poll,
-                        on_start=on_start, poll_s=poll_s)
+                        on_start=on_start, poll_s=poll_s, origin=started)
     finally:
         over.set()
         watcher.join(timeout=10.0)     # a state query under way ends within its deadline

@@ -409,6 +409,11 @@ class ExplorerNode(TactexNode):
             self._op.control.gate(self.settings.pause_timeout_s, self._is_stopping)
         pid = self.ids[platform]
         deadline = time.monotonic() + self.settings.press_timeout_s
+        # a simulated clock that has not ticked yet (no /clock received: ROS time 0, the
+        # first press right after the nodes came up) would make the request time 0
+        if not self._wait(lambda: self._now() > 0.0, deadline):
+            self._failed(meta, "no simulated clock (/clock) before the press deadline "
+                               "(press_timeout_s)")
         meta["requested"] = self._now()
         self._silence.reset()
         # a goal whose answer is lost is re-sent after goal_answer_s, and the first one is
