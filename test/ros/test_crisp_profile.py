@@ -78,6 +78,9 @@ def test_second_target_publisher_stops_the_arm(tmp_path: Path, listener, press) 
     # so this is the controller's own answer (the mock's CRISP law stops the arm)
     with Graph(_nodes(tmp_path, {"preflight": False}, approach_deadline_s=4.0, retries=0),
                tmp_path / "logs", listener.domain_id):
+        # the camera first (its start-up took over capture_wait_s at load 5 in a fresh-clone
+        # run: the press then failed for want of a camera, not of the arm)
+        _wait_for_camera(listener)
         res = press("c1", timeout=60.0)
         ignored = _targets_ignored(diag, 30.0)
     # the arm stops where the mock first sees the second publisher: at once (the approach's
