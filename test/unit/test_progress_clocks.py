@@ -24,33 +24,37 @@ def test_decision_past_the_cap_is_the_final_one() -> None:
     assert decision_line(dict(d, round=4), ["c1", "c2"], 4).startswith("decision 4/4:")
 
 
+def _press(rec: TrialRecord, t: float, took_s: float = 2.0) -> None:
+    rec.add_touch(None, {"platform_id": "c1", "accepted": False, "reason": "x",
+                         "requested": t, "stamp": t + took_s})
+
+
+def _decision_lines(rec: TrialRecord) -> list[str]:
+    """The decision lines a terminal's Progress prints for the record as it is."""
+    lines: list[str] = []
+    p = Progress(lambda text, kind: lines.append(text) if kind == "decision" else None)
+    p.follow(rec.dir)
+    p.poll()
+    return lines
+
+
 def test_a_resumed_trial_does_not_count_its_interruption(tmp_path: Path) -> None:
     rec = TrialRecord(tmp_path, "t")
     (rec.dir / "config.json").write_text('{"trial": {"rounds": 4}}')
     t0 = 1_000_000.0
     for k in range(3):                      # 3 presses 10 s apart, then decision 1
-        rec.add_touch(None, {"platform_id": "c1", "accepted": False, "reason": "x",
-                             "requested": t0 + 10 * k, "stamp": t0 + 10 * k + 3})
+        _press(rec, t0 + 10 * k, 3.0)
     rec.add_decision({"round": 1, "belief": [0.5, 0.5], "next": "c1", "done": False,
                       "time": t0 + 30.0})
     append_event(rec.dir, {"event": "resumed", "after_touch": 3, "decisions_on_disk": 1,
                            "time": t0 + 630.0})           # stopped for 600 s
-    rec.add_touch(None, {"platform_id": "c1", "accepted": False, "reason": "x",
-                         "requested": t0 + 632.0, "stamp": t0 + 635.0})
+    _press(rec, t0 + 632.0, 3.0)
     rec.add_decision({"round": 2, "belief": [0.6, 0.4], "next": "c2", "done": False,
                       "time": t0 + 640.0})
-    lines: list[str] = []
-    p = Progress(lambda text, kind: lines.append(text) if kind == "decision" else None)
-    p.follow(rec.dir)
-    p.poll()
+    lines = _decision_lines(rec)
     # 40 s of trial (640 - 600 interrupted): 40 / 3 rounds x 2 left = 27 s at most
     assert "0:40 elapsed, at most about 0:27 left" in lines[1], lines
     assert "0:30 elapsed" in lines[0]
-
-
-def _press(rec: TrialRecord, t: float) -> None:
-    rec.add_touch(None, {"platform_id": "c1", "accepted": False, "reason": "x",
-                         "requested": t, "stamp": t + 2.0})
 
 
 def test_the_operator_pause_is_not_the_trial_time(tmp_path: Path) -> None:
@@ -66,10 +70,7 @@ def test_the_operator_pause_is_not_the_trial_time(tmp_path: Path) -> None:
     _press(rec, t0 + 103.0)
     rec.add_decision({"round": 1, "belief": [0.5, 0.5], "next": "c1", "done": False,
                       "time": t0 + 110.0})
-    lines: list[str] = []
-    p = Progress(lambda text, kind: lines.append(text) if kind == "decision" else None)
-    p.follow(rec.dir)
-    p.poll()
+    lines = _decision_lines(rec)
     assert "0:10 elapsed" in lines[0], lines           # 110 s - the 100 s paused
 
 
