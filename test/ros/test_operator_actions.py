@@ -89,6 +89,8 @@ def test_pause_resume_skip_and_redo_through_the_services(tmp_path: Path, domain_
     assert all("of 3 in this run" in t for t in said) and "left" in said[-1], said
     ready = [k for k, t in enumerate(lines) if t.startswith("ready: every node is active")]
     assert len(ready) == 1, lines                  # one ready line, the whole session
+    prompts = [k for k, t in enumerate(lines) if t.endswith("): place")]
+    assert prompts and ready[0] < prompts[0], lines   # ready, then the first placement
     shown = [t for t in lines if t.startswith("trial ") and " by service" in t]
     assert len(shown) == 4, lines                  # each action shown in the terminal
     assert run.result is not None, (run.failure, tmp_path / "logs" / "explorer.log")

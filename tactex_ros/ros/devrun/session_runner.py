@@ -149,13 +149,15 @@ def _stamp(p: Path) -> tuple[int, int] | None:
 def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | Path, *,
                 confirm: str = "yes", timeout_s: float = 86400.0,
                 domain_id: int | None = None, poll_s: float = 0.1,
+                ready_hold_s: float = 30.0,
                 out: Callable[[str, str], None] | None = None,
                 on_start: Callable[[Graph], None] | None = None,
                 started: float | None = None) -> SessionRun:
     """Start the graph once, run the explorer's session to its end (or a node's exit, a
     signal, the deadline), stop every node. ``confirm``: 'yes' | 'key' | 'none'.
     ``started``: when the command began (time.monotonic [s]; an interruption's time counts
-    from it; default this call). An
+    from it; default this call). The first placement prompt waits for the "ready" line
+    (every node active) up to ``ready_hold_s`` [s], then is shown anyway. An
     explorer with ``library_materials`` presses a library (``trial/press_library.py``) in
     ``session_dir`` instead, followed through its own events and result files, whose
     events are a session's (``trial``: the material) and ``press_saved`` lines."""
@@ -227,11 +229,23 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
             if not ok:
                 out(f"not confirmed: {msg}", "info")
 
+    held: list[dict] = []      # events from a prompt on, held until the ready line is out
+    held_since: list[float] = []
+
     def poll() -> None:        # the session's events since the last poll, on the console
         nonlocal offset, n_confirmed, waiting_key
-        evs, offset = tail_jsonl(events_path, offset)
-        for e in evs:
+        new, offset = tail_jsonl(events_path, offset)
+        evs = held + new
+        held.clear()
+        for k, e in enumerate(evs):
             kind = e.get("event")
+            if kind == "awaiting_confirmation" and not (ready.is_set() or over.is_set()):
+                # the prompt comes after the "ready" line (a node's state query may lag the
+                # explorer's first prompt); at most ready_hold_s [s] later it comes anyway
+                held_since[:] = held_since or [time.monotonic()]
+                if time.monotonic() - held_since[0] < ready_hold_s:
+                    held.extend(evs[k:])
+                    break
             if kind == "awaiting_confirmation":
                 progress.nodes_up()         # the prompt is not followed by start-up lines
                 out(f"{e.get('what', 'trial')} {e['trial']} ({e['number']}/{e['of']}): "
@@ -239,7 +253,9 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
                 for pid, fab in e["placement"].items():
                     out(f"  platform {pid}: {fab}", "prompt")
                 awaited[:] = [str(e["trial"])]
-                if confirm == "yes":
+                if over.is_set():
+                    pass                    # the run has ended: shown, not confirmed
+                elif confirm == "yes":
                     for _ in range(10):     # refused: not awaited (yet); try again
                         ok, msg = confirmer.confirm("yes_flag")
                         if ok:
@@ -320,6 +336,8 @@ def run_session(nodes: list[NodeSpec], log_dir: str | Path, session_dir: str | P
     finally:
         over.set()
         watcher.join(timeout=10.0)     # a state query under way ends within its deadline
+        if held:
+            poll()                     # what was held for the ready line, shown now
         confirmer.close()
     failure, exits = run.failure, run.exits
     if failure is not None and d.is_dir():
