@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """operator_walk: issue 47's done-when walked end to end in simulation, as an operator would.
 
-    .venv/bin/python scripts/operator_walk.py --out /tmp/walk [--trials 1,2,3] [--rounds 2]
+    .venv/bin/python scripts/operator_walk.py --out /tmp/walk [--trials 1,2,3] [--rounds 2] [--keys]
 
 A simulated session of ``--session`` (default the thesis's ``human_study``) picked with
 ``--trials`` (three ids) is started with ``tactex graph run --sim ... --yes``; after the ready
@@ -9,13 +9,17 @@ line the first trial is paused and resumed (``/explorer/pause``, ``/explorer/res
 ``std_srvs/srv/Trigger``), the second skipped (``/explorer/skip``), the third redone
 (``/explorer/redo``); in the redone third trial the command gets SIGINT (the operator's
 Ctrl-C), and the ``continue with:`` line it prints on stderr is run as printed, nothing
-added. Then it checks, and prints as JSON:
+added. With ``--keys`` the walk is the terminal's instead: the commands run without ``--yes``
+on a pseudo-terminal as their standard input, every placement is confirmed by Enter once the
+prompt asks for it, and the actions are the keys ``p``, ``r``, ``s``, ``d`` (each then Enter),
+answered by the command's ``trial N: <action> by key`` line. Then it checks, and prints as JSON:
 
 - ``presses``: every trial record (the redo's superseded one too) holds each press once
   (``seq`` 1..n), the presses on disk before the Ctrl-C are kept unchanged, a result's touches
   are its accepted presses, the superseded record is marked so;
 - ``report``: the session report names pause, resume, skip, redo (one ``operator`` row each,
-  ``by`` service) and the interruption;
+  ``by`` service, or key with ``--keys``) and the interruption;
+- ``checks``: the ready line before the first placement prompt; no press while paused;
 - ``diagnostics``: every ``/diagnostics`` status seen, its highest level per status name; the
   ERRORs in the whole walk and outside the stop of the interrupted run (SIGINT to restart);
   the WARNs naming a simulation behind;
@@ -33,8 +37,10 @@ passes, 1 otherwise, 2 for a bad option. One simulated graph at a time on a smal
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import pty
 import re
 import shlex
 import signal
@@ -147,6 +153,55 @@ class Ros:
         self.thread.join(timeout=5.0)
 
 
+class Keys:
+    """An operator at the terminal: a pseudo-terminal as a command's standard input; Enter
+    for each placement prompt that asks for it, a key for each action."""
+
+    ASKS = r"^press Enter once the fabrics are in place"
+
+    def __init__(self) -> None:
+        self.master, self.slave = pty.openpty()
+        self.stream: Stream | None = None
+        self.entered = 0
+        self._stop = threading.Event()
+
+    def follow(self, stream: Stream) -> None:
+        """Answer every prompt of ``stream`` (the command's stdout) with Enter."""
+        self.stream = stream
+        threading.Thread(target=self._answer, daemon=True).start()
+
+    def _answer(self) -> None:
+        while not self._stop.wait(0.2):
+            asks = sum(bool(re.search(self.ASKS, t)) for t in (self.stream.text()
+                                                                if self.stream else []))
+            while self.entered < asks:
+                os.write(self.master, b"\n")
+                self.entered += 1
+
+    def act(self, action: str, trial: str, timeout_s: float = 60.0) -> tuple[bool, str]:
+        """Type the action's key and Enter; True once the command shows it taken."""
+        from tactex_ros.trial.control import KEYS
+        key = next(k for k, a in KEYS.items() if a == action)
+        n_before = len(self.stream.text()) if self.stream else 0
+        os.write(self.master, f"{key}\n".encode())
+        end = time.monotonic() + timeout_s
+        want = re.compile(rf"^trial {re.escape(trial)}: {action} by key")
+        while time.monotonic() < end:
+            for t in (self.stream.text() if self.stream else [])[n_before:]:
+                if want.search(t):
+                    return True, t
+                if t.startswith(f"{action} refused"):
+                    return False, t
+            time.sleep(0.1)
+        return False, f"no '{action} by key' line within {timeout_s:g} s"
+
+    def close(self) -> None:
+        self._stop.set()
+        for fd in (self.master, self.slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+
 def lines_of(path: Path) -> int:
     try:
         return len(path.read_text().splitlines())
@@ -218,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--node-params", help="a ROS 2 parameters file for the other nodes")
     p.add_argument("--deadline-s", type=float, default=1200.0,
                    help="deadline of each of the two commands [s]")
+    p.add_argument("--keys", action="store_true",
+                   help="the terminal's walk: Enter and the action keys instead of services")
     args = p.parse_args(argv)
     ids = [t for t in args.trials.split(",") if t]
     if len(ids) != 3:
@@ -237,15 +294,24 @@ def main(argv: list[str] | None = None) -> int:
     summary: dict = {"date": time.strftime("%Y-%m-%d %H:%M"), "load_before": os.getloadavg(),
                      "out": str(out)}
     command = ["tactex", "graph", "run", "--sim", "--session", args.session, "--trials",
-               args.trials, "--session-dir", str(d), "--yes", "--rounds", str(args.rounds),
-               "--seed", str(args.seed), "--domain-id", str(args.domain_id)]
+               args.trials, "--session-dir", str(d), *([] if args.keys else ["--yes"]),
+               "--rounds", str(args.rounds), "--seed", str(args.seed),
+               "--domain-id", str(args.domain_id)]
+    keys = Keys() if args.keys else None
+    by = "key" if keys else "service"
+
+    def act(action: str, trial: str) -> tuple[bool, str]:
+        return keys.act(action, trial) if keys else ros.trigger(f"/explorer/{action}")
     if args.node_params:
         command += ["--node-params", str(Path(args.node_params).resolve())]
     summary["command"] = shlex.join(command)
     t_start = time.monotonic()
-    proc = subprocess.Popen(command, env=env, cwd=out, stdin=subprocess.DEVNULL,
+    stdin = keys.slave if keys else subprocess.DEVNULL
+    proc = subprocess.Popen(command, env=env, cwd=out, stdin=stdin,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     so, se = Stream(proc.stdout), Stream(proc.stderr)
+    if keys:
+        keys.follow(so)
     actions: dict = {}
     checks: dict = {}
     second: subprocess.Popen | None = None
@@ -256,23 +322,25 @@ def main(argv: list[str] | None = None) -> int:
                  "the ready line", proc)
         t_ready = so.find(r"^ready: every node is active")
         summary["ready_after_s"] = round(t_ready[0] - t_start, 1)
+        first_prompt = so.find(r"\): place$")
+        checks["ready_before_prompt"] = first_prompt is None or first_prompt[0] >= t_ready[0]
         # 1: paused after its first press, held, resumed
         wait_for(lambda: lines_of(a / "touches.jsonl") >= 1, end, f"a press of trial {ids[0]}",
                  proc)
-        actions["pause"] = ros.trigger("/explorer/pause")
+        actions["pause"] = act("pause", ids[0])
         time.sleep(min(5.0, args.pause_s / 2))       # the press under way ends
         held = lines_of(a / "touches.jsonl")
         time.sleep(args.pause_s - min(5.0, args.pause_s / 2))
         checks["no_press_while_paused"] = lines_of(a / "touches.jsonl") == held
-        actions["resume"] = ros.trigger("/explorer/resume")
+        actions["resume"] = act("resume", ids[0])
         # 2: skipped after its first press
         wait_for(lambda: lines_of(b / "touches.jsonl") >= 1, end, f"a press of trial {ids[1]}",
                  proc)
-        actions["skip"] = ros.trigger("/explorer/skip")
+        actions["skip"] = act("skip", ids[1])
         # 3: redone after its first press; Ctrl-C after two presses of the new run
         wait_for(lambda: lines_of(c / "touches.jsonl") >= 1, end, f"a press of trial {ids[2]}",
                  proc)
-        actions["redo"] = ros.trigger("/explorer/redo")
+        actions["redo"] = act("redo", ids[2])
         old = d / f"{sess.record_name(ids[2])}.superseded.1"
         wait_for(lambda: old.is_dir() and lines_of(c / "touches.jsonl") >= 2, end,
                  f"two presses of the redone trial {ids[2]}", proc)
@@ -294,9 +362,12 @@ def main(argv: list[str] | None = None) -> int:
         # the hint as printed, nothing added
         t_restart = time.monotonic()
         second = subprocess.Popen(shlex.split(summary["hint"]), env=env, cwd=out,
-                                  stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                  stdin=stdin, stdout=subprocess.PIPE,
                                   stderr=subprocess.PIPE, text=True)
         so2, se2 = Stream(second.stdout), Stream(second.stderr)
+        if keys:
+            keys.entered = 0
+            keys.follow(so2)
         try:
             second.wait(timeout=args.deadline_s)
         except subprocess.TimeoutExpired as exc:
@@ -317,6 +388,8 @@ def main(argv: list[str] | None = None) -> int:
                     pr.kill()
         time.sleep(1.0)
         ros.close()
+        if keys:
+            keys.close()
     (out / "stdout1.txt").write_text(so.timed(t_start))
     (out / "stderr1.txt").write_text(se.timed(t_start))
     if second is not None:
@@ -358,8 +431,8 @@ def main(argv: list[str] | None = None) -> int:
     interrupted = "interrupted" in page and "SIGINT" in page
     summary["report"] = {"operator_events": ops, "named": named, "interruption": interrupted,
                          "ok": all(named.values()) and interrupted and ops == [
-                             ("pause", ids[0], "service"), ("resume", ids[0], "service"),
-                             ("skip", ids[1], "service"), ("redo", ids[2], "service")]}
+                             ("pause", ids[0], by), ("resume", ids[0], by),
+                             ("skip", ids[1], by), ("redo", ids[2], by)]}
 
     # /diagnostics
     diag = ros.diag
@@ -416,7 +489,7 @@ def main(argv: list[str] | None = None) -> int:
                                 and summary["second_exit"] == 0)
     summary["ok"] = bool(summary["exit_codes_ok"] and press["ok"] and summary["report"]["ok"]
                          and summary["diagnostics"]["ok"] and clocks["ok"]
-                         and checks["no_press_while_paused"]
+                         and checks["no_press_while_paused"] and checks["ready_before_prompt"]
                          and all(v[0] for v in actions.values()))
     summary["checks"] = checks
     (out / "walk.json").write_text(json.dumps(summary, indent=1))

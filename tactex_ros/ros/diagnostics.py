@@ -278,12 +278,15 @@ def _settle_s(th) -> float:
 
 
 def link_check(meter: RateMeter, what: str, warn_s: float, error_s: float,
-               now: float | None = None, phase: Phase | None = None
-               ) -> tuple[int, str, dict[str, object]]:
+               now: float | None = None, phase: Phase | None = None,
+               wall: float | None = None) -> tuple[int, str, dict[str, object]]:
     """A subscriber's view of a stream it needs: ERROR once its newest message is older than
-    ``error_s`` (or none came), WARN above ``warn_s``. ``phase``: the node's start-up (ended by
-    the first message: ``startup_phase``), during which no message yet is expected."""
+    ``error_s`` (or none came), WARN above ``warn_s``, on the meter's clock (``now`` [s], the
+    clock its ticks were stamped on: a simulated graph's simulated time). ``phase``: the
+    node's start-up (ended by the first message: ``startup_phase``), during which no message
+    yet is expected, on the wall clock (``wall`` [s], default ``now``)."""
     now = time.monotonic() if now is None else now
+    wall = now if wall is None else wall
     age, rate = meter.age(now), meter.rate(now)
     level = grade(age, warn_s, error_s)
     msg = (f"no {what} received" if age is None else
@@ -292,8 +295,8 @@ def link_check(meter: RateMeter, what: str, warn_s: float, error_s: float,
     out = level, msg, {"rate [Hz]": rate, "newest age [s]": age, "received": meter.count}
     if phase is not None:
         if age is not None and phase.active:
-            phase.end(now)
-        return phase.apply(out, now)
+            phase.end(wall)
+        return phase.apply(out, wall)
     return out
 
 

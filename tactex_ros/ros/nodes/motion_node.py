@@ -257,15 +257,18 @@ class MotionNode(TactexNode):
         self.arm_startup = startup_phase("robot state", s.diag_startup_s)
         self.diag.add("arm", f"{self.profile.name} ({self.profile.frame_id})", self._arm_health)
         if s.diag_camera_topic:
-            # raw: only the arrival counts, the image is never deserialised here
+            # raw: only the arrival counts, the image is never deserialised here; arrivals
+            # and ages on the node's clock (a simulated graph's simulated time: a starved
+            # machine slows the camera and the clock alike, a stopped camera still ages)
             self.create_subscription(Image, s.diag_camera_topic,
-                                     lambda _m: self.camera_meter.tick(),
+                                     lambda _m: self.camera_meter.tick(self.dclock.read()),
                                      qos_profile_sensor_data, raw=True)
             cam_startup = startup_phase("camera image", s.diag_startup_s)
             self.diag.add("camera link", s.diag_camera_topic,
                           lambda: link_check(self.camera_meter, "camera image",
                                              s.diag_camera_warn_s, s.diag_camera_error_s,
-                                             phase=cam_startup))
+                                             now=self.dclock.read(), phase=cam_startup,
+                                             wall=time.monotonic()))
 
     def _arm_health(self) -> tuple[int, str, dict]:
         from ..diagnostics import ERROR, OK, WARN, grade, robot_mode_name, summary
