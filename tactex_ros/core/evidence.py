@@ -101,7 +101,7 @@ def normalised_distance(x: np.ndarray, others: list[np.ndarray]) -> float:
 
 
 def fit_evidence(descriptors: dict[str, np.ndarray] | list[dict[str, np.ndarray]],
-                 max_pairs: int = 20000, seed: int = 0) -> EvidenceModel:
+                 max_pairs: int = 20000, seed: int = 0, nearest: int = 0) -> EvidenceModel:
     """Fit ``EvidenceModel`` on a library: ``descriptors`` maps class -> (n_k, D) touches (>= 2
     classes, >= 2 touches in at least one), or is a list of such maps, each in its own space
     (pairs are formed only within one map: e.g. class folds each described by a representation
@@ -109,7 +109,12 @@ def fit_evidence(descriptors: dict[str, np.ndarray] | list[dict[str, np.ndarray]
     most ``max_pairs`` of each, drawn with ``seed``. z of a pair is ``||a - b|| / sqrt(2)``
     (n = 1). Both hypotheses get the larger of the two spreads: the log ratio is then linear
     and falling in log z (a far touch never speaks for a match), and a true null narrower than
-    the fitted one only makes the bound conservative (E_0[ratio] < 1)."""
+    the fitted one only makes the bound conservative (E_0[ratio] < 1). ``nearest`` > 0: the
+    null only from pairs of a class with its ``nearest`` nearest classes (distance of class
+    means in the map's space): the different material a scene of alike fabrics offers (the
+    hard scenes), not the average one; 0: every other class."""
+    if nearest < 0:
+        raise InputError(f"evidence model: nearest {nearest}: use 0 (every class) or more")
     spaces = [descriptors] if isinstance(descriptors, dict) else list(descriptors)
     same: list[float] = []
     diff: list[float] = []
@@ -120,12 +125,13 @@ def fit_evidence(descriptors: dict[str, np.ndarray] | list[dict[str, np.ndarray]
         if (any(g.ndim != 2 or len(g) == 0 for g in groups)
                 or len({g.shape[1] for g in groups}) != 1):
             raise InputError("evidence model: every class needs (n >= 1, D) descriptors of one D")
+        pairs = _null_pairs([g.mean(axis=0) for g in groups], nearest)
         for i, a in enumerate(groups):
             for p in range(len(a)):
                 for q in range(p + 1, len(a)):
                     same.append(float(np.linalg.norm(a[p] - a[q])))
-                for b in groups[i + 1:]:
-                    diff.extend(np.linalg.norm(b - a[p], axis=1).tolist())
+                for j in pairs[i]:
+                    diff.extend(np.linalg.norm(groups[j] - a[p], axis=1).tolist())
     if len(same) < 2:
         raise InputError("evidence model: needs >= 2 pairs of touches of one class")
     rng = np.random.default_rng(seed)
@@ -140,6 +146,21 @@ def fit_evidence(descriptors: dict[str, np.ndarray] | list[dict[str, np.ndarray]
     sd = max(float(ls.std()), float(ld.std()), 1e-3)
     return EvidenceModel(mu_same=float(ls.mean()), sd_same=sd, mu_diff=float(ld.mean()),
                          sd_diff=sd)
+
+
+def _null_pairs(means: list[np.ndarray], nearest: int) -> list[list[int]]:
+    """For each class i, the classes j > i it is paired with for the null: every one, or
+    (``nearest`` > 0) those among the ``nearest`` nearest of either class (by mean distance;
+    each unordered pair once)."""
+    n = len(means)
+    if nearest <= 0 or nearest >= n - 1:
+        return [list(range(i + 1, n)) for i in range(n)]
+    m = np.stack(means)
+    d = np.linalg.norm(m[:, None, :] - m[None, :, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    near = {(min(i, j), max(i, j)) for i in range(n)
+            for j in np.argsort(d[i], kind="stable")[:nearest].tolist()}
+    return [sorted(j for (a, j) in near if a == i) for i in range(n)]
 
 
 class EProcess:

@@ -47,6 +47,9 @@ class PrepareSettings(Schema):
     calibration_folds: int = param(3, "class folds of the left-out trials", 2, 20)
     calibration_scenes: int = param(40, "left-out trials per fold", 1, 10000)
     calibration_budget: int = param(10, "touches after the baseline per left-out trial", 1, 100)
+    evidence_nearest: int = param(
+        0, "the e-value stop's null from each class's N nearest classes only (the different "
+           "material of a scene of alike fabrics); 0: every other class", 0, 1000)
     calibration_start: float | None = param(
         None, "temperature the left-out trials run with (default: the config's)", 1e-4, 10.0)
 
@@ -68,7 +71,8 @@ def prepare(descriptors: dict[str, np.ndarray], settings: PrepareSettings,
     emb = embedding_of(cfg)
     rep.embedding = emb.identity if emb is not None else ""
     rep.embedding_frames = int(cfg.descriptor_embedding_frames) if emb is not None else 0
-    evidence = heldout_evidence(descriptors, fit, s.calibration_folds, seed)
+    evidence = heldout_evidence(descriptors, fit, s.calibration_folds, seed,
+                                nearest=s.evidence_nearest)
     rep.evidence = evidence.to_dict() if evidence is not None else {}
     if s.calibration != "off":
         trajs = calibration.trajectories(descriptors, fit, cfg, folds=s.calibration_folds,
@@ -86,12 +90,13 @@ def prepare(descriptors: dict[str, np.ndarray], settings: PrepareSettings,
 
 def heldout_evidence(descriptors: dict[str, np.ndarray],
                      fit_rep: Callable[[dict[str, np.ndarray]], Representation], folds: int,
-                     seed: int = 0):
+                     seed: int = 0, nearest: int = 0):
     """The e-value stop's evidence model (``core/evidence.py``) in the prepared space, fitted
     as a new material meets it: the library's classes in ``folds`` class folds, each fold
     described by the representation ``fit_rep`` fits on the other folds (pairs only within a
     fold). A fold is skipped when it has fewer than 2 classes or the others cannot be fitted;
-    None when no fold is left (a library too small: its file then holds no evidence model)."""
+    None when no fold is left (a library too small: its file then holds no evidence model).
+    ``nearest``: ``fit_evidence``'s (the null from each class's nearest classes only)."""
     from .calibration import class_split
     from .errors import InputError
     from .evidence import fit_evidence
@@ -106,6 +111,6 @@ def heldout_evidence(descriptors: dict[str, np.ndarray],
             continue
         spaces.append({c: rep.apply(descriptors[c]) for c in held})
     try:
-        return fit_evidence(spaces, seed=seed) if spaces else None
+        return fit_evidence(spaces, seed=seed, nearest=nearest) if spaces else None
     except InputError:                     # no class with two presses in any fold
         return None

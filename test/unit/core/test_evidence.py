@@ -98,6 +98,25 @@ def test_ville_bound_under_the_null():
     assert (np.cumsum(lr1, axis=1) >= math.log(1 / alpha)).any(axis=1).mean() > 0.95
 
 
+def test_the_nearest_null_pairs_each_class_with_its_nearest_classes_only():
+    """Class means on a line at 0, 1, 3, 7 (one dimension, 3 touches each, no spread within a
+    class): with nearest=1 the null pairs are 0-1, 1-3 (1's nearest is 0, 3's is 1) and 3-7;
+    their z = |difference| / sqrt(2), so the null's log z mean is that of 1, 2, 4."""
+    from tactex_ros.core.evidence import _null_pairs
+    means = [np.array([0.0]), np.array([1.0]), np.array([3.0]), np.array([7.0])]
+    assert _null_pairs(means, 1) == [[1], [2], [3], []]
+    assert _null_pairs(means, 0) == _null_pairs(means, 3) == [[1, 2, 3], [2, 3], [3], []]
+    rng = np.random.default_rng(0)
+    lib = {f"k{i}": np.full((3, 1), m[0]) + rng.normal(0, 1e-3, (3, 1))
+           for i, m in enumerate(means)}
+    near, every = fit_evidence(lib, nearest=1), fit_evidence(lib)
+    want = np.mean(np.log(np.array([1.0, 2.0, 4.0]) / math.sqrt(2)))
+    assert near.mu_diff == pytest.approx(want, abs=1e-2)
+    assert near.mu_diff < every.mu_diff          # the nearest different class is closer
+    with pytest.raises(InputError, match="nearest"):
+        fit_evidence(lib, nearest=-1)
+
+
 def test_fit_on_a_library():
     rng = np.random.default_rng(0)
     lib = {f"k{i}": rng.normal(3.0 * i, 0.3, size=(6, 5)) for i in range(4)}
