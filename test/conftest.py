@@ -5,9 +5,9 @@ every test under ``test/ros/`` and ``test/launch/`` ``ros`` (real processes), so
 product's pure tests and ``make test`` runs everything but the ``soak`` tests (``make
 test-soak``: long property and cluster runs).
 
-``make test`` runs two workers, a file per worker at a time: the files of real processes (the
+``make test`` runs three workers (on two cores), a file per worker at a time: the files of real processes (the
 longest) are handed out first, so that the many short files fill the end of the run instead of
-one worker finishing a long graph test while the other waits (``--no-loadscope-reorder``)."""
+one worker finishing a long graph test while the others wait (``--no-loadscope-reorder``)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 # One OpenMP / BLAS thread per process, set before torch or numpy load their thread pools:
-# `make test` runs two workers on two cores beside the graph tests' node processes (which
+# `make test` runs three workers on two cores beside the graph tests' node processes (which
 # inherit it), and a pool of a thread per core spins against them (measured: the CNN ladder
 # test took 117 s beside a graph test, 5 s alone). An exported value is kept.
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -53,6 +53,9 @@ def _offline(record: Path, out: Path, burst: bool = True, rounds: int | None = N
     return res
 
 
+# 45 s of graph (make test-soak); the burst through the graph stays in make test (below), its
+# replay in test/unit/test_record_burst.py
+@pytest.mark.soak
 def test_live_burst_trial_equals_its_offline_replay(tmp_path: Path, listener,
                                                     quick_scene: str) -> None:
     nodes = describe(True, quick_scene,

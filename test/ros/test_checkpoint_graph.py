@@ -48,6 +48,9 @@ def _checkpoint_round(rec: Path) -> int:
     return int(got[0]["round"]) if got else 0
 
 
+# 68 s of CNN training in the graph (make test-soak); the checkpoint's resume without the graph:
+# test/lab/cnn/test_ladder_climbs_to_cnn.py
+@pytest.mark.soak
 def test_resume_restores_the_learner_checkpoint(tmp_path: Path, domain_id: int,
                                                 small_scene: str) -> None:
     rec = tmp_path / "rec" / "t"

@@ -171,6 +171,9 @@ def _run(tmp: Path, listener, name: str, fault: Fault | None, resume: Path | Non
     return run, rec, clear
 
 
+# 71 s of graph (make test-soak); make test keeps a kill -9 (test_session), a Ctrl-C
+# (test_runner_outcome) and a killed press server (below), each resumed or ended
+@pytest.mark.soak
 def test_kills_freeze_and_ctrl_c_then_resume(tmp_path: Path, listener, small_scene: str,
                                               force_trace) -> None:
     """One trial, interrupted four times and resumed each time: kill -9 of the motion node
@@ -309,6 +312,8 @@ def test_explorer_gives_up_on_a_press_server_that_is_gone(tmp_path: Path, listen
     _check_record(record, [])
 
 
+# 47 s of graph (make test-soak); a press result kept past the action's timeout: test_goal_loss
+@pytest.mark.soak
 def test_stalled_explorer_keeps_the_press_that_arrived(tmp_path: Path, listener,
                                                        small_scene: str) -> None:
     """SIGSTOP of the explorer during its 4th press for more than press_silence_s, then
