@@ -29,21 +29,6 @@ CLOCK_TOPIC = "/clock"
 #: Most wall time [s] a simulated clock may stand still before a wait fails on it
 SIM_STALL_S = 60.0
 
-#: /clock updates a node takes without robot state before a simulated graph counts the state
-#: stopped. A node starved of CPU while the clock source ran takes the newest /clock (keep last
-#: 1) first on waking, then the state queued behind it: one update, not a stopped robot.
-SIM_STALE_UPDATES = 10
-
-
-def state_stale(age_s: float, limit_s: float, updates_since: int | None) -> bool:
-    """Whether robot state ``age_s`` [s] old counts as stopped: older than ``limit_s`` [s]
-    and, on a simulated clock (``updates_since``: the /clock updates this node took since that
-    state arrived), only once the clock went on without it for ``SIM_STALE_UPDATES`` updates;
-    on wall time (``updates_since`` None) by its age alone."""
-    if age_s <= limit_s:
-        return False
-    return updates_since is None or updates_since >= SIM_STALE_UPDATES
-
 
 def clock_qos() -> QoSProfile:
     """The /clock QoS: keep last 1, best effort, as rclpy's TimeSource subscribes and
@@ -74,17 +59,6 @@ class NodeClock:
         self.sim = uses_sim_time(node)
         self.stall_s = float(stall_s)
         self._seen = (-1.0, time.monotonic())    # (last simulated time, wall time it changed)
-        self.updates = 0        # /clock updates this node's clock took (simulated clock only)
-        if self.sim:
-            from rclpy.clock import JumpThreshold
-            from rclpy.duration import Duration
-            # every forward step of the clock (rcl calls it from the /clock subscription)
-            self._jump = node.get_clock().create_jump_callback(
-                JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None,
-                              on_clock_change=False), post_callback=self._updated)
-
-    def _updated(self, _jump: Any) -> None:
-        self.updates += 1
 
     def now(self) -> float:
         """Seconds on this node's deadline clock (see the class doc)."""

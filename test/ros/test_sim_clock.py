@@ -123,33 +123,3 @@ def test_the_same_slow_arm_on_wall_time_is_refused(tmp_path: Path, domain_id: in
             time.sleep(0.2)
         code = proc.poll()
     assert code == 1, (code, (tmp_path / "logs" / "motion.log").read_text()[-2000:])
-
-
-def test_a_node_on_the_simulated_clock_counts_each_clock_update(listener) -> None:
-    """NodeClock.updates counts every /clock step the node's clock takes (rcl's jump callback
-    from the time source): the motion node's stale-state rule counts these (ros/simclock.py
-    ``state_stale``)."""
-    import rclpy
-    from rclpy.parameter import Parameter
-    from rosgraph_msgs.msg import Clock
-
-    from tactex_ros.ros.simclock import CLOCK_TOPIC, NodeClock, clock_qos
-    node = rclpy.create_node("sim_timed", context=listener.ctx,
-                             parameter_overrides=[Parameter("use_sim_time", value=True)])
-    clock = NodeClock(node)
-    assert clock.sim and clock.updates == 0
-    listener.ex.add_node(node)
-    pub = listener.node.create_publisher(Clock, CLOCK_TOPIC, clock_qos())
-    try:
-        for k in range(1, 6):
-            msg = Clock()
-            msg.clock.sec = 100 + k
-            deadline = time.monotonic() + 10.0
-            while clock.read() < 100 + k and time.monotonic() < deadline:
-                pub.publish(msg)
-                time.sleep(0.05)
-            assert clock.read() == 100 + k, (k, clock.read())
-        assert clock.updates == 5
-    finally:
-        listener.ex.remove_node(node)
-        node.destroy_node()

@@ -53,7 +53,6 @@ from ...robot import preflight as checks
 from ...robot.press import PressController, check_press
 from ..preflight import Probe, arm_topics, other_graph, robot_preflight
 from ..settings import MotionSettings
-from ..simclock import state_stale
 from ...robot.robots import (fill_message, hold_target, import_interface, load_profile,
                              with_profile)
 from ...robot.scene import load_scene
@@ -159,11 +158,9 @@ class MotionNode(TactexNode):
         self.quat = np.array(self.scene.tool_orientation)
         self.position: np.ndarray | None = None
         self.pose_t = -1.0
-        self.pose_updates = 0       # the clock's updates when it came (ros/simclock.py)
         self.force = 0.0            # signed normal force [N]
         self.force_mag = 0.0        # force magnitude [N]
         self.wrench_t = -1.0
-        self.wrench_updates = 0
         self._samples: list[tuple[float, float]] = []   # (normal, magnitude) since the tick
         self._samples_lock = threading.Lock()
         self.samples_seen = 0        # wrench samples the press loop checked
@@ -397,7 +394,7 @@ class MotionNode(TactexNode):
     def _on_pose(self, msg: PoseStamped) -> None:
         try:
             self.position = adapter.pose_to_array(msg)[0]
-            self.pose_t, self.pose_updates = self.dclock.read(), self.dclock.updates
+            self.pose_t = self.dclock.read()
             self.state_meter.tick(self.pose_t)
         except InputError as exc:
             self.get_logger().warning(f"pose ignored: {exc}")
@@ -405,7 +402,7 @@ class MotionNode(TactexNode):
     def _on_wrench(self, msg: WrenchStamped) -> None:
         try:
             self.force, self.force_mag = adapter.force_components(msg.wrench.force, self.sign)
-            self.wrench_t, self.wrench_updates = self.dclock.read(), self.dclock.updates
+            self.wrench_t = self.dclock.read()
             self._keep_sample(self.force, self.force_mag)
         except InputError as exc:
             self.get_logger().warning(f"wrench ignored: {exc}")
@@ -418,7 +415,6 @@ class MotionNode(TactexNode):
             return
         self.position, self.force, self.force_mag, self.robot_mode = pos, fn, mag, mode
         self.pose_t = self.wrench_t = self.dclock.read()
-        self.pose_updates = self.wrench_updates = self.dclock.updates
         self._keep_sample(fn, mag)
         self.state_meter.tick(self.pose_t)
 
@@ -450,11 +446,8 @@ class MotionNode(TactexNode):
 
     def _fresh(self, now: float) -> bool:
         lim = self.settings.state_timeout_s
-        n = self.dclock.updates if self.dclock.sim else None
-        return (self.position is not None and
-                not state_stale(now - self.pose_t, lim, None if n is None else n - self.pose_updates)
-                and not state_stale(now - self.wrench_t, lim,
-                                    None if n is None else n - self.wrench_updates))
+        return (self.position is not None and now - self.pose_t <= lim and
+                now - self.wrench_t <= lim)
 
     def _state_age(self, now: float) -> float:
         """[s] the age of the older of the newest pose and the newest wrench."""

@@ -7,8 +7,7 @@ import time
 
 import pytest
 
-from tactex_ros.ros.simclock import (SIM_STALE_UPDATES, NodeClock, RealTimeFactor,
-                                      SimClockStalled, state_stale)
+from tactex_ros.ros.simclock import NodeClock, RealTimeFactor, SimClockStalled
 
 
 class _Now:
@@ -21,18 +20,13 @@ class _FakeNode:
 
     def __init__(self, sim: bool) -> None:
         self.sim, self.t = sim, 0.0
-        self.jumps: list = []          # the post-jump callbacks registered on its clock
 
     def get_parameter(self, name: str):
         assert name == "use_sim_time"
         return type("P", (), {"value": self.sim})()
 
     def get_clock(self):
-        def jump(_s, threshold, post_callback=None):
-            assert threshold.min_forward.nanoseconds == 1 and post_callback is not None
-            self.jumps.append(post_callback)
-        return type("C", (), {"now": lambda _s: _Now(int(self.t * 1e9)),
-                              "create_jump_callback": jump})()
+        return type("C", (), {"now": lambda _s: _Now(int(self.t * 1e9))})()
 
 
 def test_wall_time_is_monotonic() -> None:
@@ -70,27 +64,3 @@ def test_real_time_factor() -> None:
         r.tick(1000.0 + 0.025 * i, 10.0 + 0.1 * i)
     assert r.factor(11.0) == pytest.approx(0.25)
     assert r.factor(13.0) == pytest.approx(0.25 / 3.0)   # a stopped source falls towards 0
-
-
-def test_state_is_stale_on_a_simulated_clock_only_once_the_clock_went_on_without_it() -> None:
-    """Older than the limit: stale on wall time; on a simulated clock only after
-    SIM_STALE_UPDATES clock updates without state (a starved node's first update on waking
-    is not a stopped robot)."""
-    assert SIM_STALE_UPDATES == 10
-    assert state_stale(1.5, 1.0, None) is True
-    assert state_stale(1.0, 1.0, None) is False
-    assert state_stale(0.5, 1.0, 100) is False
-    assert state_stale(1.5, 1.0, 1) is False
-    assert state_stale(1.5, 1.0, 9) is False
-    assert state_stale(1.5, 1.0, 10) is True
-
-
-def test_a_simulated_node_clock_counts_its_updates() -> None:
-    node = _FakeNode(True)
-    c = NodeClock(node)
-    assert c.updates == 0 and len(node.jumps) == 1
-    for _ in range(3):
-        node.jumps[0](None)
-    assert c.updates == 3
-    wall = _FakeNode(False)
-    assert NodeClock(wall).updates == 0 and wall.jumps == []
