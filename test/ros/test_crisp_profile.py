@@ -43,6 +43,23 @@ def _wait_for_camera(listener, timeout_s: float = 90.0) -> None:
         pytest.fail(f"no {CAPTURE_SERVICE} within {timeout_s} s")
 
 
+def _wait_for_state(diag: list, timeout_s: float = 90.0) -> None:
+    """Wait until the motion node reports fresh robot state (its /diagnostics "motion: arm"
+    status with a state age under 1 s): with the pre-flight off nothing else waits for it, and on a loaded
+    machine DDS matched the state topics after the press had begun (a fresh-clone run beside
+    four CPU hogs: "no robot state within state_timeout_s" at the press's start)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        for m in list(diag):
+            for st in m.status:
+                if st.name == "motion: arm" and any(
+                        kv.key == "state age [s]" and kv.value != "" and float(kv.value) < 1.0
+                        for kv in st.values):
+                    return
+        time.sleep(0.1)
+    pytest.fail(f"the motion node reported no robot state within {timeout_s} s")
+
+
 def test_press_through_the_crisp_profile(tmp_path: Path, listener, press) -> None:
     prof = load_profile("fr3_crisp")
     nodes = _nodes(tmp_path)
@@ -81,6 +98,7 @@ def test_second_target_publisher_stops_the_arm(tmp_path: Path, listener, press) 
         # the camera first (its start-up took over capture_wait_s at load 5 in a fresh-clone
         # run: the press then failed for want of a camera, not of the arm)
         _wait_for_camera(listener)
+        _wait_for_state(diag)
         res = press("c1", timeout=60.0)
         ignored = _targets_ignored(diag, 30.0)
     # the arm stops where the mock first sees the second publisher: at once (the approach's
