@@ -324,6 +324,9 @@ class MockArmSettings(Schema):
                                         "[cycle time per wall time] (< 1: a forced slow "
                                         "simulation, as on a starved machine)",
                                         0.001, 1.0)
+    clock_every: int = param(2, "on the simulated clock, /clock goes out every this many "
+                                "simulation cycles (2 at rate_hz 100: 50 Hz in 20 ms steps; "
+                                "the state still at every cycle)", 1, 2)
     start_x: float = param(0.5, "start position x [m] in the base frame", -2.0, 2.0)
     start_y: float = param(0.0, "start position y [m] in the base frame", -2.0, 2.0)
     start_z: float = param(0.3, "start position z [m] in the base frame", -2.0, 2.0)

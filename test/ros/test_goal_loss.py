@@ -17,6 +17,7 @@ from rclpy.task import Future
 from tactex_ros.ros.graph import describe
 from tactex_ros.ros.goal import GoalRequest
 from tactex_ros.ros.devrun.launcher import Graph
+from tactex_ros.ros.nodes.motion_node import FEEDBACK_PERIOD_S
 
 pytestmark = pytest.mark.ros
 
@@ -50,7 +51,7 @@ def _press(client, platform: str, timeout: float = 90.0):
     while not req.finished() and time.monotonic() < end:
         time.sleep(0.02)
     assert req.finished(), f"press of {platform} not finished within {timeout} s"
-    return req, {bytes(m.goal_id.uuid) for m in fb}
+    return req, {bytes(m.goal_id.uuid) for m in fb}, [m.feedback for m in fb]
 
 
 def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener,
@@ -64,15 +65,23 @@ def test_lost_goal_response_and_request_cost_no_touch(tmp_path: Path, listener,
         assert ac.wait_for_server(timeout_sec=30.0)
         # the motion node takes the goal, its response is lost: the re-sent goal is refused
         # (a press runs) and the first one is followed by its id to its result
-        req, fb_ids = _press(LossyClient(ac, lose_response={0}), "c1")
+        req, fb_ids, feedback = _press(LossyClient(ac, lose_response={0}), "c1")
         first = bytes(req.sent[0].gid.uuid)
         assert req.resent >= 1 and req.result.status == GoalStatus.STATUS_SUCCEEDED
         assert req.result.result.success, req.result.result.reason
         assert req.result.result.touch.image.width == 320
         assert bytes(req.handle.goal_id.uuid) == first
         assert fb_ids == {first}               # one press made, by the first goal
+        # feedback: every phase in its order, at most every FEEDBACK_PERIOD_S besides a
+        # phase change (the press's time is simulated, as the feedback's pace)
+        last = [f for f in feedback if f.attempt == req.result.result.attempts]
+        phases = [f.phase for i, f in enumerate(last) if i == 0 or f.phase != last[i - 1].phase]
+        assert len(set(phases)) == len(phases) and phases[-2:] == ["retract", "done"], phases
+        assert {"approach", "descend", "settle", "capture"} <= set(phases), phases
+        press_s = req.result.result.touch.press_s
+        assert len(last) <= press_s / FEEDBACK_PERIOD_S + len(phases) + 2, (len(last), press_s)
         # the goal request is lost: the re-sent goal is taken and makes the only press
-        req, fb_ids = _press(LossyClient(ac, lose_request={0}), "c2")
+        req, fb_ids, _ = _press(LossyClient(ac, lose_request={0}), "c2")
         assert req.resent == 1 and req.result.status == GoalStatus.STATUS_SUCCEEDED
         assert req.result.result.success, req.result.result.reason
         assert fb_ids == {bytes(req.sent[1].gid.uuid)}

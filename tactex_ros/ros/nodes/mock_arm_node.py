@@ -28,7 +28,8 @@ services bring hardware, then controllers, back -- in that order, as franka_ros2
 Time: with ``use_sim_time`` (every node of a simulated graph, ``tactex_ros.ros.simclock``) the
 mock arm is the graph's clock source: each simulation cycle steps the physics by 1 / ``rate_hz``
 (a late tick by up to ``SIM_CATCH_UP_CYCLES`` of them) and publishes ``rosgraph_msgs/Clock`` on
-``/clock`` advanced by what it computed (never by the wall clock); the cycle is paced to at most
+``/clock`` advanced by what it computed (never by the wall clock), every ``clock_every``
+cycles (default 2: 50 Hz at 100 Hz, each /clock costs every node of the graph a wake-up); the cycle is paced to at most
 real time and runs slower when starved past that bound, so the others' deadlines stretch with it. The simulated time starts at the wall clock's epoch time of
 activation (stamps stay readable). Without ``use_sim_time`` (a mock beside wall-time nodes) the
 physics follows the wall clock as a real arm does: up to ``CATCH_UP_S`` of missed cycles run at
@@ -121,6 +122,7 @@ class MockArmNode(TactexNode):
             self._clock_msg = Clock
             self.clock_pub = self.create_publisher(Clock, CLOCK_TOPIC, clock_qos())
             self.sim_t = time.time()      # [s] simulated time, advanced by dt per cycle
+            self._cycles = 0              # simulation cycles since activation
             self._publish_clock()
         self._last = self.get_clock().now().nanoseconds * 1e-9
         self._wall_last = time.monotonic()
@@ -256,7 +258,9 @@ class MockArmNode(TactexNode):
             dt = min(max(1, int(late + 0.5)), SIM_CATCH_UP_CYCLES) / self.settings.rate_hz
             self.arm.step(dt)
             self.sim_t += dt
-            self._publish_clock()
+            self._cycles += 1
+            if self._cycles % self.settings.clock_every == 0:
+                self._publish_clock()
             now = self.sim_t
         else:
             now = self.get_clock().now().nanoseconds * 1e-9

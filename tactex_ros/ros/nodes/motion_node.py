@@ -68,6 +68,10 @@ BURST_RETRY_S = 0.05  # [s] a short burst is asked for again after this (the pre
 SIM_BEHIND_S = 2.0    # [s wall] a simulated clock standing still this long: "simulation behind"
 SIM_BEHIND_RTF = 0.5  # below this real-time factor the simulation is behind (WARN)
 GRAPH_CHECK_S = 0.5   # [s] one graph per arm is checked this often until the first goal
+#: [s] press feedback goes out at a phase change and at most this often otherwise (10 Hz: a
+#: display's rate and 100 times inside press_silence_s; every 10 ms control step cost the
+#: explorer a wake-up per step for a message it only counts)
+FEEDBACK_PERIOD_S = 0.1
 #: the wrench subscription's own keep-last depth: the upstream publisher's reliability
 #: (best effort) with room for 64 ms of franka's 1 kHz stream between two callbacks, so the
 #: force limit sees every sample (a depth of 1 keeps only the newest when a callback is late)
@@ -604,6 +608,7 @@ class MotionNode(TactexNode):
                                surface_hint=self.found.get(platform.id))
         self._take_samples()    # a sample from before the press is not the press's
         cap, pose_xyz, fb, burst = None, None, Press.Feedback(), None
+        fb_next = float("-inf")     # when the next feedback is due (node clock) [s]
         try:
             while not ctrl.done:
                 now = self.dclock.now()
@@ -641,9 +646,11 @@ class MotionNode(TactexNode):
                 elif burst is not None:     # the press ended the capture (limit, deadline)
                     burst.cancel()
                     burst = None
-                fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
-                fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
-                goal_handle.publish_feedback(fb)
+                if ctrl.phase != fb.phase or now >= fb_next:
+                    fb.phase, fb.force_n, fb.attempt = ctrl.phase, ctrl.force_n, attempt
+                    fb.depth_m = float(max(0.0, platform.position[2] - self.position[2]))
+                    goal_handle.publish_feedback(fb)
+                    fb_next = now + FEEDBACK_PERIOD_S
                 time.sleep(period)
         finally:
             if burst is not None:
