@@ -24,10 +24,12 @@ from tactex_ros.core.errors import InputError
 
 def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, theta: float,
         alpha: float, strategies: list[str] | None = None, scene_protocol: str = "random",
-        metric_library: str | None = None, representation: str = "") -> dict:
+        metric_library: str | None = None, representation: str = "",
+        stop_null: str = "library") -> dict:
     """Run every scene under both arms (the two rules, or the two ``strategies`` under the
     threshold rule); returns the summary (per arm and the paired tests). ``representation``:
-    a ``tactex prepare`` file both arms run with (its evidence model for the e-value rule)."""
+    a ``tactex prepare`` file both arms run with (its evidence model for the e-value rule);
+    ``stop_null``: the e-value rule's ``trial.stop_null``."""
     from tactex_ros.core.config import preset, trial_preset
     from tactex_ros.core.engine import TrialSpec, run_trial
     from tactex_ros.sources import open_source
@@ -43,7 +45,7 @@ def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, thet
                  for st in strategies}
     else:
         rules = {"threshold": dict(stop_rule="threshold", stop_confidence=theta),
-                 "evalue": dict(stop_rule="evalue", stop_alpha=alpha)}
+                 "evalue": dict(stop_rule="evalue", stop_alpha=alpha, stop_null=stop_null)}
     scene = SceneDraw(scene_protocol, src, comparisons, preset("default"), metric_library,
                       source)
     rows: dict[str, list[dict]] = {k: [] for k in rules}
@@ -60,6 +62,7 @@ def run(source: str, scenes: int, comparisons: int, rounds: int, seed: int, thet
                                "confidence": res.confidence})
     out: dict = {"source": source, "scenes": scenes, "comparisons": comparisons,
                  "rounds": rounds, "seed": seed, "theta": theta, "alpha": alpha,
+                 "stop_null": None if strategies else stop_null,
                  "scene_protocol": scene_protocol, "representation": representation or None,
                  "metric_library": metric_library if scene_protocol == "hard" else None,
                  "arms": {}, "scene_classes": drawn}
@@ -104,6 +107,9 @@ def register(esub: argparse._SubParsersAction) -> None:
     p.add_argument("--representation", default="",
                    help="a tactex prepare file both arms run with (prepare it on another "
                         "library: class-disjoint)")
+    p.add_argument("--stop-null", choices=("library", "scene"), default="library",
+                   help="the e-value rule's trial.stop_null: the evidence model's null, or "
+                        "also the scene's own pairs of comparisons")
     p.add_argument("--file", required=True, help="summary JSON to write")
 
     def func(args: argparse.Namespace) -> int:
@@ -118,7 +124,7 @@ def register(esub: argparse._SubParsersAction) -> None:
                                  f"ones of {', '.join(STRATEGY_NAMES)}")
         out = run(args.source, args.scenes, args.comparisons, args.rounds, args.seed,
                   args.theta, args.alpha, args.strategies, args.scene_protocol,
-                  args.metric_library, args.representation)
+                  args.metric_library, args.representation, args.stop_null)
         Path(args.file).parent.mkdir(parents=True, exist_ok=True)
         Path(args.file).write_text(json.dumps(out, indent=1) + "\n")
         for name, r in out["arms"].items():

@@ -329,6 +329,10 @@ class TrialConfig(Schema):
     stop_alpha: float = param(0.03, "stop_rule evalue: the bound on the chance of ever "
                                     "stopping wrong (stop at e-value 1 / stop_alpha)",
                               1e-6, 0.5)
+    stop_null: Literal["library", "scene"] = param(
+        "library", "stop_rule evalue: the null's distance between different materials: the "
+                   "evidence model's (library), or also the trial's own touches of two "
+                   "comparisons, the closer of the two (scene; core/evidence.py)")
     max_touches: int = param(0, "cap on total touches incl. baseline (0 = no cap)", 0, 100000)
     baseline_passes: int = param(5, "passes over platforms whose baseline touch failed before "
                                     "the trial gives up", 1, 100)

@@ -306,7 +306,8 @@ class TrialEngine:
                 rep = self.learner.representation
                 evidence = shipped_evidence(self.learner_cfg,
                                             prepared=rep.evidence if rep is not None else None)
-            self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha)
+            self.eprocess = EProcess(n_comparisons, evidence, self.trial_cfg.stop_alpha,
+                                     null=self.trial_cfg.stop_null)
 
     def set_no_contact_reference(self, frame: np.ndarray | None) -> None:
         """A no-contact frame of this sensor session: enables the guard's contact test."""

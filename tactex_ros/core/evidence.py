@@ -163,18 +163,58 @@ def _null_pairs(means: list[np.ndarray], nearest: int) -> list[list[int]]:
     return [sorted(j for (a, j) in near if a == i) for i in range(n)]
 
 
-class EProcess:
-    """The e-values ``E_c`` of C comparisons, updated touch by touch (see the module text)."""
+#: The nulls an e-process can use: the model's (fitted on a library), or the scene's own
+NULLS = ("library", "scene")
 
-    def __init__(self, n_comparisons: int, model: EvidenceModel, alpha: float) -> None:
+#: null "scene": the trial's own pairs of touches of two comparisons count once there are this many
+SCENE_NULL_MIN_PAIRS = 3
+
+
+class EProcess:
+    """The e-values ``E_c`` of C comparisons, updated touch by touch (see the module text).
+
+    ``null`` "library": the model's null throughout. "scene": the null's mean of log z is also
+    estimated from the trial's own touches of two different comparisons (different materials
+    where a scene's comparisons are distinct materials, as every protocol here draws them):
+    the smaller of the model's ``mu_diff`` and the mean log z of those pairs (each
+    ``||a - b|| / sqrt(2)``, as the model's fit), never below ``mu_same``, once
+    ``SCENE_NULL_MIN_PAIRS`` pairs exist; every e-value is then recomputed with it. A scene of
+    alike materials gets a closer null, so less evidence per touch (the library's average
+    different material made hard scenes stop wrong above alpha). The null then depends on the
+    trial, so Ville's bound holds only as far as that estimate is the scene's true null:
+    measured, not proven (docs/research/sequential_stop.md)."""
+
+    def __init__(self, n_comparisons: int, model: EvidenceModel, alpha: float,
+                 null: str = "library") -> None:
         if n_comparisons < 1:
             raise InputError(f"EProcess needs >= 1 comparison, got {n_comparisons}")
         if not 0 < alpha < 1:
             raise InputError(f"stop_alpha must be in (0, 1), got {alpha}")
+        if null not in NULLS:
+            raise InputError(f"stop_null {null!r}: one of {', '.join(NULLS)}")
         self.model = model
         self.alpha = float(alpha)
+        self.null = null
         self.log_e = np.zeros(n_comparisons)      # log E_c
         self.observations = 0
+        self._seen: list[tuple[int, float]] = []  # every observation (comparison, z)
+        self._scene_lz: list[float] = []          # log z of touch pairs of two comparisons
+
+    def null_mean(self) -> float:
+        """The null's mean of log z in use (``mu_diff`` of the model, or the scene's)."""
+        m = self.model
+        if self.null == "scene" and len(self._scene_lz) >= SCENE_NULL_MIN_PAIRS:
+            return max(m.mu_same, min(m.mu_diff, float(np.mean(self._scene_lz))))
+        return m.mu_diff
+
+    def _recompute(self) -> None:
+        mu0 = self.null_mean()
+        m = self.model if mu0 == self.model.mu_diff else EvidenceModel(
+            self.model.mu_same, self.model.sd_same, mu0, self.model.sd_diff)
+        log_e = np.zeros(len(self.log_e))
+        for c, z in self._seen:
+            log_e[c] += m.log_ratio(z)
+        self.log_e = log_e
 
     @property
     def evalues(self) -> np.ndarray:
@@ -185,8 +225,10 @@ class EProcess:
         """One observation ``z`` concerning comparison ``comparison`` (0..C-1)."""
         if not 0 <= comparison < len(self.log_e):
             raise InputError(f"comparison {comparison} outside 0..{len(self.log_e) - 1}")
-        self.log_e[comparison] += self.model.log_ratio(z)
+        self.model.log_ratio(z)           # validates z
+        self._seen.append((comparison, float(z)))
         self.observations += 1
+        self._recompute()
 
     def add_touch(self, platform: int, x: np.ndarray, samples: list[list[np.ndarray]]) -> None:
         """A touch of ``platform`` (0 = reference, 1..C) with descriptor ``x``; ``samples``:
@@ -195,8 +237,17 @@ class EProcess:
             for c in range(1, len(samples)):
                 if samples[c]:
                     self.observe(c - 1, normalised_distance(x, samples[c]))
-        elif samples[0]:
+            return
+        x = np.asarray(x, float)
+        for q in range(1, len(samples)):       # the scene's own null: two comparisons
+            if q != platform:
+                self._scene_lz.extend(
+                    math.log(max(float(np.linalg.norm(x - y)) / math.sqrt(2.0), _Z_FLOOR))
+                    for y in samples[q])
+        if samples[0]:
             self.observe(platform - 1, normalised_distance(x, samples[0]))
+        elif self.null == "scene":
+            self._recompute()
 
     def sure(self) -> int | None:
         """The comparison (0..C-1) whose e-value reached 1 / alpha, else None; None too while
@@ -207,7 +258,8 @@ class EProcess:
     def state(self) -> dict:
         """What the record and the operator see: the bound and the e-values."""
         return {"rule": "evalue", "alpha": self.alpha, "threshold": 1.0 / self.alpha,
-                "evalues": self.evalues.tolist(), "observations": self.observations}
+                "evalues": self.evalues.tolist(), "observations": self.observations,
+                "null": self.null, "null_mean_log_z": self.null_mean()}
 
 
 #: The shipped evidence model: fitted by ``tactex experiment evidence-sim`` on the simulator's

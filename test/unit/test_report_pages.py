@@ -221,7 +221,7 @@ def test_the_session_context_says_which_trials_ran_otherwise(tmp_path: Path) -> 
     assert ctx["tactex"] == ("9.9.9 · commit abc123def456 (trials 1, 3, 4)"
                              "9.9.9 · commit fedcba987654 (trial 2)")
     assert ctx["stop threshold"] == "belief ≥ 0.9"          # trials 1, 3 and 4
-    assert ctx["stop rule"] == "e-value: P(ever stopping wrong) ≤ alpha = 0.03"
+    assert ctx["stop rule"] == "e-value: P(ever stopping wrong) ≤ alpha = 0.03, null: library (the evidence model's)"
     empty = tmp_path / "e"
     d2 = session_folder(empty)
     for k in (1, 2, 3, 4):

@@ -154,8 +154,11 @@ def stop_cell(trial: dict) -> tuple[str, str]:
     """(label, HTML) of a record's stop: the threshold on the belief, or the e-value rule
     with its bound on ever stopping wrong; ``trial``: config.json's ``trial`` section."""
     if trial.get("stop_rule") == "evalue":
+        null = trial.get("stop_null", "library")
         return ("stop rule", f"e-value: P(ever stopping wrong) &le; alpha = "
-                             f"{esc(trial.get('stop_alpha'))}")
+                             f"{esc(trial.get('stop_alpha'))}, null: {esc(null)}"
+                             + (" (the model's and the scene's own comparisons, the closer)"
+                                if null == "scene" else " (the evidence model's)"))
     return "stop threshold", f"belief &ge; {esc(trial.get('stop_confidence'))}"
 
 

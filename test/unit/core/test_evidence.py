@@ -193,10 +193,59 @@ def test_two_evalues_above_the_bound_are_not_sure():
     assert e.sure() == 0
 
 
+def test_scene_null_hand_computed():
+    """null 'scene': the comparisons' own pairs move the null's mean closer (never past
+    mu_same), and every e-value is recomputed with it; 'library' keeps the model's."""
+    procs = {n: EProcess(3, UNIT, alpha=0.2, null=n) for n in ("library", "scene")}
+    samples: list[list[np.ndarray]] = [[], [], [], []]
+
+    def touch(p: int, x: list[float]) -> None:
+        v = np.asarray(x, float)
+        for e in procs.values():
+            e.add_touch(p, v, [list(s) for s in samples])
+        samples[p].append(v)
+
+    touch(0, [0.0, 0.0])
+    touch(1, [1.0, 0.0])              # z = 1/sqrt2 against the reference: log ratio 0.5 + log 2 / 2
+    touch(2, [1.0, 0.0])              # pair c1-c2: distance 0 (floored)
+    touch(3, [0.0, 1.0])              # pairs c3-c1, c3-c2: distance sqrt2, z = 1, log z 0
+    lib, scene = procs["library"], procs["scene"]
+    assert lib.null_mean() == 1.0 and lib.state()["null"] == "library"
+    # three pairs: log z = log 1e-12, 0, 0 -> mean far below mu_same 0: clipped to 0
+    assert scene.null_mean() == 0.0
+    # mu_diff = mu_same: every ratio is 1, no evidence at all
+    assert scene.evalues.tolist() == [1.0, 1.0, 1.0]
+    assert lib.evalues[0] == pytest.approx(math.sqrt(2.0) * math.exp(0.5), rel=1e-12)
+    st = scene.state()
+    assert st["null"] == "scene" and st["null_mean_log_z"] == 0.0
+
+
+def test_scene_null_waits_for_three_pairs_and_never_exceeds_the_model():
+    e = EProcess(3, UNIT, alpha=0.2, null="scene")
+    far = EvidenceModel(mu_same=0.0, sd_same=1.0, mu_diff=0.5, sd_diff=1.0)
+    f = EProcess(3, far, alpha=0.2, null="scene")
+    samples: list[list[np.ndarray]] = [[], [], [], []]
+    for p, x in ((1, [0.0, 0.0]), (2, [0.0, 2.0 * math.e])):   # one pair
+        v = np.asarray(x, float)
+        e.add_touch(p, v, [list(s) for s in samples])
+        f.add_touch(p, v, [list(s) for s in samples])
+        samples[p].append(v)
+    assert e.null_mean() == 1.0           # fewer than SCENE_NULL_MIN_PAIRS: the model's
+    v = np.asarray([2.0 * math.e, 0.0])
+    e.add_touch(3, v, [list(s) for s in samples])
+    f.add_touch(3, v, [list(s) for s in samples])
+    # three pairs, z = ||a - b|| / sqrt2: log z = 1 + log(2) / 2 (c1-c2, c1-c3), 1 + log 2
+    # (c2-c3): their mean is above both models' mu_diff
+    assert e.null_mean() == 1.0 and f.null_mean() == 0.5   # the model's, the closer one
+    with pytest.raises(InputError, match="stop_null"):
+        EProcess(3, UNIT, alpha=0.2, null="pooled")
+
+
 @pytest.mark.parametrize("setting, named", [
     ("trial.stop_rule=bayes", "'threshold' or 'evalue'"),
     ("trial.stop_alpha=0.7", "stop_alpha"),
     ("trial.stop_alpha=0", "stop_alpha"),
+    ("trial.stop_null=pooled", "'library' or 'scene'"),
 ])
 def test_cli_refuses_bad_stop_settings(setting: str, named: str, capsys, tmp_path) -> None:
     from tactex_ros.cli.main import main
