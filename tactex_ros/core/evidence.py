@@ -238,16 +238,17 @@ class EProcess:
                 if samples[c]:
                     self.observe(c - 1, normalised_distance(x, samples[c]))
             return
-        x = np.asarray(x, float)
-        for q in range(1, len(samples)):       # the scene's own null: two comparisons
-            if q != platform:
-                self._scene_lz.extend(
-                    math.log(max(float(np.linalg.norm(x - y)) / math.sqrt(2.0), _Z_FLOOR))
-                    for y in samples[q])
+        if self.null == "scene":               # the scene's own null: two comparisons
+            x = np.asarray(x, float)
+            for q in range(1, len(samples)):
+                if q != platform:
+                    self._scene_lz.extend(
+                        math.log(max(float(np.linalg.norm(x - y)) / math.sqrt(2.0), _Z_FLOOR))
+                        for y in samples[q])
+            if not samples[0]:
+                self._recompute()
         if samples[0]:
             self.observe(platform - 1, normalised_distance(x, samples[0]))
-        elif self.null == "scene":
-            self._recompute()
 
     def sure(self) -> int | None:
         """The comparison (0..C-1) whose e-value reached 1 / alpha, else None; None too while
